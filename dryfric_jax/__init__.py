@@ -1,0 +1,25 @@
+"""dryfric_jax: diffusivity and mobility of a particle under dry friction and colored noise.
+
+Importing the package enables float64 in JAX (``jax_enable_x64``): the statistics are always
+accumulated in float64; the simulation dtype is chosen per call (``dtype="float32"``).
+"""
+import jax
+
+jax.config.update("jax_enable_x64", True)
+
+from . import theory  # noqa: E402
+from .api import (  # noqa: E402
+    BruteForceResult, DryfricWarning, EstimateResult, bruteforce_diffusivity, default_h,
+    estimate_diffusivity,
+)
+from .di import DIModel, make_di_model  # noqa: E402
+from .estimators import MIN_RELIABLE_N, delta_method, psi_D, psi_M  # noqa: E402
+from .ou import OUStep, ou_moments, ou_step  # noqa: E402
+from .params import FIG3, Params  # noqa: E402
+
+__all__ = [
+    "Params", "FIG3", "OUStep", "ou_step", "ou_moments", "DIModel", "make_di_model",
+    "estimate_diffusivity", "bruteforce_diffusivity", "EstimateResult", "BruteForceResult",
+    "DryfricWarning", "default_h", "delta_method", "psi_D", "psi_M", "MIN_RELIABLE_N", "theory",
+]
+__version__ = "0.1.0"

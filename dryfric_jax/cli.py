@@ -1,0 +1,166 @@
+"""Command line: ``dryfric estimate | bruteforce | theory``.
+
+User mistakes end with exit code 2 and one line on stderr naming the parameter and its valid
+range; no traceback.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import warnings
+
+from .params import FIG3, Params
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # one line, exit 2 (argparse prints the usage block otherwise)
+        if message.startswith("argument ") and ": --" in message:
+            message = message.split(": ", 1)[1]  # our converters already name the option
+        raise _UserError(message)
+
+
+class _UserError(Exception):
+    pass
+
+
+def _number(name):
+    def conv(s):
+        try:
+            v = float(s)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"--{name} must be a number (got {s!r})") from None
+        return v
+    conv.__name__ = name
+    return conv
+
+
+def _tau_L(s):
+    if s.strip().lower() in ("inf", "infinity", "+inf"):
+        return math.inf
+    try:
+        return float(s)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--tau-L must be a number > 0 or 'inf' (got {s!r})") from None
+
+
+def _int_at_least(name, lo):
+    def conv(s):
+        try:
+            v = int(s)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"--{name} must be an integer >= {lo} (got {s!r})") from None
+        if v < lo:
+            raise argparse.ArgumentTypeError(f"--{name} must be an integer >= {lo} (got {s!r})")
+        return v
+    return conv
+
+
+def _model_options() -> argparse.ArgumentParser:
+    m = argparse.ArgumentParser(add_help=False)
+    g = m.add_argument_group("model (defaults: the paper's Fig. 3 point, SI units)")
+    g.add_argument("--Gamma", type=_number("Gamma"), help=f"noise strength, m^2 s^-3 ({FIG3['Gamma']})")
+    g.add_argument("--Delta", type=_number("Delta"), help=f"dry friction, m s^-2 ({FIG3['Delta']})")
+    g.add_argument("--tau", type=_number("tau"), help=f"noise correlation time, s ({FIG3['tau']})")
+    g.add_argument("--tau-L", type=_tau_L, help=f"viscous time, s, a number or 'inf' ({FIG3['tau_L']})")
+    g.add_argument("--gamma-bar", type=_number("gamma-bar"), help=f"bias force, m s^-2 ({FIG3['gamma_bar']})")
+    g.add_argument("--nondim", action="store_true",
+                   help="read --tau, --tau-L, --gamma-bar in tau0, u0 units; Gamma and Delta then "
+                        "default to 1 and the others to the Fig. 3 point's nondimensional values")
+    g.add_argument("--json", action="store_true", help="print one JSON object")
+    return m
+
+
+def _params(a) -> Params:
+    pick = lambda given, default: default if given is None else given
+    if a.nondim:
+        fig = Params(**FIG3).nondim()
+        return Params.from_nondim(pick(a.tau, fig.tau), pick(a.tau_L, fig.tau_L), pick(a.gamma_bar, fig.gamma_bar),
+                                  Gamma=pick(a.Gamma, 1.0), Delta=pick(a.Delta, 1.0))
+    return Params(Gamma=pick(a.Gamma, FIG3["Gamma"]), Delta=pick(a.Delta, FIG3["Delta"]), tau=pick(a.tau, FIG3["tau"]),
+                  tau_L=pick(a.tau_L, FIG3["tau_L"]), gamma_bar=pick(a.gamma_bar, FIG3["gamma_bar"]))
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = _Parser(prog="dryfric", description="Dry friction under colored noise: diffusivity D and mobility M0.")
+    sub = p.add_subparsers(dest="cmd", required=True, parser_class=_Parser)
+    model = _model_options()
+    sim = argparse.ArgumentParser(add_help=False)
+    sim.add_argument("--method", default="di", help="simulation method: di")
+    sim.add_argument("--h", type=_number("h"), default=None, help="DI step, s (default 0.01*min(tau0, tau_L))")
+    sim.add_argument("--seed", type=_int_at_least("seed", 0), default=0)
+    sim.add_argument("--dtype", default="float64", help="float64 or float32")
+
+    e = sub.add_parser("estimate", parents=[model, sim], help="long-excursion estimate of D and M0")
+    e.add_argument("--n-excursions", type=_int_at_least("n-excursions", 2), default=20_000)
+    b = sub.add_parser("bruteforce", parents=[model, sim], help="fixed-horizon (brute force) D^t")
+    b.add_argument("--t", type=_number("t"), required=True, help="horizon, s")
+    b.add_argument("--n-paths", type=_int_at_least("n-paths", 2), required=True)
+    b.add_argument("--burn-in", type=_number("burn-in"), default=0.0, help="uncounted warm-up, s")
+    sub.add_parser("theory", parents=[model], help="exact white-noise D and M0")
+    return p
+
+
+def _fmt(x, ci):
+    return f"{x:.6g} ± {ci:.2g}  ({100 * ci / abs(x):.1f}%)" if x else f"{x:.6g} ± {ci:.2g}"
+
+
+def _run(a) -> int:
+    from . import api, theory
+
+    params = _params(a)
+    if a.cmd == "theory":
+        out = dict(D=theory.exact_D(params), M0=theory.exact_M0(params), params=params.as_dict(),
+                   convention="model (Gamma_w = 2 Gamma)")
+        if a.json:
+            print(json.dumps(out))
+        else:
+            print(f"white-noise D  = {out['D']:.6g} m^2/s\nwhite-noise M0 = {out['M0']:.6g} m/s")
+        return 0
+    if a.cmd == "estimate":
+        api._check_method(a.method)
+        api._dtype(a.dtype)
+        api.check_h(params, a.h)
+        with warnings.catch_warnings(record=True):
+            warnings.simplefilter("always", api.DryfricWarning)
+            r = api.estimate_diffusivity(params, a.seed, method=a.method, h=a.h, n_excursions=a.n_excursions,
+                                         dtype=a.dtype)
+        for w in r.warnings:
+            print(f"dryfric: warning: {w}", file=sys.stderr)
+        if a.json:
+            print(json.dumps(r.to_dict()))
+        else:
+            print(f"D  = {_fmt(r.D, r.D_ci)} m^2/s   (95% CI)\nM0 = {_fmt(r.M0, r.M0_ci)} m/s\n"
+                  f"mean excursion duration = {r.mean_duration:.4g} s\n"
+                  f"N = {r.n_excursions} excursions, {r.n_truncated} truncated, h = {r.h:.3g} s, {r.dtype}, "
+                  f"seed {r.seed}\nwall {r.wall_s:.1f} s, {r.lane_steps_per_s:.3g} lane-steps/s")
+        return 0
+    if a.cmd == "bruteforce":
+        api._check_method(a.method)
+        r = api.bruteforce_diffusivity(params, a.seed, t=a.t, n_paths=a.n_paths, method=a.method, h=a.h,
+                                       burn_in=a.burn_in, dtype=a.dtype)
+        if a.json:
+            print(json.dumps(r.to_dict()))
+        else:
+            print(f"D_t  = {_fmt(r.D_t, r.D_t_ci)} m^2/s   (t = {r.t:.4g} s, 95% CI)\n"
+                  f"M0_t = {_fmt(r.M0_t, r.M0_t_ci)} m/s\nN' = {r.n_paths} paths, h = {r.h:.3g} s, "
+                  f"wall {r.wall_s:.1f} s")
+        return 0
+    raise _UserError(f"unknown command {a.cmd!r}")
+
+
+def main(argv=None) -> int:
+    try:
+        a = build_parser().parse_args(argv)
+        return _run(a)
+    except (_UserError, ValueError) as exc:
+        print(f"dryfric: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("dryfric: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

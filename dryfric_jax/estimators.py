@@ -1,0 +1,163 @@
+r"""Where the CI comes from: ratio estimators and their delta-method confidence intervals.
+
+Long excursions (paper section 4.1 and appendix D, corrected).  The excursions are i.i.d.
+regeneration cycles with displacement U and duration t.  The regenerative central limit
+theorem (e.g. Asmussen, *Applied Probability and Queues*, VI.3) gives
+
+.. math::
+    M_0 = \frac{E[U]}{E[t]}, \qquad D = \frac{E[(U - M_0 t)^2]}{E[t]} .
+
+**Erratum.** The paper's eq. (defD), :math:`D = \mathrm{Var}(U)/E[t]`, is right only when
+:math:`M_0 = 0`: its proof counts a deterministic :math:`\lfloor t/E[t_1]\rfloor` cycles and drops
+the fluctuation of the number of cycles, which carries :math:`M_0 t`.  The two differ by
+:math:`(M_0^2\mathrm{Var}(t) - 2M_0\mathrm{Cov}(U, t))/E[t]` (+40% at :math:`b = 0.3\Delta`, white
+noise; negligible at the Fig. 3 point, where :math:`M_0` is small).  :func:`psi_D_paper` keeps the
+printed form for comparison.
+
+With :math:`\boldsymbol X = (U, U^2, t, Ut, t^2)` and :math:`\hat{\boldsymbol S}_N` its sample mean,
+
+.. math::
+    \hat D_N = \Psi_D(\hat{\boldsymbol S}_N), \quad
+    \Psi_D(\boldsymbol x) = \frac{x_2 - 2 x_1 x_4/x_3 + x_1^2 x_5/x_3^2}{x_3}, \qquad
+    \hat M_0 = \Psi_M(\hat{\boldsymbol S}_N), \quad \Psi_M(\boldsymbol x) = \frac{x_1}{x_3},
+
+and :math:`\sqrt N(\Psi(\hat{\boldsymbol S}_N) - \Psi(\boldsymbol S)) \to \mathcal N(0, \sigma^2)` with
+:math:`\sigma^2 = \nabla\Psi^T \mathbf C \nabla\Psi` (delta method).  :math:`\nabla\Psi` comes from
+``jax.grad``; :math:`\hat{\mathbf C}_N` from the sufficient statistics (all products of two
+entries of :math:`\boldsymbol X`).  The CI is :math:`\hat D_N \pm q_{1-\alpha/2}\hat\sigma_N/\sqrt N`.
+
+Brute force (section 4.2): :math:`\hat D^t_{N'} = \Phi(\hat{\boldsymbol R})` with
+:math:`\boldsymbol Y = (U(t)/\sqrt t, U(t)^2/t)` and :math:`\Phi(\boldsymbol y) = y_2 - y_1^2`.
+
+The delta-method CI under-covers for small N because U per excursion is heavy-tailed
+(MODEL_NOTES section 4); :data:`MIN_RELIABLE_N` is the measured threshold below which callers warn.
+"""
+from __future__ import annotations
+
+from statistics import NormalDist
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+#: Below this many excursions the 95% delta-method CI for D is not trusted (measured coverage
+#: well under 0.95; see README "Confidence intervals" and scripts/coverage.py).
+MIN_RELIABLE_N = 10_000
+
+
+def psi_D(x):
+    r""":math:`\Psi_D(x) = (x_2 - 2x_1x_4/x_3 + x_1^2x_5/x_3^2)/x_3` for :math:`x = E(U, U^2, t, Ut, t^2)`."""
+    m = x[0] / x[2]
+    return (x[1] - 2 * m * x[3] + m * m * x[4]) / x[2]
+
+
+def psi_D_paper(x):
+    r"""The paper's printed :math:`(x_2 - x_1^2)/x_3`: biased unless :math:`M_0 = 0` (module docstring)."""
+    return (x[1] - x[0] ** 2) / x[2]
+
+
+def psi_M(x):
+    r""":math:`\Psi_M(x) = x_1/x_3`."""
+    return x[0] / x[2]
+
+
+def grad_psi_D_by_hand(x):
+    """Hand-written gradient of :func:`psi_D` (checked against ``jax.grad`` in the tests)."""
+    x1, x2, x3, x4, x5 = np.asarray(x, np.float64)
+    m = x1 / x3
+    num = x2 - 2 * m * x4 + m * m * x5
+    dm1, dm3 = 1 / x3, -x1 / x3**2  # dm/dx1, dm/dx3
+    dnum_dm = -2 * x4 + 2 * m * x5
+    return np.array([dnum_dm * dm1 / x3, 1 / x3, dnum_dm * dm3 / x3 - num / x3**2, -2 * m / x3, m * m / x3])
+
+
+def phi_bf(y):
+    r""":math:`\Phi(y) = y_2 - y_1^2` (brute force, :math:`y = (U/\sqrt t, U^2/t)`)."""
+    return y[1] - y[0] ** 2
+
+
+def z_quantile(level: float) -> float:
+    """:math:`q_{1-\\alpha/2}` of the standard normal for a two-sided ``level`` = 1 - alpha."""
+    return NormalDist().inv_cdf(0.5 + level / 2)
+
+
+def delta_method(psi, mean, cov, n: int, level: float = 0.95):
+    r"""Estimate :math:`\Psi(\hat S)` and the half-width of its asymptotic ``level`` CI.
+
+    Args:
+        psi: a scalar function of the mean vector (differentiated with ``jax.grad``).
+        mean: sample mean :math:`\hat S_N`.
+        cov: sample covariance :math:`\hat C_N` (divisor N, as in appendix D).
+        n: sample size N.
+
+    Returns:
+        ``(estimate, half_width, sigma)`` with :math:`\hat\sigma_N^2 = \nabla\Psi^T \hat C_N \nabla\Psi`.
+    """
+    mean = jnp.asarray(mean, jnp.float64)
+    g = jax.grad(psi)(mean)
+    var = jnp.maximum(g @ jnp.asarray(cov, jnp.float64) @ g, 0.0)
+    sigma = float(jnp.sqrt(var))
+    return float(psi(mean)), z_quantile(level) * sigma / np.sqrt(n), sigma
+
+
+#: names of the sums E[X_i X_j] for X = (U, U^2, t, Ut, t^2)
+_PRODUCTS = (("U2", "U3", "Ut", "U2t", "Ut2"),
+             ("U3", "U4", "U2t", "U3t", "U2t2"),
+             ("Ut", "U2t", "t2", "Ut2", "t3"),
+             ("U2t", "U3t", "Ut2", "U2t2", "Ut3"),
+             ("Ut2", "U2t2", "t3", "Ut3", "t4"))
+
+
+def moments_from_sums(T: dict):
+    """Mean and covariance (divisor N) of X = (U, U^2, t, Ut, t^2) from the sums ``T``."""
+    n = T["n"]
+    S = np.array([T["U"], T["U2"], T["t"], T["Ut"], T["t2"]]) / n
+    E2 = np.array([[T[k] for k in row] for row in _PRODUCTS]) / n
+    return S, E2 - np.outer(S, S)
+
+
+def sums_from_samples(U, t, t_half=None) -> dict:
+    """The sufficient statistics of per-excursion samples (tests, and any external sampler)."""
+    U, t = np.asarray(U, np.float64), np.asarray(t, np.float64)
+    th = np.zeros_like(t) if t_half is None else np.asarray(t_half, np.float64)
+    return dict(n=float(U.size), U=U.sum(), U2=(U**2).sum(), U3=(U**3).sum(), U4=(U**4).sum(), t=t.sum(),
+                t2=(t**2).sum(), t3=(t**3).sum(), t4=(t**4).sum(), Ut=(U * t).sum(), U2t=(U**2 * t).sum(),
+                U3t=(U**3 * t).sum(), Ut2=(U * t**2).sum(), U2t2=(U**2 * t**2).sum(), Ut3=(U * t**3).sum(),
+                t_half=th.sum())
+
+
+def long_excursion_estimates(T: dict, level: float = 0.95) -> dict:
+    """D, M0 (and mean durations) with CIs from the sums ``T`` of :class:`ExcursionStats`.
+
+    Units are those of the sums (nondimensional in the engine).
+    """
+    n = int(round(T["n"]))
+    if n < 2:
+        raise ValueError(f"need at least 2 complete excursions for a CI (got {n})")
+    S, C = moments_from_sums(T)
+    D, D_ci, _ = delta_method(psi_D, S, C, n, level)
+    M0, M0_ci, _ = delta_method(psi_M, S, C, n, level)
+    z = z_quantile(level)
+    return dict(D=D, D_ci=D_ci, M0=M0, M0_ci=M0_ci, mean_duration=S[2],
+                mean_duration_ci=z * np.sqrt(max(C[2, 2], 0.0) / n),
+                mean_half_duration=T["t_half"] / n, n_excursions=n)
+
+
+def bruteforce_estimates(U, t: float, level: float = 0.95) -> dict:
+    r"""Brute-force :math:`D^t` and :math:`M_0^t = \overline{U(t)}/t` with delta-method CIs.
+
+    Args:
+        U: displacements :math:`U^{(k)}(t)` of N' independent paths.
+        t: the horizon.
+    """
+    U = np.asarray(U, np.float64)
+    n = U.size
+    if n < 2:
+        raise ValueError(f"n_paths must be >= 2 (got {n})")
+    Y = np.stack([U / np.sqrt(t), U**2 / t])
+    R = Y.mean(1)
+    G = np.cov(Y, bias=True)
+    D, D_ci, _ = delta_method(phi_bf, R, G, n, level)
+    z = z_quantile(level)
+    return dict(D_t=D, D_t_ci=D_ci, M0_t=float(U.mean() / t), M0_t_ci=z * float(U.std() / t / np.sqrt(n)),
+                n_paths=n, t=t)

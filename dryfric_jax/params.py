@@ -1,0 +1,146 @@
+r"""Model parameters, reference units and the nondimensional system (paper section 2).
+
+The model (MODEL_NOTES section 1) is
+
+.. math::
+    \dot V + \partial\varphi(V) \ni b(V) + \sqrt{\Gamma} X, \qquad
+    \varphi(v) = \Delta |v|, \qquad b(v) = -v/\tau_L + \bar\gamma, \qquad
+    \tau\, dX = -X\,dt + \sqrt{2}\, dW .
+
+Reference units: :math:`\tau_0 = \Gamma/\Delta^2` (s) and :math:`u_0 = \Gamma^2/\Delta^3` (m).
+In these units :math:`\Gamma = \Delta = 1` and the model keeps three numbers,
+:math:`\tau' = \tau/\tau_0`, :math:`\tau_L' = \tau_L/\tau_0`, :math:`\bar\gamma' = \bar\gamma/\Delta`.
+"""
+from __future__ import annotations
+
+import math
+
+import equinox as eqx
+import numpy as np
+
+
+def _concrete(x):
+    """Return a Python float if ``x`` is concrete, else None (traced under jit/vmap)."""
+    try:
+        return float(np.asarray(x))
+    except Exception:  # a tracer: validation happens on the concrete call
+        return None
+
+
+def check_positive(name: str, value, *, allow_inf: bool = False) -> None:
+    """Raise ``ValueError`` naming ``name`` unless ``value`` is a number > 0 (finite unless allowed)."""
+    v = _concrete(value)
+    if v is None:
+        return
+    ok = v > 0 and (math.isfinite(v) or (allow_inf and v == math.inf))
+    if not ok:
+        rng = "> 0 or inf" if allow_inf else "finite and > 0"
+        raise ValueError(f"{name} must be {rng} (got {value!r})")
+
+
+def check_finite(name: str, value) -> None:
+    v = _concrete(value)
+    if v is not None and not math.isfinite(v):
+        raise ValueError(f"{name} must be a finite number (got {value!r})")
+
+
+class Params(eqx.Module):
+    r"""Physical parameters of the dry-friction model, SI units.
+
+    Args:
+        Gamma: noise strength :math:`\Gamma` (m^2 s^-3), finite and > 0.
+        Delta: dry-friction level :math:`\Delta` (m s^-2), finite and > 0.
+        tau: noise correlation time :math:`\tau` (s), finite and > 0.
+        tau_L: viscous relaxation time :math:`\tau_L` (s), > 0 or ``inf`` (no viscous term).
+        gamma_bar: constant bias force :math:`\bar\gamma` (m s^-2), finite.
+
+    The drift is :math:`b(v) = -v/\tau_L + \bar\gamma`; ``tau_L = inf`` is a proper case.
+    """
+
+    Gamma: float
+    Delta: float
+    tau: float
+    tau_L: float = math.inf
+    gamma_bar: float = 0.0
+
+    def __check_init__(self):
+        check_positive("Gamma", self.Gamma)
+        check_positive("Delta", self.Delta)
+        check_positive("tau", self.tau)
+        check_positive("tau_L", self.tau_L, allow_inf=True)
+        check_finite("gamma_bar", self.gamma_bar)
+
+    # ---- reference units (section 2) ------------------------------------------------------
+    @property
+    def tau0(self):
+        r"""Reference time :math:`\tau_0 = \Gamma/\Delta^2` (s)."""
+        return self.Gamma / self.Delta**2
+
+    @property
+    def u0(self):
+        r"""Reference length :math:`u_0 = \Gamma^2/\Delta^3` (m)."""
+        return self.Gamma**2 / self.Delta**3
+
+    @property
+    def v0(self):
+        r"""Reference velocity :math:`u_0/\tau_0 = \Gamma/\Delta` (m/s); also the unit of M0."""
+        return self.Gamma / self.Delta
+
+    @property
+    def D0(self):
+        r"""Reference diffusivity :math:`u_0^2/\tau_0 = \Gamma^3/\Delta^4` (m^2/s)."""
+        return self.Gamma**3 / self.Delta**4
+
+    # ---- nondimensional numbers -----------------------------------------------------------
+    @property
+    def tau_nd(self):
+        r""":math:`\tau' = \tau/\tau_0`."""
+        return self.tau / self.tau0
+
+    @property
+    def tau_L_nd(self):
+        r""":math:`\tau_L' = \tau_L/\tau_0` (``inf`` stays ``inf``)."""
+        return self.tau_L / self.tau0
+
+    @property
+    def gamma_bar_nd(self):
+        r""":math:`\bar\gamma' = \bar\gamma/\Delta`."""
+        return self.gamma_bar / self.Delta
+
+    @property
+    def inv_tau_L(self):
+        r""":math:`1/\tau_L`, exactly 0 for ``tau_L = inf``."""
+        return 1.0 / self.tau_L
+
+    def nondim(self) -> "Params":
+        """The same model in (tau0, u0) units: a ``Params`` with Gamma = Delta = 1."""
+        return Params(Gamma=1.0, Delta=1.0, tau=self.tau_nd, tau_L=self.tau_L_nd,
+                      gamma_bar=self.gamma_bar_nd)
+
+    @classmethod
+    def from_nondim(cls, tau, tau_L=math.inf, gamma_bar=0.0, *, Gamma=1.0, Delta=1.0) -> "Params":
+        r"""Build physical parameters from :math:`(\tau', \tau_L', \bar\gamma')` and a choice of
+        :math:`\Gamma, \Delta` (default 1, i.e. the nondimensional model itself)."""
+        check_positive("Gamma", Gamma)
+        check_positive("Delta", Delta)
+        tau0 = Gamma / Delta**2
+        return cls(Gamma=Gamma, Delta=Delta, tau=tau * tau0, tau_L=tau_L * tau0,
+                   gamma_bar=gamma_bar * Delta)
+
+    def as_dict(self) -> dict:
+        return {k: float(getattr(self, k)) for k in ("Gamma", "Delta", "tau", "tau_L", "gamma_bar")}
+
+    # ---- thresholds (section 6.1) ---------------------------------------------------------
+    @property
+    def x_thresholds(self):
+        r"""Noise thresholds :math:`x_{\pm\Delta} = (-b(0) \pm \Delta)/\sqrt{\Gamma}`.
+
+        A stuck particle (V = 0) starts to move up when :math:`X` rises above :math:`x_{\Delta}`
+        and down when it falls below :math:`x_{-\Delta}`.
+        """
+        s = math.sqrt(self.Gamma)
+        return (-self.gamma_bar + self.Delta) / s, (-self.gamma_bar - self.Delta) / s
+
+
+#: The paper's Fig. 3 point (SI units): also the CLI defaults.
+FIG3 = dict(Gamma=5.0, Delta=3.84, tau=0.5, tau_L=0.067, gamma_bar=0.342)

@@ -1,0 +1,243 @@
+r"""Exact white-noise results, in the convention of *this* model (MODEL_NOTES section 2).
+
+As :math:`\tau \to 0`, :math:`\sqrt\Gamma X \to \sqrt{2\Gamma}\,\xi`: the limit is
+:math:`dV = (b(V) - \Delta\,\mathrm{sgn}\,V)\,dt + \sqrt{2\Gamma}\,dW` (Fokker-Planck diffusion
+coefficient :math:`\Gamma`).  Literature formulas written for noise :math:`\sqrt{\Gamma_w}\xi` apply
+with :math:`\Gamma_w = 2\Gamma`.  The paper prints several of them in the :math:`\Gamma_w = \Gamma`
+form (its stationary density, its Hayakawa formula and Table 1): those are the values of this
+model with :math:`\Gamma` halved, not of the model as written.
+
+Everything is computed in nondimensional units (:math:`\Gamma = \Delta = 1`) and scaled back:
+:math:`D = D'\,\Gamma^3/\Delta^4`, :math:`M_0 = M_0'\,\Gamma/\Delta`.
+"""
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+from scipy import integrate, special
+
+from .params import Params
+
+
+# ---------------------------------------------------------------------------------------------
+# stationary density and exact D, M0 for b(v) = -v/tau_L + gamma_bar
+# ---------------------------------------------------------------------------------------------
+def _nd(params: Params):
+    nd = params.nondim()
+    itl = 0.0 if math.isinf(nd.tau_L) else 1.0 / nd.tau_L
+    g = nd.gamma_bar
+    if itl == 0.0 and abs(g) >= 1.0:
+        raise ValueError(
+            f"gamma_bar must satisfy |gamma_bar| < Delta when tau_L = inf (got gamma_bar/Delta = {g}): "
+            "there is no stationary state")
+    return itl, g
+
+
+def _log_p_unnorm(v, itl, g):
+    r""":math:`\psi(v) = -v^2/(2\tau_L') - |v| + \bar\gamma' v` (nondimensional)."""
+    v = np.asarray(v, np.float64)
+    return -0.5 * itl * v * v - np.abs(v) + g * v
+
+
+def _half_line_mass(beta, itl):
+    r""":math:`\int_0^\infty e^{-\mathrm{itl}\,v^2/2 - \beta v} dv`, stable (erfcx, no overflow)."""
+    if itl == 0.0:
+        return 1.0 / beta
+    s = math.sqrt(itl)
+    return math.sqrt(math.pi / 2) / s * special.erfcx(beta / (s * math.sqrt(2)))
+
+
+def _log_norm(itl, g):
+    return math.log(_half_line_mass(1.0 - g, itl) + _half_line_mass(1.0 + g, itl))
+
+
+def stationary_density(v, params: Params):
+    r"""Exact white-noise stationary velocity density (physical units).
+
+    .. math::
+        p(v) \propto \exp\!\Big(-\frac{v^2}{2\Gamma\tau_L} - \frac{\Delta|v|}{\Gamma}
+        + \frac{\bar\gamma v}{\Gamma}\Big)
+
+    (MODEL_NOTES section 2; the paper prints the :math:`\Gamma_w = \Gamma` form without the 2s).
+    """
+    itl, g = _nd(params)
+    vn = np.asarray(v, np.float64) / params.v0
+    return np.exp(_log_p_unnorm(vn, itl, g) - _log_norm(itl, g)) / params.v0
+
+
+def _scale(itl, g):
+    """Width of p in nondimensional velocity: quadratures run in v/scale so that no piece of
+    mass is missed however narrow (tau_L' -> 0) or wide (|gamma_bar'| -> 1) p is."""
+    return 1.0 / max(math.sqrt(itl), min(abs(1.0 - g), abs(1.0 + g)))
+
+
+def _quad(f, a, b, s, epsrel):
+    """∫_a^b f(v) dv computed as s ∫ f(s w) dw."""
+    if a >= b:
+        return 0.0
+    return s * integrate.quad(lambda w: f(s * w), a / s, b / s, epsabs=0, epsrel=epsrel, limit=200)[0]
+
+
+def _pieces(*points):
+    brk = sorted(set(points))
+    return [(-np.inf, brk[0])] + list(zip(brk[:-1], brk[1:])) + [(brk[-1], np.inf)]
+
+
+def _mean_velocity_nd(itl, g):
+    logZ = _log_norm(itl, g)
+    s = _scale(itl, g)
+    f = lambda v: v * math.exp(_log_p_unnorm(v, itl, g) - logZ)
+    return sum(_quad(f, a, b, s, 1e-13) for a, b in _pieces(0.0))
+
+
+def _G(v, m, itl, g, s):
+    r""":math:`G(v) = F(v)/p(v)` taken from the nearer tail, so that :math:`F^2/p = p\,G^2` is stable."""
+    psi_v = float(_log_p_unnorm(v, itl, g))
+    f = lambda u: (u - m) * math.exp(float(_log_p_unnorm(u, itl, g)) - psi_v)
+    if v > m:
+        return -sum(_quad(f, max(a, v), b, s, 1e-12) for a, b in _pieces(0.0) if b > v)
+    return sum(_quad(f, a, min(b, v), s, 1e-12) for a, b in _pieces(0.0) if a < v)
+
+
+def exact_M0(params: Params) -> float:
+    r"""White-noise mobility :math:`M_0 = \int v\,p(v)\,dv` (physical units)."""
+    itl, g = _nd(params)
+    return _mean_velocity_nd(itl, g) * params.v0
+
+
+def exact_D(params: Params) -> float:
+    r"""White-noise diffusivity by quadrature, any :math:`b(v) = -v/\tau_L + \bar\gamma`.
+
+    .. math::
+        D = \frac2\Gamma \int \frac{F(v)^2}{p(v)}\,dv, \qquad
+        F(v) = \int_{-\infty}^{v} (u - m)\,p(u)\,du, \quad m = \int u\,p(u)\,du,
+
+    exact for a 1-D velocity diffusion with Fokker-Planck diffusion coefficient :math:`\Gamma`
+    (MODEL_NOTES section 2).  F is integrated from the nearer tail.
+    """
+    itl, g = _nd(params)
+    with warnings.catch_warnings():  # inner quads near the kink report harmless round-off
+        warnings.simplefilter("ignore", integrate.IntegrationWarning)
+        return _exact_D_nd(itl, g) * params.D0
+
+
+def _exact_D_nd(itl, g):
+    m = _mean_velocity_nd(itl, g)
+    logZ = _log_norm(itl, g)
+    s = _scale(itl, g)
+    integrand = lambda v: math.exp(float(_log_p_unnorm(v, itl, g)) - logZ) * _G(v, m, itl, g, s) ** 2
+    return 2.0 * sum(_quad(integrand, a, b, s, 1e-10) for a, b in _pieces(0.0, m))
+
+
+def D_pure_dry(Gamma, Delta) -> float:
+    r""":math:`b = 0`: :math:`D = 10\Gamma^3/\Delta^4` (:math:`= 5\Gamma_w^3/(4\Delta^4)`)."""
+    return 10.0 * Gamma**3 / Delta**4
+
+
+def D_constant_bias(Gamma, Delta, gamma_bar) -> float:
+    r""":math:`b = \bar\gamma`, :math:`|\bar\gamma| < \Delta`:
+    :math:`D = 2\Gamma^3(5\Delta^4 + 22\Delta^2\bar\gamma^2 + 5\bar\gamma^4)/(\Delta^2 - \bar\gamma^2)^4`."""
+    _check_bias(Delta, gamma_bar)
+    d2, g2 = Delta**2, gamma_bar**2
+    return 2 * Gamma**3 * (5 * d2 * d2 + 22 * d2 * g2 + 5 * g2 * g2) / (d2 - g2) ** 4
+
+
+def M0_constant_bias(Gamma, Delta, gamma_bar) -> float:
+    r""":math:`b = \bar\gamma`: :math:`M_0 = 2\Gamma\bar\gamma/(\Delta^2 - \bar\gamma^2)`."""
+    _check_bias(Delta, gamma_bar)
+    return 2 * Gamma * gamma_bar / (Delta**2 - gamma_bar**2)
+
+
+def D_viscous_only(Gamma, tau_L) -> float:
+    r"""Limit :math:`\Delta \to 0`: :math:`D = 2\tau_L^2\Gamma` (the paper's :math:`\tau_L^2\Gamma` is the
+    :math:`\Gamma_w = \Gamma` form)."""
+    return 2.0 * tau_L**2 * Gamma
+
+
+def _check_bias(Delta, gamma_bar):
+    if not abs(gamma_bar) < Delta:
+        raise ValueError(f"gamma_bar must satisfy |gamma_bar| < Delta (got {gamma_bar}, Delta = {Delta})")
+
+
+# ---------------------------------------------------------------------------------------------
+# Touchette (2010), pure dry friction, nondimensional: dv = -sgn(v) dt + sqrt(2) dW
+# ---------------------------------------------------------------------------------------------
+def _log_erfc(z):
+    """log erfc(z) without underflow: erfc(z) = 2 Phi(-z sqrt 2)."""
+    return math.log(2.0) + special.log_ndtr(-np.asarray(z, np.float64) * math.sqrt(2.0))
+
+
+def propagator(v, t, v0):
+    r"""Transient density :math:`p(v, t \mid v_0)` (nondimensional, Touchette eq. 2.10 with
+    :math:`\Gamma_w = 2`):
+
+    .. math::
+        \frac{e^{-t/4}}{2\sqrt{\pi t}} e^{-(|v|-|v_0|)/2} e^{-(v-v_0)^2/(4t)}
+        + \frac{e^{-|v|}}{4}\operatorname{erfc}\Big(\frac{|v|+|v_0|-t}{2\sqrt t}\Big).
+    """
+    v = np.asarray(v, np.float64)
+    a, av = abs(v0), np.abs(v)
+    st = math.sqrt(t)
+    g = np.exp(-t / 4 - (av - a) / 2 - (v - v0) ** 2 / (4 * t)) / (2 * math.sqrt(math.pi) * st)
+    return g + 0.25 * np.exp(-av + _log_erfc((av + a - t) / (2 * st)))
+
+
+def first_moment(t, v0):
+    r""":math:`\langle v(t)\rangle` from :math:`v_0` (Touchette eq. 2.11 with :math:`\Gamma_w = 2`), :math:`a = |v_0|`:
+
+    .. math::
+        \frac{\mathrm{sgn}(v_0)}2\Big[(a-t)\operatorname{erfc}\frac{t-a}{2\sqrt t}
+        + e^{a}(a+t)\operatorname{erfc}\frac{a+t}{2\sqrt t}\Big],
+
+    with :math:`e^{a}\operatorname{erfc}(\cdot)` evaluated in logs (it overflows otherwise).
+    """
+    t = np.asarray(t, np.float64)
+    a = abs(v0)
+    st = np.sqrt(t)
+    term1 = (a - t) * special.erfc((t - a) / (2 * st))
+    term2 = (a + t) * np.exp(a + _log_erfc((a + t) / (2 * st)))
+    return 0.5 * math.copysign(1.0, v0) * (term1 + term2)
+
+
+def _corr_asymptotic(t, n_terms=14):
+    # C(t) = e^{-t/4}/(6 sqrt(pi t)) * sum_k c_k t^-k, c_k = s_{k+3} + 6 s_{k+2} - 12 s_{k+1} + 24 s_k,
+    # s_n = (-2)^n (2n-1)!!  (erfcx asymptotic series; the t^3 .. t^0 terms cancel exactly)
+    s = [1.0]
+    for n in range(1, n_terms + 4):
+        s.append(s[-1] * (-2.0) * (2 * n - 1))
+    acc = sum((s[k + 3] + 6 * s[k + 2] - 12 * s[k + 1] + 24 * s[k]) * t ** (-k) for k in range(1, n_terms))
+    return np.exp(-t / 4) / (6 * np.sqrt(np.pi * t)) * acc
+
+
+def correlation(t):
+    r"""Stationary velocity correlation :math:`C(t) = \langle v(0) v(t)\rangle` (nondimensional):
+
+    .. math::
+        C(t) = \frac{t^3+6t^2-12t+24}{12}\operatorname{erfc}\frac{\sqrt t}2
+        - \frac{\sqrt t\,(t^2+4t-12)}{6\sqrt\pi} e^{-t/4},
+
+    :math:`C(0) = 2`, :math:`\int_0^\infty C = 5` (so :math:`D' = 10`).  The two terms cancel for
+    large t, so the common factor :math:`e^{-t/4}` is taken out through ``erfcx`` and, beyond
+    t = 300, the cancelled asymptotic series is used.
+    """
+    t = np.abs(np.asarray(t, np.float64))
+    small = t <= 300.0
+    ts = np.where(small, t, 1.0)
+    x = np.sqrt(ts) / 2
+    direct = np.exp(-ts / 4) * ((ts**3 + 6 * ts**2 - 12 * ts + 24) / 12 * special.erfcx(x)
+                                - np.sqrt(ts) * (ts**2 + 4 * ts - 12) / (6 * np.sqrt(np.pi)))
+    tl = np.where(small, 400.0, t)
+    return np.where(small, direct, _corr_asymptotic(tl))
+
+
+#: Table 1 times t'.
+TABLE1_TIMES = (0.05, 0.125, 0.25, 0.5, 1.0, 2.5)
+
+
+def first_moment_unit_intensity(t, v0):
+    r"""The paper's printed Table 1 convention (:math:`\Gamma_w = \Gamma`, i.e. this model with
+    :math:`\Gamma` halved), in the paper's units: the halved model has :math:`\tau_0/2` and
+    :math:`v_0/2`, so the value is :math:`\tfrac12\langle v\rangle(2t;\ 2v_0)`."""
+    return 0.5 * first_moment(2.0 * np.asarray(t, np.float64), 2.0 * v0)

@@ -1,0 +1,102 @@
+"""Exact OU step: closed forms, Cholesky factor, sampled moments, and an independent fine-grid check."""
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from dryfric_jax.ou import ou_moments, ou_moments_reference, ou_step
+
+RATIOS = np.logspace(-8, 8, 49)
+
+
+def _rel(a, b):
+    return abs(a - b) / max(abs(b), 1e-300)
+
+
+@pytest.mark.parametrize("r", RATIOS)
+def test_moments_match_high_precision_closed_forms_float64(r):
+    tau = 0.37
+    got = [float(v) for v in ou_moments(jnp.float64(r * tau), tau)]
+    ref = ou_moments_reference(r * tau, tau)
+    for g, e in zip(got, ref):
+        if e == 0.0:  # e^{-r} underflows for r = 1e8 in both
+            assert g == 0.0
+        else:
+            assert _rel(g, e) < 1e-12
+
+
+@pytest.mark.parametrize("r", RATIOS[::4])
+def test_moments_float32(r):
+    tau = 0.37
+    got = [float(v) for v in ou_moments(jnp.float32(r * tau), jnp.float32(tau))]
+    ref = ou_moments_reference(float(np.float32(r * tau)), float(np.float32(tau)))
+    for g, e in zip(got, ref):
+        assert np.isfinite(g)
+        if abs(e) > 1e-30:
+            assert _rel(g, e) < 5e-6
+
+
+@pytest.mark.parametrize("r", RATIOS[::2])
+@pytest.mark.parametrize("dtype,tol", [(jnp.float64, 1e-12), (jnp.float32, 5e-6)])
+def test_cholesky_factor_is_exact(r, dtype, tol):
+    """L L^T = Sigma entrywise, and L22^2 = det(Sigma)/Sigma11 from the 60-digit reference."""
+    tau = 2.0
+    s = ou_step(r * tau, tau, dtype)
+    m1, m2, S11, S12, S22 = ou_moments_reference(r * tau, tau, digits=80)
+    from decimal import Decimal, localcontext
+    with localcontext() as c:
+        c.prec = 80
+        det = float(Decimal(S11) * Decimal(S22) - Decimal(S12) ** 2)
+    L11, L21, L22 = (float(v) for v in (s.L11, s.L21, s.L22))
+    assert all(np.isfinite([L11, L21, L22])) and L11 > 0 and L22 > 0
+    assert _rel(L11**2, S11) < tol
+    assert _rel(L11 * L21, S12) < tol
+    assert _rel(L21**2 + L22**2, S22) < tol
+    # the reference det is itself rounded from float64 Sigma entries; it keeps ~1e-16/(1-rho^2)
+    rho2 = S12**2 / (S11 * S22)
+    assert _rel(L22**2, det / S11) < max(tol, 4e-16 / (1 - rho2))
+
+
+@pytest.mark.parametrize("r", [1e-6, 1e-2, 1.0, 1e2, 1e6])
+def test_sampled_pair_moments(r, key):
+    """Mean and covariance of 4e5 sampled pairs, tolerance 5 standard errors of each moment."""
+    tau, x0 = 0.5, 0.8
+    s = ou_step(r * tau, tau)
+    n = 400_000
+    z = jax.random.normal(key, (2, n))
+    Xi, Xn = s.sample(x0, z[0], z[1])
+    Y = np.stack([np.asarray(Xi), np.asarray(Xn)])
+    m1, m2, S11, S12, S22 = (float(v) for v in ou_moments(jnp.float64(r * tau), tau))
+    S = np.array([[S11, S12], [S12, S22]])
+    mean = np.array([m1, m2]) * x0
+    se_mean = np.sqrt(np.diag(S) / n)
+    assert np.all(np.abs(Y.mean(1) - mean) < 5 * se_mean)
+    C = np.cov(Y)
+    for i in range(2):
+        for j in range(2):
+            se = np.sqrt((S[i, i] * S[j, j] + S[i, j] ** 2) / n)  # Gaussian sampling error of a covariance
+            assert abs(C[i, j] - S[i, j]) < 5 * se
+
+
+def test_pair_law_against_fine_grid_ou(key):
+    """Independent check of m(h), Sigma(h): exact OU on 400 sub-steps, Riemann (trapezoid) average."""
+    tau, h, x0, sub, n = 1.0, 1.0, 1.3, 400, 50_000
+    dt = h / sub
+    a, sd = np.exp(-dt / tau), np.sqrt((1 - np.exp(-2 * dt / tau)) / tau)
+    z = np.asarray(jax.random.normal(key, (sub, n)))
+    x = np.full(n, x0)
+    integral = np.zeros(n)
+    for k in range(sub):
+        xn = a * x + sd * z[k]
+        integral += 0.5 * (x + xn) * dt
+        x = xn
+    Xi = integral / h
+    m1, m2, S11, S12, S22 = (float(v) for v in ou_moments(jnp.float64(h), tau))
+    # trapezoid bias is O(dt^2) ~ 6e-6, far below the 5-sigma statistical tolerance
+    assert abs(Xi.mean() - x0 * m1) < 5 * np.sqrt(S11 / n)
+    assert abs(x.mean() - x0 * m2) < 5 * np.sqrt(S22 / n)
+    C = np.cov(np.stack([Xi, x]))
+    S = np.array([[S11, S12], [S12, S22]])
+    for i in range(2):
+        for j in range(2):
+            assert abs(C[i, j] - S[i, j]) < 5 * np.sqrt((S[i, i] * S[j, j] + S[i, j] ** 2) / n)
