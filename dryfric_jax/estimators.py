@@ -42,7 +42,7 @@ import numpy as np
 
 #: Below this many excursions the 95% delta-method CI for D is not trusted (measured coverage
 #: well under 0.95; see README "Confidence intervals" and scripts/coverage.py).
-MIN_RELIABLE_N = 10_000
+MIN_RELIABLE_N = 20_000
 
 
 def psi_D(x):
@@ -161,3 +161,26 @@ def bruteforce_estimates(U, t: float, level: float = 0.95) -> dict:
     z = z_quantile(level)
     return dict(D_t=D, D_t_ci=D_ci, M0_t=float(U.mean() / t), M0_t_ci=z * float(U.std() / t / np.sqrt(n)),
                 n_paths=n, t=t)
+
+
+def replicate_coverage(lane_sums: np.ndarray, names, lanes_per_replicate: int, D_true: float, M_true: float,
+                       level: float = 0.95) -> dict:
+    """Empirical coverage of the D and M0 CIs over independent replicates.
+
+    Args:
+        lane_sums: per-lane sufficient statistics (rows: lanes, columns: ``names``); lanes hold
+            i.i.d. excursions, so consecutive groups of ``lanes_per_replicate`` lanes are
+            independent replicates.
+        D_true, M_true: exact values to cover.
+    """
+    reps = lane_sums.shape[0] // lanes_per_replicate
+    hit_D = hit_M = 0
+    widths = []
+    for r in range(reps):
+        block = lane_sums[r * lanes_per_replicate:(r + 1) * lanes_per_replicate]
+        e = long_excursion_estimates(dict(zip(names, block.sum(0))), level)
+        hit_D += abs(e["D"] - D_true) <= e["D_ci"]
+        hit_M += abs(e["M0"] - M_true) <= e["M0_ci"]
+        widths.append(e["D_ci"] / abs(D_true))
+    return dict(replicates=reps, coverage_D=hit_D / reps, coverage_M0=hit_M / reps,
+                rel_half_width=float(np.mean(widths)))

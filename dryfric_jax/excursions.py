@@ -1,17 +1,21 @@
 r"""Long excursions of the discrete DI as vmapped lanes inside one ``lax.while_loop``.
 
-A lane runs its excursions back to back: +HLE from a draw of :math:`\nu_+` until a
-regeneration on :math:`C_-`, then -HLE until a regeneration on :math:`C_+`
-(:mod:`dryfric_jax.regeneration`).  The transition that carries the heads of the closing coin
-is distributed as :math:`\nu_+`, so it opens the lane's next excursion: consecutive excursions
-of a lane are consecutive i.i.d. regeneration cycles of one chain.
+A lane runs one chain and cuts it at regenerations (:mod:`dryfric_jax.regeneration`):
 
-Each lane carries its termination flag, its accumulators (U in float64, the step count n as an
-integer so that t = n h exactly) and its output slots.  Steps run in blocks of ``block`` with
-the block's normals drawn at once (key: ``split`` per lane, ``fold_in`` per block).  Work is
-bounded: an excursion that reaches ``max_steps`` is closed, flagged truncated and reported;
-the lane then restarts from a fresh :math:`\nu_+` draw.  Lanes run in chunks of ``chunk_lanes``
-so that any number of excursions fits in memory.
+* phase SEEK: run until the first regeneration on :math:`C_+` (stuck, released upwards); the
+  heads transition is distributed as :math:`\nu_+` and opens the first excursion.  Nothing
+  simulated before it is counted;
+* phase PLUS (+HLE): until a regeneration on :math:`C_-` (stuck, released downwards);
+* phase MINUS (-HLE): until a regeneration on :math:`C_+`, which closes the long excursion; its
+  heads transition opens the next one.
+
+So a lane's excursions are consecutive i.i.d. regeneration cycles of one chain.  Each lane
+carries its phase, its termination flag and its accumulators: U in float64, the step count n as
+an integer (t = n h exactly), and float64 sums of the products the delta method needs.  Steps
+run in blocks of ``block`` with the block's normals drawn at once (``split`` per lane,
+``fold_in`` per block).  Work is bounded: an excursion (or a seek) that reaches ``max_steps`` is
+closed, counted as truncated and reported, and the lane seeks again.  Lanes run in chunks of
+``chunk_lanes`` so that any number of excursions fits in memory.
 """
 from __future__ import annotations
 
@@ -24,7 +28,6 @@ import jax.numpy as jnp
 import numpy as np
 
 from .di import DIModel
-from .regeneration import draw_nu
 
 
 # per-lane sufficient statistics of the closed excursions, in float64: every product of two
@@ -37,12 +40,11 @@ class _Lane(eqx.Module):
     X: jnp.ndarray
     V: jnp.ndarray
     U: jnp.ndarray  # float64 displacement of the in-flight excursion
-    n: jnp.ndarray  # steps of the in-flight excursion (t = n h)
+    n: jnp.ndarray  # steps of the in-flight excursion (t = n h), or of the current seek
     n_half: jnp.ndarray  # steps at which the -HLE began
-    minus_half: jnp.ndarray  # False: in the +HLE (watching C_-); True: in the -HLE (watching C_+)
+    phase: jnp.ndarray  # SEEK, PLUS or MINUS
     j: jnp.ndarray  # excursions closed so far (complete or truncated)
     target: jnp.ndarray  # excursions this lane must close
-    needs_start: jnp.ndarray
     done: jnp.ndarray  # the lane's termination flag
     stats: jnp.ndarray  # (len(STAT_NAMES),) float64 sums over complete excursions
     n_trunc: jnp.ndarray  # excursions closed by the work bound
@@ -66,59 +68,51 @@ def _close(lane: _Lane, h64, complete, truncated) -> _Lane:
     )
 
 
-def _start(model: DIModel, lane: _Lane, key) -> _Lane:
-    """Open an excursion from s_+ for lanes that need it: first transition drawn from nu_+."""
-    dt = model.h.dtype
-    Xi, Xn = draw_nu(model.plus, model.ou, key, dt)
-    Vn = model.step(jnp.zeros((), dt), Xi)
-    go = lane.needs_start & ~lane.done
-    sel = lambda new, old: jnp.where(go, new, old)
-    return eqx.tree_at(
-        lambda l: (l.X, l.V, l.U, l.n, l.n_half, l.minus_half, l.needs_start, l.steps),
-        lane,
-        (sel(Xn, lane.X), sel(Vn, lane.V), sel(0.5 * model.h.astype(jnp.float64) * Vn, lane.U),
-         sel(1, lane.n), sel(0, lane.n_half), sel(False, lane.minus_half), lane.needs_start & lane.done,
-         lane.steps + go),
-    )
+SEEK, PLUS, MINUS = 0, 1, 2
 
 
 def _step(model: DIModel, max_steps, lane: _Lane, z1, z2, u) -> _Lane:
-    active = ~lane.done & ~lane.needs_start
+    active = ~lane.done
     X, V = lane.X, lane.V
     Xi, Xn = model.ou.sample(X, z1, z2)
     Vn = model.step(V, Xi)
 
-    # retrospective splitting coin on the set of the far threshold
-    s = jax.tree_util.tree_map(lambda p, m: jnp.where(lane.minus_half, p, m), model.plus, model.minus)
-    eligible = active & (V == 0) & s.contains(X)
+    # retrospective splitting coin: stuck on C_+ and released upwards (SEEK, MINUS), or stuck on
+    # C_- and released downwards (PLUS)
+    watch_plus = lane.phase != PLUS
+    s = jax.tree_util.tree_map(lambda p, m: jnp.where(watch_plus, p, m), model.plus, model.minus)
+    released = jnp.where(watch_plus, Vn > 0, Vn < 0)
+    eligible = active & (V == 0) & released & s.contains(X)
     heads = eligible & (jnp.log(u) < s.log_coin(X, z1, z2))
-    closes = heads & lane.minus_half  # regeneration on C_+: long excursion complete
-    halfway = heads & ~lane.minus_half  # regeneration on C_-: the -HLE starts now
+    closes = heads & (lane.phase == MINUS)  # long excursion complete
+    opens = heads & (lane.phase != PLUS)  # this transition starts an excursion
+    halfway = heads & (lane.phase == PLUS)  # the -HLE starts now
 
     h64 = model.h.astype(jnp.float64)
     lane = _close(lane, h64, closes, jnp.zeros_like(closes))
-    # the heads transition is a nu_+ draw: it opens the lane's next excursion
     dU = 0.5 * h64 * (V.astype(jnp.float64) + Vn.astype(jnp.float64))
-    U = jnp.where(closes, 0.0, lane.U) + jnp.where(active, dU, 0.0)
-    n = jnp.where(closes, 0, lane.n) + active
+    counting = (lane.phase != SEEK) | opens
+    U = jnp.where(opens, 0.0, lane.U) + jnp.where(active & counting, dU, 0.0)
+    n = jnp.where(opens, 0, lane.n) + active
+    phase = jnp.where(opens, PLUS, jnp.where(halfway, MINUS, lane.phase))
     lane = eqx.tree_at(
-        lambda l: (l.X, l.V, l.U, l.n, l.n_half, l.minus_half, l.steps),
+        lambda l: (l.X, l.V, l.U, l.n, l.n_half, l.phase, l.steps),
         lane,
         (jnp.where(active, Xn, X), jnp.where(active, Vn, V), U, n,
-         jnp.where(halfway, lane.n, jnp.where(closes, 0, lane.n_half)),
-         jnp.where(closes, False, lane.minus_half | halfway), lane.steps + active),
+         jnp.where(halfway, lane.n, jnp.where(opens, 0, lane.n_half)), phase,
+         lane.steps + (active & counting)),
     )
-    # work bound: close a runaway excursion, report it, restart from nu_+
-    runaway = active & ~closes & (lane.n >= max_steps) & ~lane.done
+    # work bound: close a runaway excursion (or seek), report it, seek again
+    runaway = active & (lane.n >= max_steps) & ~lane.done
     lane = _close(lane, h64, jnp.zeros_like(runaway), runaway)
-    return eqx.tree_at(lambda l: l.needs_start, lane, lane.needs_start | (runaway & ~lane.done))
+    return eqx.tree_at(lambda l: (l.phase, l.n), lane,
+                       (jnp.where(runaway, SEEK, lane.phase), jnp.where(runaway, 0, lane.n)))
 
 
 def _lane_block(model, max_steps, block, lane, lane_key, b):
     dt = model.h.dtype
     kb = jax.random.fold_in(lane_key, b)
-    k_start, k_norm, k_unif = jax.random.split(kb, 3)
-    lane = _start(model, lane, k_start)
+    k_norm, k_unif = jax.random.split(kb)
     zs = jax.random.normal(k_norm, (block, 2), dt)
     us = jax.random.uniform(k_unif, (block,), dt, minval=jnp.finfo(dt).tiny)
 
@@ -134,9 +128,9 @@ def _run_chunk(model: DIModel, keys, targets, max_steps, max_blocks, *, block: i
     dt = model.h.dtype
     z = lambda d: jnp.zeros((n_lanes,), d)
     lane = _Lane(
-        X=z(dt), V=z(dt), U=z(jnp.float64), n=z(jnp.int64), n_half=z(jnp.int64),
-        minus_half=z(bool), j=z(jnp.int32), target=targets.astype(jnp.int32),
-        needs_start=targets > 0, done=targets <= 0,
+        X=jnp.full((n_lanes,), model.x_plus, dt), V=z(dt), U=z(jnp.float64), n=z(jnp.int64),
+        n_half=z(jnp.int64), phase=jnp.full((n_lanes,), SEEK, jnp.int32), j=z(jnp.int32),
+        target=targets.astype(jnp.int32), done=targets <= 0,
         stats=jnp.zeros((n_lanes, len(STAT_NAMES)), jnp.float64), n_trunc=z(jnp.int64),
         steps=z(jnp.int64),
     )
@@ -164,7 +158,7 @@ class ExcursionStats:
 
     stats: np.ndarray  # (lanes, len(STAT_NAMES))
     n_truncated: int  # excursions closed by the work bound (not in stats)
-    useful_steps: int  # lane-steps that advanced an excursion
+    useful_steps: int  # lane-steps that advanced an excursion (seeks excluded)
     slot_steps: int  # lane-steps paid for, idle lanes included
     h: float
 
@@ -196,7 +190,7 @@ def simulate_long_excursions(model: DIModel, key, n_excursions: int, *, per_lane
     n_lanes_total = -(-n_excursions // per_lane)
     lanes = min(chunk_lanes, n_lanes_total)
     n_chunks = -(-n_lanes_total // lanes)
-    max_blocks = per_lane * (-(-max_steps // block) + 2) + 1
+    max_blocks = 2 * per_lane * (-(-max_steps // block) + 1) + 1  # seeks are bounded too
     out, n_tr, useful, slots = [], 0, 0, 0
     remaining = n_excursions
     for c in range(n_chunks):

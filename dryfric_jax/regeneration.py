@@ -53,9 +53,8 @@ expected wait is a few stuck visits, so no excursion is astronomically long.
 from __future__ import annotations
 
 import equinox as eqx
-import jax
 import jax.numpy as jnp
-from jax.scipy.special import ndtr, ndtri
+from jax.scipy.special import ndtr
 
 from .ou import OUStep
 
@@ -86,18 +85,6 @@ class SplitSet(eqx.Module):
     def contains(self, x):
         return (x >= self.c1) & (x <= self.c2)
 
-    def sample_nu_normals(self, u_tail, u_sign, eta):
-        """Whitened normals (z1, z2) of a draw y = c_mid m + L z from nu.
-
-        Along a-hat, |zeta| + half_d is a standard normal conditioned to exceed half_d (inverse
-        CDF of the tail); the orthogonal component is an independent N(0, 1) ``eta``.
-        """
-        t = -ndtri(u_tail * ndtr(-self.half_d))
-        zeta = jnp.where(u_sign < 0.5, -1.0, 1.0) * (t - self.half_d)
-        na = jnp.sqrt(self.a_sq)
-        e1, e2 = self.a1 / na, self.a2 / na
-        return zeta * e1 - eta * e2, zeta * e2 + eta * e1
-
     @property
     def center(self):
         return 0.5 * (self.c1 + self.c2)
@@ -112,12 +99,3 @@ def split_set(ou: OUStep, x_threshold, tau, kappa: float = KAPPA, cover_sd: floa
     dt = ou.m1.dtype
     c = jnp.asarray(x_threshold, dt)
     return SplitSet(c - w, c + w, a1, a2, a_sq, jnp.asarray(w * jnp.sqrt(a_sq), dt))
-
-
-def draw_nu(s: SplitSet, ou: OUStep, key, dtype):
-    """One draw (Xi, X_next) from nu (used to start a long excursion from s_+)."""
-    k1, k2 = jax.random.split(key)
-    u = jax.random.uniform(k1, (2,), dtype, minval=jnp.finfo(dtype).tiny)
-    eta = jax.random.normal(k2, (), dtype)
-    z1, z2 = s.sample_nu_normals(u[0], u[1], eta)
-    return ou.sample(s.center, z1, z2)

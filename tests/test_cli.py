@@ -1,0 +1,69 @@
+"""CLI: JSON keys, bad input gives exit code 2 and one line naming the parameter."""
+import json
+import subprocess
+import sys
+
+import pytest
+
+from dryfric_jax.cli import main
+
+ESTIMATE_KEYS = {"D", "D_ci", "M0", "M0_ci", "mean_duration", "n_excursions", "n_truncated", "method", "h", "dtype",
+                 "seed", "wall_s", "lane_steps_per_s", "params"}
+
+BAD = [  # (argv, word the one-line message must contain)
+    (["estimate", "--Gamma", "0"], "Gamma"),
+    (["estimate", "--Gamma", "-1"], "Gamma"),
+    (["estimate", "--Gamma", "nan"], "Gamma"),
+    (["estimate", "--Delta", "inf"], "Delta"),
+    (["estimate", "--tau", "0"], "tau"),
+    (["estimate", "--tau", "-2"], "tau"),
+    (["estimate", "--tau-L", "0"], "tau_L"),
+    (["estimate", "--tau-L", "abc"], "--tau-L"),
+    (["estimate", "--gamma-bar", "nan"], "gamma_bar"),
+    (["estimate", "--h", "0"], "h must"),
+    (["estimate", "--h=-1e-4"], "h must"),
+    (["estimate", "--h", "-1e-4"], "--h"),  # argparse reads -1e-4 as an option: still one line, exit 2
+    (["estimate", "--h", "1.0"], "h must"),  # not small against tau0
+    (["estimate", "--n-excursions", "1"], "--n-excursions"),
+    (["estimate", "--n-excursions", "2.5"], "--n-excursions"),
+    (["estimate", "--seed", "-3"], "--seed"),
+    (["estimate", "--seed", "x"], "--seed"),
+    (["estimate", "--method", "magic"], "method"),
+    (["estimate", "--dtype", "float16"], "dtype"),
+    (["bruteforce", "--t", "-1", "--n-paths", "10"], "t must"),
+    (["bruteforce", "--t", "1", "--n-paths", "1"], "--n-paths"),
+    (["theory", "--tau-L", "inf", "--gamma-bar", "4"], "gamma_bar"),  # |gamma_bar| >= Delta: no stationary state
+    (["estimate", "--Gamma", "abc"], "--Gamma"),
+]
+
+
+@pytest.mark.parametrize("argv,word", BAD)
+def test_bad_input_exit_2_one_line(argv, word, capsys):
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("dryfric: error:") and word in err[0], err
+
+
+def test_bad_input_in_a_real_process_has_no_traceback():
+    p = subprocess.run([sys.executable, "-m", "dryfric_jax.cli", "estimate", "--tau", "nan"], capture_output=True,
+                       text=True)
+    assert p.returncode == 2 and "Traceback" not in p.stderr and p.stderr.count("\n") == 1
+
+
+def test_estimate_json(capsys):
+    assert main(["estimate", "--nondim", "--tau", "1e-3", "--tau-L", "inf", "--gamma-bar", "0",
+                 "--n-excursions", "200", "--json"]) == 0
+    cap = capsys.readouterr()
+    out = json.loads(cap.out)
+    assert ESTIMATE_KEYS <= set(out)
+    assert out["n_excursions"] == 200 and out["method"] == "di" and out["params"]["Gamma"] == 1.0
+    assert "under-covers" in cap.err  # N below the CI threshold is flagged
+
+
+def test_bruteforce_and_theory_json(capsys):
+    assert main(["bruteforce", "--t", "1", "--n-paths", "50", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert {"D_t", "D_t_ci", "M0_t", "M0_t_ci"} <= set(out)
+    assert main(["theory", "--nondim", "--tau", "1e-5", "--tau-L", "inf", "--gamma-bar", "0", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["D"] == pytest.approx(10.0, rel=1e-8) and abs(out["M0"]) < 1e-12

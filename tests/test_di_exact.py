@@ -1,0 +1,45 @@
+"""Long-excursion D and M0 of the DI against exact white-noise values (tau' = 1e-5 <= 1e-4).
+
+Tolerance: the 95% CI of the estimate, fixed seed; the CI must also be tight (<= 5% of D).
+Exact values: MODEL_NOTES section 2 closed forms (a, b) and the quadrature formula (c), whose
+agreement with the closed forms is tested in test_theory.py.
+"""
+import math
+
+import pytest
+
+import dryfric_jax as dj
+
+TAU_WHITE = 1e-5  # tau' = tau/tau0
+
+
+def _check(r, D_exact, M_exact):
+    assert r.n_truncated == 0
+    assert r.D_ci <= 0.05 * r.D, f"CI too wide: {r.D_ci / r.D:.3f}"
+    assert abs(r.D - D_exact) <= r.D_ci, f"D = {r.D} ± {r.D_ci}, exact {D_exact}"
+    assert abs(r.M0 - M_exact) <= r.M0_ci, f"M0 = {r.M0} ± {r.M0_ci}, exact {M_exact}"
+
+
+@pytest.mark.slow
+def test_pure_dry_friction_b0():
+    G, Dl = 5.0, 3.84
+    p = dj.Params(G, Dl, TAU_WHITE * G / Dl**2)
+    r = dj.estimate_diffusivity(p, 11, n_excursions=250_000, per_lane=64)
+    _check(r, 10 * G**3 / Dl**4, 0.0)
+
+
+@pytest.mark.slow
+def test_constant_bias():
+    G, Dl, g = 1.0, 1.0, 0.3
+    p = dj.Params(G, Dl, TAU_WHITE, math.inf, g)
+    r = dj.estimate_diffusivity(p, 12, n_excursions=400_000, per_lane=64)
+    D = 2 * G**3 * (5 * Dl**4 + 22 * Dl**2 * g**2 + 5 * g**4) / (Dl**2 - g**2) ** 4
+    _check(r, D, 2 * G * g / (Dl**2 - g**2))
+
+
+@pytest.mark.slow
+def test_viscous_and_bias_at_paper_values():
+    G, Dl = 5.0, 3.84
+    p = dj.Params(G, Dl, TAU_WHITE * G / Dl**2, 0.067, 0.342)
+    r = dj.estimate_diffusivity(p, 13, n_excursions=30_000, per_lane=32)
+    _check(r, dj.theory.exact_D(p), dj.theory.exact_M0(p))
