@@ -51,21 +51,21 @@ class _Lane(eqx.Module):
     steps: jnp.ndarray  # useful steps done by the lane
 
 
-def _close(lane: _Lane, h64, complete, truncated) -> _Lane:
-    """Add the in-flight excursion to the lane's sums (``complete``) or to its truncation count."""
+def _count_closed(lane: _Lane, closed) -> _Lane:
+    jn = lane.j + closed
+    return eqx.tree_at(lambda l: (l.j, l.done), lane, (jn, lane.done | (jn >= lane.target)))
+
+
+def _close(lane: _Lane, h64, complete) -> _Lane:
+    """Add the in-flight excursion to the lane's sums where ``complete``."""
     U = lane.U
     t = lane.n.astype(jnp.float64) * h64
     th = lane.n_half.astype(jnp.float64) * h64
     U2, t2 = U * U, t * t
     row = jnp.stack([jnp.ones_like(U), U, U2, U2 * U, U2 * U2, t, t2, t2 * t, t2 * t2, U * t, U2 * t, U2 * U * t,
                      U * t2, U2 * t2, U * t2 * t, th])
-    jn = lane.j + (complete | truncated)
-    return eqx.tree_at(
-        lambda l: (l.stats, l.n_trunc, l.j, l.done),
-        lane,
-        (lane.stats + jnp.where(complete, row, 0.0), lane.n_trunc + truncated, jn,
-         lane.done | (jn >= lane.target)),
-    )
+    lane = eqx.tree_at(lambda l: l.stats, lane, lane.stats + jnp.where(complete, row, 0.0))
+    return _count_closed(lane, complete)
 
 
 SEEK, PLUS, MINUS = 0, 1, 2
@@ -89,7 +89,7 @@ def _step(model: DIModel, max_steps, lane: _Lane, z1, z2, u) -> _Lane:
     halfway = heads & (lane.phase == PLUS)  # the -HLE starts now
 
     h64 = model.h.astype(jnp.float64)
-    lane = _close(lane, h64, closes, jnp.zeros_like(closes))
+    lane = _close(lane, h64, closes)
     dU = 0.5 * h64 * (V.astype(jnp.float64) + Vn.astype(jnp.float64))
     counting = (lane.phase != SEEK) | opens
     U = jnp.where(opens, 0.0, lane.U) + jnp.where(active & counting, dU, 0.0)
@@ -104,9 +104,9 @@ def _step(model: DIModel, max_steps, lane: _Lane, z1, z2, u) -> _Lane:
     )
     # work bound: close a runaway excursion (or seek), report it, seek again
     runaway = active & (lane.n >= max_steps) & ~lane.done
-    lane = _close(lane, h64, jnp.zeros_like(runaway), runaway)
-    return eqx.tree_at(lambda l: (l.phase, l.n), lane,
-                       (jnp.where(runaway, SEEK, lane.phase), jnp.where(runaway, 0, lane.n)))
+    lane = _count_closed(lane, runaway)
+    return eqx.tree_at(lambda l: (l.phase, l.n, l.n_trunc), lane,
+                       (jnp.where(runaway, SEEK, lane.phase), jnp.where(runaway, 0, lane.n), lane.n_trunc + runaway))
 
 
 def _lane_block(model, max_steps, block, lane, lane_key, b):

@@ -1,6 +1,6 @@
 """Measure the empirical coverage of the 95% delta-method CI for D against the exact white-noise D.
 
-One long run of the DI (white-noise regime, b = 0 unless --gamma-bar is given) is cut into
+One long run of the DI (white-noise regime; b = 0 unless --tau-L / --gamma-bar are given) is cut into
 independent replicates of N excursions each (lanes hold i.i.d. excursions, so groups of lanes
 are independent), for several N.  Prints one line per N: replicates, coverage, its binomial
 standard error, and the mean relative half-width.
@@ -24,13 +24,14 @@ def main():
     ap.add_argument("--total", type=int, default=2_000_000)
     ap.add_argument("--sizes", type=int, nargs="+", default=[500, 1000, 2000, 5000, 10000, 20000])
     ap.add_argument("--tau", type=float, default=1e-5, help="tau' (white noise: <= 1e-4)")
-    ap.add_argument("--gamma-bar", type=float, default=0.0, help="gamma_bar' (tau_L = inf)")
+    ap.add_argument("--gamma-bar", type=float, default=0.0, help="gamma_bar'")
+    ap.add_argument("--tau-L", type=float, default=math.inf, help="tau_L' (default inf)")
     ap.add_argument("--h", type=float, default=0.02, help="h' = h/tau0")
     ap.add_argument("--per-lane", type=int, default=100)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args()
-    p = dj.Params.from_nondim(a.tau, math.inf, a.gamma_bar)
+    p = dj.Params.from_nondim(a.tau, a.tau_L, a.gamma_bar)
     sim = simulate_long_excursions(make_di_model(p, a.h), dj.api._key(a.seed)[0], a.total, per_lane=a.per_lane)
     D, M = dj.theory.exact_D(p), dj.theory.exact_M0(p)
     rows = []
