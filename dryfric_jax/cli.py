@@ -119,9 +119,6 @@ def _run(a) -> int:
             print(f"white-noise D  = {out['D']:.6g} m^2/s\nwhite-noise M0 = {out['M0']:.6g} m/s")
         return 0
     if a.cmd == "estimate":
-        api._check_method(a.method)
-        api._dtype(a.dtype)
-        api.check_h(params, a.h)
         with warnings.catch_warnings(record=True):
             warnings.simplefilter("always", api.DryfricWarning)
             r = api.estimate_diffusivity(params, a.seed, method=a.method, h=a.h, n_excursions=a.n_excursions,
@@ -137,7 +134,6 @@ def _run(a) -> int:
                   f"seed {r.seed}\nwall {r.wall_s:.1f} s, {r.lane_steps_per_s:.3g} lane-steps/s")
         return 0
     if a.cmd == "bruteforce":
-        api._check_method(a.method)
         r = api.bruteforce_diffusivity(params, a.seed, t=a.t, n_paths=a.n_paths, method=a.method, h=a.h,
                                        burn_in=a.burn_in, dtype=a.dtype)
         if a.json:
@@ -157,6 +153,9 @@ def main(argv=None) -> int:
     except (_UserError, ValueError) as exc:
         print(f"dryfric: error: {exc}", file=sys.stderr)
         return 2
+    except RuntimeError as exc:  # e.g. every excursion hit the work bound: no estimate to print
+        print(f"dryfric: error: {exc}", file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         print("dryfric: interrupted", file=sys.stderr)
         return 130

@@ -27,7 +27,6 @@ import math
 
 import equinox as eqx
 import jax.numpy as jnp
-import numpy as np
 
 _N_SERIES = 30
 # coefficients c_j of ghat(r) = sum_j c_j r^j, j = k - 2, k = 3 .. 3 + _N_SERIES - 1
@@ -135,7 +134,3 @@ def ou_moments_reference(h: float, tau: float, digits: int = 60):
         S22 = (1 - e2) / t_
         return tuple(float(v) for v in (m1, e1, S11, S12, S22))
 
-
-def ou_moments_numpy(h, tau):
-    """float64 NumPy copy of :func:`ou_moments` (host-side helpers and figures)."""
-    return tuple(np.asarray(v, np.float64) for v in ou_moments(jnp.asarray(h, jnp.float64), tau))

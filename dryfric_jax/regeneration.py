@@ -29,8 +29,14 @@ Conditionally on heads, :math:`y \sim \nu` independently of the past, so the cha
 * the cycles between regenerations are i.i.d. and the long-excursion estimator targets the
   asymptotic variance of exactly the chain that brute force simulates (no bias at any h/tau);
 * the +HLE runs until a regeneration on :math:`C_-` (around :math:`x_{-\Delta}`), the -HLE
-  until one on :math:`C_+` (around :math:`x_{\Delta}`), and a long excursion starts with a
-  draw from :math:`\nu_+`.
+  until one on :math:`C_+` (around :math:`x_{\Delta}`); a lane finds its first start by running
+  the chain until a regeneration on :math:`C_+` (:mod:`dryfric_jax.excursions`).
+
+Direction of release.  As in the paper's definition, a half excursion ends only when the stuck
+particle is released towards the far side: the coin on :math:`C_-` is only flipped when
+:math:`V_{n+1} < 0`, on :math:`C_+` when :math:`V_{n+1} > 0`.  Restricting :math:`\nu` to such
+y is still a minorisation (:math:`\varepsilon\nu(y)1_A(y) \le p(x, y)`), so exactness is kept;
+it makes the cycles the physical ones and the D interval better calibrated (README).
 
 In whitened coordinates :math:`y - x m = L z` and with :math:`a = L^{-1} m`,
 
