@@ -131,7 +131,7 @@ class BruteForceResult:
 
 
 def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float | None = None,
-                         n_excursions: int = 20_000, dtype="float64", per_lane: int = 32,
+                         n_excursions: int = 20_000, dtype="float64", lanes: int | None = None,
                          chunk_lanes: int = 4096, block: int = 16, max_steps: int | None = None,
                          progress=None) -> EstimateResult:
     r"""Estimate D and M0 from N i.i.d. long excursions (paper sections 4-6).
@@ -141,10 +141,11 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
         key: a ``jax.random`` key or a non-negative integer seed.
         method: ``"di"`` (differential inclusion with exact OU step).
         h: DI step in seconds; default :func:`default_h` = 0.01 min(tau0, tau_L).
-        n_excursions: N >= 2; below :data:`MIN_RELIABLE_N` the CI under-covers and a
+        n_excursions: N >= 2 (the run ends with slightly more: every lane finishes its in-flight
+            excursion); below :data:`MIN_RELIABLE_N` the CI under-covers and a
             :class:`DryfricWarning` is issued (also for weak viscous damping, see README).
         dtype: ``"float64"`` or ``"float32"`` for the simulation (statistics are float64).
-        per_lane, chunk_lanes, block: engine layout (do not change the estimate's law).
+        lanes, chunk_lanes, block: engine layout (do not change the estimate's law).
         max_steps: work bound per excursion (default 1e4 max(tau0, tau)/h).
 
     Returns:
@@ -160,12 +161,12 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
         max_steps = int(min(math.ceil(MAX_TIME_REL * max(params.tau0, params.tau) / h), 2**62))
     model = make_di_model(params, h, DTYPES[dname])
     t0 = time.perf_counter()
-    sim = simulate_long_excursions(model, key, int(n_excursions), per_lane=per_lane, chunk_lanes=chunk_lanes,
+    sim = simulate_long_excursions(model, key, int(n_excursions), lanes=lanes, chunk_lanes=chunk_lanes,
                                    block=block, max_steps=max_steps, progress=progress)
     wall = time.perf_counter() - t0
     notes = []
     if sim.n_truncated:
-        notes.append(f"{sim.n_truncated} of {n_excursions} excursions hit the work bound "
+        notes.append(f"{sim.n_truncated} of {sim.n_truncated + sim.n_excursions} excursions hit the work bound "
                      f"({max_steps} steps) and are excluded: the estimate is biased low")
     if sim.n_excursions < 2:
         raise RuntimeError("fewer than 2 complete excursions: " + "; ".join(notes))

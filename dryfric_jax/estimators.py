@@ -180,12 +180,13 @@ def replicate_coverage(lane_sums: np.ndarray, names, lanes_per_replicate: int, D
     """
     reps = lane_sums.shape[0] // lanes_per_replicate
     hit_D = hit_M = 0
-    widths = []
+    widths, sizes = [], []
     for r in range(reps):
         block = lane_sums[r * lanes_per_replicate:(r + 1) * lanes_per_replicate]
         e = long_excursion_estimates(dict(zip(names, block.sum(0))), level)
+        sizes.append(e["n_excursions"])
         hit_D += abs(e["D"] - D_true) <= e["D_ci"]
         hit_M += abs(e["M0"] - M_true) <= e["M0_ci"]
         widths.append(e["D_ci"] / abs(D_true))
     return dict(replicates=reps, coverage_D=hit_D / reps, coverage_M0=hit_M / reps,
-                rel_half_width=float(np.mean(widths)))
+                rel_half_width=float(np.mean(widths)), min_size=int(min(sizes)), mean_size=float(np.mean(sizes)))

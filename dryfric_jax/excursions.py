@@ -7,15 +7,24 @@ A lane runs one chain and cuts it at regenerations (:mod:`dryfric_jax.regenerati
   simulated before it is counted;
 * phase PLUS (+HLE): until a regeneration on :math:`C_-` (stuck, released downwards);
 * phase MINUS (-HLE): until a regeneration on :math:`C_+`, which closes the long excursion; its
-  heads transition opens the next one.
+  heads transition opens the next one (the lane refills itself).
 
 So a lane's excursions are consecutive i.i.d. regeneration cycles of one chain.  Each lane
 carries its phase, its termination flag and its accumulators: U in float64, the step count n as
-an integer (t = n h exactly), and float64 sums of the products the delta method needs.  Steps
-run in blocks of ``block`` with the block's normals drawn at once (``split`` per lane,
-``fold_in`` per block).  Work is bounded: an excursion (or a seek) that reaches ``max_steps`` is
-closed, counted as truncated and reported, and the lane seeks again.  Lanes run in chunks of
-``chunk_lanes`` so that any number of excursions fits in memory.
+an integer (t = n h exactly), and float64 sums of the products the delta method needs.
+
+**Unbiased under a budget.**  A round gives every lane a budget of steps.  When it is spent the
+lane *finishes its in-flight excursion*, starts no new one and raises its termination flag.  The
+number of excursions a lane starts before its budget runs out is a stopping time for its cycle
+sequence, so by Wald's identity :math:`E[\sum U] = E[N] E[U]` and the ratio estimators stay
+consistent (regenerative simulation, Glynn & Heidelberger 1990).  Dropping the in-flight
+excursion instead keeps only the cycles that *ended* before the budget, which is not a stopping
+time and biases D low (``finish_in_flight=False``, kept to demonstrate it in the tests).
+
+Steps run in blocks of ``block`` with the block's normals drawn at once (``split`` per lane,
+``fold_in`` per block).  Work is bounded: an excursion that reaches ``max_steps`` is closed,
+counted as truncated and reported, and the lane seeks again; no lane runs more than
+``budget + max_steps`` steps.
 """
 from __future__ import annotations
 
@@ -43,17 +52,11 @@ class _Lane(eqx.Module):
     n: jnp.ndarray  # steps of the in-flight excursion (t = n h), or of the current seek
     n_half: jnp.ndarray  # steps at which the -HLE began
     phase: jnp.ndarray  # SEEK, PLUS or MINUS
-    j: jnp.ndarray  # excursions closed so far (complete or truncated)
-    target: jnp.ndarray  # excursions this lane must close
     done: jnp.ndarray  # the lane's termination flag
     stats: jnp.ndarray  # (len(STAT_NAMES),) float64 sums over complete excursions
     n_trunc: jnp.ndarray  # excursions closed by the work bound
     steps: jnp.ndarray  # useful steps done by the lane
-
-
-def _count_closed(lane: _Lane, closed) -> _Lane:
-    jn = lane.j + closed
-    return eqx.tree_at(lambda l: (l.j, l.done), lane, (jn, lane.done | (jn >= lane.target)))
+    work: jnp.ndarray  # all steps done by the lane (seeks included): compared with the budget
 
 
 def _close(lane: _Lane, h64, complete) -> _Lane:
@@ -64,14 +67,13 @@ def _close(lane: _Lane, h64, complete) -> _Lane:
     U2, t2 = U * U, t * t
     row = jnp.stack([jnp.ones_like(U), U, U2, U2 * U, U2 * U2, t, t2, t2 * t, t2 * t2, U * t, U2 * t, U2 * U * t,
                      U * t2, U2 * t2, U * t2 * t, th])
-    lane = eqx.tree_at(lambda l: l.stats, lane, lane.stats + jnp.where(complete, row, 0.0))
-    return _count_closed(lane, complete)
+    return eqx.tree_at(lambda l: l.stats, lane, lane.stats + jnp.where(complete, row, 0.0))
 
 
 SEEK, PLUS, MINUS = 0, 1, 2
 
 
-def _step(model: DIModel, max_steps, lane: _Lane, z1, z2, u) -> _Lane:
+def _step(model: DIModel, budget, max_steps, finish, lane: _Lane, z1, z2, u) -> _Lane:
     active = ~lane.done
     X, V = lane.X, lane.V
     Xi, Xn = model.ou.sample(X, z1, z2)
@@ -84,32 +86,35 @@ def _step(model: DIModel, max_steps, lane: _Lane, z1, z2, u) -> _Lane:
     released = jnp.where(watch_plus, Vn > 0, Vn < 0)
     eligible = active & (V == 0) & released & s.contains(X)
     heads = eligible & (jnp.log(u) < s.log_coin(X, z1, z2))
+    spent = lane.work >= budget
     closes = heads & (lane.phase == MINUS)  # long excursion complete
-    opens = heads & (lane.phase != PLUS)  # this transition starts an excursion
+    opens = heads & (lane.phase != PLUS) & ~spent  # refill: this transition starts an excursion
     halfway = heads & (lane.phase == PLUS)  # the -HLE starts now
 
     h64 = model.h.astype(jnp.float64)
     lane = _close(lane, h64, closes)
+    # budget spent: stop once nothing is in flight (or at once, dropping it, if not ``finish``)
+    stop = active & spent & ((lane.phase == SEEK) | closes | ~finish)
     dU = 0.5 * h64 * (V.astype(jnp.float64) + Vn.astype(jnp.float64))
     counting = (lane.phase != SEEK) | opens
     U = jnp.where(opens, 0.0, lane.U) + jnp.where(active & counting, dU, 0.0)
     n = jnp.where(opens, 0, lane.n) + active
-    phase = jnp.where(opens, PLUS, jnp.where(halfway, MINUS, lane.phase))
+    phase = jnp.where(opens, PLUS, jnp.where(halfway, MINUS, jnp.where(closes, SEEK, lane.phase)))
     lane = eqx.tree_at(
-        lambda l: (l.X, l.V, l.U, l.n, l.n_half, l.phase, l.steps),
+        lambda l: (l.X, l.V, l.U, l.n, l.n_half, l.phase, l.steps, l.work, l.done),
         lane,
         (jnp.where(active, Xn, X), jnp.where(active, Vn, V), U, n,
          jnp.where(halfway, lane.n, jnp.where(opens, 0, lane.n_half)), phase,
-         lane.steps + (active & counting)),
+         lane.steps + (active & counting), lane.work + active, lane.done | stop),
     )
     # work bound: close a runaway excursion (or seek), report it, seek again
-    runaway = active & (lane.n >= max_steps) & ~lane.done
-    lane = _count_closed(lane, runaway)
+    runaway = active & ~stop & (lane.n >= max_steps)
     return eqx.tree_at(lambda l: (l.phase, l.n, l.n_trunc), lane,
-                       (jnp.where(runaway, SEEK, lane.phase), jnp.where(runaway, 0, lane.n), lane.n_trunc + runaway))
+                       (jnp.where(runaway, SEEK, lane.phase), jnp.where(runaway, 0, lane.n),
+                        lane.n_trunc + (runaway & (lane.phase != SEEK))))
 
 
-def _lane_block(model, max_steps, block, lane, lane_key, b):
+def _lane_block(model, budget, max_steps, finish, block, lane, lane_key, b):
     dt = model.h.dtype
     kb = jax.random.fold_in(lane_key, b)
     k_norm, k_unif = jax.random.split(kb)
@@ -117,24 +122,25 @@ def _lane_block(model, max_steps, block, lane, lane_key, b):
     us = jax.random.uniform(k_unif, (block,), dt, minval=jnp.finfo(dt).tiny)
 
     def body(i, ln):
-        return _step(model, max_steps, ln, zs[i, 0], zs[i, 1], us[i])
+        return _step(model, budget, max_steps, finish, ln, zs[i, 0], zs[i, 1], us[i])
 
     return jax.lax.fori_loop(0, block, body, lane)
 
 
 @partial(jax.jit, static_argnames=("block",))
-def _run_chunk(model: DIModel, keys, targets, max_steps, max_blocks, *, block: int):
+def _run_round(model: DIModel, keys, budget, max_steps, finish, *, block: int):
     n_lanes = keys.shape[0]
     dt = model.h.dtype
     z = lambda d: jnp.zeros((n_lanes,), d)
     lane = _Lane(
         X=jnp.full((n_lanes,), model.x_plus, dt), V=z(dt), U=z(jnp.float64), n=z(jnp.int64),
-        n_half=z(jnp.int64), phase=jnp.full((n_lanes,), SEEK, jnp.int32), j=z(jnp.int32),
-        target=targets.astype(jnp.int32), done=targets <= 0,
+        n_half=z(jnp.int64), phase=jnp.full((n_lanes,), SEEK, jnp.int32), done=z(bool),
         stats=jnp.zeros((n_lanes, len(STAT_NAMES)), jnp.float64), n_trunc=z(jnp.int64),
-        steps=z(jnp.int64),
+        steps=z(jnp.int64), work=z(jnp.int64),
     )
-    vblock = jax.vmap(_lane_block, in_axes=(None, None, None, 0, 0, None))
+    # every lane stops within budget + max_steps steps: this bound never binds
+    max_blocks = (budget + max_steps) // block + 2
+    vblock = jax.vmap(_lane_block, in_axes=(None, None, None, None, None, 0, 0, None))
 
     def cond(c):
         b, ln = c
@@ -142,7 +148,7 @@ def _run_chunk(model: DIModel, keys, targets, max_steps, max_blocks, *, block: i
 
     def body(c):
         b, ln = c
-        return b + 1, vblock(model, max_steps, block, ln, keys, b)
+        return b + 1, vblock(model, budget, max_steps, finish, block, ln, keys, b)
 
     nb, lane = jax.lax.while_loop(cond, body, (jnp.asarray(0, jnp.int64), lane))
     return lane, nb
@@ -152,7 +158,7 @@ def _run_chunk(model: DIModel, keys, targets, max_steps, max_blocks, *, block: i
 class ExcursionStats:
     """Per-lane sums over complete long excursions, nondimensional (U in u0, t in tau0).
 
-    ``stats[:, k]`` is the lane sum of ``STAT_NAMES[k]``; lanes hold i.i.d. excursions, so any
+    ``stats[:, k]`` is the lane sum of ``STAT_NAMES[k]``; lanes are independent, so any
     grouping of lanes is an independent replicate.
     """
 
@@ -161,53 +167,98 @@ class ExcursionStats:
     useful_steps: int  # lane-steps that advanced an excursion (seeks excluded)
     slot_steps: int  # lane-steps paid for, idle lanes included
     h: float
+    n_unfinished: int = 0  # lanes the block bound stopped (never expected; reported, not hidden)
 
     @property
     def n_excursions(self) -> int:
-        return int(self.stats[:, 0].sum())
+        return int(round(self.stats[:, 0].sum()))
 
     def total(self) -> dict:
         return dict(zip(STAT_NAMES, self.stats.sum(0)))
 
+    def __add__(self, other: "ExcursionStats") -> "ExcursionStats":
+        return ExcursionStats(np.concatenate([self.stats, other.stats]), self.n_truncated + other.n_truncated,
+                              self.useful_steps + other.useful_steps, self.slot_steps + other.slot_steps, self.h,
+                              self.n_unfinished + other.n_unfinished)
 
-def simulate_long_excursions(model: DIModel, key, n_excursions: int, *, per_lane: int = 32,
+
+def run_round(model: DIModel, key, lanes: int, budget: int, *, block: int = 16, max_steps: int = 10**8,
+              finish_in_flight: bool = True) -> ExcursionStats:
+    """One round: ``lanes`` lanes, each refilling until ``budget`` steps, then finishing its
+    in-flight excursion.  Lane keys: ``split(key, lanes)``."""
+    keys = jax.random.split(key, lanes)
+    lane, nb = _run_round(model, keys, jnp.asarray(budget, jnp.int64), jnp.asarray(max_steps, jnp.int64),
+                          jnp.asarray(finish_in_flight), block=block)
+    lane = jax.device_get(lane)
+    return ExcursionStats(np.asarray(lane.stats), int(np.asarray(lane.n_trunc).sum()),
+                          int(np.asarray(lane.steps).sum()), int(nb) * block * lanes, float(model.h),
+                          int((~np.asarray(lane.done)).sum()))
+
+
+def lanes_for(n_excursions: int, chunk_lanes: int = 4096, per_lane: int = 64) -> int:
+    """A power of two near n_excursions / per_lane, at most ``chunk_lanes`` (few compiled shapes)."""
+    want = max(1, n_excursions // per_lane)
+    return int(min(chunk_lanes, 2 ** max(0, int(np.floor(np.log2(want))))))
+
+
+def simulate_long_excursions(model: DIModel, key, n_excursions: int, *, lanes: int | None = None,
                              chunk_lanes: int = 4096, block: int = 16, max_steps: int = 10**8,
-                             progress=None) -> ExcursionStats:
-    """Simulate ``n_excursions`` i.i.d. long excursions of the DI chain ``model``.
+                             pilot_budget: int = 1024, progress=None) -> ExcursionStats:
+    """At least ``n_excursions`` closed (complete or truncated) long excursions, in rounds.
+
+    Round r uses ``fold_in(key, r)``.  The first round has a small pilot budget; later rounds
+    size the per-lane budget from the measured steps per excursion so that the total reaches
+    ``n_excursions`` (it ends slightly above: every lane finishes its in-flight excursion).
 
     Args:
         model: from :func:`dryfric_jax.di.make_di_model`.
-        key: a ``jax.random`` key; chunk c uses ``fold_in(key, c)`` and ``split`` per lane.
-        n_excursions: excursions to close (complete + truncated).
-        per_lane: excursions run back to back per lane (evens out the heavy-tailed lengths).
-        chunk_lanes: lanes per compiled call (memory bound); every chunk has this many lanes,
-            so the second call does not recompile.
+        key: a ``jax.random`` key.
+        lanes: lanes per round (default :func:`lanes_for`; a power of two up to ``chunk_lanes``).
         block: steps per while-iteration, their normals drawn at once.
         max_steps: work bound per excursion; excursions reaching it are counted as truncated.
+        progress: optional callback ``progress(done, target)``.
     """
     if n_excursions < 1:
         raise ValueError(f"n_excursions must be >= 1 (got {n_excursions})")
-    n_lanes_total = -(-n_excursions // per_lane)
-    lanes = min(chunk_lanes, n_lanes_total)
-    n_chunks = -(-n_lanes_total // lanes)
-    max_blocks = 2 * per_lane * (-(-max_steps // block) + 1) + 1  # seeks are bounded too
-    out, n_tr, useful, slots = [], 0, 0, 0
-    remaining = n_excursions
-    for c in range(n_chunks):
-        keys = jax.random.split(jax.random.fold_in(key, c), lanes)
-        want = min(remaining, lanes * per_lane)
-        targets = np.minimum(per_lane, np.maximum(0, want - per_lane * np.arange(lanes)))
-        lane, nb = _run_chunk(model, keys, jnp.asarray(targets), jnp.asarray(max_steps, jnp.int64),
-                              jnp.asarray(max_blocks, jnp.int64), block=block)
-        lane = jax.device_get(lane)
-        live = targets > 0
-        out.append(np.asarray(lane.stats)[live])
-        # a lane stopped by the block bound (cannot happen: max_blocks covers every lane) is
-        # reported as truncated, never dropped silently
-        n_tr += int(np.asarray(lane.n_trunc).sum()) + int((targets - np.asarray(lane.j)).clip(0).sum())
-        useful += int(np.asarray(lane.steps).sum())
-        slots += int(nb) * block * lanes
-        remaining -= want
+    lanes = lanes or lanes_for(n_excursions, chunk_lanes)
+    total, budget, r = None, pilot_budget, 0
+    closed = lambda s: s.n_excursions + s.n_truncated  # truncated excursions count: work stays bounded
+    while total is None or closed(total) < n_excursions:
+        res = run_round(model, jax.random.fold_in(key, r), lanes, budget, block=block, max_steps=max_steps)
+        total = res if total is None else total + res
+        r += 1
+        done = closed(total)
         if progress is not None:
-            progress(n_excursions - remaining, n_excursions)
-    return ExcursionStats(np.concatenate(out), n_tr, useful, slots, float(model.h))
+            progress(min(done, n_excursions), n_excursions)
+        if done == 0:
+            budget *= 4  # nothing closed yet: longer pilot
+            if budget > 64 * max_steps:
+                break  # every excursion runs into the work bound: report, do not loop forever
+            continue
+        per_exc = total.useful_steps / done
+        budget = max(4 * block, int(np.ceil((n_excursions - done) * per_exc / lanes)))
+    return total
+
+
+def steps_per_excursion(model: DIModel, key, *, lanes: int = 256, budget: int = 4096, block: int = 16,
+                        max_steps: int = 10**8) -> float:
+    """Pilot estimate of the mean number of steps of one long excursion."""
+    while True:
+        res = run_round(model, key, lanes, budget, block=block, max_steps=max_steps)
+        if res.n_excursions >= lanes or budget > 64 * max_steps:
+            return res.useful_steps / max(res.n_excursions, 1)
+        budget *= 4
+
+
+def simulate_replicates(model: DIModel, key, n_replicates: int, n_per_replicate: int, *,
+                        lanes_per_replicate: int = 16, block: int = 16, max_steps: int = 10**8):
+    """Independent replicates of about ``n_per_replicate`` excursions each (for calibration).
+
+    One pilot round (discarded) measures the steps per excursion; then one round runs
+    ``n_replicates * lanes_per_replicate`` lanes with a budget of ``1.05 n_per_replicate`` mean
+    excursions per replicate.  Replicate k is lanes ``[k L, (k+1) L)``.
+    """
+    per = steps_per_excursion(model, jax.random.fold_in(key, 0), block=block, max_steps=max_steps)
+    budget = int(np.ceil(1.05 * n_per_replicate * per / lanes_per_replicate))
+    return run_round(model, jax.random.fold_in(key, 1), n_replicates * lanes_per_replicate, budget, block=block,
+                     max_steps=max_steps)

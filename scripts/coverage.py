@@ -1,11 +1,12 @@
 """Measure the empirical coverage of the 95% delta-method CI for D against the exact white-noise D.
 
-One long run of the DI (white-noise regime; b = 0 unless --tau-L / --gamma-bar are given) is cut into
+Sizes must be multiples of the smallest.  One long run of the DI (white-noise regime; b = 0 unless --tau-L / --gamma-bar are given) is cut into
 independent replicates of N excursions each (lanes hold i.i.d. excursions, so groups of lanes
 are independent), for several N.  Prints one line per N: replicates, coverage, its binomial
 standard error, and the mean relative half-width.
 
     python scripts/coverage.py --total 2000000 --sizes 500 1000 2000 5000 10000 20000
+(sizes are approximate: a replicate holds about N excursions, the budget being set from a pilot)
 """
 import argparse
 import json
@@ -16,7 +17,7 @@ import numpy as np
 import dryfric_jax as dj
 from dryfric_jax.di import make_di_model
 from dryfric_jax.estimators import replicate_coverage
-from dryfric_jax.excursions import STAT_NAMES, simulate_long_excursions
+from dryfric_jax.excursions import STAT_NAMES, simulate_replicates
 
 
 def main():
@@ -27,16 +28,18 @@ def main():
     ap.add_argument("--gamma-bar", type=float, default=0.0, help="gamma_bar'")
     ap.add_argument("--tau-L", type=float, default=math.inf, help="tau_L' (default inf)")
     ap.add_argument("--h", type=float, default=0.02, help="h' = h/tau0")
-    ap.add_argument("--per-lane", type=int, default=100)
+    ap.add_argument("--lanes-per-replicate", type=int, default=4, help="for the smallest size")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args()
     p = dj.Params.from_nondim(a.tau, a.tau_L, a.gamma_bar)
-    sim = simulate_long_excursions(make_di_model(p, a.h), dj.api._key(a.seed)[0], a.total, per_lane=a.per_lane)
+    smallest = min(a.sizes)
+    sim = simulate_replicates(make_di_model(p, a.h), dj.api._key(a.seed)[0], a.total // smallest, smallest,
+                              lanes_per_replicate=a.lanes_per_replicate)
     D, M = dj.theory.exact_D(p), dj.theory.exact_M0(p)
     rows = []
     for n in a.sizes:
-        c = replicate_coverage(sim.stats, STAT_NAMES, n // a.per_lane, D, M)
+        c = replicate_coverage(sim.stats, STAT_NAMES, a.lanes_per_replicate * n // smallest, D, M)
         reps, cD, cM, w = c["replicates"], c["coverage_D"], c["coverage_M0"], c["rel_half_width"]
         se = math.sqrt(max(cD * (1 - cD), 1e-12) / reps)
         rows.append(dict(N=n, replicates=reps, coverage_D=cD, coverage_D_se=se, coverage_M0=cM, rel_half_width=w))

@@ -3,7 +3,8 @@ excursions, white-noise regime (tau' = 1e-5) at the paper's tau_L and gamma_bar,
 D and M0 from quadrature (MODEL_NOTES section 2; quadrature checked against closed forms in
 test_theory.py).  Slow, but it runs in CI.
 
-Replicates are groups of lanes (each lane holds i.i.d. excursions).  h = 0.03 tau_L has a measured
+Replicates are groups of 16 lanes, each lane refilling under a budget sized for 1.05 N / 16
+excursions and finishing its in-flight excursion (every replicate ends with >= N).  h = 0.03 tau_L has a measured
 D bias of -0.1% +- 1.0%, far below the replicate half-width (~4%).
 
 Without viscous damping (tau_L = inf) the D interval covers only ~0.90 at N = 1e4..1e5 (measured,
@@ -16,9 +17,9 @@ import pytest
 import dryfric_jax as dj
 from dryfric_jax.di import make_di_model
 from dryfric_jax.estimators import MIN_RELIABLE_N, replicate_coverage
-from dryfric_jax.excursions import STAT_NAMES, simulate_long_excursions
+from dryfric_jax.excursions import STAT_NAMES, simulate_replicates
 
-PER_LANE = 50
+LANES_PER_REPLICATE = 16
 REPLICATES = 120
 
 
@@ -27,10 +28,11 @@ def test_coverage_at_the_reliable_size():
     p = dj.Params.from_nondim(1e-5, 0.067 * 3.84**2 / 5, 0.342 / 3.84)  # paper's tau_L, gamma_bar
     n = MIN_RELIABLE_N
     h = 0.03 * p.tau_L
-    sim = simulate_long_excursions(make_di_model(p, h), dj.api._key(2026)[0], REPLICATES * n, per_lane=PER_LANE)
+    sim = simulate_replicates(make_di_model(p, h), dj.api._key(2026)[0], REPLICATES, n,
+                              lanes_per_replicate=LANES_PER_REPLICATE)
     assert sim.n_truncated == 0
-    c = replicate_coverage(sim.stats, STAT_NAMES, n // PER_LANE, dj.theory.exact_D(p), dj.theory.exact_M0(p))
-    assert c["replicates"] == REPLICATES
+    c = replicate_coverage(sim.stats, STAT_NAMES, LANES_PER_REPLICATE, dj.theory.exact_D(p), dj.theory.exact_M0(p))
+    assert c["replicates"] == REPLICATES and c["min_size"] >= n
     se = math.sqrt(0.95 * 0.05 / REPLICATES)
     print(f"coverage(D) = {c['coverage_D']:.3f}, coverage(M0) = {c['coverage_M0']:.3f} (binomial sd {se:.3f})")
     assert 0.90 <= c["coverage_D"] <= 0.99

@@ -56,7 +56,8 @@ def test_estimate_json(capsys):
     cap = capsys.readouterr()
     out = json.loads(cap.out)
     assert ESTIMATE_KEYS <= set(out)
-    assert out["n_excursions"] == 200 and out["method"] == "di" and out["params"]["Gamma"] == 1.0
+    # every lane finishes its in-flight excursion: at least N come back, all reported
+    assert out["n_excursions"] >= 200 and out["method"] == "di" and out["params"]["Gamma"] == 1.0
     assert "under-covers" in cap.err  # N below the CI threshold is flagged
 
 

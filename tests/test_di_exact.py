@@ -24,7 +24,7 @@ def _check(r, D_exact, M_exact):
 def test_pure_dry_friction_b0():
     G, Dl = 5.0, 3.84
     p = dj.Params(G, Dl, TAU_WHITE * G / Dl**2)
-    r = dj.estimate_diffusivity(p, 11, n_excursions=250_000, per_lane=64)
+    r = dj.estimate_diffusivity(p, 11, n_excursions=250_000)
     _check(r, 10 * G**3 / Dl**4, 0.0)
 
 
@@ -32,7 +32,7 @@ def test_pure_dry_friction_b0():
 def test_constant_bias():
     G, Dl, g = 1.0, 1.0, 0.3
     p = dj.Params(G, Dl, TAU_WHITE, math.inf, g)
-    r = dj.estimate_diffusivity(p, 12, n_excursions=400_000, per_lane=64)
+    r = dj.estimate_diffusivity(p, 12, n_excursions=400_000)
     D = 2 * G**3 * (5 * Dl**4 + 22 * Dl**2 * g**2 + 5 * g**4) / (Dl**2 - g**2) ** 4
     _check(r, D, 2 * G * g / (Dl**2 - g**2))
 
@@ -41,5 +41,5 @@ def test_constant_bias():
 def test_viscous_and_bias_at_paper_values():
     G, Dl = 5.0, 3.84
     p = dj.Params(G, Dl, TAU_WHITE * G / Dl**2, 0.067, 0.342)
-    r = dj.estimate_diffusivity(p, 13, n_excursions=30_000, per_lane=32)
+    r = dj.estimate_diffusivity(p, 13, n_excursions=30_000)
     _check(r, dj.theory.exact_D(p), dj.theory.exact_M0(p))

@@ -11,7 +11,7 @@ import pytest
 import dryfric_jax as dj
 
 CASES = {  # tau/h: (tau', h', tau_L', gamma_bar', N excursions, N' paths, horizon / tau0)
-    "tau/h=1e-3": (1e-5, 1e-2, math.inf, 0.3, 60_000, 3000, 200.0),
+    "tau/h=1e-3": (1e-5, 1e-2, math.inf, 0.3, 120_000, 3000, 200.0),
     "tau/h=1": (0.05, 0.05, 1.0, 0.3, 60_000, 3000, 200.0),
     "tau/h=1e3": (1.0, 1e-3, 1.0, 0.3, 8_000, 1500, 40.0),
 }
@@ -22,7 +22,7 @@ CASES = {  # tau/h: (tau', h', tau_L', gamma_bar', N excursions, N' paths, horiz
 def test_long_excursions_match_bruteforce(case):
     tau, h, tau_L, g, n_le, n_bf, horizon = CASES[case]
     p = dj.Params.from_nondim(tau, tau_L, g)
-    le = dj.estimate_diffusivity(p, 21, h=h, n_excursions=n_le, per_lane=16)
+    le = dj.estimate_diffusivity(p, 21, h=h, n_excursions=n_le)
     bf = dj.bruteforce_diffusivity(p, 22, h=h, t=horizon, n_paths=n_bf, burn_in=10.0)
     assert le.n_truncated == 0  # no excursion ran into the work bound
     assert le.mean_duration < 100.0  # in tau0: excursions end in every regime
