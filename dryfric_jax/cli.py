@@ -99,6 +99,9 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--n-paths", type=_int_at_least("n-paths", 2), required=True)
     b.add_argument("--burn-in", type=_number("burn-in"), default=0.0, help="uncounted warm-up, s")
     sub.add_parser("theory", parents=[model], help="exact white-noise D and M0")
+    bn = sub.add_parser("bench", help="throughput: DI engine vs RNG bound vs compiled baseline")
+    bn.add_argument("--json", action="store_true", help="print one JSON object")
+    bn.add_argument("--n-excursions", type=_int_at_least("n-excursions", 2), default=5000)
     return p
 
 
@@ -109,6 +112,12 @@ def _fmt(x, ci):
 def _run(a) -> int:
     from . import api, theory
 
+    if a.cmd == "bench":
+        from .bench import format_table, run_bench
+
+        b = run_bench(n_excursions=a.n_excursions)
+        print(json.dumps(b) if a.json else format_table(b))
+        return 0
     params = _params(a)
     if a.cmd == "theory":
         out = dict(D=theory.exact_D(params), M0=theory.exact_M0(params), params=params.as_dict(),

@@ -41,7 +41,7 @@ import jax.numpy as jnp
 import numpy as np
 
 #: Below this many excursions the 95% delta-method CI for D is not trusted.  Measured coverage
-#: (README "Confidence intervals", scripts/coverage.py): with viscous damping (paper's tau_L) it
+#: (README "Confidence intervals", scripts/ci_calibration.py): with viscous damping (paper's tau_L) it
 #: is 0.94-0.95 from N = 500 on; without (tau_L = inf) it climbs to a plateau of ~0.90 only at
 #: N ~ 1e4, because U per excursion then has a stretched-exponential tail.
 MIN_RELIABLE_N = 10_000

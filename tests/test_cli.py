@@ -68,3 +68,13 @@ def test_bruteforce_and_theory_json(capsys):
     assert main(["theory", "--nondim", "--tau", "1e-5", "--tau-L", "inf", "--gamma-bar", "0", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["D"] == pytest.approx(10.0, rel=1e-8) and abs(out["M0"]) < 1e-12
+
+
+def test_bench_json_has_the_side_by_side_numbers(capsys):
+    assert main(["bench", "--n-excursions", "50", "--json"]) == 0
+    b = json.loads(capsys.readouterr().out)
+    for dt in ("float32", "float64"):
+        assert b[f"di_{dt}_lane_steps_per_s"] > 0 and b[f"rng_bound_{dt}_lane_steps_per_s"] > 0
+        assert b[f"ratio_di_{dt}_to_rng_bound"] > 0
+    assert "numba" in b or "numba_2t_steps_per_s" in b  # baseline measured, or why not
+    assert b["time_to_1pct_ci_s"] > 0

@@ -5,7 +5,7 @@ independent replicates of N excursions each (lanes hold i.i.d. excursions, so gr
 are independent), for several N.  Prints one line per N: replicates, coverage, its binomial
 standard error, and the mean relative half-width.
 
-    python scripts/coverage.py --total 2000000 --sizes 500 1000 2000 5000 10000 20000
+    python scripts/ci_calibration.py --total 2000000 --sizes 500 1000 2000 5000 10000 20000
 (sizes are approximate: a replicate holds about N excursions, the budget being set from a pilot)
 """
 import argparse

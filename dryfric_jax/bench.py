@@ -1,0 +1,78 @@
+"""Side-by-side throughput (``dryfric bench``, ``scripts/bench.py``).
+
+One run, one device, the paper's Fig. 3 point:
+
+* useful lane-steps/s of the DI engine, float32 and float64;
+* the device's raw normal-generation rate (``jax.random.normal``), as a lane-step bound at 2
+  normals per step;
+* a compiled scalar baseline of the same chain (numba, 1 and 2 threads), if numba is installed;
+* the ratios, and the time to a 1% CI on D extrapolated from the measured CI width and rate
+  (the CI half-width scales as N^{-1/2}).
+"""
+from __future__ import annotations
+
+import os
+import time
+import warnings
+
+import jax
+import jax.numpy as jnp
+
+from .api import DryfricWarning, estimate_diffusivity
+from .di import make_di_model
+from .params import FIG3, Params
+
+
+def rng_bound(dtype, n: int = 1 << 24, reps: int = 5) -> float:
+    """Lane-steps/s the device could do if drawing 2 normals per step were all it did."""
+    f = jax.jit(lambda k: jax.random.normal(k, (n,), dtype).sum())
+    f(jax.random.key(0)).block_until_ready()
+    t = time.perf_counter()
+    for i in range(reps):
+        f(jax.random.key(i + 1)).block_until_ready()
+    return n * reps / (time.perf_counter() - t) / 2.0
+
+
+def run_bench(n_excursions: int = 5000, numba_excursions: int = 2000, seed: int = 0) -> dict:
+    p = Params(**FIG3)
+    out = dict(device=str(jax.devices()[0]), n_devices=jax.device_count(), cpu_count=os.cpu_count(),
+               params=p.as_dict(), n_excursions=n_excursions)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DryfricWarning)
+        for dt in ("float64", "float32"):
+            estimate_diffusivity(p, seed, n_excursions=200, dtype=dt)  # compile
+            r = estimate_diffusivity(p, seed + 1, n_excursions=n_excursions, dtype=dt)
+            out[f"di_{dt}_lane_steps_per_s"] = r.lane_steps_per_s
+            out[f"di_{dt}_utilization"] = r.lane_utilization
+            out[f"rng_bound_{dt}_lane_steps_per_s"] = rng_bound(jnp.dtype(dt))
+            if dt == "float64":
+                rel = r.D_ci / r.D
+                n1 = r.n_excursions * (rel / 0.01) ** 2
+                out.update(D=r.D, D_ci=r.D_ci, excursions_for_1pct=n1,
+                           time_to_1pct_ci_s=r.wall_s * n1 / r.n_excursions)
+    try:
+        from .bench_numba import run_numba
+    except Exception as exc:  # not installed, or broken in this environment: say so, go on
+        out["numba"] = f"unavailable ({type(exc).__name__}: {exc}); pip install -e '.[bench]'"
+    else:
+        model = make_di_model(p, 0.01 * min(p.tau0, p.tau_L))
+        run_numba(model, 20, 1)  # compile
+        for k in (1, 2):
+            t = time.perf_counter()
+            _, steps = run_numba(model, numba_excursions, k, seed)
+            out[f"numba_{k}t_steps_per_s"] = steps / (time.perf_counter() - t)
+        for dt in ("float64", "float32"):
+            out[f"ratio_di_{dt}_to_numba_2t"] = out[f"di_{dt}_lane_steps_per_s"] / out["numba_2t_steps_per_s"]
+    for dt in ("float64", "float32"):
+        out[f"ratio_di_{dt}_to_rng_bound"] = out[f"di_{dt}_lane_steps_per_s"] / out[f"rng_bound_{dt}_lane_steps_per_s"]
+    return out
+
+
+def format_table(b: dict) -> str:
+    rows = [("device", b["device"] + f" (x{b['n_devices']}, {b['cpu_count']} CPU cores)")]
+    for k, v in b.items():
+        if k in ("device", "n_devices", "cpu_count", "params"):
+            continue
+        rows.append((k, f"{v:.4g}" if isinstance(v, float) else str(v)))
+    w = max(len(k) for k, _ in rows)
+    return "\n".join(f"{k:<{w}}  {v}" for k, v in rows)
