@@ -100,6 +100,8 @@ class EstimateResult:
     mean_duration_ci: float = 0.0
     lane_utilization: float = 0.0
     ci_level: float = 0.95
+    rtol: float | None = None
+    stopped_by: str = "n_excursions"
     warnings: list = field(default_factory=list)
 
     def to_dict(self) -> dict:
@@ -133,6 +135,7 @@ class BruteForceResult:
 def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float | None = None,
                          n_excursions: int = 20_000, dtype="float64", lanes: int | None = None,
                          chunk_lanes: int = 4096, block: int = 16, max_steps: int | None = None,
+                         rtol: float | None = None, max_time: float | None = None,
                          progress=None) -> EstimateResult:
     r"""Estimate D and M0 from N i.i.d. long excursions (paper sections 4-6).
 
@@ -147,6 +150,13 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
         dtype: ``"float64"`` or ``"float32"`` for the simulation (statistics are float64).
         lanes, chunk_lanes, block: engine layout (do not change the estimate's law).
         max_steps: work bound per excursion (default 1e4 max(tau0, tau)/h).
+        rtol: precision target: after the first ``n_excursions``, keep running rounds until
+            the 95% half-width of D is at most ``rtol * |D|``.
+        max_time: stop after the round that passes this many seconds (``stopped_by`` says so).
+        progress: optional callback ``progress(dict)`` after every round (N, D, D_ci so far).
+
+    A Ctrl-C between rounds returns what the completed rounds reached (``stopped_by =
+    "interrupted"``); nothing already simulated is lost.
 
     Returns:
         :class:`EstimateResult`: D, M0 with 95% CI half-widths, mean excursion duration, counts.
@@ -159,19 +169,48 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
     key, seed = _key(key)
     if max_steps is None:
         max_steps = int(min(math.ceil(MAX_TIME_REL * max(params.tau0, params.tau) / h), 2**62))
+    if rtol is not None and not (isinstance(rtol, (int, float)) and math.isfinite(rtol) and 0 < rtol < 1):
+        raise ValueError(f"rtol must be in (0, 1) (got {rtol!r})")
+    if max_time is not None and not (isinstance(max_time, (int, float)) and max_time > 0):
+        raise ValueError(f"max_time must be > 0 seconds (got {max_time!r})")
     model = make_di_model(params, h, DTYPES[dname])
+
+    def snapshot(st):
+        if st.n_excursions < 2:
+            return None
+        return long_excursion_estimates(st.total())
+
+    def more(st):  # precision target: excursions still wanted, from the CI's N^{-1/2} scaling
+        e = snapshot(st)
+        if e is None:
+            return st.n_excursions + 2
+        rel = e["D_ci"] / max(abs(e["D"]), 1e-300)
+        return 0 if rel <= rtol else int(math.ceil(e["n_excursions"] * ((rel / rtol) ** 2 * 1.1 - 1)))
+
+    def report(st):
+        if progress is not None:
+            e = snapshot(st) or {}
+            progress(dict(n_excursions=st.n_excursions, D=e.get("D", math.nan) * params.D0,
+                          D_ci=e.get("D_ci", math.nan) * params.D0, target=n_excursions, rtol=rtol))
+
     t0 = time.perf_counter()
-    sim = simulate_long_excursions(model, key, int(n_excursions), lanes=lanes, chunk_lanes=chunk_lanes,
-                                   block=block, max_steps=max_steps, progress=progress)
+    sim, stopped = simulate_long_excursions(model, key, int(n_excursions), lanes=lanes, chunk_lanes=chunk_lanes,
+                                            block=block, max_steps=max_steps, more=more if rtol else None,
+                                            max_time=max_time, progress=report)
     wall = time.perf_counter() - t0
     notes = []
+    if stopped == "interrupted":
+        notes.append(f"interrupted: result of the {sim.n_excursions} excursions completed before Ctrl-C")
+    elif stopped == "max_time":
+        notes.append(f"max_time reached ({max_time} s) before the "
+                     + (f"target rtol = {rtol}" if rtol else f"{n_excursions} excursions"))
     if sim.n_truncated:
         notes.append(f"{sim.n_truncated} of {sim.n_truncated + sim.n_excursions} excursions hit the work bound "
                      f"({max_steps} steps) and are excluded: the estimate is biased low")
     if sim.n_excursions < 2:
         raise RuntimeError("fewer than 2 complete excursions: " + "; ".join(notes))
-    if n_excursions < MIN_RELIABLE_N:
-        notes.append(f"n_excursions = {n_excursions} < {MIN_RELIABLE_N}: the delta-method CI "
+    if sim.n_excursions < MIN_RELIABLE_N:
+        notes.append(f"n_excursions = {sim.n_excursions} < {MIN_RELIABLE_N}: the delta-method CI "
                      "under-covers at this size (heavy-tailed excursions)")
     if params.tau_L_nd > WEAK_DAMPING_TAU_L:
         notes.append(f"tau_L/tau0 = {params.tau_L_nd:.3g} > {WEAK_DAMPING_TAU_L:g} (weak or no viscous damping): "
@@ -186,7 +225,8 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
         n_truncated=sim.n_truncated, method=method, h=h, dtype=dname, seed=seed, wall_s=wall,
         lane_steps_per_s=sim.useful_steps / wall, params=params.as_dict(),
         mean_duration_ci=float(e["mean_duration_ci"]) * params.tau0,
-        lane_utilization=sim.useful_steps / max(sim.slot_steps, 1), warnings=notes)
+        lane_utilization=sim.useful_steps / max(sim.slot_steps, 1), rtol=rtol, stopped_by=stopped,
+        warnings=notes)
 
 
 def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, method: str = "di",

@@ -93,7 +93,11 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--dtype", default="float64", help="float64 or float32")
 
     e = sub.add_parser("estimate", parents=[model, sim], help="long-excursion estimate of D and M0")
-    e.add_argument("--n-excursions", type=_int_at_least("n-excursions", 2), default=20_000)
+    e.add_argument("--n-excursions", type=_int_at_least("n-excursions", 2), default=20_000,
+                   help="at least this many excursions (the first round when --rtol is given)")
+    e.add_argument("--rtol", type=_number("rtol"), default=None,
+                   help="run rounds until the 95%% CI half-width of D is <= RTOL*|D|")
+    e.add_argument("--max-time", type=_number("max-time"), default=None, help="stop after this many seconds")
     b = sub.add_parser("bruteforce", parents=[model, sim], help="fixed-horizon (brute force) D^t")
     b.add_argument("--t", type=_number("t"), required=True, help="horizon, s")
     b.add_argument("--n-paths", type=_int_at_least("n-paths", 2), required=True)
@@ -103,6 +107,14 @@ def build_parser() -> argparse.ArgumentParser:
     bn.add_argument("--json", action="store_true", help="print one JSON object")
     bn.add_argument("--n-excursions", type=_int_at_least("n-excursions", 2), default=5000)
     return p
+
+
+def _progress_line(d):
+    """One self-overwriting status line on stderr (terminal only, never under --json)."""
+    rel = d["D_ci"] / abs(d["D"]) if d["D"] == d["D"] and d["D"] else float("nan")
+    goal = f"target {100 * d['rtol']:.2g}%" if d["rtol"] else f"target N = {d['target']}"
+    print(f"\r  N = {d['n_excursions']:>9d}   D = {d['D']:.5g} ± {100 * rel:.2f}%   ({goal})   ",
+          end="", file=sys.stderr, flush=True)
 
 
 def _fmt(x, ci):
@@ -128,10 +140,14 @@ def _run(a) -> int:
             print(f"white-noise D  = {out['D']:.6g} m^2/s\nwhite-noise M0 = {out['M0']:.6g} m/s")
         return 0
     if a.cmd == "estimate":
+        show = not a.json and sys.stderr.isatty()
         with warnings.catch_warnings(record=True):
             warnings.simplefilter("always", api.DryfricWarning)
             r = api.estimate_diffusivity(params, a.seed, method=a.method, h=a.h, n_excursions=a.n_excursions,
-                                         dtype=a.dtype)
+                                         dtype=a.dtype, rtol=a.rtol, max_time=a.max_time,
+                                         progress=_progress_line if show else None)
+        if show:
+            print(file=sys.stderr)
         for w in r.warnings:
             print(f"dryfric: warning: {w}", file=sys.stderr)
         if a.json:
@@ -140,8 +156,9 @@ def _run(a) -> int:
             print(f"D  = {_fmt(r.D, r.D_ci)} m^2/s   (95% CI)\nM0 = {_fmt(r.M0, r.M0_ci)} m/s\n"
                   f"mean excursion duration = {r.mean_duration:.4g} s\n"
                   f"N = {r.n_excursions} excursions, {r.n_truncated} truncated, h = {r.h:.3g} s, {r.dtype}, "
-                  f"seed {r.seed}\nwall {r.wall_s:.1f} s, {r.lane_steps_per_s:.3g} lane-steps/s")
-        return 0
+                  f"seed {r.seed}\nwall {r.wall_s:.1f} s, {r.lane_steps_per_s:.3g} lane-steps/s, "
+                  f"stopped by: {r.stopped_by}")
+        return 130 if r.stopped_by == "interrupted" else 0
     if a.cmd == "bruteforce":
         r = api.bruteforce_diffusivity(params, a.seed, t=a.t, n_paths=a.n_paths, method=a.method, h=a.h,
                                        burn_in=a.burn_in, dtype=a.dtype)

@@ -28,6 +28,7 @@ counted as truncated and reported, and the lane seeks again; no lane runs more t
 """
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 from functools import partial
 
@@ -195,49 +196,79 @@ def run_round(model: DIModel, key, lanes: int, budget: int, *, block: int = 16, 
                           int((~np.asarray(lane.done)).sum()))
 
 
-def lanes_for(n_excursions: int, chunk_lanes: int = 4096, per_lane: int = 64) -> int:
-    """A power of two near n_excursions / per_lane, at most ``chunk_lanes`` (few compiled shapes)."""
-    want = max(1, n_excursions // per_lane)
+def lanes_for(n_excursions: int, chunk_lanes: int = 4096, per_lane: int = 64, min_lanes: int = 256) -> int:
+    """A power of two near n_excursions / per_lane, at least min(min_lanes, N) (vector width; 256
+    measured best on 2 CPU cores), at most ``chunk_lanes`` (few compiled shapes)."""
+    want = max(1, n_excursions // per_lane, min(min_lanes, n_excursions))
     return int(min(chunk_lanes, 2 ** max(0, int(np.floor(np.log2(want))))))
 
 
 def simulate_long_excursions(model: DIModel, key, n_excursions: int, *, lanes: int | None = None,
                              chunk_lanes: int = 4096, block: int = 16, max_steps: int = 10**8,
-                             pilot_budget: int = 1024, progress=None) -> ExcursionStats:
-    """At least ``n_excursions`` closed (complete or truncated) long excursions, in rounds.
+                             pilot_budget: int = 1024, more=None, max_time: float | None = None,
+                             round_lane_steps: int = 2**26, progress=None):
+    """Long excursions of the DI chain ``model`` in rounds, until enough are closed.
 
     Round r uses ``fold_in(key, r)``.  The first round has a small pilot budget; later rounds
-    size the per-lane budget from the measured steps per excursion so that the total reaches
-    ``n_excursions`` (it ends slightly above: every lane finishes its in-flight excursion).
+    size the per-lane budget from the measured steps per excursion, capped at
+    ``round_lane_steps`` lane-steps per round (a few seconds on a CPU) so that progress,
+    ``max_time`` and Ctrl-C act between rounds.  The cap is a step count, not a time, so the
+    same seed and settings give bit-identical results (except when ``max_time`` stops the run).
 
     Args:
         model: from :func:`dryfric_jax.di.make_di_model`.
         key: a ``jax.random`` key.
+        n_excursions: closed (complete or truncated) excursions to reach at least.
         lanes: lanes per round (default :func:`lanes_for`; a power of two up to ``chunk_lanes``).
         block: steps per while-iteration, their normals drawn at once.
         max_steps: work bound per excursion; excursions reaching it are counted as truncated.
-        progress: optional callback ``progress(done, target)``.
+        more: optional ``more(total) -> int``: further excursions wanted once ``n_excursions``
+            are reached (0 to stop); used for precision targets.
+        max_time: stop after the round that passes this many seconds.
+        progress: optional ``progress(total)`` called after every round.
+
+    Returns:
+        ``(stats, stopped_by)`` with ``stopped_by`` in ``{"n_excursions", "target", "max_time",
+        "interrupted", "work_bound"}``.  Rounds already completed are never lost: Ctrl-C ends
+        the loop with ``"interrupted"``.
     """
     if n_excursions < 1:
         raise ValueError(f"n_excursions must be >= 1 (got {n_excursions})")
     lanes = lanes or lanes_for(n_excursions, chunk_lanes)
-    total, budget, r = None, pilot_budget, 0
-    closed = lambda s: s.n_excursions + s.n_truncated  # truncated excursions count: work stays bounded
-    while total is None or closed(total) < n_excursions:
-        res = run_round(model, jax.random.fold_in(key, r), lanes, budget, block=block, max_steps=max_steps)
-        total = res if total is None else total + res
-        r += 1
-        done = closed(total)
-        if progress is not None:
-            progress(min(done, n_excursions), n_excursions)
-        if done == 0:
-            budget *= 4  # nothing closed yet: longer pilot
-            if budget > 64 * max_steps:
-                break  # every excursion runs into the work bound: report, do not loop forever
-            continue
-        per_exc = total.useful_steps / done
-        budget = max(4 * block, int(np.ceil((n_excursions - done) * per_exc / lanes)))
-    return total
+    closed = lambda st: st.n_excursions + st.n_truncated  # truncated count too: work stays bounded
+    total, budget, r, want, stopped = None, pilot_budget, 0, n_excursions, "n_excursions"
+    t_start = time.perf_counter()
+    try:
+        while True:
+            res = run_round(model, jax.random.fold_in(key, r), lanes, budget, block=block, max_steps=max_steps)
+            total = res if total is None else total + res
+            r += 1
+            if progress is not None:
+                progress(total)
+            done = closed(total)
+            if done >= want and more is not None:
+                extra = int(more(total))
+                want = done + extra if extra > 0 else want
+                stopped = "target" if extra <= 0 else stopped
+            if done >= want:
+                break
+            if max_time is not None and time.perf_counter() - t_start >= max_time:
+                stopped = "max_time"
+                break
+            if done == 0:
+                budget *= 4  # nothing closed yet: longer pilot
+                if budget > 64 * max_steps:
+                    stopped = "work_bound"
+                    break
+                continue
+            per_exc = total.useful_steps / done
+            budget = int(np.ceil((want - done) * per_exc / lanes))
+            budget = max(4 * block, min(budget, round_lane_steps // lanes))
+    except KeyboardInterrupt:
+        stopped = "interrupted"
+        if total is None:
+            raise
+    return total, stopped
 
 
 def steps_per_excursion(model: DIModel, key, *, lanes: int = 256, budget: int = 4096, block: int = 16,

@@ -32,8 +32,8 @@ def test_finish_in_flight_is_unbiased_and_dropping_is_not():
 
 def test_same_seed_bit_identical():
     p = dj.Params.from_nondim(0.3, 2.0, 0.2)
-    a = simulate_long_excursions(make_di_model(p, 0.02), jax.random.key(5), 300, lanes=8)
-    b = simulate_long_excursions(make_di_model(p, 0.02), jax.random.key(5), 300, lanes=8)
+    a, _ = simulate_long_excursions(make_di_model(p, 0.02), jax.random.key(5), 300, lanes=8)
+    b, _ = simulate_long_excursions(make_di_model(p, 0.02), jax.random.key(5), 300, lanes=8)
     assert np.array_equal(a.stats, b.stats) and a.n_excursions >= 300
 
 
