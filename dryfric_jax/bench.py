@@ -17,6 +17,8 @@ import warnings
 
 import jax
 import jax.numpy as jnp
+import numpy as np
+from jax.sharding import Mesh, PartitionSpec
 
 from .api import DryfricWarning, estimate_diffusivity
 from .di import make_di_model
@@ -24,13 +26,19 @@ from .params import FIG3, Params
 
 
 def rng_bound(dtype, n: int = 1 << 24, reps: int = 5) -> float:
-    """Lane-steps/s the device could do if drawing 2 normals per step were all it did."""
-    f = jax.jit(lambda k: jax.random.normal(k, (n,), dtype).sum())
-    f(jax.random.key(0)).block_until_ready()
+    """Lane-steps/s the local devices could do if drawing 2 normals per step were all they did
+    (each device draws n / n_devices normals from its own key, as the lanes do)."""
+    devs = jax.local_devices()
+    mesh = Mesh(np.array(devs), ("d",))
+    per = n // len(devs)
+    draw = lambda k: jax.random.normal(jax.random.fold_in(k[0], jax.lax.axis_index("d")), (per,), dtype).sum()[None]
+    f = jax.jit(jax.shard_map(draw, mesh=mesh, in_specs=PartitionSpec(), out_specs=PartitionSpec("d"),
+                              check_vma=False))
+    f(jax.random.key(0)[None]).block_until_ready()
     t = time.perf_counter()
     for i in range(reps):
-        f(jax.random.key(i + 1)).block_until_ready()
-    return n * reps / (time.perf_counter() - t) / 2.0
+        f(jax.random.key(i + 1)[None]).block_until_ready()
+    return per * len(devs) * reps / (time.perf_counter() - t) / 2.0
 
 
 def run_bench(n_excursions: int = 5000, numba_excursions: int = 2000, seed: int = 0) -> dict:

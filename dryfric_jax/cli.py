@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
 import warnings
 
@@ -172,7 +173,16 @@ def _run(a) -> int:
     raise _UserError(f"unknown command {a.cmd!r}")
 
 
+def _use_all_cpu_cores():
+    """One XLA host device per core, so that lanes shard over the cores (the vmapped loop runs
+    on one core per device).  Must run before JAX starts its backend; a user's XLA_FLAGS wins."""
+    flags = os.environ.get("XLA_FLAGS", "")
+    if "xla_force_host_platform_device_count" not in flags:
+        os.environ["XLA_FLAGS"] = f"{flags} --xla_force_host_platform_device_count={os.cpu_count() or 1}".strip()
+
+
 def main(argv=None) -> int:
+    _use_all_cpu_cores()
     try:
         a = build_parser().parse_args(argv)
         return _run(a)

@@ -30,12 +30,13 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from functools import partial
+from functools import lru_cache, partial
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from .di import DIModel
 
@@ -128,8 +129,7 @@ def _lane_block(model, budget, max_steps, finish, block, lane, lane_key, b):
     return jax.lax.fori_loop(0, block, body, lane)
 
 
-@partial(jax.jit, static_argnames=("block",))
-def _run_round(model: DIModel, keys, budget, max_steps, finish, *, block: int):
+def _round_impl(model: DIModel, keys, budget, max_steps, finish, *, block: int):
     n_lanes = keys.shape[0]
     dt = model.h.dtype
     z = lambda d: jnp.zeros((n_lanes,), d)
@@ -152,7 +152,22 @@ def _run_round(model: DIModel, keys, budget, max_steps, finish, *, block: int):
         return b + 1, vblock(model, budget, max_steps, finish, block, ln, keys, b)
 
     nb, lane = jax.lax.while_loop(cond, body, (jnp.asarray(0, jnp.int64), lane))
-    return lane, nb
+    out = (lane.stats, lane.n_trunc, lane.steps, lane.done)
+    return out, jnp.full((1,), nb)  # blocks run, one entry per device
+
+
+_run_round = jax.jit(_round_impl, static_argnames=("block",))
+
+
+@lru_cache(maxsize=None)
+def _sharded_round(devices: tuple, block: int):
+    """The round over all ``devices``: lanes split evenly, each device runs its own while_loop
+    (no cross-device sync per iteration); per-lane sums are gathered at the end."""
+    mesh = Mesh(np.array(devices), ("lanes",))
+    rep, lanes = PartitionSpec(), PartitionSpec("lanes")
+    f = jax.shard_map(partial(_round_impl, block=block), mesh=mesh, in_specs=(rep, lanes, rep, rep, rep),
+                      out_specs=(lanes, lanes), check_vma=False)
+    return jax.jit(f), NamedSharding(mesh, lanes)
 
 
 @dataclass
@@ -186,14 +201,25 @@ class ExcursionStats:
 def run_round(model: DIModel, key, lanes: int, budget: int, *, block: int = 16, max_steps: int = 10**8,
               finish_in_flight: bool = True) -> ExcursionStats:
     """One round: ``lanes`` lanes, each refilling until ``budget`` steps, then finishing its
-    in-flight excursion.  Lane keys: ``split(key, lanes)``."""
+    in-flight excursion.  Lane keys: ``split(key, lanes)``.
+
+    Lanes are sharded over all local devices (CPU devices from
+    ``--xla_force_host_platform_device_count``, or GPUs); ``lanes`` is rounded up to a multiple
+    of the device count.
+    """
+    devices = tuple(jax.local_devices())
+    lanes = -(-lanes // len(devices)) * len(devices)
     keys = jax.random.split(key, lanes)
-    lane, nb = _run_round(model, keys, jnp.asarray(budget, jnp.int64), jnp.asarray(max_steps, jnp.int64),
-                          jnp.asarray(finish_in_flight), block=block)
-    lane = jax.device_get(lane)
-    return ExcursionStats(np.asarray(lane.stats), int(np.asarray(lane.n_trunc).sum()),
-                          int(np.asarray(lane.steps).sum()), int(nb) * block * lanes, float(model.h),
-                          int((~np.asarray(lane.done)).sum()))
+    args = (jnp.asarray(budget, jnp.int64), jnp.asarray(max_steps, jnp.int64), jnp.asarray(finish_in_flight))
+    if len(devices) == 1:
+        out, nb = _run_round(model, keys, *args, block=block)
+    else:
+        f, sharding = _sharded_round(devices, block)
+        out, nb = f(model, jax.device_put(keys, sharding), *args)
+    stats, n_trunc, steps, done = (np.asarray(a) for a in jax.device_get(out))
+    nb = np.asarray(jax.device_get(nb))
+    return ExcursionStats(stats, int(n_trunc.sum()), int(steps.sum()), int(nb.sum()) * block * lanes // len(nb),
+                          float(model.h), int((~done).sum()))
 
 
 def lanes_for(n_excursions: int, chunk_lanes: int = 4096, per_lane: int = 64, min_lanes: int = 256) -> int:

@@ -1,0 +1,38 @@
+"""Lanes sharded over 2 forced CPU devices: the same estimate within CI, no recompilation.
+
+Runs in a subprocess because the device count must be fixed before JAX starts.
+"""
+import json
+import os
+import subprocess
+import sys
+import textwrap
+
+SCRIPT = textwrap.dedent("""
+    import json, warnings, jax
+    import dryfric_jax as dj
+    from dryfric_jax.excursions import _sharded_round
+    warnings.simplefilter("ignore")
+    p = dj.Params.from_nondim(0.3, 0.5, 0.1)
+    r1 = dj.estimate_diffusivity(p, 5, h=0.02 * p.tau0, n_excursions=20000)
+    f, _ = _sharded_round(tuple(jax.local_devices()), 16)
+    n = f._cache_size()
+    r2 = dj.estimate_diffusivity(p, 6, h=0.03 * p.tau0, n_excursions=5000)
+    print(json.dumps(dict(devices=jax.device_count(), D=r1.D, D_ci=r1.D_ci, M0=r1.M0, M0_ci=r1.M0_ci,
+                          recompiled=f._cache_size() != n)))
+""")
+
+
+def _run(n_devices):
+    env = dict(os.environ, XLA_FLAGS=f"--xla_force_host_platform_device_count={n_devices}")
+    p = subprocess.run([sys.executable, "-c", SCRIPT], env=env, capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0, p.stderr[-2000:]
+    return json.loads(p.stdout.strip().splitlines()[-1])
+
+
+def test_two_devices_agree_with_one_and_do_not_recompile():
+    one, two = _run(1), _run(2)
+    assert one["devices"] == 1 and two["devices"] == 2
+    assert abs(one["D"] - two["D"]) <= (one["D_ci"] ** 2 + two["D_ci"] ** 2) ** 0.5
+    assert abs(one["M0"] - two["M0"]) <= (one["M0_ci"] ** 2 + two["M0_ci"] ** 2) ** 0.5
+    assert not two["recompiled"]
