@@ -134,7 +134,7 @@ class BruteForceResult:
 
 def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float | None = None,
                          n_excursions: int = 20_000, dtype="float64", lanes: int | None = None,
-                         chunk_lanes: int = 4096, block: int = 16, max_steps: int | None = None,
+                         chunk_lanes: int = 4096, block: int = 32, max_steps: int | None = None,
                          rtol: float | None = None, max_time: float | None = None,
                          progress=None) -> EstimateResult:
     r"""Estimate D and M0 from N i.i.d. long excursions (paper sections 4-6).
@@ -231,7 +231,7 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
 
 def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, method: str = "di",
                            h: float | None = None, burn_in: float = 0.0, dtype="float64",
-                           block: int = 16, chunk_lanes: int = 4096) -> BruteForceResult:
+                           block: int = 32, chunk_lanes: int = 4096) -> BruteForceResult:
     r"""Brute-force :math:`\hat D^t_{N'}` and :math:`\hat M_0^t` on the horizon ``t`` (s).
 
     Paths start at :math:`(x_\Delta, 0)`; ``burn_in`` seconds are simulated first and not counted.

@@ -41,7 +41,7 @@ def rng_bound(dtype, n: int = 1 << 24, reps: int = 5) -> float:
     return per * len(devs) * reps / (time.perf_counter() - t) / 2.0
 
 
-def run_bench(n_excursions: int = 5000, numba_excursions: int = 2000, seed: int = 0) -> dict:
+def run_bench(n_excursions: int = 10_000, numba_excursions: int = 2000, seed: int = 0) -> dict:
     p = Params(**FIG3)
     out = dict(device=str(jax.devices()[0]), n_devices=jax.device_count(), cpu_count=os.cpu_count(),
                params=p.as_dict(), n_excursions=n_excursions)

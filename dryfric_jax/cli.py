@@ -106,7 +106,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub.add_parser("theory", parents=[model], help="exact white-noise D and M0")
     bn = sub.add_parser("bench", help="throughput: DI engine vs RNG bound vs compiled baseline")
     bn.add_argument("--json", action="store_true", help="print one JSON object")
-    bn.add_argument("--n-excursions", type=_int_at_least("n-excursions", 2), default=5000)
+    bn.add_argument("--n-excursions", type=_int_at_least("n-excursions", 2), default=10_000)
     return p
 
 

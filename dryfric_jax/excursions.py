@@ -198,7 +198,7 @@ class ExcursionStats:
                               self.n_unfinished + other.n_unfinished)
 
 
-def run_round(model: DIModel, key, lanes: int, budget: int, *, block: int = 16, max_steps: int = 10**8,
+def run_round(model: DIModel, key, lanes: int, budget: int, *, block: int = 32, max_steps: int = 10**8,
               finish_in_flight: bool = True) -> ExcursionStats:
     """One round: ``lanes`` lanes, each refilling until ``budget`` steps, then finishing its
     in-flight excursion.  Lane keys: ``split(key, lanes)``.
@@ -230,7 +230,7 @@ def lanes_for(n_excursions: int, chunk_lanes: int = 4096, per_lane: int = 64, mi
 
 
 def simulate_long_excursions(model: DIModel, key, n_excursions: int, *, lanes: int | None = None,
-                             chunk_lanes: int = 4096, block: int = 16, max_steps: int = 10**8,
+                             chunk_lanes: int = 4096, block: int = 32, max_steps: int = 10**8,
                              pilot_budget: int = 1024, more=None, max_time: float | None = None,
                              round_lane_steps: int = 2**26, progress=None):
     """Long excursions of the DI chain ``model`` in rounds, until enough are closed.
@@ -297,7 +297,7 @@ def simulate_long_excursions(model: DIModel, key, n_excursions: int, *, lanes: i
     return total, stopped
 
 
-def steps_per_excursion(model: DIModel, key, *, lanes: int = 256, budget: int = 4096, block: int = 16,
+def steps_per_excursion(model: DIModel, key, *, lanes: int = 256, budget: int = 4096, block: int = 32,
                         max_steps: int = 10**8) -> float:
     """Pilot estimate of the mean number of steps of one long excursion."""
     while True:
@@ -308,7 +308,7 @@ def steps_per_excursion(model: DIModel, key, *, lanes: int = 256, budget: int = 
 
 
 def simulate_replicates(model: DIModel, key, n_replicates: int, n_per_replicate: int, *,
-                        lanes_per_replicate: int = 16, block: int = 16, max_steps: int = 10**8):
+                        lanes_per_replicate: int = 16, block: int = 32, max_steps: int = 10**8):
     """Independent replicates of about ``n_per_replicate`` excursions each (for calibration).
 
     One pilot round (discarded) measures the steps per excursion; then one round runs

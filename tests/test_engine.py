@@ -9,7 +9,9 @@ import pytest
 import dryfric_jax as dj
 from dryfric_jax.di import make_di_model
 from dryfric_jax.estimators import long_excursion_estimates
-from dryfric_jax.excursions import _run_round, run_round, simulate_long_excursions, steps_per_excursion
+from dryfric_jax.excursions import (
+    _run_round, _sharded_round, run_round, simulate_long_excursions, steps_per_excursion,
+)
 
 
 @pytest.mark.slow
@@ -37,13 +39,18 @@ def test_same_seed_bit_identical():
     assert np.array_equal(a.stats, b.stats) and a.n_excursions >= 300
 
 
+def _compiled_round(block):
+    devices = tuple(jax.local_devices())
+    return _run_round if len(devices) == 1 else _sharded_round(devices, block)[0]
+
+
 def test_second_call_does_not_recompile():
     p1, p2 = dj.Params.from_nondim(0.3), dj.Params.from_nondim(0.5, 1.0, 0.1)
     simulate_long_excursions(make_di_model(p1, 0.02), jax.random.key(0), 64, lanes=16, block=8)
-    n = _run_round._cache_size()
+    n = _compiled_round(8)._cache_size()
     # new parameters, new seed, other budgets and round counts: same shapes, compiled loop reused
     simulate_long_excursions(make_di_model(p2, 0.05), jax.random.key(1), 500, lanes=16, block=8)
-    assert _run_round._cache_size() == n
+    assert _compiled_round(8)._cache_size() == n
 
 
 def test_every_lane_finishes_in_flight_and_work_is_bounded():
