@@ -198,14 +198,16 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
                                             block=block, max_steps=max_steps, more=more if rtol else None,
                                             max_time=max_time, progress=report)
     wall = time.perf_counter() - t0
+    # a lane the block bound stopped (never expected) lost its in-flight excursion: count it too
+    n_truncated = sim.n_truncated + sim.n_unfinished
     notes = []
     if stopped == "interrupted":
         notes.append(f"interrupted: result of the {sim.n_excursions} excursions completed before Ctrl-C")
     elif stopped == "max_time":
         notes.append(f"max_time reached ({max_time} s) before the "
                      + (f"target rtol = {rtol}" if rtol else f"{n_excursions} excursions"))
-    if sim.n_truncated:
-        notes.append(f"{sim.n_truncated} of {sim.n_truncated + sim.n_excursions} excursions hit the work bound "
+    if n_truncated:
+        notes.append(f"{n_truncated} of {n_truncated + sim.n_excursions} excursions hit the work bound "
                      f"({max_steps} steps) and are excluded: the estimate is biased low")
     if sim.n_excursions < 2:
         raise RuntimeError("fewer than 2 complete excursions: " + "; ".join(notes))
@@ -222,7 +224,7 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
         D=float(e["D"] * params.D0), D_ci=float(e["D_ci"] * params.D0), M0=float(e["M0"] * params.v0),
         M0_ci=float(e["M0_ci"] * params.v0),
         mean_duration=float(e["mean_duration"]) * params.tau0, n_excursions=sim.n_excursions,
-        n_truncated=sim.n_truncated, method=method, h=h, dtype=dname, seed=seed, wall_s=wall,
+        n_truncated=n_truncated, method=method, h=h, dtype=dname, seed=seed, wall_s=wall,
         lane_steps_per_s=sim.useful_steps / wall, params=params.as_dict(),
         mean_duration_ci=float(e["mean_duration_ci"]) * params.tau0,
         lane_utilization=sim.useful_steps / max(sim.slot_steps, 1), rtol=rtol, stopped_by=stopped,
