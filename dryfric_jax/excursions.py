@@ -182,7 +182,6 @@ class ExcursionStats:
     n_truncated: int  # excursions closed by the work bound (not in stats)
     useful_steps: int  # lane-steps that advanced an excursion (seeks excluded)
     slot_steps: int  # lane-steps paid for, idle lanes included
-    h: float
     n_unfinished: int = 0  # lanes the block bound stopped (never expected; reported, not hidden)
 
     @property
@@ -194,7 +193,7 @@ class ExcursionStats:
 
     def __add__(self, other: "ExcursionStats") -> "ExcursionStats":
         return ExcursionStats(np.concatenate([self.stats, other.stats]), self.n_truncated + other.n_truncated,
-                              self.useful_steps + other.useful_steps, self.slot_steps + other.slot_steps, self.h,
+                              self.useful_steps + other.useful_steps, self.slot_steps + other.slot_steps,
                               self.n_unfinished + other.n_unfinished)
 
 
@@ -219,7 +218,7 @@ def run_round(model: DIModel, key, lanes: int, budget: int, *, block: int = 32, 
     stats, n_trunc, steps, done = (np.asarray(a) for a in jax.device_get(out))
     nb = np.asarray(jax.device_get(nb))
     return ExcursionStats(stats, int(n_trunc.sum()), int(steps.sum()), int(nb.sum()) * block * lanes // len(nb),
-                          float(model.h), int((~done).sum()))
+                          int((~done).sum()))
 
 
 def lanes_for(n_excursions: int, chunk_lanes: int = 4096, per_lane: int = 64, min_lanes: int = 256) -> int:
