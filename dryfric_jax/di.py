@@ -41,6 +41,41 @@ class DIModel(eqx.Module):
         w = V + self.h * (self.gamma_bar - V * self.inv_tau_L + Xi)
         return jnp.sign(w) * jnp.maximum(jnp.abs(w) - self.h, 0.0)
 
+    # --- the lane-engine interface (dryfric_jax.excursions) ---
+    start_regenerated = False  # lanes seek their first regeneration on C_+
+    regen_after_step = False  # the regenerating transition belongs to the new cycle
+
+    @property
+    def fixed_dt(self):
+        """Step length in float64: excursion durations are n h with an integer n."""
+        return self.h.astype(jnp.float64)
+
+    def init_state(self, n: int):
+        dt = self.h.dtype
+        return (jnp.full((n,), self.x_plus, dt), jnp.zeros((n,), dt))
+
+    def draw(self, key, block: int):
+        """The block's random numbers: 2 normals (exact OU step) and 1 uniform (splitting coin)."""
+        dt = self.h.dtype
+        k_norm, k_unif = jax.random.split(key)
+        zs = jax.random.normal(k_norm, (block, 2), dt)
+        return zs[:, 0], zs[:, 1], jax.random.uniform(k_unif, (block,), dt, minval=jnp.finfo(dt).tiny)
+
+    def advance(self, state, r, watch_plus):
+        """One step; ``heads`` is a regeneration on C_+ (``watch_plus``) or on C_-
+        (:mod:`dryfric_jax.regeneration`).  Returns ``(state, dU, None, heads)``."""
+        X, V = state
+        z1, z2, u = r
+        Xi, Xn = self.ou.sample(X, z1, z2)
+        Vn = self.step(V, Xi)
+        # coin only when stuck on C_+ and released upwards, or stuck on C_- and released downwards
+        s = jax.tree_util.tree_map(lambda p, m: jnp.where(watch_plus, p, m), self.plus, self.minus)
+        released = jnp.where(watch_plus, Vn > 0, Vn < 0)
+        heads = (V == 0) & released & s.contains(X) & (jnp.log(u) < s.log_coin(X, z1, z2))
+        h64 = self.h.astype(jnp.float64)
+        dU = 0.5 * h64 * (V.astype(jnp.float64) + Vn.astype(jnp.float64))
+        return (Xn, Vn), dU, None, heads
+
 
 def make_di_model(params: Params, h: float, dtype=jnp.float64) -> DIModel:
     """Build the nondimensional DI chain for physical ``params`` and physical step ``h`` (s)."""

@@ -38,7 +38,6 @@ import jax.numpy as jnp
 import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
-from .di import DIModel
 
 
 # per-lane sufficient statistics of the closed excursions, in float64: every product of two
@@ -46,68 +45,80 @@ from .di import DIModel
 STAT_NAMES = ("n", "U", "U2", "U3", "U4", "t", "t2", "t3", "t4", "Ut", "U2t", "U3t", "Ut2", "U2t2", "Ut3",
               "t_half")
 
+SEEK, PLUS, MINUS = 0, 1, 2
+
 
 class _Lane(eqx.Module):
-    X: jnp.ndarray
-    V: jnp.ndarray
+    state: tuple  # the chain's own state (DI: X, V; PDMP: k, y, v)
     U: jnp.ndarray  # float64 displacement of the in-flight excursion
-    n: jnp.ndarray  # steps of the in-flight excursion (t = n h), or of the current seek
-    n_half: jnp.ndarray  # steps at which the -HLE began
+    n: jnp.ndarray  # steps (events) of the in-flight excursion, or of the current seek
+    t: jnp.ndarray  # float64 duration of the in-flight excursion (chains without a fixed step)
+    t_half: jnp.ndarray  # duration at which the -HLE began
     phase: jnp.ndarray  # SEEK, PLUS or MINUS
-    done: jnp.ndarray  # the lane's termination flag
-    stats: jnp.ndarray  # (len(STAT_NAMES),) float64 sums over complete excursions
+    done: jnp.ndarray  # the lane's termination flag (per round)
+    stats: jnp.ndarray  # (len(STAT_NAMES),) float64 sums over complete excursions, all rounds
     n_trunc: jnp.ndarray  # excursions closed by the work bound
-    steps: jnp.ndarray  # useful steps done by the lane
-    work: jnp.ndarray  # all steps done by the lane (seeks included): compared with the budget
+    steps: jnp.ndarray  # useful steps done by the lane, all rounds
+    work: jnp.ndarray  # steps done in this round (seeks included): compared with the budget
 
 
-def _close(lane: _Lane, h64, complete) -> _Lane:
-    """Add the in-flight excursion to the lane's sums where ``complete``."""
-    U = lane.U
-    t = lane.n.astype(jnp.float64) * h64
-    th = lane.n_half.astype(jnp.float64) * h64
+def _duration(chain, n, t):
+    """t = n h exactly (integer count) for a fixed-step chain, the float64 sum otherwise."""
+    return n.astype(jnp.float64) * chain.fixed_dt if chain.fixed_dt is not None else t
+
+
+def _close(lane: _Lane, U, t, complete) -> _Lane:
+    """Add the excursion (U, t) to the lane's sums where ``complete``."""
+    th = lane.t_half
     U2, t2 = U * U, t * t
     row = jnp.stack([jnp.ones_like(U), U, U2, U2 * U, U2 * U2, t, t2, t2 * t, t2 * t2, U * t, U2 * t, U2 * U * t,
                      U * t2, U2 * t2, U * t2 * t, th])
     return eqx.tree_at(lambda l: l.stats, lane, lane.stats + jnp.where(complete, row, 0.0))
 
 
-SEEK, PLUS, MINUS = 0, 1, 2
+def _step(chain, budget, max_steps, finish, lane: _Lane, r) -> _Lane:
+    """One step (DI) or event (PDMP) of one lane, and its excursion bookkeeping.
 
-
-def _step(model: DIModel, budget, max_steps, finish, lane: _Lane, z1, z2, u) -> _Lane:
+    ``chain.advance`` says whether this transition is a regeneration on the watched set (C_+ in
+    SEEK and MINUS, C_- in PLUS).  For the DI (``regen_after_step`` False) the regenerating
+    transition belongs to the new cycle; for the PDMP (True) the state *after* it is s_+ or
+    s_-, so it belongs to the cycle it closes.
+    """
     active = ~lane.done
-    X, V = lane.X, lane.V
-    Xi, Xn = model.ou.sample(X, z1, z2)
-    Vn = model.step(V, Xi)
-
-    # retrospective splitting coin: stuck on C_+ and released upwards (SEEK, MINUS), or stuck on
-    # C_- and released downwards (PLUS)
-    watch_plus = lane.phase != PLUS
-    s = jax.tree_util.tree_map(lambda p, m: jnp.where(watch_plus, p, m), model.plus, model.minus)
-    released = jnp.where(watch_plus, Vn > 0, Vn < 0)
-    eligible = active & (V == 0) & released & s.contains(X)
-    heads = eligible & (jnp.log(u) < s.log_coin(X, z1, z2))
+    phase = lane.phase
+    state, dU, dt, heads = chain.advance(lane.state, r, phase != PLUS)
+    heads = heads & active
     spent = lane.work >= budget
-    closes = heads & (lane.phase == MINUS)  # long excursion complete
-    opens = heads & (lane.phase != PLUS) & ~spent  # refill: this transition starts an excursion
-    halfway = heads & (lane.phase == PLUS)  # the -HLE starts now
-
-    h64 = model.h.astype(jnp.float64)
-    lane = _close(lane, h64, closes)
-    # budget spent: stop once nothing is in flight (or at once, dropping it, if not ``finish``)
-    stop = active & spent & ((lane.phase == SEEK) | closes | ~finish)
-    dU = 0.5 * h64 * (V.astype(jnp.float64) + Vn.astype(jnp.float64))
-    counting = (lane.phase != SEEK) | opens
-    U = jnp.where(opens, 0.0, lane.U) + jnp.where(active & counting, dU, 0.0)
-    n = jnp.where(opens, 0, lane.n) + active
-    phase = jnp.where(opens, PLUS, jnp.where(halfway, MINUS, jnp.where(closes, SEEK, lane.phase)))
+    closes = heads & (phase == MINUS)  # long excursion complete
+    # refill: this regeneration starts an excursion, unless the budget is spent in a final round
+    opens = heads & (phase != PLUS) & ~(spent & finish)
+    halfway = heads & (phase == PLUS)  # the -HLE starts now
+    dt = jnp.zeros_like(dU) if dt is None else dt
+    if chain.regen_after_step:
+        cnt = active & (phase != SEEK)
+        U, n, t = lane.U + jnp.where(cnt, dU, 0.0), lane.n + cnt, lane.t + jnp.where(cnt, dt, 0.0)
+        lane = _close(lane, U, _duration(chain, n, t), closes)
+        fresh = opens | closes
+        t_half = jnp.where(halfway, _duration(chain, n, t), lane.t_half)
+        U, n, t = jnp.where(fresh, 0.0, U), jnp.where(fresh, 0, n), jnp.where(fresh, 0.0, t)
+        counted = cnt
+    else:
+        lane = _close(lane, lane.U, _duration(chain, lane.n, lane.t), closes)
+        t_half = jnp.where(halfway, _duration(chain, lane.n, lane.t), lane.t_half)
+        counted = active & ((phase != SEEK) | opens)
+        U = jnp.where(opens, 0.0, lane.U) + jnp.where(counted, dU, 0.0)
+        n = jnp.where(opens, 0, lane.n) + counted
+        t = jnp.where(opens, 0.0, lane.t) + jnp.where(counted, dt, 0.0)
+    new_phase = jnp.where(opens, PLUS, jnp.where(halfway, MINUS, jnp.where(closes, SEEK, phase)))
+    # budget spent: a final round stops each lane once nothing is in flight; a paused round (or
+    # the drop-in-flight demo) stops it at once, keeping its state for the next round
+    stop = active & spent & (~finish | (new_phase == SEEK))
+    # seeking steps are not useful work but count against the budget
+    n = jnp.where(new_phase == SEEK, jnp.where(phase == SEEK, lane.n + active, 0), n)
+    state = jax.tree_util.tree_map(lambda new, old: jnp.where(active, new, old), state, lane.state)
     lane = eqx.tree_at(
-        lambda l: (l.X, l.V, l.U, l.n, l.n_half, l.phase, l.steps, l.work, l.done),
-        lane,
-        (jnp.where(active, Xn, X), jnp.where(active, Vn, V), U, n,
-         jnp.where(halfway, lane.n, jnp.where(opens, 0, lane.n_half)), phase,
-         lane.steps + (active & counting), lane.work + active, lane.done | stop),
+        lambda l: (l.state, l.U, l.n, l.t, l.t_half, l.phase, l.steps, l.work, l.done),
+        lane, (state, U, n, t, t_half, new_phase, lane.steps + counted, lane.work + active, lane.done | stop),
     )
     # work bound: close a runaway excursion (or seek), report it, seek again
     runaway = active & ~stop & (lane.n >= max_steps)
@@ -116,31 +127,31 @@ def _step(model: DIModel, budget, max_steps, finish, lane: _Lane, z1, z2, u) -> 
                         lane.n_trunc + (runaway & (lane.phase != SEEK))))
 
 
-def _lane_block(model, budget, max_steps, finish, block, lane, lane_key, b):
-    dt = model.h.dtype
-    kb = jax.random.fold_in(lane_key, b)
-    k_norm, k_unif = jax.random.split(kb)
-    zs = jax.random.normal(k_norm, (block, 2), dt)
-    us = jax.random.uniform(k_unif, (block,), dt, minval=jnp.finfo(dt).tiny)
+def _lane_block(chain, budget, max_steps, finish, block, lane, lane_key, b):
+    rs = chain.draw(jax.random.fold_in(lane_key, b), block)
 
     def body(i, ln):
-        return _step(model, budget, max_steps, finish, ln, zs[i, 0], zs[i, 1], us[i])
+        return _step(chain, budget, max_steps, finish, ln, jax.tree_util.tree_map(lambda a: a[i], rs))
 
     return jax.lax.fori_loop(0, block, body, lane)
 
 
-def _round_impl(model: DIModel, keys, budget, max_steps, finish, *, block: int):
-    n_lanes = keys.shape[0]
-    dt = model.h.dtype
+def init_lanes(chain, n_lanes: int) -> _Lane:
+    """Fresh lanes: at the chain's start state, in PLUS if that state is a regeneration point
+    (PDMP: s_+), else seeking the first regeneration (DI)."""
     z = lambda d: jnp.zeros((n_lanes,), d)
-    lane = _Lane(
-        X=jnp.full((n_lanes,), model.x_plus, dt), V=z(dt), U=z(jnp.float64), n=z(jnp.int64),
-        n_half=z(jnp.int64), phase=jnp.full((n_lanes,), SEEK, jnp.int32), done=z(bool),
-        stats=jnp.zeros((n_lanes, len(STAT_NAMES)), jnp.float64), n_trunc=z(jnp.int64),
-        steps=z(jnp.int64), work=z(jnp.int64),
+    return _Lane(
+        state=chain.init_state(n_lanes), U=z(jnp.float64), n=z(jnp.int64), t=z(jnp.float64), t_half=z(jnp.float64),
+        phase=jnp.full((n_lanes,), PLUS if chain.start_regenerated else SEEK, jnp.int32), done=z(bool),
+        stats=jnp.zeros((n_lanes, len(STAT_NAMES)), jnp.float64), n_trunc=z(jnp.int64), steps=z(jnp.int64),
+        work=z(jnp.int64),
     )
+
+
+def _round_impl(chain, lane: _Lane, keys, budget, max_steps, finish, *, block: int):
     # every lane stops within budget + max_steps steps: this bound never binds
     max_blocks = (budget + max_steps) // block + 2
+    lane = eqx.tree_at(lambda l: (l.done, l.work), lane, (jnp.zeros_like(lane.done), jnp.zeros_like(lane.work)))
     vblock = jax.vmap(_lane_block, in_axes=(None, None, None, None, None, 0, 0, None))
 
     def cond(c):
@@ -149,11 +160,10 @@ def _round_impl(model: DIModel, keys, budget, max_steps, finish, *, block: int):
 
     def body(c):
         b, ln = c
-        return b + 1, vblock(model, budget, max_steps, finish, block, ln, keys, b)
+        return b + 1, vblock(chain, budget, max_steps, finish, block, ln, keys, b)
 
     nb, lane = jax.lax.while_loop(cond, body, (jnp.asarray(0, jnp.int64), lane))
-    out = (lane.stats, lane.n_trunc, lane.steps, lane.done)
-    return out, jnp.full((1,), nb)  # blocks run, one entry per device
+    return lane, jnp.full((1,), nb)  # blocks run, one entry per device
 
 
 _run_round = jax.jit(_round_impl, static_argnames=("block",))
@@ -162,10 +172,10 @@ _run_round = jax.jit(_round_impl, static_argnames=("block",))
 @lru_cache(maxsize=None)
 def _sharded_round(devices: tuple, block: int):
     """The round over all ``devices``: lanes split evenly, each device runs its own while_loop
-    (no cross-device sync per iteration); per-lane sums are gathered at the end."""
+    (no cross-device sync per iteration); lane states stay on their device between rounds."""
     mesh = Mesh(np.array(devices), ("lanes",))
     rep, lanes = PartitionSpec(), PartitionSpec("lanes")
-    f = jax.shard_map(partial(_round_impl, block=block), mesh=mesh, in_specs=(rep, lanes, rep, rep, rep),
+    f = jax.shard_map(partial(_round_impl, block=block), mesh=mesh, in_specs=(rep, lanes, lanes, rep, rep, rep),
                       out_specs=(lanes, lanes), check_vma=False)
     return jax.jit(f), NamedSharding(mesh, lanes)
 
@@ -180,9 +190,10 @@ class ExcursionStats:
 
     stats: np.ndarray  # (lanes, len(STAT_NAMES))
     n_truncated: int  # excursions closed by the work bound (not in stats)
-    useful_steps: int  # lane-steps that advanced an excursion (seeks excluded)
+    useful_steps: int  # lane-steps (events) that advanced an excursion (seeks excluded)
     slot_steps: int  # lane-steps paid for, idle lanes included
     n_unfinished: int = 0  # lanes the block bound stopped (never expected; reported, not hidden)
+    n_in_flight: int = 0  # excursions running when the round paused (closed by a final round)
 
     @property
     def n_excursions(self) -> int:
@@ -191,34 +202,65 @@ class ExcursionStats:
     def total(self) -> dict:
         return dict(zip(STAT_NAMES, self.stats.sum(0)))
 
-    def __add__(self, other: "ExcursionStats") -> "ExcursionStats":
-        return ExcursionStats(np.concatenate([self.stats, other.stats]), self.n_truncated + other.n_truncated,
-                              self.useful_steps + other.useful_steps, self.slot_steps + other.slot_steps,
-                              self.n_unfinished + other.n_unfinished)
 
+class Lanes:
+    """Persistent lanes of one chain: rounds continue the lanes' chains where they paused.
 
-def run_round(model: DIModel, key, lanes: int, budget: int, *, block: int = 32, max_steps: int = 10**8,
-              finish_in_flight: bool = True) -> ExcursionStats:
-    """One round: ``lanes`` lanes, each refilling until ``budget`` steps, then finishing its
-    in-flight excursion.  Lane keys: ``split(key, lanes)``.
+    ``advance(key, budget)`` runs a *paused* round: every lane stops as soon as it has done
+    ``budget`` steps in this round, its in-flight excursion kept for the next round, so no lane
+    idles.  ``finish(key, budget)`` runs the *final* round: after ``budget`` steps a lane starts
+    no new excursion, finishes the one in flight and raises its termination flag.  Only the
+    final round has idle lanes (waiting for the slowest in-flight excursion).
 
     Lanes are sharded over all local devices (CPU devices from
-    ``--xla_force_host_platform_device_count``, or GPUs); ``lanes`` is rounded up to a multiple
-    of the device count.
+    ``--xla_force_host_platform_device_count``, or GPUs); the lane count is rounded up to a
+    multiple of the device count.  Round keys: ``split(key, lanes)`` per lane, and
+    ``fold_in(lane_key, block)`` per block.
     """
-    devices = tuple(jax.local_devices())
-    lanes = -(-lanes // len(devices)) * len(devices)
-    keys = jax.random.split(key, lanes)
-    args = (jnp.asarray(budget, jnp.int64), jnp.asarray(max_steps, jnp.int64), jnp.asarray(finish_in_flight))
-    if len(devices) == 1:
-        out, nb = _run_round(model, keys, *args, block=block)
-    else:
-        f, sharding = _sharded_round(devices, block)
-        out, nb = f(model, jax.device_put(keys, sharding), *args)
-    stats, n_trunc, steps, done = (np.asarray(a) for a in jax.device_get(out))
-    nb = np.asarray(jax.device_get(nb))
-    return ExcursionStats(stats, int(n_trunc.sum()), int(steps.sum()), int(nb.sum()) * block * lanes // len(nb),
-                          int((~done).sum()))
+
+    def __init__(self, chain, n_lanes: int, *, block: int = 32, max_steps: int = 10**8):
+        self.devices = tuple(jax.local_devices())
+        self.n = -(-n_lanes // len(self.devices)) * len(self.devices)
+        self.chain, self.block, self.max_steps = chain, block, max_steps
+        self.slot_steps, self.last = 0, None
+        lane = init_lanes(chain, self.n)
+        if len(self.devices) > 1:
+            self._f, self._sharding = _sharded_round(self.devices, block)
+            lane = jax.device_put(lane, self._sharding)
+        self.lane = lane
+
+    def _round(self, key, budget, finish) -> ExcursionStats:
+        keys = jax.random.split(key, self.n)
+        args = (jnp.asarray(budget, jnp.int64), jnp.asarray(self.max_steps, jnp.int64), jnp.asarray(finish))
+        if len(self.devices) == 1:
+            lane, nb = _run_round(self.chain, self.lane, keys, *args, block=self.block)
+        else:
+            lane, nb = self._f(self.chain, self.lane, jax.device_put(keys, self._sharding), *args)
+        stats, n_trunc, steps, done, phase = (np.asarray(a) for a in jax.device_get(
+            (lane.stats, lane.n_trunc, lane.steps, lane.done, lane.phase)))
+        nb = np.asarray(jax.device_get(nb))
+        self.lane = lane  # only once the round has completed (Ctrl-C keeps the previous state)
+        self.slot_steps += int(nb.sum()) * self.block * self.n // len(nb)
+        self.last = ExcursionStats(stats, int(n_trunc.sum()), int(steps.sum()), self.slot_steps,
+                                   int((~done).sum()), int((phase != SEEK).sum()))
+        return self.last
+
+    def advance(self, key, budget: int) -> ExcursionStats:
+        return self._round(key, budget, False)
+
+    def finish(self, key, budget: int = 0) -> ExcursionStats:
+        return self._round(key, budget, True)
+
+
+def run_round(chain, key, lanes: int, budget: int, *, block: int = 32, max_steps: int = 10**8,
+              finish_in_flight: bool = True) -> ExcursionStats:
+    """One final round on fresh lanes: each lane refills until ``budget`` steps, then finishes its
+    in-flight excursion.  ``finish_in_flight=False`` drops it instead (biased; for the tests)."""
+    ln = Lanes(chain, lanes, block=block, max_steps=max_steps)
+    res = ln._round(key, budget, finish_in_flight)
+    if not finish_in_flight:
+        res.n_in_flight = 0  # dropped
+    return res
 
 
 def lanes_for(n_excursions: int, chunk_lanes: int = 4096, per_lane: int = 64, min_lanes: int = 256) -> int:
@@ -228,54 +270,57 @@ def lanes_for(n_excursions: int, chunk_lanes: int = 4096, per_lane: int = 64, mi
     return int(min(chunk_lanes, 2 ** max(0, int(np.floor(np.log2(want))))))
 
 
-def simulate_long_excursions(model: DIModel, key, n_excursions: int, *, lanes: int | None = None,
+def simulate_long_excursions(chain, key, n_excursions: int, *, lanes: int | None = None,
                              chunk_lanes: int = 4096, block: int = 32, max_steps: int = 10**8,
                              pilot_budget: int = 1024, more=None, max_time: float | None = None,
                              round_lane_steps: int = 2**26, progress=None):
-    """Long excursions of the DI chain ``model`` in rounds, until enough are closed.
+    """Long excursions of ``chain`` (DI or PDMP) in rounds of persistent lanes, until enough.
 
-    Round r uses ``fold_in(key, r)``.  The first round has a small pilot budget; later rounds
-    size the per-lane budget from the measured steps per excursion, capped at
-    ``round_lane_steps`` lane-steps per round (a few seconds on a CPU) so that progress,
-    ``max_time`` and Ctrl-C act between rounds.  The cap is a step count, not a time, so the
-    same seed and settings give bit-identical results (except when ``max_time`` stops the run).
+    Round r uses ``fold_in(key, r)``.  Paused rounds (:class:`Lanes`) run every lane for the
+    same number of steps, so no lane idles; the first has a small pilot budget, later ones size
+    the budget from the measured steps per excursion, capped at ``round_lane_steps`` lane-steps
+    per round (a few seconds on a CPU) so that progress, ``max_time`` and Ctrl-C act between
+    rounds.  Once the closed plus in-flight excursions reach the target, a final round finishes
+    every in-flight excursion and starts none (unbiased: the number of excursions a lane starts
+    is a stopping time).  The cap is a step count, not a time, so the same seed and settings
+    give bit-identical results (except when ``max_time`` stops the run).
 
     Args:
-        model: from :func:`dryfric_jax.di.make_di_model`.
+        chain: a :class:`~dryfric_jax.di.DIModel` or :class:`~dryfric_jax.pdmp.PDMPModel`.
         key: a ``jax.random`` key.
         n_excursions: closed (complete or truncated) excursions to reach at least.
-        lanes: lanes per round (default :func:`lanes_for`; a power of two up to ``chunk_lanes``).
-        block: steps per while-iteration, their normals drawn at once.
+        lanes: lanes (default :func:`lanes_for`; a power of two up to ``chunk_lanes``).
+        block: steps per while-iteration, their random numbers drawn at once.
         max_steps: work bound per excursion; excursions reaching it are counted as truncated.
-        more: optional ``more(total) -> int``: further excursions wanted once ``n_excursions``
+        more: optional ``more(stats) -> int``: further excursions wanted once ``n_excursions``
             are reached (0 to stop); used for precision targets.
-        max_time: stop after the round that passes this many seconds.
-        progress: optional ``progress(total)`` called after every round.
+        max_time: stop (after finishing the in-flight excursions) once this many seconds passed.
+        progress: optional ``progress(stats)`` called after every round.
 
     Returns:
         ``(stats, stopped_by)`` with ``stopped_by`` in ``{"n_excursions", "target", "max_time",
-        "interrupted", "work_bound"}``.  Rounds already completed are never lost: Ctrl-C ends
-        the loop with ``"interrupted"``.
+        "interrupted", "work_bound"}``.  Completed rounds are never lost: on Ctrl-C the in-flight
+        excursions are finished (a second Ctrl-C drops them, see ``n_in_flight``).
     """
     if n_excursions < 1:
         raise ValueError(f"n_excursions must be >= 1 (got {n_excursions})")
     lanes = lanes or lanes_for(n_excursions, chunk_lanes)
+    ln = Lanes(chain, lanes, block=block, max_steps=max_steps)
     closed = lambda st: st.n_excursions + st.n_truncated  # truncated count too: work stays bounded
     total, budget, r, want, stopped = None, pilot_budget, 0, n_excursions, "n_excursions"
     t_start = time.perf_counter()
     try:
         while True:
-            res = run_round(model, jax.random.fold_in(key, r), lanes, budget, block=block, max_steps=max_steps)
-            total = res if total is None else total + res
+            total = ln.advance(jax.random.fold_in(key, r), budget)
             r += 1
             if progress is not None:
                 progress(total)
             done = closed(total)
-            if done >= want and more is not None:
+            if done + total.n_in_flight >= want and more is not None:
                 extra = int(more(total))
                 want = done + extra if extra > 0 else want
                 stopped = "target" if extra <= 0 else stopped
-            if done >= want:
+            if done + total.n_in_flight >= want:
                 break
             if max_time is not None and time.perf_counter() - t_start >= max_time:
                 stopped = "max_time"
@@ -286,35 +331,40 @@ def simulate_long_excursions(model: DIModel, key, n_excursions: int, *, lanes: i
                     stopped = "work_bound"
                     break
                 continue
-            per_exc = total.useful_steps / done
-            budget = int(np.ceil((want - done) * per_exc / lanes))
-            budget = max(4 * block, min(budget, round_lane_steps // lanes))
+            # in-flight excursions count as one each: an underestimate, so rounds never overshoot
+            per_exc = total.useful_steps / (done + total.n_in_flight)
+            budget = int(np.ceil((want - done - total.n_in_flight) * per_exc / ln.n))
+            budget = max(4 * block, min(budget, round_lane_steps // ln.n))
     except KeyboardInterrupt:
         stopped = "interrupted"
         if total is None:
             raise
+    try:
+        total = ln.finish(jax.random.fold_in(key, r))
+    except KeyboardInterrupt:  # second Ctrl-C: keep the closed excursions, in-flight ones dropped
+        stopped = "interrupted"
     return total, stopped
 
 
-def steps_per_excursion(model: DIModel, key, *, lanes: int = 256, budget: int = 4096, block: int = 32,
+def steps_per_excursion(chain, key, *, lanes: int = 256, budget: int = 4096, block: int = 32,
                         max_steps: int = 10**8) -> float:
-    """Pilot estimate of the mean number of steps of one long excursion."""
+    """Pilot estimate of the mean number of steps (events) of one long excursion."""
     while True:
-        res = run_round(model, key, lanes, budget, block=block, max_steps=max_steps)
+        res = run_round(chain, key, lanes, budget, block=block, max_steps=max_steps)
         if res.n_excursions >= lanes or budget > 64 * max_steps:
             return res.useful_steps / max(res.n_excursions, 1)
         budget *= 4
 
 
-def simulate_replicates(model: DIModel, key, n_replicates: int, n_per_replicate: int, *,
+def simulate_replicates(chain, key, n_replicates: int, n_per_replicate: int, *,
                         lanes_per_replicate: int = 16, block: int = 32, max_steps: int = 10**8):
     """Independent replicates of about ``n_per_replicate`` excursions each (for calibration).
 
-    One pilot round (discarded) measures the steps per excursion; then one round runs
-    ``n_replicates * lanes_per_replicate`` lanes with a budget of ``1.05 n_per_replicate`` mean
-    excursions per replicate.  Replicate k is lanes ``[k L, (k+1) L)``.
+    One pilot round (discarded) measures the steps per excursion; then one final round runs
+    ``n_replicates * lanes_per_replicate`` fresh lanes with a budget of ``1.05 n_per_replicate``
+    mean excursions per replicate.  Replicate k is lanes ``[k L, (k+1) L)``.
     """
-    per = steps_per_excursion(model, jax.random.fold_in(key, 0), block=block, max_steps=max_steps)
+    per = steps_per_excursion(chain, jax.random.fold_in(key, 0), block=block, max_steps=max_steps)
     budget = int(np.ceil(1.05 * n_per_replicate * per / lanes_per_replicate))
-    return run_round(model, jax.random.fold_in(key, 1), n_replicates * lanes_per_replicate, budget, block=block,
+    return run_round(chain, jax.random.fold_in(key, 1), n_replicates * lanes_per_replicate, budget, block=block,
                      max_steps=max_steps)
