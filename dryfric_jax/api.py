@@ -15,12 +15,14 @@ import jax.numpy as jnp
 import numpy as np
 
 from .bruteforce import simulate_bruteforce
+from .cost import choose_method, default_delta
 from .di import make_di_model
 from .estimators import MIN_RELIABLE_N, WEAK_DAMPING_TAU_L, bruteforce_estimates, long_excursion_estimates
 from .excursions import simulate_long_excursions
 from .params import Params, check_positive
+from .pdmp import make_pdmp_model, pdmp_grid_info, simulate_pdmp_bruteforce
 
-METHODS = ("di",)
+METHODS = ("di", "pdmp", "auto")
 DTYPES = {"float64": jnp.float64, "float32": jnp.float32}
 
 #: Default step, relative to the fastest deterministic time scale: h = H_REL * min(tau0, tau_L).
@@ -79,6 +81,28 @@ def _check_method(method):
         raise ValueError(f"method must be one of {list(METHODS)} (got {method!r})")
 
 
+def _resolve(params: Params, method: str, h, delta, dtype):
+    """The chain to simulate and its description: ``(method, chain, h, grid, reason)``."""
+    _check_method(method)
+    if method == "di" and delta is not None:
+        raise ValueError("delta is the PDMP noise grid step: give it with method 'pdmp' or 'auto' (got method 'di')")
+    if method == "pdmp" and h is not None:
+        raise ValueError("h is the DI step: give it with method 'di' or 'auto' (got method 'pdmp')")
+    reason = f"method {method!r} requested"
+    if method == "auto":
+        h_c = check_h(params, h)
+        d_c = default_delta(params) if delta is None else delta
+        make_pdmp_model(params, d_c)  # validates delta
+        method, reason = choose_method(params, h_c, d_c)
+        h, delta = (h_c, None) if method == "di" else (None, d_c)
+    if method == "di":
+        h = check_h(params, h)
+        return method, make_di_model(params, h, DTYPES[dtype]), h, None, reason
+    delta = default_delta(params) if delta is None else delta
+    chain = make_pdmp_model(params, delta, DTYPES[dtype])
+    return method, chain, None, pdmp_grid_info(params, delta), reason
+
+
 @dataclass
 class EstimateResult:
     """Long-excursion estimate (physical units; CIs are 95% half-widths)."""
@@ -91,13 +115,17 @@ class EstimateResult:
     n_excursions: int
     n_truncated: int
     method: str
-    h: float
+    h: float | None
     dtype: str
     seed: int | None
     wall_s: float
     lane_steps_per_s: float
     params: dict
     mean_duration_ci: float = 0.0
+    delta: float | None = None
+    L_X: float | None = None
+    events_per_s: float | None = None
+    method_reason: str = ""
     lane_utilization: float = 0.0
     ci_level: float = 0.95
     rtol: float | None = None
@@ -119,7 +147,7 @@ class BruteForceResult:
     t: float
     n_paths: int
     method: str
-    h: float
+    h: float | None
     dtype: str
     seed: int | None
     wall_s: float
@@ -127,13 +155,17 @@ class BruteForceResult:
     params: dict
     burn_in: float = 0.0
     ci_level: float = 0.95
+    delta: float | None = None
+    L_X: float | None = None
+    events_per_s: float | None = None
+    n_unfinished: int = 0
 
     def to_dict(self) -> dict:
         return asdict(self)
 
 
 def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float | None = None,
-                         n_excursions: int = 20_000, dtype="float64", lanes: int | None = None,
+                         delta: float | None = None, n_excursions: int = 20_000, dtype="float64", lanes: int | None = None,
                          chunk_lanes: int = 4096, block: int = 32, max_steps: int | None = None,
                          rtol: float | None = None, max_time: float | None = None,
                          progress=None) -> EstimateResult:
@@ -142,8 +174,12 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
     Args:
         params: physical parameters.
         key: a ``jax.random`` key or a non-negative integer seed.
-        method: ``"di"`` (differential inclusion with exact OU step).
+        method: ``"di"`` (differential inclusion with exact OU step, section 6), ``"pdmp"``
+            (exact event-driven jump-noise model, section 3) or ``"auto"`` (the cheaper of the
+            two by the cost model of :mod:`dryfric_jax.cost`; ``method_reason`` says why).
         h: DI step in seconds; default :func:`default_h` = 0.01 min(tau0, tau_L).
+        delta: PDMP noise grid step in s^-1/2; default :func:`dryfric_jax.cost.default_delta`
+            (delta' = 0.05); admissible range in :mod:`dryfric_jax.noise`.
         n_excursions: N >= 2 (the run ends with slightly more: every lane finishes its in-flight
             excursion); below :data:`MIN_RELIABLE_N` the CI under-covers and a
             :class:`DryfricWarning` is issued (also for weak viscous damping, see README).
@@ -161,19 +197,18 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
     Returns:
         :class:`EstimateResult`: D, M0 with 95% CI half-widths, mean excursion duration, counts.
     """
-    _check_method(method)
-    h = check_h(params, h)
     dname = _dtype(dtype)
+    method, model, h, grid, reason = _resolve(params, method, h, delta, dname)
     if not isinstance(n_excursions, (int, np.integer)) or n_excursions < 2:
         raise ValueError(f"n_excursions must be an integer >= 2 (got {n_excursions!r})")
     key, seed = _key(key)
-    if max_steps is None:
-        max_steps = int(min(math.ceil(MAX_TIME_REL * max(params.tau0, params.tau) / h), 2**62))
+    if max_steps is None:  # steps (DI) or events (PDMP) in MAX_TIME_REL max(tau0, tau)
+        per_tau0 = params.tau0 / h if h is not None else 2.0 * grid["rate_nd"]
+        max_steps = int(min(math.ceil(MAX_TIME_REL * max(1.0, params.tau_nd) * per_tau0), 2**62))
     if rtol is not None and not (isinstance(rtol, (int, float)) and math.isfinite(rtol) and 0 < rtol < 1):
         raise ValueError(f"rtol must be in (0, 1) (got {rtol!r})")
     if max_time is not None and not (isinstance(max_time, (int, float)) and max_time > 0):
         raise ValueError(f"max_time must be > 0 seconds (got {max_time!r})")
-    model = make_di_model(params, h, DTYPES[dname])
 
     def snapshot(st):
         if st.n_excursions < 2:
@@ -203,12 +238,15 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
     notes = []
     if stopped == "interrupted":
         notes.append(f"interrupted: result of the {sim.n_excursions} excursions completed before Ctrl-C")
+    if sim.n_in_flight:
+        notes.append(f"{sim.n_in_flight} in-flight excursions dropped (second Ctrl-C): D is biased low by "
+                     f"O(lanes/N) = O({sim.n_in_flight / max(sim.n_excursions, 1):.2g})")
     elif stopped == "max_time":
         notes.append(f"max_time reached ({max_time} s) before the "
                      + (f"target rtol = {rtol}" if rtol else f"{n_excursions} excursions"))
     if n_truncated:
         notes.append(f"{n_truncated} of {n_truncated + sim.n_excursions} excursions hit the work bound "
-                     f"({max_steps} steps) and are excluded: the estimate is biased low")
+                     f"({max_steps} {'steps' if h else 'events'}) and are excluded: the estimate is biased low")
     if sim.n_excursions < 2:
         raise RuntimeError("fewer than 2 complete excursions: " + "; ".join(notes))
     if sim.n_excursions < MIN_RELIABLE_N:
@@ -228,37 +266,54 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
         lane_steps_per_s=sim.useful_steps / wall, params=params.as_dict(),
         mean_duration_ci=float(e["mean_duration_ci"]) * params.tau0,
         lane_utilization=sim.useful_steps / max(sim.slot_steps, 1), rtol=rtol, stopped_by=stopped,
-        warnings=notes)
+        warnings=notes, delta=grid and grid["delta"], L_X=grid and grid["L_X"],
+        events_per_s=None if grid is None else sim.useful_steps / wall, method_reason=reason)
 
 
 def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, method: str = "di",
-                           h: float | None = None, burn_in: float = 0.0, dtype="float64",
-                           block: int = 32, chunk_lanes: int = 4096) -> BruteForceResult:
+                           h: float | None = None, delta: float | None = None, burn_in: float = 0.0,
+                           dtype="float64", block: int = 32, chunk_lanes: int = 4096,
+                           max_events: int | None = None) -> BruteForceResult:
     r"""Brute-force :math:`\hat D^t_{N'}` and :math:`\hat M_0^t` on the horizon ``t`` (s).
 
-    Paths start at :math:`(x_\Delta, 0)`; ``burn_in`` seconds are simulated first and not counted.
-    The bias is O(1/t): pick t long against the velocity correlation time.
+    DI paths start at :math:`(x_\Delta, 0)`, PDMP paths at :math:`s_+ = (x_{k_++1}, 1, 0)`
+    (Algorithm 2, corrected); ``burn_in`` seconds are simulated first and not counted.  The bias
+    is O(1/t): pick t long against the velocity correlation time.  PDMP paths are bounded by
+    ``max_events`` (default 10x the expected count); paths stopped by it are reported in
+    ``n_unfinished`` and make the call fail rather than return a biased number.
     """
-    _check_method(method)
-    h = check_h(params, h)
     dname = _dtype(dtype)
+    if method == "auto":
+        raise ValueError("method must be 'di' or 'pdmp' for brute force (got 'auto')")
+    method, model, h, grid, _ = _resolve(params, method, h, delta, dname)
     check_positive("t", t)
     if not (isinstance(burn_in, (int, float)) and math.isfinite(burn_in) and burn_in >= 0):
         raise ValueError(f"burn_in must be a finite number >= 0 (got {burn_in!r})")
     if not isinstance(n_paths, (int, np.integer)) or n_paths < 2:
         raise ValueError(f"n_paths must be an integer >= 2 (got {n_paths!r})")
-    if t < h:
+    if h is not None and t < h:
         raise ValueError(f"t must be >= h = {h:.4g} s (got {t!r})")
     key, seed = _key(key)
-    model = make_di_model(params, h, DTYPES[dname])
     t0 = time.perf_counter()
-    U, t_nd = simulate_bruteforce(model, key, int(n_paths), round(t / h), burn_in_steps=round(burn_in / h),
-                                  block=block, chunk_lanes=chunk_lanes)
+    unfinished, events = 0, None
+    if method == "di":
+        U, t_nd = simulate_bruteforce(model, key, int(n_paths), round(t / h), burn_in_steps=round(burn_in / h),
+                                      block=block, chunk_lanes=chunk_lanes)
+        steps = n_paths * (t_nd + burn_in / params.tau0) / float(model.h)
+    else:
+        t_nd, b_nd = t / params.tau0, burn_in / params.tau0
+        if max_events is None:
+            max_events = int(10 * 2.0 * grid["rate_nd"] * (t_nd + b_nd)) + 1000
+        U, steps, unfinished = simulate_pdmp_bruteforce(model, key, int(n_paths), t_nd, burn_in=b_nd,
+                                                        max_events=max_events, block=block, chunk_lanes=chunk_lanes)
+        if unfinished:
+            raise RuntimeError(f"{unfinished} of {n_paths} PDMP paths hit max_events = {max_events} before t; "
+                               "raise max_events")
     wall = time.perf_counter() - t0
     e = bruteforce_estimates(U, t_nd)
-    steps = n_paths * (t_nd + burn_in / params.tau0) / float(model.h)
     return BruteForceResult(
         D_t=float(e["D_t"] * params.D0), D_t_ci=float(e["D_t_ci"] * params.D0), M0_t=float(e["M0_t"] * params.v0),
         M0_t_ci=float(e["M0_t_ci"] * params.v0), t=t_nd * params.tau0, n_paths=int(n_paths), method=method, h=h,
         dtype=dname, seed=seed, wall_s=wall, lane_steps_per_s=steps / wall, params=params.as_dict(),
-        burn_in=burn_in)
+        burn_in=burn_in, delta=grid and grid["delta"], L_X=grid and grid["L_X"],
+        events_per_s=None if grid is None else steps / wall, n_unfinished=unfinished)

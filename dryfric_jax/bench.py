@@ -5,7 +5,9 @@ One run, one device, the paper's Fig. 3 point:
 * useful lane-steps/s of the DI engine, float32 and float64;
 * the device's raw normal-generation rate (``jax.random.normal``), as a lane-step bound at 2
   normals per step;
-* a compiled scalar baseline of the same chain (numba, 1 and 2 threads), if numba is installed;
+* PDMP events/s (default delta), float32 and float64;
+* compiled scalar baselines of the same DI chain and of the same PDMP event loop (numba, 1 and 2
+  threads), if numba is installed;
 * the ratios, and the time to a 1% CI on D extrapolated from the measured CI width and rate
   (the CI half-width scales as N^{-1/2}).
 """
@@ -21,7 +23,10 @@ import numpy as np
 from jax.sharding import Mesh, PartitionSpec
 
 from .api import DryfricWarning, estimate_diffusivity
+from .cost import default_delta
 from .di import make_di_model
+from .excursions import lanes_for
+from .pdmp import make_pdmp_model
 from .params import FIG3, Params
 
 
@@ -45,11 +50,12 @@ def run_bench(n_excursions: int = 10_000, numba_excursions: int = 2000, seed: in
     p = Params(**FIG3)
     out = dict(device=str(jax.devices()[0]), n_devices=jax.device_count(), cpu_count=os.cpu_count(),
                params=p.as_dict(), n_excursions=n_excursions)
+    lanes = lanes_for(n_excursions)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DryfricWarning)
         for dt in ("float64", "float32"):
-            estimate_diffusivity(p, seed, n_excursions=200, dtype=dt)  # compile
-            r = estimate_diffusivity(p, seed + 1, n_excursions=n_excursions, dtype=dt)
+            estimate_diffusivity(p, seed, n_excursions=200, dtype=dt, lanes=lanes)  # compile, same shapes
+            r = estimate_diffusivity(p, seed + 1, n_excursions=n_excursions, dtype=dt, lanes=lanes)
             out[f"di_{dt}_lane_steps_per_s"] = r.lane_steps_per_s
             out[f"di_{dt}_utilization"] = r.lane_utilization
             out[f"rng_bound_{dt}_lane_steps_per_s"] = rng_bound(jnp.dtype(dt))
@@ -58,11 +64,24 @@ def run_bench(n_excursions: int = 10_000, numba_excursions: int = 2000, seed: in
                 n1 = r.n_excursions * (rel / 0.01) ** 2
                 out.update(D=r.D, D_ci=r.D_ci, excursions_for_1pct=n1,
                            time_to_1pct_ci_s=r.wall_s * n1 / r.n_excursions)
+        for dt in ("float64", "float32"):  # PDMP events/s at the default delta
+            estimate_diffusivity(p, seed, method="pdmp", n_excursions=200, dtype=dt, lanes=lanes)  # compile
+            r = estimate_diffusivity(p, seed + 1, method="pdmp", n_excursions=n_excursions, dtype=dt, lanes=lanes)
+            out[f"pdmp_{dt}_events_per_s"] = r.events_per_s
+        out["pdmp_delta"] = r.delta
     try:
-        from .bench_numba import run_numba
+        from .bench_numba import run_numba, run_numba_pdmp
     except Exception as exc:  # not installed, or broken in this environment: say so, go on
         out["numba"] = f"unavailable ({type(exc).__name__}: {exc}); pip install -e '.[bench]'"
     else:
+        pm = make_pdmp_model(p, default_delta(p))
+        run_numba_pdmp(pm, 20, 1)  # compile
+        for k in (1, 2):
+            t = time.perf_counter()
+            _, ev = run_numba_pdmp(pm, numba_excursions, k, seed)
+            out[f"numba_pdmp_{k}t_events_per_s"] = ev / (time.perf_counter() - t)
+        for dt in ("float64", "float32"):
+            out[f"ratio_pdmp_{dt}_to_numba_2t"] = out[f"pdmp_{dt}_events_per_s"] / out["numba_pdmp_2t_events_per_s"]
         model = make_di_model(p, 0.01 * min(p.tau0, p.tau_L))
         run_numba(model, 20, 1)  # compile
         for k in (1, 2):

@@ -88,8 +88,12 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="cmd", required=True, parser_class=_Parser)
     model = _model_options()
     sim = argparse.ArgumentParser(add_help=False)
-    sim.add_argument("--method", default="di", help="simulation method: di")
+    sim.add_argument("--method", default="di",
+                     help="di (differential inclusion, OU noise), pdmp (exact jump-noise PDMP) or auto "
+                          "(the cheaper by the cost model; estimate only)")
     sim.add_argument("--h", type=_number("h"), default=None, help="DI step, s (default 0.01*min(tau0, tau_L))")
+    sim.add_argument("--delta", type=_number("delta"), default=None,
+                     help="PDMP noise grid step, s^-1/2 (default delta' = delta sqrt(Gamma)/Delta = 0.05)")
     sim.add_argument("--seed", type=_int_at_least("seed", 0), default=0)
     sim.add_argument("--dtype", default="float64", help="float64 or float32")
 
@@ -118,6 +122,10 @@ def _progress_line(d):
           end="", file=sys.stderr, flush=True)
 
 
+def _resolution(r):
+    return f"h = {r.h:.3g} s" if r.delta is None else f"PDMP delta = {r.delta:.3g} s^-1/2, L_X = {r.L_X:.3g}"
+
+
 def _fmt(x, ci):
     return f"{x:.6g} ± {ci:.2g}  ({100 * ci / abs(x):.1f}%)" if x else f"{x:.6g} ± {ci:.2g}"
 
@@ -144,7 +152,8 @@ def _run(a) -> int:
         show = not a.json and sys.stderr.isatty()
         with warnings.catch_warnings(record=True):
             warnings.simplefilter("always", api.DryfricWarning)
-            r = api.estimate_diffusivity(params, a.seed, method=a.method, h=a.h, n_excursions=a.n_excursions,
+            r = api.estimate_diffusivity(params, a.seed, method=a.method, h=a.h, delta=a.delta,
+                                         n_excursions=a.n_excursions,
                                          dtype=a.dtype, rtol=a.rtol, max_time=a.max_time,
                                          progress=_progress_line if show else None)
         if show:
@@ -156,18 +165,20 @@ def _run(a) -> int:
         else:
             print(f"D  = {_fmt(r.D, r.D_ci)} m^2/s   (95% CI)\nM0 = {_fmt(r.M0, r.M0_ci)} m/s\n"
                   f"mean excursion duration = {r.mean_duration:.4g} s\n"
-                  f"N = {r.n_excursions} excursions, {r.n_truncated} truncated, h = {r.h:.3g} s, {r.dtype}, "
-                  f"seed {r.seed}\nwall {r.wall_s:.1f} s, {r.lane_steps_per_s:.3g} lane-steps/s, "
-                  f"stopped by: {r.stopped_by}")
+                  f"N = {r.n_excursions} excursions, {r.n_truncated} truncated, {_resolution(r)}, {r.dtype}, "
+                  f"seed {r.seed}\nwall {r.wall_s:.1f} s, {r.lane_steps_per_s:.3g} "
+                  f"{'lane-steps' if r.delta is None else 'events'}/s, stopped by: {r.stopped_by}")
+            if a.method == "auto":
+                print(r.method_reason)
         return 130 if r.stopped_by == "interrupted" else 0
     if a.cmd == "bruteforce":
         r = api.bruteforce_diffusivity(params, a.seed, t=a.t, n_paths=a.n_paths, method=a.method, h=a.h,
-                                       burn_in=a.burn_in, dtype=a.dtype)
+                                       delta=a.delta, burn_in=a.burn_in, dtype=a.dtype)
         if a.json:
             print(json.dumps(r.to_dict()))
         else:
             print(f"D_t  = {_fmt(r.D_t, r.D_t_ci)} m^2/s   (t = {r.t:.4g} s, 95% CI)\n"
-                  f"M0_t = {_fmt(r.M0_t, r.M0_t_ci)} m/s\nN' = {r.n_paths} paths, h = {r.h:.3g} s, "
+                  f"M0_t = {_fmt(r.M0_t, r.M0_t_ci)} m/s\nN' = {r.n_paths} paths, {_resolution(r)}, "
                   f"wall {r.wall_s:.1f} s")
         return 0
     raise _UserError(f"unknown command {a.cmd!r}")

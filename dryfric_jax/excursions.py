@@ -334,7 +334,7 @@ def simulate_long_excursions(chain, key, n_excursions: int, *, lanes: int | None
             # in-flight excursions count as one each: an underestimate, so rounds never overshoot
             per_exc = total.useful_steps / (done + total.n_in_flight)
             budget = int(np.ceil((want - done - total.n_in_flight) * per_exc / ln.n))
-            budget = max(4 * block, min(budget, round_lane_steps // ln.n))
+            budget = max(4 * block, int(per_exc) // 4, min(budget, round_lane_steps // ln.n))
     except KeyboardInterrupt:
         stopped = "interrupted"
         if total is None:

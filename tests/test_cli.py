@@ -6,6 +6,9 @@ import sys
 import pytest
 
 from dryfric_jax.cli import main
+from dryfric_jax.params import FIG3
+
+FIG3_TAU = FIG3["tau"]
 
 ESTIMATE_KEYS = {"D", "D_ci", "M0", "M0_ci", "mean_duration", "n_excursions", "n_truncated", "method", "h", "dtype",
                  "seed", "wall_s", "lane_steps_per_s", "params"}
@@ -34,6 +37,15 @@ BAD = [  # (argv, word the one-line message must contain)
     (["bruteforce", "--t", "1", "--n-paths", "1"], "--n-paths"),
     (["theory", "--tau-L", "inf", "--gamma-bar", "4"], "gamma_bar"),  # |gamma_bar| >= Delta: no stationary state
     (["estimate", "--Gamma", "abc"], "--Gamma"),
+    (["estimate", "--method", "pdmp", "--delta", "0"], "delta must be in (0, 0.3339)"),
+    (["estimate", "--method", "pdmp", "--delta", "-0.1"], "delta must be in (0, 0.3339)"),
+    (["estimate", "--method", "pdmp", "--delta", "0.5"], "delta must be in (0, 0.3339)"),  # tau delta L_X >= 2
+    (["estimate", "--method", "pdmp", "--delta", "nan"], "delta must be in"),
+    (["estimate", "--method", "auto", "--delta", "1"], "delta must be in"),
+    (["estimate", "--method", "di", "--delta", "0.1"], "delta"),
+    (["estimate", "--method", "pdmp", "--h", "0.001"], "h is the DI step"),
+    (["bruteforce", "--method", "pdmp", "--delta", "0.4", "--t", "1", "--n-paths", "10"], "delta must be in"),
+    (["bruteforce", "--method", "auto", "--t", "1", "--n-paths", "10"], "method"),
 ]
 
 
@@ -78,3 +90,21 @@ def test_bench_json_has_the_side_by_side_numbers(capsys):
         assert b[f"ratio_di_{dt}_to_rng_bound"] > 0
     assert "numba" in b or "numba_2t_steps_per_s" in b  # baseline measured, or why not
     assert b["time_to_1pct_ci_s"] > 0
+
+
+def test_pdmp_and_auto_json(capsys):
+    assert main(["estimate", "--method", "pdmp", "--delta", "0.2", "--n-excursions", "200", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert ESTIMATE_KEYS | {"delta", "L_X", "events_per_s"} <= set(out)
+    assert out["method"] == "pdmp" and out["delta"] == 0.2 and out["h"] is None and out["events_per_s"] > 0
+    assert out["L_X"] >= 8 / FIG3_TAU**0.5
+    # slow noise: auto picks the PDMP and says why; fast noise: the DI
+    assert main(["estimate", "--method", "auto", "--tau", "5", "--n-excursions", "100", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["method"] == "pdmp" and "chose pdmp" in out["method_reason"]
+    assert main(["estimate", "--method", "auto", "--tau", "0.05", "--n-excursions", "100", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["method"] == "di" and "chose di" in out["method_reason"] and out["delta"] is None
+    assert main(["bruteforce", "--method", "pdmp", "--t", "2", "--n-paths", "50", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["method"] == "pdmp" and out["events_per_s"] > 0 and out["n_unfinished"] == 0

@@ -1,0 +1,51 @@
+r"""``method="auto"``: the cost model that picks the PDMP or the DI.
+
+Both approximate the same limit (the DI driven by OU noise) at a cost per unit of
+nondimensional time (:math:`\tau_0`):
+
+* PDMP: about :math:`\Lambda' = 2/(\tau'\delta')^2` noise jumps (plus the stick/slip events,
+  which do not grow as :math:`\delta \to 0`), each ``EVENT_COST`` DI steps of work;
+* DI: :math:`1/h'` steps.
+
+``EVENT_COST`` is measured (``dryfric bench``, Fig. 3 point, float64, 2-core CPU: DI 1.6e7
+lane-steps/s, PDMP 1.6e7 events/s, so 1.0).  Cost per unit of simulated time is the right
+currency because the CI of D shrinks with the total simulated time for both methods.  The PDMP
+wins when the noise is slow (large :math:`\tau'`), the DI when it is fast: at the Fig. 3 point
+(:math:`\tau' = 1.47`, default :math:`\delta' = 0.05`, :math:`h' = 0.002`) the PDMP does ~370
+events per :math:`\tau_0` against 510 DI steps, so ``auto`` picks the PDMP; at
+:math:`\tau = 0.05` s (:math:`\tau' = 0.15`) it needs 3.7e4 events and ``auto`` picks the DI.
+"""
+from __future__ import annotations
+
+import math
+
+from .noise import delta_max
+from .params import Params
+
+#: work of one PDMP event in DI steps (measured, see module docstring)
+EVENT_COST = 1.0
+#: default nondimensional grid step delta' = delta sqrt(Gamma)/Delta (delta' << 1), at most half
+#: the admissible maximum
+DELTA_ND = 0.05
+
+
+def default_delta(params: Params) -> float:
+    """Default physical grid step: delta' = min(0.05, delta_max'/2)."""
+    nd = params.nondim()
+    d = min(DELTA_ND, 0.5 * delta_max(nd.tau, nd.gamma_bar))
+    return d * params.Delta / math.sqrt(params.Gamma)
+
+
+def pdmp_events_per_tau0(params: Params, delta: float) -> float:
+    d = delta * math.sqrt(params.Gamma) / params.Delta
+    return 2.0 / (params.tau_nd * d) ** 2
+
+
+def choose_method(params: Params, h: float, delta: float) -> tuple[str, str]:
+    """``(method, reason)`` for ``method="auto"`` with physical step h and grid step delta."""
+    pdmp = EVENT_COST * pdmp_events_per_tau0(params, delta)
+    di = params.tau0 / h
+    pick = "pdmp" if pdmp < di else "di"
+    why = (f"cost per tau0: PDMP {pdmp:.3g} step-equivalents (2/(tau' delta')^2 = "
+           f"{pdmp / EVENT_COST:.3g} events x {EVENT_COST:g}) vs DI {di:.3g} steps (1/h'); chose {pick}")
+    return pick, why

@@ -1,0 +1,88 @@
+r"""The jump noise of the PDMP: a birth-death chain on the grid :math:`S^\delta = \delta\mathbb Z\cap[-L_X, L_X]`.
+
+Paper section 3.1 and appendix A, nondimensional units (MODEL_NOTES section 1:
+:math:`\delta' = \delta\sqrt\Gamma/\Delta`, :math:`\tau' = \tau/\tau_0`; the product
+:math:`\delta\sqrt\tau` is the same in both).  The state is the integer index k of
+:math:`x_k = k\delta`, :math:`|k| \le N`.  Jumps come at rate :math:`\Lambda = 2/(\tau^2\delta^2)`;
+from :math:`x_k` the chain goes up with probability
+
+.. math::
+    \alpha_k = \tfrac12\big(1 - \tfrac{\tau\delta x_k}{2}\big) = \tfrac12 - \tfrac{\tau\delta^2}{4}k,
+    \qquad \alpha_N = 0,\ \alpha_{-N} = 1 \ \text{(reflecting ends)}.
+
+Choice of :math:`L_X` (MODEL_NOTES erratum 3; the paper never gives it)
+-----------------------------------------------------------------------
+:math:`N = \lceil L_{req}/\delta\rceil + 1` with :math:`L_{req} = \max(8/\sqrt\tau,\ 1 + |\bar\gamma|)`:
+the grid covers 8 standard deviations of :math:`\mathcal N(0, 1/\tau)` and both stick thresholds
+:math:`-\bar\gamma \pm 1` with a point to spare.  The up-probabilities stay in [0, 1] only if
+:math:`\tau\delta L_X < 2`; since :math:`L_X = N\delta < L_{req} + 2\delta`, this holds for every
+
+.. math::
+    0 < \delta < \delta_{max} = \frac{-\tau L_{req} + \sqrt{\tau^2 L_{req}^2 + 16\tau}}{4\tau}
+    \quad (\approx 0.24/\sqrt\tau \text{ when the noise sets } L_{req}),
+
+and :func:`check_delta` refuses any other :math:`\delta`.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+COVER_SD = 8.0
+
+
+def required_reach(tau: float, gamma_bar: float = 0.0) -> float:
+    """L_req (nondimensional): 8 noise standard deviations, and both stick thresholds."""
+    return max(COVER_SD / math.sqrt(tau), 1.0 + abs(gamma_bar))
+
+
+def delta_max(tau: float, gamma_bar: float = 0.0) -> float:
+    """Largest admissible nondimensional grid step (exclusive), module docstring."""
+    L = required_reach(tau, gamma_bar)
+    return (-tau * L + math.sqrt(tau * tau * L * L + 16.0 * tau)) / (4.0 * tau)
+
+
+def check_delta(delta: float, tau: float, gamma_bar: float = 0.0, *, scale: float = 1.0) -> None:
+    """ValueError naming delta and its admissible range (in units of ``scale``, e.g. physical)."""
+    dm = delta_max(tau, gamma_bar)
+    ok = isinstance(delta, (int, float, np.floating)) and math.isfinite(delta) and 0 < delta / scale < dm
+    if not ok:
+        raise ValueError(
+            f"delta must be in (0, {dm * scale:.4g}) for these parameters (got {delta!r}): the noise grid must "
+            f"cover 8 standard deviations of N(0, 1/tau) and the stick thresholds while keeping "
+            f"tau*delta*L_X < 2 (up-probabilities in [0, 1])")
+
+
+def grid_size(delta: float, tau: float, gamma_bar: float = 0.0) -> int:
+    """N, the grid is x_k = k delta for |k| <= N (nondimensional delta, tau, gamma_bar)."""
+    check_delta(delta, tau, gamma_bar)
+    N = math.ceil(required_reach(tau, gamma_bar) / delta) + 1
+    if N >= 2**30:
+        raise ValueError(f"delta = {delta!r} is too small: the noise grid would have {2 * N + 1} points")
+    assert tau * delta * N * delta < 2.0
+    return N
+
+
+def up_probability(k, N: int, delta: float, tau: float):
+    """alpha_k with reflecting ends (numpy or jax arrays of indices)."""
+    c = 0.25 * tau * delta * delta
+    inner = 0.5 - c * k
+    return np.where(k >= N, 0.0, np.where(k <= -N, 1.0, inner)) if isinstance(k, np.ndarray) else inner
+
+
+def stationary_law(N: int, delta: float, tau: float) -> tuple[np.ndarray, np.ndarray]:
+    r"""Exact stationary law of the chain: detailed balance
+    :math:`\pi_{k+1}(1-\alpha_{k+1}) = \pi_k\alpha_k` (product of alpha ratios), in log space.
+
+    Returns:
+        ``(x, pi)``: grid points and probabilities.  Since the jump rate does not depend on the
+        state, this is also the time-weighted occupation.
+    """
+    k = np.arange(-N, N + 1)
+    a = up_probability(k.astype(float), N, delta, tau)
+    a[0], a[-1] = 1.0, 0.0
+    log_ratio = np.log(a[:-1]) - np.log1p(-a[1:])
+    logp = np.concatenate([[0.0], np.cumsum(log_ratio)])
+    p = np.exp(logp - logp.max())
+    return k * delta, p / p.sum()

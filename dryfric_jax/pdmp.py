@@ -1,0 +1,316 @@
+r"""The PDMP Z = (X, Y, V): exact event-driven simulation of the jump-noise model.
+
+Paper section 3 and appendices B-C, nondimensional units (:math:`\Gamma = \Delta = 1`), with the
+errata of MODEL_NOTES section 3.  X is the jump noise of :mod:`dryfric_jax.noise` (integer
+index k), Y the mode (+1 sliding up, -1 sliding down, 0 stuck), V the velocity.
+
+Flows (appendix B) in a sliding mode y, with :math:`a = x + \bar\gamma - y` the force at v = 0
+and :math:`\kappa = 1/\tau_L` (:math:`\kappa = 0` for :math:`\tau_L = \infty`, a proper case):
+
+.. math::
+    \dot v = a - \kappa v,\qquad
+    v(s) = v + (a - \kappa v)\, s\,\varphi_1(-\kappa s),\qquad
+    \int_0^s v = v s + (a - \kappa v)\, s^2 \varphi_2(-\kappa s),
+
+with :math:`\varphi_1(z) = (e^z - 1)/z` and :math:`\varphi_2(z) = (e^z - 1 - z)/z^2` evaluated
+stably (``expm1``, series near 0), so nothing cancels as :math:`\kappa s \to 0` or blows up as
+:math:`\kappa s \to \infty` (erratum 4).  The velocity reaches 0 (only when :math:`v a < 0`) at
+
+.. math::
+    T^\star = \sigma\,\frac{\log(1 + \kappa\sigma)}{\kappa\sigma},\qquad \sigma = -v/a \ge 0,
+
+which is appendix B's :math:`\tau_L\log(1 - v/c)` (:math:`c = a\tau_L`) rewritten so that
+neither :math:`\kappa \to 0` nor :math:`a \to 0` cancels.  An event is the earlier of
+:math:`T^\star` and the next noise jump (exponential, rate :math:`\Lambda`).  At :math:`T^\star` the
+velocity is exactly 0 and the mode becomes :math:`\Theta(x, 0)`; at a noise jump the mode only
+changes when stuck: leaving :math:`[k_-, k_+]` upwards gives :math:`s_+ = (x_{k_++1}, 1, 0)`,
+downwards :math:`s_- = (x_{k_--1}, -1, 0)` (the kernel :math:`\mathcal Q` of appendix B).
+
+Thresholds (section 3.3): :math:`x_{k_+} \le 1 - \bar\gamma < x_{k_++1}` and
+:math:`x_{k_--1} < -1 - \bar\gamma \le x_{k_-}`.  The offsets :math:`r_\pm` of the thresholds from
+the grid are computed once in float64; a threshold within 1e-9 grid steps of a grid point is
+taken *on* it (:math:`r = 0`, the point is stuck, :math:`a = 0` there).  In the step the force is
+:math:`a = (k - k_\pm)\delta + r_\pm`, an exact multiple plus the offset, so its sign (which
+decides whether :math:`T^\star` is finite) is never a rounding accident.
+
+Regeneration is exact: :math:`s_\pm` are hit exactly (by a noise jump out of the stuck set, or
+by :math:`T^\star` at :math:`x_{k_\pm\pm1}` while sliding the other way), so a +HLE runs from
+:math:`s_+` until :math:`s_-` and a -HLE back (Algorithm 1 and its mirror).
+"""
+from __future__ import annotations
+
+import math
+from functools import partial
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .noise import grid_size
+from .params import Params
+
+ON_GRID_TOL = 1e-9
+
+
+def phi1(z):
+    """(e^z - 1)/z, 1 at z = 0."""
+    zs = jnp.where(z == 0, 1.0, z)
+    return jnp.where(z == 0, 1.0, jnp.expm1(zs) / zs)
+
+
+def phi2(z):
+    """(e^z - 1 - z)/z^2, 1/2 at z = 0 (series for |z| below 0.01 in float64, 0.1 in float32)."""
+    cut = 0.1 if jnp.asarray(z).dtype == jnp.float32 else 0.01
+    small = jnp.abs(z) < cut
+    zs = jnp.where(small, 1.0, z)
+    series = 0.5 + z * (1 / 6 + z * (1 / 24 + z * (1 / 120 + z * (1 / 720 + z / 5040))))
+    return jnp.where(small, series, (jnp.expm1(zs) - zs) / (zs * zs))
+
+
+def log1p_ratio(x):
+    """log(1 + x)/x for x >= 0, 1 at x = 0."""
+    xs = jnp.where(x == 0, 1.0, x)
+    return jnp.where(x == 0, 1.0, jnp.log1p(xs) / xs)
+
+
+def flow(v, a, kappa, s):
+    """Velocity after sliding for a time s from v (force a at v = 0, viscous rate kappa)."""
+    return v + (a - kappa * v) * s * phi1(-kappa * s)
+
+
+def displacement(v, a, kappa, s):
+    r"""Displacement :math:`\int_0^s v` while sliding (appendix C's displacement, stable form)."""
+    return v * s + (a - kappa * v) * s * s * phi2(-kappa * s)
+
+
+def hitting_time(v, a, kappa, y=None):
+    """T*: time for the velocity, sliding in mode ``y`` (default sign(v)), to reach 0; +inf when
+    it never does (a of the same sign as y, or a = 0).  v = 0 against the force gives 0."""
+    y = jnp.sign(v) if y is None else y
+    hits = ((y > 0) & (a < 0)) | ((y < 0) & (a > 0))
+    sigma = jnp.where(hits, -v / jnp.where(hits, a, 1.0), 0.0)  # >= 0: the time without viscosity
+    return jnp.where(hits, sigma * log1p_ratio(kappa * sigma), jnp.inf)
+
+
+class PDMPModel(eqx.Module):
+    """Everything one PDMP lane needs, nondimensional (simulation dtype for v and times)."""
+
+    delta: jnp.ndarray
+    c_alpha: jnp.ndarray  # tau delta^2 / 4: alpha_k = 1/2 - c_alpha k
+    rate: jnp.ndarray  # Lambda = 2 / (tau delta)^2
+    inv_tau_L: jnp.ndarray
+    N: jnp.ndarray  # grid |k| <= N
+    kp: jnp.ndarray  # k_+
+    km: jnp.ndarray  # k_-
+    r_p: jnp.ndarray  # x_{k+} + gamma_bar - 1 in (-delta, 0]
+    r_m: jnp.ndarray  # x_{k-} + gamma_bar + 1 in [0, delta)
+
+    start_regenerated = True  # lanes start at s_+, a regeneration state
+    regen_after_step = True  # the event that lands on s_+ or s_- closes the cycle
+    fixed_dt = None  # durations are float64 sums of event times
+
+    # ---- one event ----
+    def force(self, k, y):
+        """a = x_k + gamma_bar - y (the acceleration at v = 0 in mode y = +-1)."""
+        dt = self.delta.dtype
+        kk = jnp.where(y > 0, k - self.kp, k - self.km).astype(dt)
+        return kk * self.delta + jnp.where(y > 0, self.r_p, self.r_m)
+
+    def event(self, state, r):
+        """The next event from ``state = (k, y, v)`` with uniforms ``r = (u1, u2)``.
+
+        Returns ``(dt, a, new_state, to_plus, to_minus)``: the time to the event, the force of
+        the sliding segment, the state after it, and whether it lands exactly on s_+ / s_-.
+        """
+        k, y, v = state
+        u1, u2 = r
+        moving = y != 0
+        a = self.force(k, y)
+        t_star = jnp.where(moving, hitting_time(v, a, self.inv_tau_L, y), jnp.inf)
+        e = -jnp.log(u1) / self.rate
+        jump = e < t_star
+        dt = jnp.where(jump, e, t_star)
+        vn = jnp.where(moving & jump, flow(v, a, self.inv_tau_L, dt), 0.0).astype(v.dtype)
+        alpha = jnp.where(k >= self.N, 0.0, jnp.where(k <= -self.N, 1.0, 0.5 - self.c_alpha * k.astype(u2.dtype)))
+        kn = jnp.where(jump, k + jnp.where(u2 < alpha, 1, -1), k).astype(k.dtype)
+        stuck = y == 0
+        theta = lambda kk: jnp.where(kk > self.kp, 1, jnp.where(kk < self.km, -1, 0)).astype(y.dtype)
+        yn = jnp.where(jump, jnp.where(stuck, theta(kn), y), theta(k))
+        to_plus = jnp.where(jump, stuck & (kn == self.kp + 1), (y == -1) & (k == self.kp + 1))
+        to_minus = jnp.where(jump, stuck & (kn == self.km - 1), (y == 1) & (k == self.km - 1))
+        return dt, a, (kn, yn, vn), to_plus, to_minus
+
+    # ---- the lane-engine interface (dryfric_jax.excursions) ----
+    def s_plus(self, n: int):
+        return (jnp.full((n,), self.kp + 1, jnp.int32), jnp.ones((n,), jnp.int32),
+                jnp.zeros((n,), self.delta.dtype))
+
+    def init_state(self, n: int):
+        return self.s_plus(n)
+
+    def draw(self, key, block: int):
+        dt = self.delta.dtype
+        u = jax.random.uniform(key, (block, 2), dt, minval=jnp.finfo(dt).tiny)
+        return u[:, 0], u[:, 1]
+
+    def advance(self, state, r, watch_plus):
+        """One event; ``heads`` when it lands on s_+ (``watch_plus``) or s_-."""
+        k, y, v = state
+        dt, a, new, to_plus, to_minus = self.event(state, r)
+        dU = jnp.where(y != 0, displacement(v, a, self.inv_tau_L, dt), 0.0).astype(jnp.float64)
+        return new, dU, dt.astype(jnp.float64), jnp.where(watch_plus, to_plus, to_minus)
+
+
+def grid_offsets(delta: float, gamma_bar: float) -> tuple[int, int, float, float]:
+    """k_+, k_- and the offsets r_+ = x_{k+} + gamma_bar - 1, r_- = x_{k-} + gamma_bar + 1 (float64);
+    thresholds within ON_GRID_TOL grid steps of a grid point are on it (r = 0)."""
+    qp, qm = (1.0 - gamma_bar) / delta, (-1.0 - gamma_bar) / delta
+    if abs(qp - round(qp)) < ON_GRID_TOL * max(1.0, abs(qp)):
+        kp, r_p = int(round(qp)), 0.0
+    else:
+        kp = math.floor(qp)
+        r_p = min(kp * delta + gamma_bar - 1.0, 0.0)
+    if abs(qm - round(qm)) < ON_GRID_TOL * max(1.0, abs(qm)):
+        km, r_m = int(round(qm)), 0.0
+    else:
+        km = math.ceil(qm)
+        r_m = max(km * delta + gamma_bar + 1.0, 0.0)
+    return kp, km, r_p, r_m
+
+
+def make_pdmp_model(params: Params, delta: float, dtype=jnp.float64) -> PDMPModel:
+    """Build the nondimensional PDMP for physical ``params`` and physical grid step ``delta``
+    (s^-1/2); ValueError if delta is outside its admissible range (:mod:`dryfric_jax.noise`)."""
+    nd = params.nondim()
+    scale = math.sqrt(params.Gamma) / params.Delta  # delta' = delta sqrt(Gamma) / Delta
+    from .noise import check_delta
+    check_delta(delta, nd.tau, nd.gamma_bar, scale=1.0 / scale)
+    d = float(delta) * scale
+    N = grid_size(d, nd.tau, nd.gamma_bar)
+    kp, km, r_p, r_m = grid_offsets(d, nd.gamma_bar)
+    itl = 0.0 if math.isinf(nd.tau_L) else 1.0 / nd.tau_L
+    f = lambda x: jnp.asarray(x, dtype)
+    i = lambda x: jnp.asarray(x, jnp.int32)
+    return PDMPModel(f(d), f(0.25 * nd.tau * d * d), f(2.0 / (nd.tau * d) ** 2), f(itl), i(N), i(kp), i(km),
+                     f(r_p), f(r_m))
+
+
+def pdmp_grid_info(params: Params, delta: float) -> dict:
+    """Physical description of the noise grid: delta, delta', L_X (s^-1/2), N, k_+-, events per tau0."""
+    nd = params.nondim()
+    scale = math.sqrt(params.Gamma) / params.Delta
+    d = float(delta) * scale
+    N = grid_size(d, nd.tau, nd.gamma_bar)
+    return dict(delta=float(delta), delta_nd=d, L_X=N * d / scale, N=N, rate_nd=2.0 / (nd.tau * d) ** 2)
+
+
+# ---------------------------------------------------------------------------------------------
+# brute force on [0, t] (Algorithm 2, corrected: U adds the displacement, and Y = 1 at s_+)
+# ---------------------------------------------------------------------------------------------
+@partial(jax.jit, static_argnames=("block",))
+def _bruteforce_paths(model: PDMPModel, keys, t_start, t_end, max_events, *, block: int):
+    def lane(key):
+        def cond(c):
+            b, state, T, U, n = c
+            return (T < t_end) & (n < max_events)
+
+        def body(c):
+            b, state, T, U, n = c
+            rs = model.draw(jax.random.fold_in(key, b), block)
+
+            def ev(i, cc):
+                state, T, U, n = cc
+                live = T < t_end
+                k, y, v = state
+                dt, a, new, _, _ = model.event(state, (rs[0][i], rs[1][i]))
+                dt64 = dt.astype(jnp.float64)
+                # count the part of [T, T + dt] inside [t_start, t_end]
+                lo = jnp.clip(t_start - T, 0.0, dt64)
+                hi = jnp.clip(t_end - T, 0.0, dt64)
+                seg = lambda s: displacement(v.astype(jnp.float64), a.astype(jnp.float64),
+                                             model.inv_tau_L.astype(jnp.float64), s)
+                dU = jnp.where(live & (y != 0), seg(hi) - seg(lo), 0.0)
+                state = jax.tree_util.tree_map(lambda nw, od: jnp.where(live, nw, od), new, state)
+                return state, jnp.where(live, T + dt64, T), U + dU, n + live
+
+            state, T, U, n = jax.lax.fori_loop(0, block, ev, (state, T, U, n))
+            return b + 1, state, T, U, n
+
+        s0 = jax.tree_util.tree_map(lambda a: a[0], model.s_plus(1))
+        init = (jnp.asarray(0, jnp.int64), s0, jnp.asarray(0.0, jnp.float64), jnp.asarray(0.0, jnp.float64),
+                jnp.asarray(0, jnp.int64))
+        _, _, T, U, n = jax.lax.while_loop(cond, body, init)
+        return U, n, T >= t_end
+
+    return jax.vmap(lane)(keys)
+
+
+def simulate_pdmp_bruteforce(model: PDMPModel, key, n_paths: int, t: float, *, burn_in: float = 0.0,
+                             max_events: int = 10**9, block: int = 32, chunk_lanes: int = 4096):
+    """U(t) of ``n_paths`` PDMP paths from s_+ (nondimensional t, burn_in).
+
+    Returns:
+        ``(U, events, n_unfinished)``: displacements over [burn_in, burn_in + t], total events,
+        and the number of paths stopped by ``max_events`` (reported, never hidden).
+    """
+    lanes = min(chunk_lanes, n_paths)
+    Us, ev, unf = [], 0, 0
+    for c in range(-(-n_paths // lanes)):
+        keys = jax.random.split(jax.random.fold_in(key, c), lanes)
+        U, n, fin = _bruteforce_paths(model, keys, jnp.asarray(burn_in, jnp.float64),
+                                      jnp.asarray(burn_in + t, jnp.float64), jnp.asarray(max_events, jnp.int64),
+                                      block=block)
+        Us.append(np.asarray(U))
+        ev += int(np.asarray(n).sum())
+        unf += int((~np.asarray(fin)).sum())
+    return np.concatenate(Us)[:n_paths], ev, unf
+
+
+# ---------------------------------------------------------------------------------------------
+# one long excursion's event skeleton (for sample-path figures)
+# ---------------------------------------------------------------------------------------------
+@partial(jax.jit, static_argnames=("max_events",))
+def _skeleton(model: PDMPModel, key, *, max_events: int):
+    dt_ = model.delta.dtype
+    buf = dict(t=jnp.zeros(max_events + 1), k=jnp.zeros(max_events + 1, jnp.int32),
+               y=jnp.zeros(max_events + 1, jnp.int32), v=jnp.zeros(max_events + 1, dt_), U=jnp.zeros(max_events + 1))
+    s0 = jax.tree_util.tree_map(lambda a: a[0], model.s_plus(1))
+    buf = {n: a.at[0].set(x) for (n, a), x in zip(buf.items(), (0.0, s0[0], s0[1], s0[2], 0.0))}
+
+    def cond(c):
+        i, phase, i_half, state, T, U, b = c
+        return (i < max_events) & (phase < 2)
+
+    def body(c):
+        i, phase, i_half, state, T, U, b = c
+        r = jax.random.uniform(jax.random.fold_in(key, i), (2,), dt_, minval=jnp.finfo(dt_).tiny)
+        k, y, v = state
+        dt, a, new, to_plus, to_minus = model.event(state, (r[0], r[1]))
+        dU = jnp.where(y != 0, displacement(v, a, model.inv_tau_L, dt), 0.0).astype(jnp.float64)
+        T, U = T + dt.astype(jnp.float64), U + dU
+        i = i + 1
+        b = {n: b[n].at[i].set(x) for n, x in zip(("t", "k", "y", "v", "U"), (T, new[0], new[1], new[2], U))}
+        half = (phase == 0) & to_minus
+        phase = jnp.where(half, 1, jnp.where((phase == 1) & to_plus, 2, phase))
+        return i, phase, jnp.where(half, i, i_half), new, T, U, b
+
+    init = (jnp.asarray(0), jnp.asarray(0), jnp.asarray(-1), s0, jnp.asarray(0.0, jnp.float64),
+            jnp.asarray(0.0, jnp.float64), buf)
+    i, phase, i_half, _, _, _, b = jax.lax.while_loop(cond, body, init)
+    return i, phase, i_half, b
+
+
+def excursion_skeleton(model: PDMPModel, key, max_events: int = 200_000) -> dict:
+    """One long excursion from s_+ (through s_-, back to s_+) as its event skeleton.
+
+    Returns nondimensional numpy arrays ``t, x, y, v, U`` at the event times (index 0 is s_+),
+    ``i_half`` (index of s_-) and ``complete`` (False if ``max_events`` stopped it first).
+    Between events v follows :func:`flow` and X is constant.
+    """
+    n, phase, i_half, b = jax.device_get(_skeleton(model, key, max_events=int(max_events)))
+    n = int(n)
+    out = {k: np.asarray(v)[: n + 1] for k, v in b.items()}
+    out["x"] = out.pop("k") * float(model.delta)
+    out.update(i_half=int(i_half), complete=bool(phase == 2))
+    return out

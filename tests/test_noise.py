@@ -1,0 +1,87 @@
+"""The PDMP's jump noise: its exact stationary law, and its OU limit as delta -> 0."""
+import math
+from functools import partial
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from scipy import stats
+
+import dryfric_jax as dj
+from dryfric_jax.noise import check_delta, delta_max, grid_size, stationary_law
+from dryfric_jax.pdmp import make_pdmp_model
+
+
+@partial(jax.jit, static_argnames=("n_lanes",))
+def _state_at(model, key, t_end, *, n_lanes):
+    """k at time t_end (the time-weighted marginal) of n_lanes independent PDMP paths from s_+,
+    through the PDMP's own event function."""
+    def lane(key):
+        def cond(c):
+            return c[1] < t_end
+
+        def body(c):
+            i, T, state = c
+            u = jax.random.uniform(jax.random.fold_in(key, i), (2,), minval=1e-300)
+            dt, _, new, _, _ = model.event(state, (u[0], u[1]))
+            keep = T + dt >= t_end  # the state holding at t_end is the one before this event
+            new = jax.tree_util.tree_map(lambda a, b: jnp.where(keep, b, a), new, state)
+            return i + 1, T + dt, new
+
+        s0 = jax.tree_util.tree_map(lambda a: a[0], model.s_plus(1))
+        return jax.lax.while_loop(cond, body, (0, 0.0, s0))[2][0]
+
+    return jax.vmap(lane)(jax.random.split(key, n_lanes))
+
+
+def test_occupation_matches_exact_stationary_law():
+    """Chi-square of the state at a fixed time (20 correlation times after s_+) against the
+    product-of-alpha-ratios law, on a coarse grid where it differs visibly from a Gaussian."""
+    tau, d = 1.0, 0.2
+    p = dj.Params.from_nondim(tau, 0.5, 0.1)
+    m = make_pdmp_model(p, d)  # Gamma = Delta = 1: physical delta = delta'
+    N = int(m.N)
+    k = np.asarray(_state_at(m, jax.random.key(11), 20.0 * tau, n_lanes=40_000))
+    x, pi = stationary_law(N, d, tau)
+    counts = np.bincount(k + N, minlength=2 * N + 1)
+    expect = pi * k.size
+    # pool the tails into bins with >= 5 expected
+    keep = expect >= 5
+    obs = np.concatenate([counts[keep], [counts[~keep].sum()]])
+    exp = np.concatenate([expect[keep], [expect[~keep].sum()]])
+    chi2, pval = stats.chisquare(obs, exp)
+    assert pval > 1e-3, (chi2, pval, obs.size)
+    # the test has power: the law of a chain with a 10% larger tau is rejected
+    _, wrong = stationary_law(N, d, 1.1 * tau)
+    w = wrong * k.size
+    assert stats.chisquare(obs, np.concatenate([w[keep], [w[~keep].sum()]]))[1] < 1e-6
+
+
+def test_stationary_moments_tend_to_ou():
+    """Exact law: mean 0 and variance 1/tau at every delta (the chain's drift is linear), and the
+    fourth moment tends to the Gaussian 3/tau^2 like delta^2 (fitted order within 1.9-2.1)."""
+    tau = 1.5
+    errs = []
+    for d in (0.16, 0.08, 0.04, 0.02):
+        x, pi = stationary_law(grid_size(d, tau), d, tau)
+        assert abs((x * pi).sum()) < 1e-12
+        assert abs((x * x * pi).sum() * tau - 1.0) < 1e-10
+        errs.append(abs((x**4 * pi).sum() * tau**2 - 3.0))
+    assert errs[-1] < 1e-3
+    orders = np.log2(np.array(errs[:-1]) / np.array(errs[1:]))
+    assert np.all((orders > 1.9) & (orders < 2.1)), orders
+
+
+@pytest.mark.parametrize("tau", [1e-3, 1.0, 50.0])
+def test_grid_choice(tau):
+    d = 0.9 * delta_max(tau)
+    N = grid_size(d, tau)
+    assert N * d >= 8 / math.sqrt(tau) and N * d >= 1.0  # covers the noise and the thresholds
+    assert tau * d * N * d < 2.0  # up-probabilities in [0, 1]
+
+
+@pytest.mark.parametrize("d", [0.0, -0.1, math.nan, math.inf, 0.3])
+def test_bad_delta(d):
+    with pytest.raises(ValueError, match=r"delta must be in \(0, 0.2"):
+        check_delta(d, 1.0)

@@ -1,0 +1,138 @@
+"""PDMP: flows and hitting times against an ODE solver, exact thresholds, the event skeleton,
+and the long-excursion estimator against the DI and against PDMP brute force."""
+import math
+import warnings
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+import dryfric_jax as dj
+from dryfric_jax.excursions import _run_round, _sharded_round, simulate_long_excursions
+from dryfric_jax.pdmp import (
+    displacement, excursion_skeleton, flow, grid_offsets, hitting_time, make_pdmp_model,
+)
+
+# (v, a, kappa, s): tau_L = inf (kappa = 0), tau_L >> s, tau_L ~ s, tau_L << s
+CASES = [(0.7, -1.3, 0.0, 0.4), (-0.2, 2.0, 0.0, 0.05), (0.5, -0.3, 1e-7, 1.2), (1.5, 0.4, 1.0, 2.0),
+         (-2.0, 0.6, 3.0, 0.1), (0.3, -5.0, 1e4, 0.5), (-0.8, 50.0, 1e4, 1e-5), (2.0, 1.0, 1e-3, 3e-4)]
+
+
+def _ode(v, a, kappa, s):
+    f = lambda t, y: [a - kappa * y[0], y[0]]
+    hit = lambda t, y: y[0]
+    hit.terminal = True
+    stiff = kappa * s > 100
+    sol = solve_ivp(f, (0.0, s), [v, 0.0], method="Radau" if stiff else "DOP853", rtol=1e-13, atol=1e-16,
+                    events=hit if v != 0 else None, dense_output=True)
+    return sol
+
+
+@pytest.mark.parametrize("v,a,kappa,s", CASES)
+def test_flow_and_displacement_match_ode(v, a, kappa, s):
+    ref = solve_ivp(lambda t, y: [a - kappa * y[0], y[0]], (0.0, s), [v, 0.0],
+                    method="Radau" if kappa * s > 100 else "DOP853", rtol=1e-13, atol=1e-15).y[:, -1]
+    got_v = float(flow(jnp.float64(v), a, kappa, s))
+    got_u = float(displacement(jnp.float64(v), a, kappa, s))
+    scale_v, scale_u = abs(v) + abs(a) / max(kappa, 1 / s), (abs(v) + abs(a) / max(kappa, 1 / s)) * s
+    assert abs(got_v - ref[0]) <= 1e-9 * scale_v
+    assert abs(got_u - ref[1]) <= 1e-9 * scale_u
+    # float32: relative to the same scales
+    assert abs(float(flow(jnp.float32(v), jnp.float32(a), jnp.float32(kappa), jnp.float32(s))) - ref[0]) <= 3e-6 * scale_v
+    assert abs(float(displacement(jnp.float32(v), jnp.float32(a), jnp.float32(kappa), jnp.float32(s))) - ref[1]) \
+        <= 3e-6 * scale_u
+
+
+@pytest.mark.parametrize("v,a,kappa", [(0.7, -1.3, 0.0), (-0.2, 2.0, 0.0), (0.5, -0.3, 1e-7), (-2.0, 0.6, 3.0),
+                                       (0.3, -5.0, 1e4), (0.9, -1e-3, 10.0), (1.0, -1e-12, 1e-3)])
+def test_hitting_time_matches_ode_event(v, a, kappa):
+    T = float(hitting_time(jnp.float64(v), a, kappa))
+    # closed form of appendix B, in the regime where it is accurate: tau_L log(1 - v/c), c = a tau_L
+    if kappa > 0:
+        assert math.isclose(T, math.log1p(-v * kappa / a) / kappa, rel_tol=1e-9)
+    sol = solve_ivp(lambda t, y: [a - kappa * y[0]], (0.0, 10 * T), [v], method="Radau" if kappa * T > 100 else
+                    "DOP853", rtol=1e-13, atol=1e-16, events=lambda t, y: y[0])
+    assert math.isclose(T, sol.t_events[0][0], rel_tol=1e-8)
+    assert abs(float(flow(jnp.float64(v), a, kappa, T))) <= 1e-9 * abs(v)
+
+
+@pytest.mark.parametrize("v,a,kappa", [(0.5, 0.3, 0.0), (-0.5, -0.3, 1.0), (0.5, 0.0, 0.0), (0.5, 0.0, 2.0)])
+def test_no_hit_is_infinite(v, a, kappa):
+    assert math.isinf(float(hitting_time(jnp.float64(v), a, kappa)))
+
+
+def test_thresholds_on_and_off_the_grid():
+    # 1/delta = 4 exactly: x_{k+} = 1 and x_{k-} = -1 are the thresholds themselves (stuck points)
+    assert grid_offsets(0.25, 0.0) == (4, -4, 0.0, 0.0)
+    # 1 - 0.1 = 0.9 is not on the 0.25 grid: x_{k+} = 0.75 < 0.9 < 1.0, x_{k-} = -1.0 >= -1.1 > -1.25
+    kp, km, rp, rm = grid_offsets(0.25, 0.1)
+    assert (kp, km) == (3, -4) and math.isclose(rp, -0.15) and math.isclose(rm, 0.1)
+    # on the grid, sliding up at x_{k+} feels exactly zero force: v never reaches 0 with tau_L = inf
+    m = make_pdmp_model(dj.Params.from_nondim(0.5), 0.25)
+    a = m.force(jnp.int32(4), jnp.int32(1))
+    assert float(a) == 0.0 and math.isinf(float(hitting_time(jnp.float64(0.3), a, 0.0, 1)))
+
+
+def test_skeleton_runs_from_s_plus_through_s_minus_back():
+    p = dj.Params(**dj.FIG3)
+    m = make_pdmp_model(p, 0.125)
+    sk = excursion_skeleton(m, jax.random.key(3))
+    kp, km, d = int(m.kp), int(m.km), float(m.delta)
+    start = (sk["x"][0], sk["y"][0], sk["v"][0])
+    assert sk["complete"] and start == ((kp + 1) * d, 1, 0.0)
+    i = sk["i_half"]
+    assert math.isclose(sk["x"][i], (km - 1) * d) and sk["y"][i] == -1 and sk["v"][i] == 0.0
+    assert math.isclose(sk["x"][-1], (kp + 1) * d) and sk["y"][-1] == 1 and sk["v"][-1] == 0.0
+    assert np.all(np.diff(sk["t"]) >= 0) and np.all(sk["v"][sk["y"] == 0] == 0)
+    # the velocity has the sign of the mode
+    assert np.all(sk["v"] * sk["y"] >= 0)
+
+
+def test_pdmp_same_seed_bit_identical_and_no_recompile():
+    p1, p2 = dj.Params.from_nondim(1.0, 0.5, 0.1), dj.Params.from_nondim(2.0, 0.3, -0.2)
+    a, _ = simulate_long_excursions(make_pdmp_model(p1, 0.1), jax.random.key(5), 300, lanes=16, block=8)
+    devices = tuple(jax.local_devices())
+    f = _run_round if len(devices) == 1 else _sharded_round(devices, 8)[0]
+    n = f._cache_size()
+    b, _ = simulate_long_excursions(make_pdmp_model(p1, 0.1), jax.random.key(5), 300, lanes=16, block=8)
+    assert np.array_equal(a.stats, b.stats) and a.n_excursions >= 300
+    simulate_long_excursions(make_pdmp_model(p2, 0.05), jax.random.key(6), 200, lanes=16, block=8)
+    assert f._cache_size() == n
+
+
+def _quiet(fn, *a, **kw):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", dj.DryfricWarning)
+        return fn(*a, **kw)
+
+
+def _agree(x, dx, y, dy):
+    return abs(x - y) <= math.hypot(dx, dy)
+
+
+@pytest.mark.slow
+def test_pdmp_agrees_with_di_at_fig3_point():
+    """Paper's Fig. 3 point; delta = 0.0625 (delta' = 0.036), DI at the default h = 0.01 tau_L."""
+    p = dj.Params(**dj.FIG3)
+    pd = _quiet(dj.estimate_diffusivity, p, 21, method="pdmp", delta=0.0625, n_excursions=20_000)
+    di = _quiet(dj.estimate_diffusivity, p, 22, method="di", n_excursions=20_000)
+    assert pd.n_truncated == 0 and di.n_truncated == 0
+    assert pd.D_ci < 0.05 * pd.D and di.D_ci < 0.05 * di.D  # the comparison has teeth
+    assert _agree(pd.D, pd.D_ci, di.D, di.D_ci), (pd.D, pd.D_ci, di.D, di.D_ci)
+    assert _agree(pd.M0, pd.M0_ci, di.M0, di.M0_ci), (pd.M0, pd.M0_ci, di.M0, di.M0_ci)
+    assert pd.events_per_s > 0 and pd.delta == 0.0625 and pd.L_X >= 8 / math.sqrt(p.tau)
+
+
+@pytest.mark.slow
+def test_pdmp_long_excursions_agree_with_pdmp_bruteforce():
+    """Same PDMP (coarse delta' = 0.15, so the test is about the PDMP, not its limit): the
+    long-excursion D, M0 and the fixed-horizon D^t, M0^t (t = 200 tau0 after a burn-in) agree."""
+    p = dj.Params.from_nondim(1.0, 0.5, 0.1)
+    le = _quiet(dj.estimate_diffusivity, p, 31, method="pdmp", delta=0.15, n_excursions=40_000)
+    bf = dj.bruteforce_diffusivity(p, 32, method="pdmp", delta=0.15, t=200.0, n_paths=4000, burn_in=20.0)
+    assert bf.n_unfinished == 0 and le.n_truncated == 0
+    assert bf.D_t_ci < 0.06 * bf.D_t
+    assert _agree(le.D, le.D_ci, bf.D_t, bf.D_t_ci), (le.D, le.D_ci, bf.D_t, bf.D_t_ci)
+    assert _agree(le.M0, le.M0_ci, bf.M0_t, bf.M0_t_ci), (le.M0, le.M0_ci, bf.M0_t, bf.M0_t_ci)
