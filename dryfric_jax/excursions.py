@@ -194,6 +194,7 @@ class ExcursionStats:
     slot_steps: int  # lane-steps paid for, idle lanes included
     n_unfinished: int = 0  # lanes the block bound stopped (never expected; reported, not hidden)
     n_in_flight: int = 0  # excursions running when the round paused (closed by a final round)
+    lane_steps: np.ndarray | None = None  # (lanes,) useful steps (DI) or events (PDMP) per lane
 
     @property
     def n_excursions(self) -> int:
@@ -242,7 +243,7 @@ class Lanes:
         self.lane = lane  # only once the round has completed (Ctrl-C keeps the previous state)
         self.slot_steps += int(nb.sum()) * self.block * self.n // len(nb)
         self.last = ExcursionStats(stats, int(n_trunc.sum()), int(steps.sum()), self.slot_steps,
-                                   int((~done).sum()), int((phase != SEEK).sum()))
+                                   int((~done).sum()), int((phase != SEEK).sum()), steps)
         return self.last
 
     def advance(self, key, budget: int) -> ExcursionStats:
@@ -309,40 +310,49 @@ def simulate_long_excursions(chain, key, n_excursions: int, *, lanes: int | None
     closed = lambda st: st.n_excursions + st.n_truncated  # truncated count too: work stays bounded
     total, budget, r, want, stopped = None, pilot_budget, 0, n_excursions, "n_excursions"
     t_start = time.perf_counter()
-    try:
-        while True:
-            total = ln.advance(jax.random.fold_in(key, r), budget)
-            r += 1
-            if progress is not None:
-                progress(total)
-            done = closed(total)
-            if done + total.n_in_flight >= want and more is not None:
-                extra = int(more(total))
-                want = done + extra if extra > 0 else want
-                stopped = "target" if extra <= 0 else stopped
-            if done + total.n_in_flight >= want:
-                break
-            if max_time is not None and time.perf_counter() - t_start >= max_time:
-                stopped = "max_time"
-                break
-            if done == 0:
-                budget *= 4  # nothing closed yet: longer pilot
-                if budget > 64 * max_steps:
-                    stopped = "work_bound"
+    while True:  # paused rounds, then a final round; again if the target moved (precision targets)
+        try:
+            while True:
+                total = ln.advance(jax.random.fold_in(key, r), budget)
+                r += 1
+                if progress is not None:
+                    progress(total)
+                done = closed(total)
+                if done + total.n_in_flight >= want and more is not None:
+                    extra = int(more(total))
+                    want = done + extra if extra > 0 else want
+                if done + total.n_in_flight >= want:
                     break
-                continue
-            # in-flight excursions count as one each: an underestimate, so rounds never overshoot
-            per_exc = total.useful_steps / (done + total.n_in_flight)
-            budget = int(np.ceil((want - done - total.n_in_flight) * per_exc / ln.n))
-            budget = max(4 * block, int(per_exc) // 4, min(budget, round_lane_steps // ln.n))
-    except KeyboardInterrupt:
-        stopped = "interrupted"
-        if total is None:
-            raise
-    try:
-        total = ln.finish(jax.random.fold_in(key, r))
-    except KeyboardInterrupt:  # second Ctrl-C: keep the closed excursions, in-flight ones dropped
-        stopped = "interrupted"
+                if max_time is not None and time.perf_counter() - t_start >= max_time:
+                    stopped = "max_time"
+                    break
+                if done == 0:
+                    budget *= 4  # nothing closed yet: longer pilot
+                    if budget > 64 * max_steps:
+                        stopped = "work_bound"
+                        break
+                    continue
+                # in-flight excursions count as one each: an underestimate, so rounds never overshoot
+                per_exc = total.useful_steps / (done + total.n_in_flight)
+                budget = int(np.ceil((want - done - total.n_in_flight) * per_exc / ln.n))
+                budget = max(4 * block, int(per_exc) // 4, min(budget, round_lane_steps // ln.n))
+        except KeyboardInterrupt:
+            stopped = "interrupted"
+            if total is None:
+                raise
+        try:
+            total = ln.finish(jax.random.fold_in(key, r))
+            r += 1
+        except KeyboardInterrupt:  # second Ctrl-C: keep the closed excursions, in-flight ones dropped
+            stopped = "interrupted"
+        if stopped != "n_excursions" or more is None:
+            break
+        # the final round added the in-flight excursions: check the target on the final sums
+        extra = int(more(total))
+        if extra <= 0:
+            stopped = "target"
+            break
+        want = closed(total) + extra
     return total, stopped
 
 

@@ -98,6 +98,8 @@ def test_pdmp_same_seed_bit_identical_and_no_recompile():
     n = f._cache_size()
     b, _ = simulate_long_excursions(make_pdmp_model(p1, 0.1), jax.random.key(5), 300, lanes=16, block=8)
     assert np.array_equal(a.stats, b.stats) and a.n_excursions >= 300
+    # every lane reports its event count
+    assert a.lane_steps.shape == (a.stats.shape[0],) and a.lane_steps.sum() == a.useful_steps > 0
     simulate_long_excursions(make_pdmp_model(p2, 0.05), jax.random.key(6), 200, lanes=16, block=8)
     assert f._cache_size() == n
 
@@ -136,3 +138,23 @@ def test_pdmp_long_excursions_agree_with_pdmp_bruteforce():
     assert bf.D_t_ci < 0.06 * bf.D_t
     assert _agree(le.D, le.D_ci, bf.D_t, bf.D_t_ci), (le.D, le.D_ci, bf.D_t, bf.D_t_ci)
     assert _agree(le.M0, le.M0_ci, bf.M0_t, bf.M0_t_ci), (le.M0, le.M0_ci, bf.M0_t, bf.M0_t_ci)
+    # float32 simulation (float64 statistics): the same D and M0 within the CIs
+    le32 = _quiet(dj.estimate_diffusivity, p, 33, method="pdmp", delta=0.15, n_excursions=40_000, dtype="float32")
+    assert _agree(le.D, le.D_ci, le32.D, le32.D_ci) and _agree(le.M0, le.M0_ci, le32.M0, le32.M0_ci)
+
+
+def test_stiff_viscous_limit_mobility_is_exact():
+    """tau_L = 1e-4 tau0, far below the mean time between noise jumps (1/Lambda = 5e-3 tau0): the
+    velocity is slaved, v = tau_L S(x + gamma_bar) with S the soft threshold at 1, so
+    M0 = tau_L sum_k pi_k S(x_k + gamma_bar) under the exact stationary law of the jump chain.
+    The DI would need h <= 1e-5 tau0 here; the PDMP's exact flows take any tau_L."""
+    from dryfric_jax.noise import grid_size, stationary_law
+
+    tau, tau_L, gb, d = 1.0, 1e-4, 0.3, 0.1
+    p = dj.Params.from_nondim(tau, tau_L, gb)
+    r = _quiet(dj.estimate_diffusivity, p, 41, method="pdmp", delta=d, n_excursions=10_000)
+    x, pi = stationary_law(grid_size(d, tau, gb), d, tau)
+    f = x + gb
+    exact = tau_L * (pi * np.sign(f) * np.maximum(np.abs(f) - 1.0, 0.0)).sum()
+    assert r.n_truncated == 0 and math.isfinite(r.D) and r.D > 0
+    assert r.M0_ci < 0.1 * exact and abs(r.M0 - exact) <= r.M0_ci, (r.M0, r.M0_ci, exact)
