@@ -64,11 +64,10 @@ def grid_size(delta: float, tau: float, gamma_bar: float = 0.0) -> int:
     return N
 
 
-def up_probability(k, N: int, delta: float, tau: float):
-    """alpha_k with reflecting ends (numpy or jax arrays of indices)."""
-    c = 0.25 * tau * delta * delta
-    inner = 0.5 - c * k
-    return np.where(k >= N, 0.0, np.where(k <= -N, 1.0, inner)) if isinstance(k, np.ndarray) else inner
+def up_probability(k: np.ndarray, N: int, delta: float, tau: float) -> np.ndarray:
+    """alpha_k with reflecting ends (alpha_N = 0, alpha_-N = 1)."""
+    k = np.asarray(k, dtype=float)
+    return np.where(k >= N, 0.0, np.where(k <= -N, 1.0, 0.5 - 0.25 * tau * delta * delta * k))
 
 
 def stationary_law(N: int, delta: float, tau: float) -> tuple[np.ndarray, np.ndarray]:
@@ -80,8 +79,7 @@ def stationary_law(N: int, delta: float, tau: float) -> tuple[np.ndarray, np.nda
         state, this is also the time-weighted occupation.
     """
     k = np.arange(-N, N + 1)
-    a = up_probability(k.astype(float), N, delta, tau)
-    a[0], a[-1] = 1.0, 0.0
+    a = up_probability(k, N, delta, tau)
     log_ratio = np.log(a[:-1]) - np.log1p(-a[1:])
     logp = np.concatenate([[0.0], np.cumsum(log_ratio)])
     p = np.exp(logp - logp.max())

@@ -47,7 +47,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .noise import grid_size
+from .noise import check_delta, grid_size
 from .params import Params
 
 ON_GRID_TOL = 1e-9
@@ -184,7 +184,6 @@ def make_pdmp_model(params: Params, delta: float, dtype=jnp.float64) -> PDMPMode
     (s^-1/2); ValueError if delta is outside its admissible range (:mod:`dryfric_jax.noise`)."""
     nd = params.nondim()
     scale = math.sqrt(params.Gamma) / params.Delta  # delta' = delta sqrt(Gamma) / Delta
-    from .noise import check_delta
     check_delta(delta, nd.tau, nd.gamma_bar, scale=1.0 / scale)
     d = float(delta) * scale
     N = grid_size(d, nd.tau, nd.gamma_bar)

@@ -20,16 +20,6 @@ CASES = [(0.7, -1.3, 0.0, 0.4), (-0.2, 2.0, 0.0, 0.05), (0.5, -0.3, 1e-7, 1.2), 
          (-2.0, 0.6, 3.0, 0.1), (0.3, -5.0, 1e4, 0.5), (-0.8, 50.0, 1e4, 1e-5), (2.0, 1.0, 1e-3, 3e-4)]
 
 
-def _ode(v, a, kappa, s):
-    f = lambda t, y: [a - kappa * y[0], y[0]]
-    hit = lambda t, y: y[0]
-    hit.terminal = True
-    stiff = kappa * s > 100
-    sol = solve_ivp(f, (0.0, s), [v, 0.0], method="Radau" if stiff else "DOP853", rtol=1e-13, atol=1e-16,
-                    events=hit if v != 0 else None, dense_output=True)
-    return sol
-
-
 @pytest.mark.parametrize("v,a,kappa,s", CASES)
 def test_flow_and_displacement_match_ode(v, a, kappa, s):
     ref = solve_ivp(lambda t, y: [a - kappa * y[0], y[0]], (0.0, s), [v, 0.0],
