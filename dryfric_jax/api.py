@@ -92,7 +92,7 @@ def _resolve(params: Params, method: str, h, delta, dtype):
     if method == "auto":
         h_c = check_h(params, h)
         d_c = default_delta(params) if delta is None else delta
-        make_pdmp_model(params, d_c)  # validates delta
+        pdmp_grid_info(params, d_c)  # validates delta
         method, reason = choose_method(params, h_c, d_c)
         h, delta = (h_c, None) if method == "di" else (None, d_c)
     if method == "di":

@@ -22,7 +22,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax.sharding import Mesh, PartitionSpec
 
-from .api import DryfricWarning, estimate_diffusivity
+from .api import DryfricWarning, default_h, estimate_diffusivity
 from .cost import default_delta
 from .di import make_di_model
 from .excursions import lanes_for
@@ -44,6 +44,17 @@ def rng_bound(dtype, n: int = 1 << 24, reps: int = 5) -> float:
     for i in range(reps):
         f(jax.random.key(i + 1)[None]).block_until_ready()
     return per * len(devs) * reps / (time.perf_counter() - t) / 2.0
+
+
+def _numba_rates(run, model, n_excursions: int, seed: int) -> dict:
+    """Steps (or events) per second of a numba baseline ``run`` with 1 and 2 threads, compiled first."""
+    run(model, 20, 1)  # compile
+    rates = {}
+    for k in (1, 2):
+        t = time.perf_counter()
+        _, steps = run(model, n_excursions, k, seed)
+        rates[k] = steps / (time.perf_counter() - t)
+    return rates
 
 
 def run_bench(n_excursions: int = 10_000, numba_excursions: int = 2000, seed: int = 0) -> dict:
@@ -75,20 +86,12 @@ def run_bench(n_excursions: int = 10_000, numba_excursions: int = 2000, seed: in
         out["numba"] = f"unavailable ({type(exc).__name__}: {exc}); pip install -e '.[bench]'"
     else:
         pm = make_pdmp_model(p, default_delta(p))
-        run_numba_pdmp(pm, 20, 1)  # compile
-        for k in (1, 2):
-            t = time.perf_counter()
-            _, ev = run_numba_pdmp(pm, numba_excursions, k, seed)
-            out[f"numba_pdmp_{k}t_events_per_s"] = ev / (time.perf_counter() - t)
+        for k, rate in _numba_rates(run_numba_pdmp, pm, numba_excursions, seed).items():
+            out[f"numba_pdmp_{k}t_events_per_s"] = rate
+        for k, rate in _numba_rates(run_numba, make_di_model(p, default_h(p)), numba_excursions, seed).items():
+            out[f"numba_{k}t_steps_per_s"] = rate
         for dt in ("float64", "float32"):
             out[f"ratio_pdmp_{dt}_to_numba_2t"] = out[f"pdmp_{dt}_events_per_s"] / out["numba_pdmp_2t_events_per_s"]
-        model = make_di_model(p, 0.01 * min(p.tau0, p.tau_L))
-        run_numba(model, 20, 1)  # compile
-        for k in (1, 2):
-            t = time.perf_counter()
-            _, steps = run_numba(model, numba_excursions, k, seed)
-            out[f"numba_{k}t_steps_per_s"] = steps / (time.perf_counter() - t)
-        for dt in ("float64", "float32"):
             out[f"ratio_di_{dt}_to_numba_2t"] = out[f"di_{dt}_lane_steps_per_s"] / out["numba_2t_steps_per_s"]
     for dt in ("float64", "float32"):
         out[f"ratio_di_{dt}_to_rng_bound"] = out[f"di_{dt}_lane_steps_per_s"] / out[f"rng_bound_{dt}_lane_steps_per_s"]

@@ -93,10 +93,11 @@ def _step(chain, budget, max_steps, finish, lane: _Lane, r) -> _Lane:
     # refill: this regeneration starts an excursion, unless the budget is spent in a final round
     opens = heads & (phase != PLUS) & ~(spent & finish)
     halfway = heads & (phase == PLUS)  # the -HLE starts now
-    dt = jnp.zeros_like(dU) if dt is None else dt
+    # a fixed-step chain (dt None) has t = n h: its float64 time sum stays untouched
+    add_t = (lambda t, mask: t) if dt is None else (lambda t, mask: t + jnp.where(mask, dt, 0.0))
     if chain.regen_after_step:
         cnt = active & (phase != SEEK)
-        U, n, t = lane.U + jnp.where(cnt, dU, 0.0), lane.n + cnt, lane.t + jnp.where(cnt, dt, 0.0)
+        U, n, t = lane.U + jnp.where(cnt, dU, 0.0), lane.n + cnt, add_t(lane.t, cnt)
         lane = _close(lane, U, _duration(chain, n, t), closes)
         fresh = opens | closes
         t_half = jnp.where(halfway, _duration(chain, n, t), lane.t_half)
@@ -108,7 +109,7 @@ def _step(chain, budget, max_steps, finish, lane: _Lane, r) -> _Lane:
         counted = active & ((phase != SEEK) | opens)
         U = jnp.where(opens, 0.0, lane.U) + jnp.where(counted, dU, 0.0)
         n = jnp.where(opens, 0, lane.n) + counted
-        t = jnp.where(opens, 0.0, lane.t) + jnp.where(counted, dt, 0.0)
+        t = add_t(jnp.where(opens, 0.0, lane.t), counted)
     new_phase = jnp.where(opens, PLUS, jnp.where(halfway, MINUS, jnp.where(closes, SEEK, phase)))
     # budget spent: a final round stops each lane once nothing is in flight; a paused round (or
     # the drop-in-flight demo) stops it at once, keeping its state for the next round

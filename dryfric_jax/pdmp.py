@@ -127,7 +127,7 @@ class PDMPModel(eqx.Module):
         u1, u2 = r
         moving = y != 0
         a = self.force(k, y)
-        t_star = jnp.where(moving, hitting_time(v, a, self.inv_tau_L, y), jnp.inf)
+        t_star = hitting_time(v, a, self.inv_tau_L, y)  # +inf when stuck (y = 0)
         e = -jnp.log(u1) / self.rate
         jump = e < t_star
         dt = jnp.where(jump, e, t_star)
@@ -179,29 +179,29 @@ def grid_offsets(delta: float, gamma_bar: float) -> tuple[int, int, float, float
     return kp, km, r_p, r_m
 
 
-def make_pdmp_model(params: Params, delta: float, dtype=jnp.float64) -> PDMPModel:
-    """Build the nondimensional PDMP for physical ``params`` and physical grid step ``delta``
-    (s^-1/2); ValueError if delta is outside its admissible range (:mod:`dryfric_jax.noise`)."""
+def pdmp_grid_info(params: Params, delta: float) -> dict:
+    """The noise grid for physical ``delta`` (s^-1/2): delta, delta', L_X (s^-1/2), N and the jump
+    rate per tau0; ValueError if delta is outside its admissible range (:mod:`dryfric_jax.noise`)."""
     nd = params.nondim()
     scale = math.sqrt(params.Gamma) / params.Delta  # delta' = delta sqrt(Gamma) / Delta
     check_delta(delta, nd.tau, nd.gamma_bar, scale=1.0 / scale)
     d = float(delta) * scale
     N = grid_size(d, nd.tau, nd.gamma_bar)
+    return dict(delta=float(delta), delta_nd=d, L_X=N * d / scale, N=N, rate_nd=2.0 / (nd.tau * d) ** 2)
+
+
+def make_pdmp_model(params: Params, delta: float, dtype=jnp.float64) -> PDMPModel:
+    """Build the nondimensional PDMP for physical ``params`` and physical grid step ``delta``
+    (s^-1/2), validated by :func:`pdmp_grid_info`."""
+    nd = params.nondim()
+    g = pdmp_grid_info(params, delta)
+    d = g["delta_nd"]
     kp, km, r_p, r_m = grid_offsets(d, nd.gamma_bar)
     itl = 0.0 if math.isinf(nd.tau_L) else 1.0 / nd.tau_L
     f = lambda x: jnp.asarray(x, dtype)
     i = lambda x: jnp.asarray(x, jnp.int32)
-    return PDMPModel(f(d), f(0.25 * nd.tau * d * d), f(2.0 / (nd.tau * d) ** 2), f(itl), i(N), i(kp), i(km),
+    return PDMPModel(f(d), f(0.25 * nd.tau * d * d), f(g["rate_nd"]), f(itl), i(g["N"]), i(kp), i(km),
                      f(r_p), f(r_m))
-
-
-def pdmp_grid_info(params: Params, delta: float) -> dict:
-    """Physical description of the noise grid: delta, delta', L_X (s^-1/2), N, k_+-, events per tau0."""
-    nd = params.nondim()
-    scale = math.sqrt(params.Gamma) / params.Delta
-    d = float(delta) * scale
-    N = grid_size(d, nd.tau, nd.gamma_bar)
-    return dict(delta=float(delta), delta_nd=d, L_X=N * d / scale, N=N, rate_nd=2.0 / (nd.tau * d) ** 2)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -284,14 +284,12 @@ def _skeleton(model: PDMPModel, key, *, max_events: int):
     def body(c):
         i, phase, i_half, state, T, U, b = c
         r = jax.random.uniform(jax.random.fold_in(key, i), (2,), dt_, minval=jnp.finfo(dt_).tiny)
-        k, y, v = state
-        dt, a, new, to_plus, to_minus = model.event(state, (r[0], r[1]))
-        dU = jnp.where(y != 0, displacement(v, a, model.inv_tau_L, dt), 0.0).astype(jnp.float64)
-        T, U = T + dt.astype(jnp.float64), U + dU
+        new, dU, dt, heads = model.advance(state, (r[0], r[1]), phase == 1)  # s_- first, then s_+
+        T, U = T + dt, U + dU
         i = i + 1
         b = {n: b[n].at[i].set(x) for n, x in zip(("t", "k", "y", "v", "U"), (T, new[0], new[1], new[2], U))}
-        half = (phase == 0) & to_minus
-        phase = jnp.where(half, 1, jnp.where((phase == 1) & to_plus, 2, phase))
+        half = (phase == 0) & heads
+        phase = jnp.where(half, 1, jnp.where((phase == 1) & heads, 2, phase))
         return i, phase, jnp.where(half, i, i_half), new, T, U, b
 
     init = (jnp.asarray(0), jnp.asarray(0), jnp.asarray(-1), s0, jnp.asarray(0.0, jnp.float64),
