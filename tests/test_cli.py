@@ -9,6 +9,11 @@ from dryfric_jax.cli import main
 from dryfric_jax.params import FIG3
 
 FIG3_TAU = FIG3["tau"]
+# admissible PDMP grid step at the Fig. 3 point, from the documented condition
+# tau delta (L_req + 2 delta) < 2, L_req = 8/sqrt(tau) (nondimensional; README "The PDMP")
+_t = FIG3_TAU * FIG3["Delta"] ** 2 / FIG3["Gamma"]
+_L = 8 / _t**0.5
+DELTA_MAX = f"{(-_t * _L + (_t * _t * _L * _L + 16 * _t) ** 0.5) / (4 * _t) * FIG3['Delta'] / FIG3['Gamma'] ** 0.5:.4g}"
 
 ESTIMATE_KEYS = {"D", "D_ci", "M0", "M0_ci", "mean_duration", "n_excursions", "n_truncated", "method", "h", "dtype",
                  "seed", "wall_s", "lane_steps_per_s", "params"}
@@ -37,9 +42,9 @@ BAD = [  # (argv, word the one-line message must contain)
     (["bruteforce", "--t", "1", "--n-paths", "1"], "--n-paths"),
     (["theory", "--tau-L", "inf", "--gamma-bar", "4"], "gamma_bar"),  # |gamma_bar| >= Delta: no stationary state
     (["estimate", "--Gamma", "abc"], "--Gamma"),
-    (["estimate", "--method", "pdmp", "--delta", "0"], "delta must be in (0, 0.3339)"),
-    (["estimate", "--method", "pdmp", "--delta", "-0.1"], "delta must be in (0, 0.3339)"),
-    (["estimate", "--method", "pdmp", "--delta", "0.5"], "delta must be in (0, 0.3339)"),  # tau delta L_X >= 2
+    (["estimate", "--method", "pdmp", "--delta", "0"], f"delta must be in (0, {DELTA_MAX})"),
+    (["estimate", "--method", "pdmp", "--delta", "-0.1"], f"delta must be in (0, {DELTA_MAX})"),
+    (["estimate", "--method", "pdmp", "--delta", "0.5"], f"delta must be in (0, {DELTA_MAX})"),  # tau delta L_X >= 2
     (["estimate", "--method", "pdmp", "--delta", "nan"], "delta must be in"),
     (["estimate", "--method", "auto", "--delta", "1"], "delta must be in"),
     (["estimate", "--method", "di", "--delta", "0.1"], "delta"),
