@@ -15,55 +15,18 @@ import jax.numpy as jnp
 import numpy as np
 
 from .bruteforce import simulate_bruteforce
-from .cost import choose_method, default_delta
 from .di import make_di_model
 from .estimators import MIN_RELIABLE_N, WEAK_DAMPING_TAU_L, bruteforce_estimates, long_excursion_estimates
 from .excursions import simulate_long_excursions
+from .limits import MAX_WORK
 from .params import Params, check_positive
-from .pdmp import make_pdmp_model, pdmp_grid_info, simulate_pdmp_bruteforce
-
-METHODS = ("di", "pdmp", "auto")
-DTYPES = {"float64": jnp.float64, "float32": jnp.float32}
-
-#: Default step, relative to the fastest deterministic time scale: h = H_REL * min(tau0, tau_L).
-#: tau0 sets the stick-slip dynamics, tau_L the explicit viscous relaxation; tau itself needs no
-#: resolution because the OU step is exact for any h/tau.  See README "Choosing h".
-H_REL = 0.01
-#: Largest admissible step: h <= H_MAX_REL * min(tau0, tau_L).
-H_MAX_REL = 0.1
-#: Work bound per excursion, in units of max(tau0, tau): excursions longer than this are
-#: truncated and reported.
-MAX_TIME_REL = 1.0e4
-
+from .pdmp import make_pdmp_model, simulate_pdmp_bruteforce
+from .plan import (  # noqa: F401  (default_h, h_max, check_h, METHODS are part of the API)
+    DTYPES, METHODS, Plan, check_count, check_h, check_max_work, choose, default_h, dtype_name, h_max, plan_estimate,
+)
 
 class DryfricWarning(UserWarning):
     """A result that should be read with care (too few excursions, truncated excursions)."""
-
-
-def default_h(params: Params) -> float:
-    """The default DI step ``H_REL * min(tau0, tau_L)`` in seconds."""
-    return H_REL * min(params.tau0, params.tau_L)
-
-
-def h_max(params: Params) -> float:
-    return H_MAX_REL * min(params.tau0, params.tau_L)
-
-
-def check_h(params: Params, h: float) -> float:
-    if h is None:
-        return default_h(params)
-    hm = h_max(params)
-    h_ok = isinstance(h, (int, float, np.floating)) and math.isfinite(h) and 0 < h <= hm
-    if not h_ok:
-        raise ValueError(f"h must be in (0, {hm:.4g}] s, i.e. at most 0.1*min(tau0, tau_L) (got {h!r})")
-    return float(h)
-
-
-def _dtype(dtype) -> str:
-    name = dtype if isinstance(dtype, str) else jnp.dtype(dtype).name
-    if name not in DTYPES:
-        raise ValueError(f"dtype must be one of {sorted(DTYPES)} (got {dtype!r})")
-    return name
 
 
 def _key(key):
@@ -76,31 +39,11 @@ def _key(key):
     return key, None
 
 
-def _check_method(method):
-    if method not in METHODS:
-        raise ValueError(f"method must be one of {list(METHODS)} (got {method!r})")
-
-
-def _resolve(params: Params, method: str, h, delta, dtype):
-    """The chain to simulate and its description: ``(method, chain, h, grid, reason)``."""
-    _check_method(method)
-    if method == "di" and delta is not None:
-        raise ValueError("delta is the PDMP noise grid step: give it with method 'pdmp' or 'auto' (got method 'di')")
-    if method == "pdmp" and h is not None:
-        raise ValueError("h is the DI step: give it with method 'di' or 'auto' (got method 'pdmp')")
-    reason = f"method {method!r} requested"
-    if method == "auto":
-        h_c = check_h(params, h)
-        d_c = default_delta(params) if delta is None else delta
-        pdmp_grid_info(params, d_c)  # validates delta
-        method, reason = choose_method(params, h_c, d_c)
-        h, delta = (h_c, None) if method == "di" else (None, d_c)
-    if method == "di":
-        h = check_h(params, h)
-        return method, make_di_model(params, h, DTYPES[dtype]), h, None, reason
-    delta = default_delta(params) if delta is None else delta
-    chain = make_pdmp_model(params, delta, DTYPES[dtype])
-    return method, chain, None, pdmp_grid_info(params, delta), reason
+def _build(params: Params, plan: Plan):
+    """The nondimensional chain of ``plan``, in its simulation dtype."""
+    if plan.method == "di":
+        return make_di_model(params, plan.h, DTYPES[plan.dtype])
+    return make_pdmp_model(params, plan.delta, DTYPES[plan.dtype])
 
 
 @dataclass
@@ -126,6 +69,10 @@ class EstimateResult:
     L_X: float | None = None
     events_per_s: float | None = None
     method_reason: str = ""
+    max_steps: int = 0
+    max_work: float = 0.0
+    predicted_work: float = 0.0
+    work: int = 0
     lane_utilization: float = 0.0
     ci_level: float = 0.95
     rtol: float | None = None
@@ -159,6 +106,7 @@ class BruteForceResult:
     L_X: float | None = None
     events_per_s: float | None = None
     n_unfinished: int = 0
+    warnings: list = field(default_factory=list)
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -167,7 +115,7 @@ class BruteForceResult:
 def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float | None = None,
                          delta: float | None = None, n_excursions: int = 20_000, dtype="float64", lanes: int | None = None,
                          chunk_lanes: int = 4096, block: int = 32, max_steps: int | None = None,
-                         rtol: float | None = None, max_time: float | None = None,
+                         rtol: float | None = None, max_time: float | None = None, max_work: float = MAX_WORK,
                          progress=None) -> EstimateResult:
     r"""Estimate D and M0 from N i.i.d. long excursions (paper sections 4-6).
 
@@ -185,7 +133,14 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
             :class:`DryfricWarning` is issued (also for weak viscous damping, see README).
         dtype: ``"float64"`` or ``"float32"`` for the simulation (statistics are float64).
         lanes, chunk_lanes, block: engine layout (do not change the estimate's law).
-        max_steps: work bound per excursion (default 1e4 max(tau0, tau)/h).
+        max_steps: work bound per excursion; default
+            :func:`~dryfric_jax.limits.max_steps_per_excursion` (1e4 tail time scales of the
+            excursion, at most ``max_work / lanes``).  Excursions reaching it are truncated,
+            excluded and reported (``n_truncated``, a warning).
+        max_work: cap on the run's lane-steps (events); a run predicted to exceed it is refused
+            with ``ValueError`` before any simulation
+            (:func:`~dryfric_jax.limits.check_work`), and the rounds stop once it is spent
+            (``stopped_by = "work_bound"``).
         rtol: precision target: after the first ``n_excursions``, keep running rounds until
             the 95% half-width of D is at most ``rtol * |D|``.
         max_time: stop after the round that passes this many seconds (``stopped_by`` says so).
@@ -197,18 +152,14 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
     Returns:
         :class:`EstimateResult`: D, M0 with 95% CI half-widths, mean excursion duration, counts.
     """
-    dname = _dtype(dtype)
-    method, model, h, grid, reason = _resolve(params, method, h, delta, dname)
-    if not isinstance(n_excursions, (int, np.integer)) or n_excursions < 2:
-        raise ValueError(f"n_excursions must be an integer >= 2 (got {n_excursions!r})")
-    key, seed = _key(key)
-    if max_steps is None:  # steps (DI) or events (PDMP) in MAX_TIME_REL max(tau0, tau)
-        per_tau0 = params.tau0 / h if h is not None else 2.0 * grid["rate_nd"]
-        max_steps = int(min(math.ceil(MAX_TIME_REL * max(1.0, params.tau_nd) * per_tau0), 2**62))
     if rtol is not None and not (isinstance(rtol, (int, float)) and math.isfinite(rtol) and 0 < rtol < 1):
         raise ValueError(f"rtol must be in (0, 1) (got {rtol!r})")
     if max_time is not None and not (isinstance(max_time, (int, float)) and max_time > 0):
         raise ValueError(f"max_time must be > 0 seconds (got {max_time!r})")
+    plan = plan_estimate(params, method=method, h=h, delta=delta, dtype=dtype, n_excursions=n_excursions,
+                         max_work=max_work, max_steps=max_steps, lanes=lanes, chunk_lanes=chunk_lanes)
+    key, seed = _key(key)
+    model, notes, h, grid, unit = _build(params, plan), list(plan.notes), plan.h, plan.grid, plan.unit
 
     def snapshot(st):
         if st.n_excursions < 2:
@@ -229,26 +180,28 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
                           D_ci=e.get("D_ci", math.nan) * params.D0, target=n_excursions, rtol=rtol))
 
     t0 = time.perf_counter()
-    sim, stopped = simulate_long_excursions(model, key, int(n_excursions), lanes=lanes, chunk_lanes=chunk_lanes,
-                                            block=block, max_steps=max_steps, more=more if rtol else None,
-                                            max_time=max_time, progress=report)
+    sim, stopped = simulate_long_excursions(model, key, int(n_excursions), lanes=plan.lanes, block=block,
+                                            max_steps=plan.max_steps, more=more if rtol else None,
+                                            max_time=max_time, max_work=max_work, progress=report)
     wall = time.perf_counter() - t0
     # a lane the block bound stopped (never expected) lost its in-flight excursion: count it too
     n_truncated = sim.n_truncated + sim.n_unfinished
-    notes = []
     if stopped == "interrupted":
         notes.append(f"interrupted: result of the {sim.n_excursions} excursions completed before Ctrl-C")
     if sim.n_in_flight:
         notes.append(f"{sim.n_in_flight} in-flight excursions dropped (second Ctrl-C): D is biased low by "
                      f"O(lanes/N) = O({sim.n_in_flight / max(sim.n_excursions, 1):.2g})")
-    elif stopped == "max_time":
-        notes.append(f"max_time reached ({max_time} s) before the "
-                     + (f"target rtol = {rtol}" if rtol else f"{n_excursions} excursions"))
+    elif stopped in ("max_time", "work_bound"):
+        what = f"max_time reached ({max_time} s)" if stopped == "max_time" else \
+            f"work bound reached (max_work = {max_work:.3g} {unit}, predicted >= {plan.predicted_work:.3g})"
+        notes.append(f"{what} before the " + (f"target rtol = {rtol}" if rtol else f"{n_excursions} excursions")
+                     + f": result of {sim.n_excursions} excursions")
     if n_truncated:
         notes.append(f"{n_truncated} of {n_truncated + sim.n_excursions} excursions hit the work bound "
-                     f"({max_steps} {'steps' if h else 'events'}) and are excluded: the estimate is biased low")
+                     f"(max_steps = {plan.max_steps} {unit} per excursion) and are excluded: the estimate is biased low")
     if sim.n_excursions < 2:
-        raise RuntimeError("fewer than 2 complete excursions: " + "; ".join(notes))
+        raise RuntimeError("fewer than 2 complete excursions within the work bounds (raise max_work / max_steps): "
+                           + "; ".join(notes))
     if sim.n_excursions < MIN_RELIABLE_N:
         notes.append(f"n_excursions = {sim.n_excursions} < {MIN_RELIABLE_N}: the delta-method CI "
                      "under-covers at this size (heavy-tailed excursions)")
@@ -262,37 +215,49 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
         D=float(e["D"] * params.D0), D_ci=float(e["D_ci"] * params.D0), M0=float(e["M0"] * params.v0),
         M0_ci=float(e["M0_ci"] * params.v0),
         mean_duration=float(e["mean_duration"]) * params.tau0, n_excursions=sim.n_excursions,
-        n_truncated=n_truncated, method=method, h=h, dtype=dname, seed=seed, wall_s=wall,
+        n_truncated=n_truncated, method=plan.method, h=h, dtype=plan.dtype, seed=seed, wall_s=wall,
         lane_steps_per_s=sim.useful_steps / wall, params=params.as_dict(),
         mean_duration_ci=float(e["mean_duration_ci"]) * params.tau0,
         lane_utilization=sim.useful_steps / max(sim.slot_steps, 1), rtol=rtol, stopped_by=stopped,
         warnings=notes, delta=grid and grid["delta"], L_X=grid and grid["L_X"],
-        events_per_s=None if grid is None else sim.useful_steps / wall, method_reason=reason)
+        events_per_s=None if grid is None else sim.useful_steps / wall, method_reason=plan.reason,
+        max_steps=plan.max_steps, max_work=plan.max_work, predicted_work=plan.predicted_work,
+        work=int(sim.slot_steps))
 
 
 def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, method: str = "di",
                            h: float | None = None, delta: float | None = None, burn_in: float = 0.0,
                            dtype="float64", block: int = 32, chunk_lanes: int = 4096,
-                           max_events: int | None = None) -> BruteForceResult:
+                           max_events: int | None = None, max_work: float = MAX_WORK) -> BruteForceResult:
     r"""Brute-force :math:`\hat D^t_{N'}` and :math:`\hat M_0^t` on the horizon ``t`` (s).
 
     DI paths start at :math:`(x_\Delta, 0)`, PDMP paths at :math:`s_+ = (x_{k_++1}, 1, 0)`
     (Algorithm 2, corrected); ``burn_in`` seconds are simulated first and not counted.  The bias
     is O(1/t): pick t long against the velocity correlation time.  PDMP paths are bounded by
     ``max_events`` (default 10x the expected count); paths stopped by it are reported in
-    ``n_unfinished`` and make the call fail rather than return a biased number.
+    ``n_unfinished`` and make the call fail rather than return a biased number.  A run that
+    needs more than ``max_work`` steps (events) is refused before it starts.
     """
-    dname = _dtype(dtype)
     if method == "auto":
         raise ValueError("method must be 'di' or 'pdmp' for brute force (got 'auto')")
-    method, model, h, grid, _ = _resolve(params, method, h, delta, dname)
+    check_count("n_paths", n_paths)
+    check_max_work(max_work)
+    plan = choose(params, method, h, delta, dtype)
+    model, notes, method, h, grid, dname = _build(params, plan), plan.notes, plan.method, plan.h, plan.grid, plan.dtype
     check_positive("t", t)
     if not (isinstance(burn_in, (int, float)) and math.isfinite(burn_in) and burn_in >= 0):
         raise ValueError(f"burn_in must be a finite number >= 0 (got {burn_in!r})")
-    if not isinstance(n_paths, (int, np.integer)) or n_paths < 2:
-        raise ValueError(f"n_paths must be an integer >= 2 (got {n_paths!r})")
     if h is not None and t < h:
         raise ValueError(f"t must be >= h = {h:.4g} s (got {t!r})")
+    # the work is known in advance: n_paths (t + burn_in) / h steps, or the expected events
+    per_tau0 = params.tau0 / h if h is not None else 2.0 * grid["rate_nd"]
+    work = n_paths * (t + burn_in) / params.tau0 * per_tau0
+    if work > max_work:
+        raise ValueError(f"max_work = {max_work:.3g} is too small for t = {t:.4g} s and n_paths = {n_paths}: they "
+                         f"need {work:.3g} {'steps' if h is not None else 'events (expected)'}; raise max_work "
+                         "(--max-work) or lower t or n_paths")
+    for n in notes:
+        warnings.warn(n, DryfricWarning, stacklevel=2)
     key, seed = _key(key)
     t0 = time.perf_counter()
     unfinished, events = 0, None
@@ -316,4 +281,4 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
         M0_t_ci=float(e["M0_t_ci"] * params.v0), t=t_nd * params.tau0, n_paths=int(n_paths), method=method, h=h,
         dtype=dname, seed=seed, wall_s=wall, lane_steps_per_s=steps / wall, params=params.as_dict(),
         burn_in=burn_in, delta=grid and grid["delta"], L_X=grid and grid["L_X"],
-        events_per_s=None if grid is None else steps / wall, n_unfinished=unfinished)
+        events_per_s=None if grid is None else steps / wall, n_unfinished=unfinished, warnings=notes)

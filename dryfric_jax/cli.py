@@ -1,7 +1,9 @@
-"""Command line: ``dryfric estimate | bruteforce | theory``.
+"""Command line: ``dryfric estimate | bruteforce | theory | bench``.
 
-User mistakes end with exit code 2 and one line on stderr naming the parameter and its valid
-range; no traceback.
+Exit codes: 0 success; 2 a user mistake (one line on stderr naming the parameter and its valid
+range, no traceback, nothing simulated); 3 a result was printed (and written to ``--out``) but
+excursions hit the work bound, so it is biased (``--allow-truncated`` accepts it: exit 0);
+1 no result possible (fewer than 2 complete excursions within the work bounds); 130 Ctrl-C.
 """
 from __future__ import annotations
 
@@ -10,6 +12,7 @@ import json
 import math
 import os
 import sys
+import tempfile
 import warnings
 
 from .params import FIG3, Params
@@ -95,7 +98,12 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--delta", type=_number("delta"), default=None,
                      help="PDMP noise grid step, s^-1/2 (default delta' = delta sqrt(Gamma)/Delta = 0.05)")
     sim.add_argument("--seed", type=_int_at_least("seed", 0), default=0)
-    sim.add_argument("--dtype", default="float64", help="float64 or float32")
+    sim.add_argument("--dtype", default="float64", help="float64 or float32 (the DI falls back to float64 "
+                                                        "where float32 is not safe, README)")
+    sim.add_argument("--max-work", type=_number("max-work"), default=None,
+                     help="cap on lane-steps (DI) or events (PDMP) of the run; a run predicted to need more is "
+                          "refused before it starts (default 1e11)")
+    sim.add_argument("--out", default=None, help="also write the JSON result to this file (atomically)")
 
     e = sub.add_parser("estimate", parents=[model, sim], help="long-excursion estimate of D and M0")
     e.add_argument("--n-excursions", type=_int_at_least("n-excursions", 2), default=20_000,
@@ -103,6 +111,11 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--rtol", type=_number("rtol"), default=None,
                    help="run rounds until the 95%% CI half-width of D is <= RTOL*|D|")
     e.add_argument("--max-time", type=_number("max-time"), default=None, help="stop after this many seconds")
+    e.add_argument("--max-steps", type=_int_at_least("max-steps", 1), default=None,
+                   help="work bound per excursion, steps (events); longer excursions are truncated and reported "
+                        "(default: 1e4 of the excursion's time scales, README 'Validity ranges')")
+    e.add_argument("--allow-truncated", action="store_true",
+                   help="exit 0 even when excursions hit the work bound (the result is biased low; exit 3 otherwise)")
     b = sub.add_parser("bruteforce", parents=[model, sim], help="fixed-horizon (brute force) D^t")
     b.add_argument("--t", type=_number("t"), required=True, help="horizon, s")
     b.add_argument("--n-paths", type=_int_at_least("n-paths", 2), required=True)
@@ -130,6 +143,40 @@ def _fmt(x, ci):
     return f"{x:.6g} ± {ci:.2g}  ({100 * ci / abs(x):.1f}%)" if x else f"{x:.6g} ± {ci:.2g}"
 
 
+def _check_out(path):
+    """Refuse an output path that cannot be written, before anything is simulated."""
+    if path is None:
+        return
+    d = os.path.dirname(os.path.abspath(path))
+    if os.path.isdir(path) or not os.path.isdir(d) or not os.access(d, os.W_OK):
+        raise _UserError(f"--out must be a writable file path in an existing directory (got {path!r})")
+
+
+def _write_out(path, obj):
+    """Write JSON atomically: a temporary file in the same directory, then rename."""
+    if path is None:
+        return
+    d = os.path.dirname(os.path.abspath(path))
+    fd, tmp = tempfile.mkstemp(dir=d, prefix=".dryfric-", suffix=".json")
+    try:
+        with os.fdopen(fd, "w") as f:
+            json.dump(obj, f, indent=1)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes it private; an output file is not
+        os.replace(tmp, path)
+    except BaseException:
+        os.unlink(tmp)
+        raise
+
+
+def _work_options(a):
+    kw = {}
+    if a.max_work is not None:
+        kw["max_work"] = a.max_work
+    return kw
+
+
 def _run(a) -> int:
     from . import api, theory
 
@@ -148,18 +195,20 @@ def _run(a) -> int:
         else:
             print(f"white-noise D  = {out['D']:.6g} m^2/s\nwhite-noise M0 = {out['M0']:.6g} m/s")
         return 0
+    _check_out(getattr(a, "out", None))
     if a.cmd == "estimate":
         show = not a.json and sys.stderr.isatty()
         with warnings.catch_warnings(record=True):
             warnings.simplefilter("always", api.DryfricWarning)
             r = api.estimate_diffusivity(params, a.seed, method=a.method, h=a.h, delta=a.delta,
-                                         n_excursions=a.n_excursions,
+                                         n_excursions=a.n_excursions, max_steps=a.max_steps,
                                          dtype=a.dtype, rtol=a.rtol, max_time=a.max_time,
-                                         progress=_progress_line if show else None)
+                                         progress=_progress_line if show else None, **_work_options(a))
         if show:
             print(file=sys.stderr)
         for w in r.warnings:
             print(f"dryfric: warning: {w}", file=sys.stderr)
+        _write_out(a.out, r.to_dict())
         if a.json:
             print(json.dumps(r.to_dict()))
         else:
@@ -170,10 +219,21 @@ def _run(a) -> int:
                   f"{'lane-steps' if r.delta is None else 'events'}/s, stopped by: {r.stopped_by}")
             if a.method == "auto":
                 print(r.method_reason)
-        return 130 if r.stopped_by == "interrupted" else 0
+        if r.stopped_by == "interrupted":
+            return 130
+        if r.n_truncated and not a.allow_truncated:
+            print(f"dryfric: warning: {r.n_truncated} truncated excursions: the result above is biased low; exit 3 "
+                  "(--allow-truncated accepts it, --max-steps raises the bound)", file=sys.stderr)
+            return 3
+        return 0
     if a.cmd == "bruteforce":
-        r = api.bruteforce_diffusivity(params, a.seed, t=a.t, n_paths=a.n_paths, method=a.method, h=a.h,
-                                       delta=a.delta, burn_in=a.burn_in, dtype=a.dtype)
+        with warnings.catch_warnings(record=True):
+            warnings.simplefilter("always", api.DryfricWarning)
+            r = api.bruteforce_diffusivity(params, a.seed, t=a.t, n_paths=a.n_paths, method=a.method, h=a.h,
+                                           delta=a.delta, burn_in=a.burn_in, dtype=a.dtype, **_work_options(a))
+        for w in r.warnings:
+            print(f"dryfric: warning: {w}", file=sys.stderr)
+        _write_out(a.out, r.to_dict())
         if a.json:
             print(json.dumps(r.to_dict()))
         else:

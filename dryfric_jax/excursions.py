@@ -275,7 +275,7 @@ def lanes_for(n_excursions: int, chunk_lanes: int = 4096, per_lane: int = 64, mi
 def simulate_long_excursions(chain, key, n_excursions: int, *, lanes: int | None = None,
                              chunk_lanes: int = 4096, block: int = 32, max_steps: int = 10**8,
                              pilot_budget: int = 1024, more=None, max_time: float | None = None,
-                             round_lane_steps: int = 2**26, progress=None):
+                             max_work: float | None = None, round_lane_steps: int = 2**26, progress=None):
     """Long excursions of ``chain`` (DI or PDMP) in rounds of persistent lanes, until enough.
 
     Round r uses ``fold_in(key, r)``.  Paused rounds (:class:`Lanes`) run every lane for the
@@ -297,6 +297,7 @@ def simulate_long_excursions(chain, key, n_excursions: int, *, lanes: int | None
         more: optional ``more(stats) -> int``: further excursions wanted once ``n_excursions``
             are reached (0 to stop); used for precision targets.
         max_time: stop (after finishing the in-flight excursions) once this many seconds passed.
+        max_work: stop the same way once the lanes have paid for this many lane-steps.
         progress: optional ``progress(stats)`` called after every round.
 
     Returns:
@@ -327,16 +328,21 @@ def simulate_long_excursions(chain, key, n_excursions: int, *, lanes: int | None
                 if max_time is not None and time.perf_counter() - t_start >= max_time:
                     stopped = "max_time"
                     break
+                if max_work is not None and ln.slot_steps >= max_work:
+                    stopped = "work_bound"
+                    break
                 if done == 0:
                     budget *= 4  # nothing closed yet: longer pilot
                     if budget > 64 * max_steps:
                         stopped = "work_bound"
                         break
-                    continue
-                # in-flight excursions count as one each: an underestimate, so rounds never overshoot
-                per_exc = total.useful_steps / (done + total.n_in_flight)
-                budget = int(np.ceil((want - done - total.n_in_flight) * per_exc / ln.n))
-                budget = max(4 * block, int(per_exc) // 4, min(budget, round_lane_steps // ln.n))
+                else:
+                    # in-flight excursions count as one each: an underestimate, so rounds never overshoot
+                    per_exc = total.useful_steps / (done + total.n_in_flight)
+                    budget = int(np.ceil((want - done - total.n_in_flight) * per_exc / ln.n))
+                    budget = max(4 * block, int(per_exc) // 4, min(budget, round_lane_steps // ln.n))
+                if max_work is not None:  # never plan past the work cap
+                    budget = max(block, min(budget, int((max_work - ln.slot_steps) // ln.n) + block))
         except KeyboardInterrupt:
             stopped = "interrupted"
             if total is None:

@@ -1,0 +1,161 @@
+r"""Validity ranges and work bounds, decided before any simulation.
+
+Everything here is nondimensional (:math:`\tau_0, u_0`; MODEL_NOTES section 1) and pure Python, so
+that a plan can be checked for thousands of parameter sets in a test.
+
+Predicted excursion length
+--------------------------
+A long excursion needs the noise to carry a stuck particle from the release threshold
+:math:`x_+ = 1 - \bar\gamma'` to :math:`x_- = -1 - \bar\gamma'` and back (section 2: a stuck
+particle only leaves downwards once :math:`X < x_-`).  For :math:`\tau\,dX = -X\,dt + \sqrt2\,dW`
+the mean first-passage time from :math:`a` down to :math:`b < a` is exact,
+
+.. math::
+    T(a \to b) = \tau\sqrt\pi \int_{u_b}^{u_a} \operatorname{erfcx}(u)\,du, \qquad u = y\sqrt{\tau/2},
+
+(scale function and speed measure of the OU diffusion), and :math:`T(x_+\to x_-) + T(x_-\to x_+)`
+is a lower bound on the mean duration of the continuous-time excursion.  For
+:math:`\tau' (1+|\bar\gamma'|)^2 \gg 1` it grows like :math:`e^{\tau'(1+|\bar\gamma'|)^2/2}`: slow,
+weak noise rarely reaches the far threshold.
+
+With :math:`|\bar\gamma'| \ge 1` the bias alone drives a moving particle: it relaxes to
+:math:`v^* = (|\bar\gamma'| - 1)\tau_L'`, and must come back to rest against a Gaussian barrier
+of :math:`z^2 = (|\bar\gamma'|-1)^2(\tau_L' + \tau')` (stationary variance
+:math:`\tau_L'^2/(\tau_L'+\tau')` of the velocity filtered through the viscous relaxation), which
+takes about :math:`\tau_L' e^{z^2/2}/\max(z,1)` (an order of magnitude, not a bound).  Without
+viscous damping (:math:`\tau_L = \infty`) and :math:`|\bar\gamma| \ge \Delta` there is no
+stationary state at all: :func:`check_recurrent` refuses it.
+
+The larger of the two predictions, times the steps (DI) or events (PDMP) per :math:`\tau_0`,
+times N, is the predicted work; :func:`check_work` refuses a run predicted to exceed
+``max_work`` (default :data:`MAX_WORK`) with a message naming the parameters and the numbers.
+Where the prediction is too low, the per-excursion bound (:func:`max_steps_per_excursion`)
+truncates and reports instead.
+
+float32
+-------
+The OU coefficients are computed in float64 and rounded once, but :math:`1 - m_2 = 1 - e^{-h/\tau}`
+is what sets the noise's correlation time, and float32 rounds :math:`m_2` near 1 by up to
+:math:`3\cdot 10^{-8}`: the stationary variance of X is then off by :math:`\sim 3\cdot10^{-8}\tau/h`
+(1.3% at :math:`h/\tau = 10^{-6}`).  Velocity increments of size :math:`h'` must also stay far
+above float32's resolution of :math:`V = O(1)`.  float32 is therefore used only for
+:math:`h/\tau \ge` :data:`FLOAT32_MIN_H_OVER_TAU` and :math:`h' \ge` :data:`FLOAT32_MIN_H_ND`;
+elsewhere the DI runs in float64 and the result says so (:func:`float32_unsafe_reason`).
+"""
+from __future__ import annotations
+
+import math
+
+from scipy import integrate, special
+
+#: default cap on the lane-steps (DI) or events (PDMP) of one run: ~1.5 h on a 2-core CPU at
+#: 2e7 per second, a few minutes on a GPU.  ``max_work`` / ``--max-work`` raises it.
+MAX_WORK = 1e11
+#: per-excursion bound in units of the excursion's time scale (see max_steps_per_excursion)
+MAX_TIME_REL = 1.0e4
+#: float32 only where its rounding of the OU decay 1 - e^{-h/tau} is below 3e-4 (relative) ...
+FLOAT32_MIN_H_OVER_TAU = 1e-4
+#: ... and where a step's velocity increment h' is > 100 float32 ulps of V = O(1)
+FLOAT32_MIN_H_ND = 1e-5
+
+
+def _int_erfcx(lo: float, hi: float) -> float:
+    r"""log of :math:`\int_{lo}^{hi}\operatorname{erfcx}(u)\,du` for lo < hi (no overflow)."""
+    if lo >= hi:
+        return -math.inf
+    if lo < -6.0:  # erfcx(u) ~ 2 e^{u^2} on the far side: the integral is e^{lo^2}/|lo| (1 + O(lo^-2))
+        return lo * lo - math.log(-lo)
+    val, _ = integrate.quad(special.erfcx, lo, hi, limit=200)
+    return math.log(val)
+
+
+def log_ou_passage_time(a: float, b: float, tau: float) -> float:
+    r"""log of the mean first-passage time of :math:`\tau dX = -X dt + \sqrt2 dW` from a to b.
+
+    :math:`T = \tau\sqrt\pi\int_{u_b}^{u_a}\operatorname{erfcx}(u)\,du`, :math:`u = y\sqrt{\tau/2}`
+    (for b < a; upwards by the symmetry X -> -X).  Returns -inf when a is already beyond b.
+    """
+    if b > a:
+        a, b = -a, -b
+    s = math.sqrt(tau / 2.0)
+    # past +6 erfcx(u) ~ 1/(u sqrt(pi)): integrating it exactly keeps quad away from long tails
+    hi = a * s
+    return math.log(tau * math.sqrt(math.pi)) + _int_erfcx(b * s, hi) if hi > b * s else -math.inf
+
+
+def log_duration_scale(tau: float, tau_L: float, gamma_bar: float) -> float:
+    r"""log of the predicted mean excursion duration (in :math:`\tau_0`), module docstring.
+
+    The OU passage part is a lower bound; the bias part (:math:`|\bar\gamma'| \ge 1`) an order of
+    magnitude.  Arguments are the nondimensional :math:`\tau', \tau_L', \bar\gamma'`.
+    """
+    xp, xm = 1.0 - gamma_bar, -1.0 - gamma_bar
+    log_t = max(log_ou_passage_time(xp, xm, tau), log_ou_passage_time(xm, xp, tau), 0.0)
+    g = abs(gamma_bar)
+    if g >= 1.0 and math.isfinite(tau_L):
+        z = (g - 1.0) * math.sqrt(tau_L + tau)
+        log_t = max(log_t, math.log(tau_L) + 0.5 * z * z - math.log(max(z, 1.0)))
+    return log_t
+
+
+def check_recurrent(tau_L: float, gamma_bar: float) -> None:
+    """Refuse :math:`\\tau_L = \\infty` with :math:`|\\bar\\gamma| \\ge \\Delta` (nondimensional
+    arguments): the particle runs away, D and M0 do not exist."""
+    if math.isinf(tau_L) and abs(gamma_bar) >= 1.0:
+        raise ValueError(
+            f"gamma_bar must satisfy |gamma_bar| < Delta when tau_L = inf (got gamma_bar/Delta = {gamma_bar:.4g}): "
+            "without viscous damping the bias beats the friction, the particle runs away and has no stationary "
+            "state")
+
+
+def tail_time_scale(tau: float, tau_L: float, gamma_bar: float) -> float:
+    r"""Time scale of the excursion's tail (in :math:`\tau_0`): the largest of 1, :math:`\tau'`,
+    the predicted duration, and for :math:`|\bar\gamma'| < 1` the drift time
+    :math:`\min(1/(1-|\bar\gamma'|)^2, \tau_L')` of a velocity excursion against a weak net friction."""
+    g = abs(gamma_bar)
+    drift = min(1.0 / (1.0 - g) ** 2, tau_L) if g < 1.0 else 1.0
+    return max(1.0, tau, drift, math.exp(min(log_duration_scale(tau, tau_L, gamma_bar), 700.0)))
+
+
+def max_steps_per_excursion(tau: float, tau_L: float, gamma_bar: float, steps_per_tau0: float,
+                            cap: float = MAX_WORK) -> int:
+    r"""Work bound of one excursion: :data:`MAX_TIME_REL` tail time scales, in steps (events), at
+    most ``cap``.  An excursion reaching it is closed, counted as truncated and reported."""
+    want = MAX_TIME_REL * tail_time_scale(tau, tau_L, gamma_bar) * steps_per_tau0
+    return int(max(64, min(math.ceil(want), cap, 2**62)))
+
+
+def check_work(tau: float, tau_L: float, gamma_bar: float, steps_per_tau0: float, n_excursions: int,
+               max_work: float = MAX_WORK, unit: str = "steps") -> float:
+    r"""Refuse (``ValueError``) a run whose predicted work exceeds ``max_work``; return the prediction.
+
+    Predicted work = N x predicted duration (:func:`log_duration_scale`) x ``steps_per_tau0``.
+    """
+    log_t = log_duration_scale(tau, tau_L, gamma_bar)
+    log_w = math.log(n_excursions) + log_t + math.log(steps_per_tau0)
+    if log_w > math.log(max_work):
+        why = ("the noise rarely reaches the far threshold (slow weak noise: tau large against tau0)"
+               if log_t > 0 and abs(gamma_bar) < 1.0 else
+               "the bias |gamma_bar| >= Delta keeps the particle moving" if abs(gamma_bar) >= 1.0 else
+               "each excursion needs many small steps (h or delta small against the excursion)")
+        raise ValueError(
+            f"max_work = {max_work:.3g} is too small for these parameters (tau' = {tau:.3g}, tau_L' = {tau_L:.3g}, "
+            f"gamma_bar' = {gamma_bar:.3g}): predicted work {_exp10(log_w)} {unit} for {n_excursions} excursions "
+            f"of predicted mean duration >= {_exp10(log_t)} tau0; {why}.  Raise max_work (--max-work), coarsen h / "
+            "delta, lower N, or use the white-noise theory when tau << tau0")
+    return math.exp(min(log_w, 700.0))
+
+
+def _exp10(log_x: float) -> str:
+    e = log_x / math.log(10.0)
+    return f"{10 ** (e - math.floor(e)):.2g}e{int(math.floor(e))}" if e > 15 else f"{math.exp(log_x):.3g}"
+
+
+def float32_unsafe_reason(h_over_tau: float, h_nd: float) -> str | None:
+    """Why float32 is not safe for the DI at this step (None if it is); module docstring."""
+    if h_over_tau < FLOAT32_MIN_H_OVER_TAU:
+        return (f"h/tau = {h_over_tau:.3g} < {FLOAT32_MIN_H_OVER_TAU:g}: float32 rounds the OU decay "
+                f"1 - exp(-h/tau) by up to {3e-8 / h_over_tau:.1%}")
+    if h_nd < FLOAT32_MIN_H_ND:
+        return f"h/tau0 = {h_nd:.3g} < {FLOAT32_MIN_H_ND:g}: velocity increments near float32 resolution"
+    return None

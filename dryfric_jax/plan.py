@@ -1,0 +1,155 @@
+r"""What a run will do, decided before any simulation: method, step, dtype and work bounds.
+
+:func:`plan_estimate` validates every argument of
+:func:`~dryfric_jax.api.estimate_diffusivity` and returns a :class:`Plan`, or raises
+``ValueError`` naming the parameter and its valid range.  It is pure Python (no JAX, no chain
+is built), so a test can check thousands of parameter sets, and a user can ask whether a run is
+feasible before paying for it.
+
+Decisions, in order:
+
+1. the model has a stationary state (:func:`~dryfric_jax.limits.check_recurrent`);
+2. the method (``"auto"``: :mod:`dryfric_jax.cost`), the DI step h (:func:`check_h`) or the
+   PDMP grid step delta (:func:`~dryfric_jax.noise.check_delta`);
+3. the dtype: the DI falls back to float64 where float32 is not safe
+   (:func:`~dryfric_jax.limits.float32_unsafe_reason`), and says so in ``notes``;
+4. the work: refused if the prediction exceeds ``max_work``
+   (:func:`~dryfric_jax.limits.check_work`), and a per-excursion bound ``max_steps``
+   (:func:`~dryfric_jax.limits.max_steps_per_excursion`, at most ``max_work / lanes``).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import jax.numpy as jnp
+import numpy as np
+
+from .cost import choose_method, default_delta
+from .excursions import lanes_for
+from .limits import MAX_WORK, check_recurrent, check_work, float32_unsafe_reason, max_steps_per_excursion
+from .params import Params
+from .pdmp import pdmp_grid_info
+
+METHODS = ("di", "pdmp", "auto")
+DTYPES = {"float64": jnp.float64, "float32": jnp.float32}
+
+#: Default step, relative to the fastest deterministic time scale: h = H_REL * min(tau0, tau_L).
+#: tau0 sets the stick-slip dynamics, tau_L the explicit viscous relaxation; tau itself needs no
+#: resolution because the OU step is exact for any h/tau.  See README "Choosing h".
+H_REL = 0.01
+#: Largest admissible step: h <= H_MAX_REL * min(tau0, tau_L).
+H_MAX_REL = 0.1
+
+
+def default_h(params: Params) -> float:
+    """The default DI step ``H_REL * min(tau0, tau_L)`` in seconds."""
+    return H_REL * min(params.tau0, params.tau_L)
+
+
+def h_max(params: Params) -> float:
+    return H_MAX_REL * min(params.tau0, params.tau_L)
+
+
+def check_h(params: Params, h: float) -> float:
+    if h is None:
+        return default_h(params)
+    hm = h_max(params)
+    h_ok = isinstance(h, (int, float, np.floating)) and math.isfinite(h) and 0 < h <= hm
+    if not h_ok:
+        raise ValueError(f"h must be in (0, {hm:.4g}] s, i.e. at most 0.1*min(tau0, tau_L) (got {h!r})")
+    return float(h)
+
+
+def dtype_name(dtype) -> str:
+    try:
+        name = dtype if isinstance(dtype, str) else jnp.dtype(dtype).name
+    except TypeError:
+        name = None
+    if name not in DTYPES:
+        raise ValueError(f"dtype must be one of {sorted(DTYPES)} (got {dtype!r})")
+    return name
+
+
+def check_count(name, n, lo=2):
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < lo:
+        raise ValueError(f"{name} must be an integer >= {lo} (got {n!r})")
+
+
+def check_max_work(max_work):
+    ok = isinstance(max_work, (int, float, np.integer, np.floating)) and not isinstance(max_work, bool)
+    if not (ok and math.isfinite(max_work) and max_work >= 1e3):
+        raise ValueError(f"max_work must be a finite number >= 1e3 (got {max_work!r})")
+
+
+@dataclass
+class Plan:
+    """A validated run: what :func:`~dryfric_jax.api.estimate_diffusivity` will simulate."""
+
+    method: str  # "di" or "pdmp" (auto resolved)
+    h: float | None  # DI step, s
+    delta: float | None  # PDMP grid step, s^-1/2
+    grid: dict | None  # pdmp_grid_info (delta_nd, L_X, N, rate_nd)
+    dtype: str  # simulation dtype actually used
+    reason: str  # why this method
+    unit: str  # "steps" or "events"
+    per_tau0: float  # steps (events) per tau0
+    predicted_work: float = 0.0  # lane-steps (events) predicted for the run: a lower estimate
+    max_steps: int = 0  # work bound per excursion
+    lanes: int = 0
+    max_work: float = MAX_WORK
+    notes: list = field(default_factory=list)  # e.g. float32 -> float64
+
+
+def choose(params: Params, method: str, h, delta, dtype) -> Plan:
+    """Steps 1-3 of the module docstring (no work bounds): method, h or delta, dtype."""
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {list(METHODS)} (got {method!r})")
+    dtype = dtype_name(dtype)
+    check_recurrent(params.tau_L_nd, params.gamma_bar_nd)
+    if method == "di" and delta is not None:
+        raise ValueError("delta is the PDMP noise grid step: give it with method 'pdmp' or 'auto' (got method 'di')")
+    if method == "pdmp" and h is not None:
+        raise ValueError("h is the DI step: give it with method 'di' or 'auto' (got method 'pdmp')")
+    reason = f"method {method!r} requested"
+    if method == "auto":
+        h_c = check_h(params, h)
+        d_c = default_delta(params) if delta is None else delta
+        pdmp_grid_info(params, d_c)  # validates delta
+        method, reason = choose_method(params, h_c, d_c)
+        h, delta = (h_c, None) if method == "di" else (None, d_c)
+    notes = []
+    if method == "di":
+        h = check_h(params, h)
+        unsafe = float32_unsafe_reason(h / params.tau, h / params.tau0) if dtype == "float32" else None
+        if unsafe:
+            notes.append(f"float32 is not safe here ({unsafe}): simulated in float64")
+            dtype = "float64"
+        return Plan("di", h, None, None, dtype, reason, "steps", params.tau0 / h, notes=notes)
+    delta = default_delta(params) if delta is None else delta
+    grid = pdmp_grid_info(params, delta)
+    return Plan("pdmp", None, grid["delta"], grid, dtype, reason, "events", 2.0 * grid["rate_nd"], notes=notes)
+
+
+def plan_estimate(params: Params, *, method: str = "di", h: float | None = None, delta: float | None = None,
+                  dtype="float64", n_excursions: int = 20_000, max_work: float = MAX_WORK,
+                  max_steps: int | None = None, lanes: int | None = None, chunk_lanes: int = 4096) -> Plan:
+    """Validate a long-excursion run and fix its method, step, dtype and work bounds.
+
+    Same arguments as :func:`~dryfric_jax.api.estimate_diffusivity`.  Raises ``ValueError`` (naming
+    the parameter and its range) for anything it would refuse, including a run predicted to need
+    more than ``max_work`` lane-steps (events).
+    """
+    check_count("n_excursions", n_excursions)
+    check_max_work(max_work)
+    plan = choose(params, method, h, delta, dtype)
+    nd = (params.tau_nd, params.tau_L_nd, params.gamma_bar_nd)
+    plan.predicted_work = check_work(*nd, plan.per_tau0, int(n_excursions), max_work, plan.unit)
+    plan.lanes = int(lanes or lanes_for(int(n_excursions), chunk_lanes))
+    plan.max_work = float(max_work)
+    if max_steps is None:
+        plan.max_steps = max_steps_per_excursion(*nd, plan.per_tau0, cap=max(max_work / plan.lanes, 64))
+    else:
+        check_count("max_steps", max_steps, 1)
+        plan.max_steps = int(max_steps)
+    return plan
