@@ -253,9 +253,9 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
     per_tau0 = params.tau0 / h if h is not None else 2.0 * grid["rate_nd"]
     work = n_paths * (t + burn_in) / params.tau0 * per_tau0
     if work > max_work:
-        raise ValueError(f"max_work = {max_work:.3g} is too small for t = {t:.4g} s and n_paths = {n_paths}: they "
-                         f"need {work:.3g} {'steps' if h is not None else 'events (expected)'}; raise max_work "
-                         "(--max-work) or lower t or n_paths")
+        raise ValueError(f"max_work must be >= {work:.3g} {'steps' if h is not None else 'events (expected)'} for "
+                         f"t = {t:.4g} s and n_paths = {n_paths} (got {max_work:.3g}); raise --max-work or lower t "
+                         "or n_paths")
     for n in notes:
         warnings.warn(n, DryfricWarning, stacklevel=2)
     key, seed = _key(key)

@@ -139,10 +139,11 @@ def check_work(tau: float, tau_L: float, gamma_bar: float, steps_per_tau0: float
                "the bias |gamma_bar| >= Delta keeps the particle moving" if abs(gamma_bar) >= 1.0 else
                "each excursion needs many small steps (h or delta small against the excursion)")
         raise ValueError(
-            f"max_work = {max_work:.3g} is too small for these parameters (tau' = {tau:.3g}, tau_L' = {tau_L:.3g}, "
-            f"gamma_bar' = {gamma_bar:.3g}): predicted work {_exp10(log_w)} {unit} for {n_excursions} excursions "
-            f"of predicted mean duration >= {_exp10(log_t)} tau0; {why}.  Raise max_work (--max-work), coarsen h / "
-            "delta, lower N, or use the white-noise theory when tau << tau0")
+            f"max_work must be >= {_exp10(log_w)} {unit} for these parameters (got {max_work:.3g}): "
+            f"{n_excursions} excursions of predicted mean duration >= {_exp10(log_t)} tau0 at "
+            f"{steps_per_tau0:.3g} {unit} per tau0 (tau' = {tau:.3g}, tau_L' = {tau_L:.3g}, "
+            f"gamma_bar' = {gamma_bar:.3g}); {why}.  Raise --max-work, coarsen h or delta, lower N, or use the "
+            "white-noise theory when tau << tau0")
     return math.exp(min(log_w, 700.0))
 
 

@@ -108,9 +108,10 @@ def choose(params: Params, method: str, h, delta, dtype) -> Plan:
     dtype = dtype_name(dtype)
     check_recurrent(params.tau_L_nd, params.gamma_bar_nd)
     if method == "di" and delta is not None:
-        raise ValueError("delta is the PDMP noise grid step: give it with method 'pdmp' or 'auto' (got method 'di')")
+        raise ValueError("delta must not be given with method 'di': it is the PDMP noise grid step "
+                         "(method 'pdmp' or 'auto')")
     if method == "pdmp" and h is not None:
-        raise ValueError("h is the DI step: give it with method 'di' or 'auto' (got method 'pdmp')")
+        raise ValueError("h must not be given with method 'pdmp': it is the DI step (method 'di' or 'auto')")
     reason = f"method {method!r} requested"
     if method == "auto":
         h_c = check_h(params, h)

@@ -48,9 +48,47 @@ BAD = [  # (argv, word the one-line message must contain)
     (["estimate", "--method", "pdmp", "--delta", "nan"], "delta must be in"),
     (["estimate", "--method", "auto", "--delta", "1"], "delta must be in"),
     (["estimate", "--method", "di", "--delta", "0.1"], "delta"),
-    (["estimate", "--method", "pdmp", "--h", "0.001"], "h is the DI step"),
+    (["estimate", "--method", "pdmp", "--h", "0.001"], "h must not be given"),
     (["bruteforce", "--method", "pdmp", "--delta", "0.4", "--t", "1", "--n-paths", "10"], "delta must be in"),
     (["bruteforce", "--method", "auto", "--t", "1", "--n-paths", "10"], "method"),
+]
+
+
+# every numeric option: negative, zero, NaN and inf where they are out of range (valid: tau-L inf,
+# gamma-bar negative or zero, max-time inf)
+_BF = ["bruteforce", "--t", "1", "--n-paths", "10"]
+_NUMERIC = [  # (command prefix, option, API name in the message, out-of-range values)
+    (["estimate"], "--Gamma", "Gamma", ["-1", "0", "nan", "inf"]),
+    (["estimate"], "--Delta", "Delta", ["-1", "0", "nan", "inf"]),
+    (["estimate"], "--tau", "tau", ["-1", "0", "nan", "inf"]),
+    (["estimate"], "--tau-L", "tau_L", ["-1", "0", "nan"]),
+    (["estimate"], "--gamma-bar", "gamma_bar", ["nan", "inf", "-inf"]),
+    (["estimate"], "--h", "h", ["-1", "0", "nan", "inf", "1.0"]),  # 1.0 s >= tau0: larger than an excursion
+    (["estimate", "--method", "pdmp"], "--delta", "delta", ["-1", "0", "nan", "inf"]),
+    (["estimate"], "--n-excursions", "n-excursions", ["-1", "0", "1", "nan", "inf", "2.5"]),
+    (["estimate"], "--rtol", "rtol", ["-1", "0", "nan", "inf", "1.5"]),
+    (["estimate"], "--max-time", "max_time", ["-1", "0", "nan"]),
+    (["estimate"], "--max-work", "max_work", ["-1", "0", "nan", "inf"]),
+    (["estimate"], "--max-steps", "max-steps", ["-1", "0", "nan", "1.5"]),
+    (["estimate"], "--seed", "seed", ["-1", "1.5", "nan"]),
+    (_BF[:1] + _BF[3:], "--t", "t", ["-1", "0", "nan", "inf"]),
+    (_BF[:3], "--n-paths", "n-paths", ["-1", "0", "1", "nan"]),
+    (_BF, "--burn-in", "burn_in", ["-1", "nan", "inf"]),
+    (_BF, "--max-work", "max_work", ["0", "nan"]),
+]
+BAD += [(pre + [f"{opt}={v}"], word) for pre, opt, word, vals in _NUMERIC for v in vals]
+BAD += [
+    (["estimate", "--tau-L", "1e"], "--tau-L"),
+    (["estimate", "--tau-L", "infinite"], "--tau-L"),
+    (["estimate", "--method", "DI"], "method"),
+    (["bruteforce", "--t", "1", "--n-paths", "10", "--dtype", "double"], "dtype"),
+    (["estimate", "--out", "/nonexistent-dir/result.json"], "--out"),
+    (["estimate", "--out", "."], "--out"),  # a directory
+    (["estimate", "--out", "/etc/passwd/result.json"], "--out"),  # parent is a file
+    (["bruteforce", "--t", "1", "--n-paths", "10", "--out", "/nonexistent-dir/bf.json"], "--out"),
+    (["estimate", "--tau", "30"], "max_work must"),  # slow weak noise: predicted work refused up front
+    (["estimate", "--tau-L", "inf", "--gamma-bar", "3.84"], "gamma_bar"),  # runaway
+    (["bruteforce", "--t", "1e6", "--n-paths", "1000"], "max_work must"),
 ]
 
 
@@ -58,7 +96,27 @@ BAD = [  # (argv, word the one-line message must contain)
 def test_bad_input_exit_2_one_line(argv, word, capsys):
     assert main(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith("dryfric: error:") and word in err[0], err
+    assert len(err) == 1 and err[0].startswith("dryfric: error:"), err
+    assert word in err[0] or word.replace("-", "_") in err[0], err
+
+
+def test_bad_input_table_is_large():
+    assert len(BAD) >= 100
+
+
+def test_truncation_exits_3_unless_allowed_and_the_result_is_kept(tmp_path, capsys):
+    """Excursions cut by --max-steps: warning on stderr, exit 3, result still printed and written;
+    --allow-truncated accepts it (exit 0)."""
+    argv = ["estimate", "--nondim", "--tau", "1e-3", "--tau-L", "inf", "--gamma-bar", "0", "--n-excursions", "300",
+            "--max-steps", "3000", "--json"]
+    out = tmp_path / "r.json"
+    assert main(argv + ["--out", str(out)]) == 3
+    cap = capsys.readouterr()
+    res = json.loads(cap.out)
+    assert res["n_truncated"] > 0 and "truncated excursions" in cap.err and "exit 3" in cap.err
+    assert json.loads(out.read_text()) == res  # nothing computed is lost
+    assert main(argv + ["--allow-truncated"]) == 0
+    assert json.loads(capsys.readouterr().out)["n_truncated"] == res["n_truncated"]
 
 
 def test_bad_input_in_a_real_process_has_no_traceback():

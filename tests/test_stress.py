@@ -1,0 +1,248 @@
+"""Stress matrix: extreme parameters end in a finite, checked estimate or a clear refusal / report.
+
+Axes (physical units, Delta = 3.84): tau 1e-8 .. 1e3 s, Gamma 1e-3 .. 1e3, h/tau 1e-6 .. 1e6,
+tau_L in {1e-4, 0.067, inf} s, gamma_bar/Delta in {0, 0.5, 0.99, 1.5}, float32 and float64.
+
+* the exact OU step on the whole (tau', h/tau, dtype) grid: Sigma(h) positive definite and equal
+  to the high-precision reference, and sampled moments of the step correct;
+* the planner (``plan_estimate``, pure Python) on the full product of the axes: every case is
+  either a plan with finite, bounded work or a ValueError naming the parameter and its range;
+* estimators actually run on a covering subset (small N, small ``max_work``): finite numbers with
+  finite CIs, or a refusal, or truncated excursions that are counted and reported;
+* accuracy on hard cases with exact answers: |gamma_bar| near and above Delta under white noise,
+  float32 and float64 against the exact D and M0, tolerance the 95% CI.
+"""
+import itertools
+import math
+import warnings
+from decimal import Decimal, localcontext
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import dryfric_jax as dj
+from dryfric_jax.limits import FLOAT32_MIN_H_OVER_TAU, log_ou_passage_time
+from dryfric_jax.noise import delta_max
+from dryfric_jax.ou import ou_step
+from dryfric_jax.plan import h_max, plan_estimate
+
+DELTA = 3.84
+TAUS = [1e-8, 1e-6, 1e-4, 1e-2, 1.0, 10.0, 1e3]
+GAMMAS = [1e-3, 1e-1, 10.0, 1e3]
+H_OVER_TAU = [1e-6, 1e-3, 1.0, 1e3, 1e6]
+TAU_LS = [1e-4, 0.067, math.inf]
+GB = [0.0, 0.5, 0.99, 1.5]
+DTYPES = ["float32", "float64"]
+PARAM_NAMES = ("Gamma", "Delta", "tau", "tau_L", "gamma_bar", "h", "delta", "max_work", "dtype")
+
+
+def _quiet(f, *a, **kw):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", dj.DryfricWarning)
+        return f(*a, **kw)
+
+
+# ---------------------------------------------------------------------------------------------
+# the OU step
+# ---------------------------------------------------------------------------------------------
+def _sigma_ref(h, tau):
+    """Sigma(h) and det Sigma in 50-digit arithmetic from the printed closed forms."""
+    with localcontext() as ctx:
+        ctx.prec = 50
+        h_, t_ = Decimal(repr(h)), Decimal(repr(tau))
+        r = h_ / t_
+        e1, e2 = (-r).exp(), (-2 * r).exp()
+        S11 = t_ / h_**2 * (2 * r - 3 + 4 * e1 - e2)
+        S12 = (1 - e1) ** 2 / h_
+        S22 = (1 - e2) / t_
+        return np.array([[float(S11), float(S12)], [float(S12), float(S22)]]), float(S11 * S22 - S12 * S12), \
+            np.array([float(t_ / h_ * (1 - e1)), float(e1)])
+
+
+TAU_ND = sorted({t * DELTA**2 / g for t in TAUS for g in GAMMAS})  # tau' = tau / tau0
+
+
+@pytest.mark.parametrize("dtype", DTYPES)
+def test_ou_step_matrix(dtype):
+    rng = np.random.default_rng(7)
+    n = 4000
+    z = rng.standard_normal((2, n))
+    tol = 1e-9 if dtype == "float64" else 2e-6
+    for tau, k in itertools.product(TAU_ND, range(-6, 7)):
+        h = 10.0**k * tau
+        s = ou_step(h, tau, getattr(jnp, dtype))
+        L = np.array([[float(s.L11), 0.0], [float(s.L21), float(s.L22)]])
+        assert np.all(np.isfinite(L)) and L[0, 0] > 0 and L[1, 1] > 0, (tau, k, L)  # Sigma = L L^T is PD
+        S, det, m = _sigma_ref(h, tau)
+        got = L @ L.T
+        assert np.allclose(got, S, rtol=tol, atol=0), (tau, k, got, S)
+        assert (L[0, 0] * L[1, 1]) ** 2 == pytest.approx(det, rel=4 * tol), (tau, k)
+        # sampled moments of one step from x = one stationary standard deviation
+        x = 1 / math.sqrt(tau)
+        Xi, Xh = (np.asarray(a, np.float64) for a in s.sample(jnp.asarray(x, dtype), jnp.asarray(z[0], dtype),
+                                                               jnp.asarray(z[1], dtype)))
+        y = np.stack([Xi, Xh]) - x * m[:, None]
+        w = np.linalg.solve(np.linalg.cholesky(S), y)  # whitened with the reference: ~ N(0, I)
+        assert np.all(np.abs(w.mean(1)) < 5 / math.sqrt(n)), (tau, k, w.mean(1))
+        assert np.all(np.abs(np.cov(w) - np.eye(2)) < 7 / math.sqrt(n)), (tau, k, np.cov(w))
+
+
+def test_float32_threshold_is_where_the_stationary_law_breaks():
+    """The documented float32 limit h/tau >= 1e-4: below it the float32 step's own stationary
+    variance of X, (L21^2 + L22^2)/(1 - m2^2), is visibly wrong; above it, it is not."""
+    def var_err(r, dt):
+        s = ou_step(r, 1.0, dt)
+        m2, L21, L22 = (float(v) for v in (s.m2, s.L21, s.L22))
+        return abs((L21**2 + L22**2) / (1 - m2**2) - 1.0)
+
+    assert var_err(1e-6, jnp.float32) > 5e-3  # 1e-6: off by ~1%
+    assert var_err(1e-6, jnp.float64) < 1e-8
+    for r in (FLOAT32_MIN_H_OVER_TAU, 1e-3, 1e-1, 10.0):
+        assert var_err(r, jnp.float32) < 1e-3, r
+    # and the estimator refuses float32 there: it runs float64 and says so
+    p = dj.Params(**dj.FIG3)
+    plan = plan_estimate(p, h=1e-6 * p.tau, dtype="float32", n_excursions=100)
+    assert plan.dtype == "float64" and "float32 is not safe" in plan.notes[0]
+
+
+# ---------------------------------------------------------------------------------------------
+# the planner on the full product of the axes
+# ---------------------------------------------------------------------------------------------
+def _cases():
+    for G, tau, tl, gb, dt in itertools.product(GAMMAS, TAUS, TAU_LS, GB, DTYPES):
+        p = dj.Params(G, DELTA, tau, tl, gb * DELTA)
+        for r in H_OVER_TAU:
+            yield p, dict(method="di", h=r * tau, dtype=dt)
+        yield p, dict(method="pdmp", dtype=dt)
+        yield p, dict(method="auto", dtype=dt)
+
+
+def test_plan_matrix_every_case_is_planned_or_refused_by_name():
+    outcomes = {}
+    for p, kw in _cases():
+        try:
+            plan = plan_estimate(p, n_excursions=1000, **kw)
+        except ValueError as e:
+            msg = str(e)
+            name = msg.split(" must ")[0]
+            assert name in PARAM_NAMES and " must " in msg and "\n" not in msg, msg
+            if name == "h":  # the range is stated
+                assert f"(0, {h_max(p):.4g}]" in msg
+            if math.isinf(p.tau_L) and abs(p.gamma_bar) >= p.Delta:
+                assert name == "gamma_bar", msg  # no stationary state: refused first
+            outcomes[name] = outcomes.get(name, 0) + 1
+            continue
+        outcomes["planned"] = outcomes.get("planned", 0) + 1
+        assert not (math.isinf(p.tau_L) and abs(p.gamma_bar) >= p.Delta)
+        assert math.isfinite(plan.per_tau0) and plan.per_tau0 > 0
+        assert 0 < plan.predicted_work <= plan.max_work
+        assert 64 <= plan.max_steps <= max(plan.max_work / plan.lanes, 64)
+        if plan.method == "di":
+            assert 0 < plan.h <= h_max(p) * (1 + 1e-12)
+            if kw["dtype"] == "float32" and plan.h / p.tau < FLOAT32_MIN_H_OVER_TAU:
+                assert plan.dtype == "float64" and plan.notes
+        else:
+            nd = p.nondim()
+            assert 0 < plan.grid["delta_nd"] < delta_max(nd.tau, nd.gamma_bar)
+            assert nd.tau * plan.grid["delta_nd"] * (plan.grid["N"] * plan.grid["delta_nd"]) < 2  # tau delta L_X < 2
+    # not vacuous: every kind of outcome occurs, and a good share is planned
+    assert {"planned", "h", "gamma_bar", "max_work"} <= set(outcomes), outcomes
+    assert outcomes["planned"] > 0.15 * sum(outcomes.values()), outcomes
+
+
+def test_predicted_duration_is_the_exact_ou_passage_time():
+    """The work predictor's OU mean first-passage time against Monte Carlo of the exact OU
+    chain, with Siegmund's correction 0.5826 sd for the discrete monitoring; tolerance 3 SE."""
+    rng = np.random.default_rng(3)
+    tau, a, b, dt, n = 1.0, 1.0, -1.0, 2.5e-4, 4000
+    e = math.exp(-dt / tau)
+    sd = math.sqrt((1 - e * e) / tau)
+    x, t, alive = np.full(n, a), np.zeros(n), np.ones(n, bool)
+    while alive.any():
+        i = np.nonzero(alive)[0]
+        x[i] = x[i] * e + sd * rng.standard_normal(i.size)
+        t[i] += dt
+        alive[i[x[i] <= b]] = False
+    exact = math.exp(log_ou_passage_time(a, b - 0.5826 * sd, tau))
+    assert abs(t.mean() - exact) < 3 * t.std() / math.sqrt(n), (t.mean(), exact)
+    # the Arrhenius branch continues the quadrature branch
+    lo, hi = log_ou_passage_time(0.0, -6.0 / math.sqrt(0.5) + 1e-9, 1.0), \
+        log_ou_passage_time(0.0, -6.0 / math.sqrt(0.5) - 1e-9, 1.0)
+    assert abs(lo - hi) < 0.02
+
+
+# ---------------------------------------------------------------------------------------------
+# estimators on a covering subset: every axis value is run or refused
+# ---------------------------------------------------------------------------------------------
+INF = math.inf
+RUNS = [  # (Gamma, tau, h/tau or None (default h), tau_L, gamma_bar/Delta, dtype, method, expected)
+    (1e3, 1e-8, 1e6, INF, 0.0, "float32", "di", "finite"),  # white noise, h/tau = 1e6
+    (1e3, 1e-8, None, INF, 0.5, "float64", "di", "finite"),
+    (1e-3, 1e-6, None, 1e-4, 0.0, "float64", "di", "finite"),  # tiny Gamma
+    (1e-3, 1e-4, 1e-3, 1e-4, 0.0, "float32", "di", "finite"),
+    (1e-1, 1e-2, 1e-3, 0.067, 0.99, "float32", "di", "finite"),  # |gamma_bar| near Delta
+    (10.0, 1.0, None, INF, 0.0, "float64", "pdmp", "finite"),
+    (1e3, 10.0, None, 0.067, 0.0, "float64", "pdmp", "finite"),  # stiff: tau_L' = 1e-3
+    (5.0, 0.5, None, 0.067, 1.5, "float32", "di", "finite"),  # bias above friction, damped
+    (1e-1, 1e-4, None, INF, 0.99, "float64", "di", "finite"),  # weak net friction, long tails
+    (1e3, 1.0, 1.0, 1e-4, 0.0, "float32", "pdmp", "h"),  # h given to the PDMP
+    (10.0, 10.0, None, 0.067, 0.5, "float32", "pdmp", "max_work"),  # slow weak noise
+    (1e3, 1e3, None, INF, 0.0, "float64", "pdmp", "max_work"),
+    (10.0, 1e-2, None, 1e-4, 1.5, "float64", "pdmp", "max_work"),  # fast noise: too many jumps
+    (1e-1, 1e-2, 1e3, 0.067, 1.5, "float64", "di", "h"),  # h >> tau0
+    (10.0, 1.0, 1e-6, INF, 0.0, "float64", "di", "max_work"),  # h/tau = 1e-6: too many steps
+    (1e-1, 1e-2, None, INF, 1.5, "float32", "di", "gamma_bar"),  # runaway: no stationary state
+]
+
+
+@pytest.mark.parametrize("G,tau,r,tl,gb,dtype,method,expected", RUNS)
+def test_estimators_on_extreme_parameters(G, tau, r, tl, gb, dtype, method, expected):
+    p = dj.Params(G, DELTA, tau, tl, gb * DELTA)
+    kw = dict(h=r * tau) if r is not None else {}
+    call = lambda: _quiet(dj.estimate_diffusivity, p, 1, method=method, dtype=dtype, n_excursions=200,
+                          max_work=2e7, **kw)
+    if expected != "finite":
+        with pytest.raises(ValueError, match=rf"^{expected} must "):
+            call()
+        return
+    res = call()
+    nums = [res.D, res.D_ci, res.M0, res.M0_ci, res.mean_duration, res.mean_duration_ci]
+    assert all(math.isfinite(v) for v in nums), nums
+    assert res.D > 0 and res.D_ci > 0 and res.M0_ci > 0 and res.mean_duration > 0
+    assert res.n_excursions >= 2
+    # bounded work: the cap plus at most one excursion bound per lane in the final round
+    assert res.work <= res.max_work + (res.max_steps + 64) * 2 * 256
+    # truncation is never silent
+    if res.n_truncated:
+        assert any("hit the work bound" in w for w in res.warnings)
+    if res.stopped_by == "work_bound":
+        assert any("work bound reached" in w for w in res.warnings)
+
+
+def test_work_bound_stops_the_rounds_and_says_so():
+    """A run the predictor lets through (it is a lower estimate) but that costs more than
+    max_work stops at the cap, finishes its in-flight excursions and reports it."""
+    p = dj.Params(**dj.FIG3)
+    res = _quiet(dj.estimate_diffusivity, p, 2, n_excursions=4000, max_work=2e7)
+    assert res.predicted_work <= 2e7 < res.work and res.stopped_by == "work_bound"
+    assert 2 <= res.n_excursions < 4000 and res.n_truncated == 0
+    assert any("work bound reached" in w for w in res.warnings)
+
+
+# ---------------------------------------------------------------------------------------------
+# exact answers on hard cases, float32 and float64
+# ---------------------------------------------------------------------------------------------
+@pytest.mark.slow
+@pytest.mark.parametrize("gb", [0.99, 1.5])
+@pytest.mark.parametrize("dtype", DTYPES)
+def test_bias_near_and_above_friction_white_noise_exact(gb, dtype):
+    """White noise (tau' = 1e-5), viscous damping, gamma_bar = 0.99 Delta and 1.5 Delta: D and M0
+    against the exact values (MODEL_NOTES section 2), tolerance the 95% CI, both dtypes."""
+    G = 5.0
+    p = dj.Params(G, DELTA, 1e-5 * G / DELTA**2, 0.067, gb * DELTA)
+    r = _quiet(dj.estimate_diffusivity, p, 5, n_excursions=20_000, dtype=dtype)
+    assert r.dtype == dtype and r.n_truncated == 0
+    assert r.D_ci < 0.05 * r.D
+    assert abs(r.D - dj.theory.exact_D(p)) <= r.D_ci, (r.D, r.D_ci, dj.theory.exact_D(p))
+    assert abs(r.M0 - dj.theory.exact_M0(p)) <= r.M0_ci, (r.M0, r.M0_ci, dj.theory.exact_M0(p))
