@@ -16,10 +16,11 @@ from .di import DIModel, make_di_model  # noqa: E402
 from .estimators import MIN_RELIABLE_N, delta_method, psi_D, psi_M  # noqa: E402
 from .ou import OUStep, ou_moments, ou_step  # noqa: E402
 from .params import FIG3, Params  # noqa: E402
+from .plan import Plan, plan_estimate  # noqa: E402
 
 __all__ = [
     "Params", "FIG3", "OUStep", "ou_step", "ou_moments", "DIModel", "make_di_model",
     "estimate_diffusivity", "bruteforce_diffusivity", "EstimateResult", "BruteForceResult",
-    "DryfricWarning", "default_h", "delta_method", "psi_D", "psi_M", "MIN_RELIABLE_N", "theory",
+    "DryfricWarning", "default_h", "Plan", "plan_estimate", "delta_method", "psi_D", "psi_M", "MIN_RELIABLE_N", "theory",
 ]
 __version__ = "0.1.0"
