@@ -1,4 +1,4 @@
-"""Command line: ``dryfric estimate | bruteforce | theory | bench``.
+"""Command line: ``dryfric estimate | bruteforce | theory | sweep | bench``.
 
 Exit codes: 0 success; 2 a user mistake (one line on stderr naming the parameter and its valid
 range, no traceback, nothing simulated); 3 a result was printed (and written to ``--out``) but
@@ -47,6 +47,15 @@ def _tau_L(s):
         return float(s)
     except ValueError:
         raise argparse.ArgumentTypeError(f"--tau-L must be a number > 0 or 'inf' (got {s!r})") from None
+
+
+def _list_of(conv, name):
+    def parse(s):
+        items = [x for x in s.split(",") if x.strip()]
+        if not items:
+            raise argparse.ArgumentTypeError(f"--{name} must be a comma-separated list of values (got {s!r})")
+        return [conv(x.strip()) for x in items]
+    return parse
 
 
 def _int_at_least(name, lo):
@@ -121,6 +130,21 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--n-paths", type=_int_at_least("n-paths", 2), required=True)
     b.add_argument("--burn-in", type=_number("burn-in"), default=0.0, help="uncounted warm-up, s")
     sub.add_parser("theory", parents=[model], help="exact white-noise D and M0")
+    sw = sub.add_parser("sweep", help="D and M0 with CIs over a grid of parameters, resumable (JSON Lines file)")
+    g = sw.add_argument_group("axes: comma-separated lists (SI units); omitted ones stay at the Fig. 3 point")
+    for name, conv in (("Gamma", _number("Gamma")), ("Delta", _number("Delta")), ("tau", _number("tau")),
+                       ("tau-L", _tau_L), ("gamma-bar", _number("gamma-bar"))):
+        g.add_argument(f"--{name}", type=_list_of(conv, name), default=None)
+    sw.add_argument("--out", required=True, help="results file (JSON Lines); an existing one is resumed")
+    sw.add_argument("--method", default="di", help="di, pdmp or auto")
+    sw.add_argument("--h", type=_number("h"), default=None)
+    sw.add_argument("--delta", type=_number("delta"), default=None)
+    sw.add_argument("--dtype", default="float64")
+    sw.add_argument("--seed", type=_int_at_least("seed", 0), default=0)
+    sw.add_argument("--n-excursions", type=_int_at_least("n-excursions", 2), default=20_000)
+    sw.add_argument("--rtol", type=_number("rtol"), default=None)
+    sw.add_argument("--max-work", type=_number("max-work"), default=None)
+    sw.add_argument("--json", action="store_true", help="print a JSON summary")
     bn = sub.add_parser("bench", help="throughput: DI engine vs RNG bound vs compiled baseline")
     bn.add_argument("--json", action="store_true", help="print one JSON object")
     bn.add_argument("--n-excursions", type=_int_at_least("n-excursions", 2), default=10_000)
@@ -186,6 +210,8 @@ def _run(a) -> int:
         b = run_bench(n_excursions=a.n_excursions)
         print(json.dumps(b) if a.json else format_table(b))
         return 0
+    if a.cmd == "sweep":
+        return _sweep(a)
     params = _params(a)
     if a.cmd == "theory":
         out = dict(D=theory.exact_D(params), M0=theory.exact_M0(params), params=params.as_dict(),
@@ -242,6 +268,29 @@ def _run(a) -> int:
                   f"wall {r.wall_s:.1f} s")
         return 0
     raise _UserError(f"unknown command {a.cmd!r}")
+
+
+def _sweep(a) -> int:
+    from . import sweep
+
+    axes = {k: getattr(a, k) for k in ("Gamma", "Delta", "tau", "tau_L", "gamma_bar") if getattr(a, k) is not None}
+    kw = dict(seed=a.seed, method=a.method, h=a.h, delta=a.delta, dtype=a.dtype, n_excursions=a.n_excursions,
+              rtol=a.rtol, **_work_options(a))
+    try:
+        out = sweep.run_sweep(sweep.grid(**axes), a.out, progress=sweep.progress_bar, **kw)
+    except ValueError as e:
+        if str(e).startswith("out must"):
+            raise _UserError("--" + str(e)) from None
+        raise
+    if a.json:
+        print(json.dumps(out))
+    else:
+        print(f"{out['computed']} points computed, {out['skipped']} already in {a.out}, {out['total']} in the grid")
+    if out["interrupted"]:
+        print(f"dryfric: interrupted: {out['computed']} new points were written to {a.out}; run the same command "
+              "again to resume", file=sys.stderr)
+        return 130
+    return 0
 
 
 def _use_all_cpu_cores():

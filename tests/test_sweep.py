@@ -1,0 +1,84 @@
+"""Sweeps: atomic per-point records, resume without recomputing or duplicating, kill-safe."""
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from dryfric_jax import sweep
+from dryfric_jax.cli import main
+
+
+def _lines(path):
+    with open(path) as f:
+        return [json.loads(x) for x in f if x.strip()]
+
+
+def test_resume_skips_finished_points_and_adds_new_ones(tmp_path):
+    out = str(tmp_path / "s.jsonl")
+    kw = dict(n_excursions=200, seed=3)
+    r1 = sweep.run_sweep(sweep.grid(Gamma=[2.0, 5.0]), out, **kw)
+    assert r1 == dict(computed=2, skipped=0, total=2, interrupted=False)
+    first = _lines(out)
+    r2 = sweep.run_sweep(sweep.grid(Gamma=[5.0, 2.0, 8.0, 8.0]), out, **kw)  # reordered, one new, one twice
+    assert r2["computed"] == 1 and r2["skipped"] == 3
+    recs = _lines(out)
+    assert recs[:2] == first  # not recomputed (wall time and timestamps would differ)
+    assert sorted(r["params"]["Gamma"] for r in recs) == [2.0, 5.0, 8.0]
+    for r in recs:
+        assert r["version"] and r["seed"] == sweep.point_seed(3, r["params"], r["settings"])
+        assert r["result"]["D"] > 0 and r["result"]["D_ci"] > 0
+    # other settings are other points
+    assert sweep.run_sweep(sweep.grid(Gamma=[2.0]), out, n_excursions=300, seed=3)["computed"] == 1
+
+
+def test_point_seed_depends_on_the_point_not_its_position():
+    s = dict(method="di", n_excursions=10)
+    a, b = dict(Gamma=2.0, Delta=3.84, tau=0.5, tau_L=0.067, gamma_bar=0.342), \
+        dict(Gamma=5.0, Delta=3.84, tau=0.5, tau_L=0.067, gamma_bar=0.342)
+    assert sweep.point_seed(0, a, s) == sweep.point_seed(0, dict(a), dict(s)) != sweep.point_seed(0, b, s)
+    assert sweep.point_seed(0, a, s) != sweep.point_seed(1, a, s)
+
+
+def test_kill_mid_run_loses_nothing_finished(tmp_path):
+    out = str(tmp_path / "k.jsonl")
+    argv = [sys.executable, "-m", "dryfric_jax.cli", "sweep", "--Gamma", "2,3,4,5,6,7", "--n-excursions", "400",
+            "--out", out]
+    p = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    t0 = time.time()
+    while not (os.path.exists(out) and len(_lines(out)) >= 1):
+        assert p.poll() is None and time.time() - t0 < 300, "sweep ended or stalled before its first point"
+        time.sleep(0.05)
+    p.send_signal(signal.SIGKILL)
+    p.wait()
+    before = _lines(out)  # a valid file: every line a complete record
+    assert 1 <= len(before) < 6
+    q = subprocess.run(argv + ["--json"], capture_output=True, text=True, timeout=600)
+    assert q.returncode == 0, q.stderr
+    summary = json.loads(q.stdout)
+    assert summary["skipped"] == len(before) and summary["computed"] == 6 - len(before)
+    after = _lines(out)
+    assert after[: len(before)] == before and len(after) == 6
+    assert sorted(r["params"]["Gamma"] for r in after) == [2.0, 3.0, 4.0, 5.0, 6.0, 7.0]
+
+
+@pytest.mark.parametrize("argv,word", [
+    (["sweep", "--Gamma", "2,-1", "--out", "{tmp}/a.jsonl"], "Gamma"),
+    (["sweep", "--Gamma", "2,x", "--out", "{tmp}/a.jsonl"], "--Gamma"),
+    (["sweep", "--tau", ",", "--out", "{tmp}/a.jsonl"], "--tau"),
+    (["sweep", "--Gamma", "2", "--out", "/nonexistent-dir/a.jsonl"], "--out"),
+    (["sweep", "--Gamma", "2", "--out", "{tmp}"], "--out"),
+    (["sweep", "--Gamma", "2", "--out", "{tmp}/bad.jsonl"], "--out"),  # not a sweep file: never overwritten
+    (["sweep", "--tau", "0.5,100", "--out", "{tmp}/a.jsonl"], "max_work"),  # infeasible point refused up front
+    (["sweep", "--Gamma", "2", "--method", "rk4", "--out", "{tmp}/a.jsonl"], "method"),
+])
+def test_bad_sweep_input_exit_2_one_line(argv, word, tmp_path, capsys):
+    (tmp_path / "bad.jsonl").write_text("not json\n")
+    assert main([a.replace("{tmp}", str(tmp_path)) for a in argv]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("dryfric: error:") and word in err[0], err
+    assert (tmp_path / "bad.jsonl").read_text() == "not json\n"
+    assert not (tmp_path / "a.jsonl").exists()
