@@ -1,4 +1,4 @@
-"""Command line: ``dryfric estimate | bruteforce | theory | sweep | bench``.
+"""Command line: ``dryfric estimate | bruteforce | theory | sweep | figures | bench``.
 
 Exit codes: 0 success; 2 a user mistake (one line on stderr naming the parameter and its valid
 range, no traceback, nothing simulated); 3 a result was printed (and written to ``--out``) but
@@ -130,6 +130,11 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--n-paths", type=_int_at_least("n-paths", 2), required=True)
     b.add_argument("--burn-in", type=_number("burn-in"), default=0.0, help="uncounted warm-up, s")
     sub.add_parser("theory", parents=[model], help="exact white-noise D and M0")
+    fg = sub.add_parser("figures", help="reproduce the paper's figures and tables (PNG, PDF, JSON)")
+    fg.add_argument("--fig", default="all", help="all, 3, 5, 6, 7, 8 or table1")
+    fg.add_argument("--quick", action="store_true", help="small settings: all figures in minutes on a CPU")
+    fg.add_argument("--out", required=True, help="output directory (created if its parent exists)")
+    fg.add_argument("--seed", type=_int_at_least("seed", 0), default=0)
     sw = sub.add_parser("sweep", help="D and M0 with CIs over a grid of parameters, resumable (JSON Lines file)")
     g = sw.add_argument_group("axes: comma-separated lists (SI units); omitted ones stay at the Fig. 3 point")
     for name, conv in (("Gamma", _number("Gamma")), ("Delta", _number("Delta")), ("tau", _number("tau")),
@@ -212,6 +217,18 @@ def _run(a) -> int:
         return 0
     if a.cmd == "sweep":
         return _sweep(a)
+    if a.cmd == "figures":
+        from .figures import SCENES, run_figures
+
+        if a.fig != "all" and a.fig not in SCENES:
+            raise _UserError(f"--fig must be one of {['all', *SCENES]} (got {a.fig!r})")
+        parent = os.path.dirname(os.path.abspath(a.out))
+        if os.path.exists(a.out) and not os.path.isdir(a.out) or not os.path.isdir(parent) \
+                or not os.access(parent if not os.path.isdir(a.out) else a.out, os.W_OK):
+            raise _UserError(f"--out must be a writable directory, or a new one in an existing directory (got {a.out!r})")
+        run_figures(a.fig, a.out, quick=a.quick, seed=a.seed)
+        print(f"figures written to {a.out}")
+        return 0
     params = _params(a)
     if a.cmd == "theory":
         out = dict(D=theory.exact_D(params), M0=theory.exact_M0(params), params=params.as_dict(),

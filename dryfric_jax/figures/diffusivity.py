@@ -1,0 +1,160 @@
+r"""Fig. 3 and Fig. 8 (paper sections 7.1, 7.3): D against Gamma, with 95% CI bars.
+
+* Fig. 3: D and the mean excursion duration for tau = 0.125, 0.25, 0.5, 1 s (tau_L = 0.067 s,
+  Delta = 3.84, gamma_bar = 0.342): PDMP (delta = 0.125 s^-1/2) dots, DI lines;
+* Fig. 8: D for b = 0 and for b = -v/tau_L + gamma_bar, tau = 1e-5 .. 1e-2 s: brute force
+  (t = 10 s) dots, long excursions lines, the exact white-noise D as reference, and the local
+  exponent d ln D / d ln Gamma (finite differences of the long-excursion D, delta-method CI).
+"""
+from __future__ import annotations
+
+import math
+import time
+import warnings
+
+import numpy as np
+
+from .. import theory
+from ..api import DryfricWarning, bruteforce_diffusivity, estimate_diffusivity
+from ..params import Params
+from .common import plt, save
+
+DELTA, TAU_L, GBAR = 3.84, 0.067, 0.342
+
+
+def _quiet(f, *a, **kw):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DryfricWarning)
+        return f(*a, **kw)
+
+
+def fig3(out_dir, quick, seed):
+    t0 = time.perf_counter()
+    gammas = [2.5, 5.0, 10.0] if quick else list(np.geomspace(1, 10, 10))
+    taus = (0.125, 0.25, 0.5, 1.0)
+    n = 1000 if quick else 100_000
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4))
+    nums = dict(Gamma=gammas, tau=taus, n_excursions=n, delta=0.125, pdmp={}, di={}, agree={})
+    for j, tau in enumerate(taus):
+        rows = {}
+        for m in ("pdmp", "di"):
+            kw = dict(delta=0.125) if m == "pdmp" else {}
+            rs = [_quiet(estimate_diffusivity, Params(G, DELTA, tau, TAU_L, GBAR), seed + 17 * i + 1000 * j,
+                         method=m, n_excursions=n, **kw) for i, G in enumerate(gammas)]
+            rows[m] = dict(D=[r.D for r in rs], D_ci=[r.D_ci for r in rs], dur=[r.mean_duration for r in rs],
+                           dur_ci=[r.mean_duration_ci for r in rs], wall_s=[r.wall_s for r in rs])
+            nums[m][f"{tau:g}"] = rows[m]
+        p, d = rows["pdmp"], rows["di"]
+        a1.errorbar(gammas, p["D"], p["D_ci"], fmt="o", color=f"C{j}", ms=4)
+        a1.errorbar(gammas, d["D"], d["D_ci"], fmt="-", color=f"C{j}", label=f"tau = {tau:g} s")
+        a2.errorbar(gammas, p["dur"], p["dur_ci"], fmt="o", color=f"C{j}", ms=4)
+        a2.errorbar(gammas, d["dur"], d["dur_ci"], fmt="-", color=f"C{j}", label=f"tau = {tau:g} s")
+        # PDMP (delta > 0) and DI approximate the same D: difference in units of the combined CI
+        nums["agree"][f"{tau:g}"] = [abs(a - b) / math.hypot(c, e) for a, b, c, e in
+                                     zip(p["D"], d["D"], p["D_ci"], d["D_ci"])]
+    for ax, lab in ((a1, "D (m^2/s)"), (a2, "mean excursion duration (s)")):
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("Gamma (m^2 s^-3)")
+        ax.set_ylabel(lab)
+    a1.legend(title="dots PDMP, lines DI")
+    a2.set_title("the excursion durations depend on the regeneration rule (PDMP vs DI)", fontsize=8)
+    return save(fig, out_dir, "fig3", nums, t0)
+
+
+def local_exponent(G, D, D_ci):
+    """d ln D / d ln Gamma between neighbouring points and its 95% half-width (independent points)."""
+    G, D, c = (np.asarray(a, float) for a in (G, D, D_ci))
+    dl = np.diff(np.log(G))
+    s = np.diff(np.log(D)) / dl
+    ci = np.sqrt((c[1:] / D[1:]) ** 2 + (c[:-1] / D[:-1]) ** 2) / dl
+    return np.sqrt(G[1:] * G[:-1]), s, ci
+
+
+def fig8(out_dir, quick, seed):
+    t0 = time.perf_counter()
+    gammas = [0.5, 1.0, 2.0, 4.0] if quick else list(np.geomspace(0.25, 8, 11))
+    taus = (1e-5, 1e-2) if quick else (1e-5, 1e-4, 1e-3, 1e-2)
+    n, n_bf, t_bf = (1000, 100, 10.0) if quick else (100_000, 2000, 10.0)
+    cases = {"b = 0": (math.inf, 0.0), "b = -v/tau_L + gamma_bar": (TAU_L, GBAR)}
+    fig, axs = plt.subplots(2, 2, figsize=(11, 7), sharex=True)
+    nums = dict(Gamma=gammas, tau=taus, n_excursions=n, n_paths_bf=n_bf, t_bf=t_bf, cases={})
+    for k, (name, (tl, gb)) in enumerate(cases.items()):
+        ax, ax2 = axs[0, k], axs[1, k]
+        exact = [theory.exact_D(Params(G, DELTA, 1e-9, tl, gb)) for G in gammas]
+        ax.plot(gammas, exact, "k--", lw=1, label="white noise, exact")
+        cnum = dict(exact=exact)
+        for j, tau in enumerate(taus):
+            ps = [Params(G, DELTA, tau, tl, gb) for G in gammas]
+            le = [_quiet(estimate_diffusivity, p, seed + 31 * i + 1000 * j + 7 * k, n_excursions=n)
+                  for i, p in enumerate(ps)]
+            bf = [_quiet(bruteforce_diffusivity, p, seed + 31 * i + 1000 * j + 7 * k + 1, t=t_bf, n_paths=n_bf)
+                  for i, p in enumerate(ps)]
+            D, Dc = [r.D for r in le], [r.D_ci for r in le]
+            ax.errorbar(gammas, D, Dc, fmt="-", color=f"C{j}", label=f"tau = {tau:g} s")
+            ax.errorbar(gammas, [r.D_t for r in bf], [r.D_t_ci for r in bf], fmt="o", color=f"C{j}", ms=4)
+            gm, s, sc = local_exponent(gammas, D, Dc)
+            ax2.errorbar(gm, s, sc, fmt="-o", color=f"C{j}", ms=3)
+            # brute force has an O(tau_c / t) bias (section 5.3): t / tau0 says where it is small
+            cnum[f"{tau:g}"] = dict(D=D, D_ci=Dc, D_bf=[r.D_t for r in bf], D_bf_ci=[r.D_t_ci for r in bf],
+                                    t_over_tau0=[t_bf / p.tau0 for p in ps], exponent_at=gm, exponent=s,
+                                    exponent_ci=sc)
+        for y, lab in ((3.0, "3 (white noise, b = 0)"), (1.61, "1.61 (experiment)"), (1.74, "1.74 (experiment)")):
+            ax2.axhline(y, color="gray", lw=0.7, ls=":")
+            ax2.text(gammas[0], y, lab, fontsize=7, va="bottom")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_title(name)
+        ax.set_ylabel("D (m^2/s)")
+        ax2.set_xscale("log")
+        ax2.set_xlabel("Gamma (m^2 s^-3)")
+        ax2.set_ylabel("d ln D / d ln Gamma")
+        ax.legend(fontsize=7, title="lines LE, dots BF (t = 10 s)", title_fontsize=7)
+        nums["cases"][name] = cnum
+    return save(fig, out_dir, "fig8", nums, t0)
+
+
+def fig5(out_dir, quick, seed):
+    """Stationary velocity histogram against the exact white-noise density, and 10 U(t) paths."""
+    import jax
+
+    from ..di import make_di_model
+    from ..paths import di_stationary
+    from ..plan import default_h
+
+    t0 = time.perf_counter()
+    p = Params(0.16, DELTA, 1e-5, TAU_L, GBAR)
+    h = default_h(p)
+    m = make_di_model(p, h)
+    paths, length = (256, 200.0) if quick else (4096, 2000.0)  # in tau0
+    h_nd = h / p.tau0
+    every = max(1, round(0.05 / h_nd))
+    V, _ = di_stationary(m, jax.random.key(seed), paths, round(length / (every * h_nd)), every,
+                         burn_steps=round(40 / h_nd))
+    v = V.ravel() * p.v0  # physical m/s
+    bw = 4.8e-4  # the paper's bin width
+    lo, hi = np.quantile(v, [1e-4, 1 - 1e-4])
+    edges = np.arange(lo, hi + bw, bw)
+    cnt, _ = np.histogram(v, edges)
+    mid = 0.5 * (edges[1:] + edges[:-1])
+    prob, exact = cnt / v.size, theory.stationary_density(mid, p) * bw
+    # paths of U on [0, 2] s
+    n_rec = round(2.0 / p.tau0 / h_nd)
+    _, U = di_stationary(m, jax.random.key(seed + 1), 10, n_rec, 1, burn_steps=round(40 / h_nd))
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4))
+    a1.plot(mid, exact, "k-", label="exact white-noise P(v) dv")
+    a1.plot(mid, prob, "r^", ms=3, label=f"DI, tau = 1e-5 s ({paths} paths)")
+    a1.set_xlabel("v (m/s)")
+    a1.legend()
+    tt = np.arange(1, n_rec + 1) * h
+    for u in U:
+        a2.plot(tt, u * p.u0, lw=0.8)
+    a2.set_xlabel("t (s)")
+    a2.set_ylabel("U(t) (m)")
+    # samples are correlated: compare the first two moments with their exact values
+    mean_exact = theory.exact_M0(p)
+    nums = dict(params=p.as_dict(), h=h, bin_width=bw, n_paths=paths, length_tau0=length,
+                mean_v=float(v.mean()), mean_v_exact=mean_exact,
+                mean_v_se=float(V.mean(1).std(ddof=1) / math.sqrt(paths) * p.v0),
+                total_variation=float(0.5 * np.abs(prob - exact).sum()))
+    return save(fig, out_dir, "fig5", nums, t0)

@@ -1,0 +1,107 @@
+r"""Table 1, Fig. 6 and Fig. 7 (paper section 7.2): pure dry friction in nondimensional units,
+DI with colored noise :math:`\tau' = 0.5\cdot10^{-i}` against Touchette's white-noise formulas
+(MODEL_NOTES section 2; :mod:`dryfric_jax.theory`).
+
+* Table 1: :math:`E[V'(t')]` from :math:`v'_i = 1`, :math:`x'_i \sim \mathcal N(0, 1/\tau')`,
+  against the exact first moment of the model (and, for the record, of unit-intensity noise,
+  the paper's printed row);
+* Fig. 6: the transient velocity density at several t' against the propagator;
+* Fig. 7: the stationary correlation :math:`\langle V'(0)V'(t')\rangle` (burn-in of
+  ``BURN_TAU0`` :math:`\tau_0` from V = 0 and stationary noise; FFT autocorrelation per path) against
+  :math:`C(t')`.
+
+Error bars are standard errors over independent paths (bands: 2 SE).
+"""
+from __future__ import annotations
+
+import time
+
+import jax
+import numpy as np
+
+from .. import theory
+from ..di import make_di_model
+from ..params import Params
+from ..paths import autocovariance, di_stationary, di_transient
+from .common import plt, save
+
+T_TABLE = (0.05, 0.125, 0.25, 0.5, 1.0, 2.5)
+PAPER_ROW = (0.950, 0.875, 0.757, 0.568, 0.336, 0.090)  # printed: unit-intensity noise (MODEL_NOTES 2)
+TAUS = (0.5e-1, 0.5e-2, 0.5e-3, 0.5e-4)
+T_DENSITY = (0.25, 1.0, 2.5)
+BURN_TAU0 = 40.0
+
+
+def _model(tau_nd, h_nd):
+    return make_di_model(Params.from_nondim(tau_nd), h_nd)
+
+
+def table1(out_dir, quick, seed):
+    t0 = time.perf_counter()
+    n, h, tau = (40_000, 2e-3, 0.5e-5) if quick else (1_000_000, 2e-4, 0.5e-5)
+    V = di_transient(_model(tau, h), jax.random.key(seed), n, [round(t / h) for t in T_TABLE])
+    mc, se = V.mean(0), V.std(0, ddof=1) / np.sqrt(n)
+    exact = [theory.first_moment(t, 1.0) for t in T_TABLE]
+    unit = [theory.first_moment_unit_intensity(t, 1.0) for t in T_TABLE]
+    rows = [("t'", T_TABLE), ("MC (this model)", mc), ("MC 2 SE", 2 * se), ("exact, this model", exact),
+            ("exact, unit-intensity noise (Gamma_w = Gamma)", unit), ("paper's printed EF row", PAPER_ROW)]
+    fig, ax = plt.subplots(figsize=(9, 2.4))
+    ax.axis("off")
+    ax.table(cellText=[[r[0]] + [f"{v:.3f}" for v in r[1]] for r in rows], loc="center")
+    ax.set_title(f"Table 1: E[V'(t')] from v'=1, tau'={tau:g}, h'={h:g}, {n} paths")
+    nums = dict(t=T_TABLE, mc=mc, se=se, exact_model=exact, exact_unit_intensity=unit, paper_row=PAPER_ROW,
+                max_abs_err=float(np.max(np.abs(mc - exact))), max_err_in_se=float(np.max(np.abs(mc - exact) / se)),
+                tau_nd=tau, h_nd=h, n_paths=n)
+    print("\n".join(f"{r[0]:>48s} " + " ".join(f"{v:6.3f}" for v in r[1]) for r in rows))
+    return save(fig, out_dir, "table1", nums, t0)
+
+
+def fig6(out_dir, quick, seed):
+    t0 = time.perf_counter()
+    n, h = (20_000, 2e-3) if quick else (400_000, 2e-4)
+    edges = np.linspace(-4, 4, 81)
+    mid, w = 0.5 * (edges[1:] + edges[:-1]), edges[1] - edges[0]
+    fig, axs = plt.subplots(1, len(TAUS), figsize=(4 * len(TAUS), 3.4), sharey=True)
+    nums = dict(tau_nd=TAUS, t=T_DENSITY, h_nd=h, n_paths=n, max_dev_in_se={})
+    for j, (tau, ax) in enumerate(zip(TAUS, axs)):
+        V = di_transient(_model(tau, h), jax.random.fold_in(jax.random.key(seed), j), n,
+                         [round(t / h) for t in T_DENSITY])
+        devs = []
+        for i, t in enumerate(T_DENSITY):
+            cnt, _ = np.histogram(V[:, i], edges)
+            dens, se = cnt / (n * w), np.sqrt(np.maximum(cnt, 1)) / (n * w)
+            ex = theory.propagator(mid, t, 1.0)
+            ax.fill_between(mid, dens - 2 * se, dens + 2 * se, color=f"C{i}", alpha=0.3)
+            ax.plot(mid, ex, color=f"C{i}", lw=1, label=f"t'={t:g}")
+            devs.append(float(np.max(np.abs(dens - ex) / se)))
+        nums["max_dev_in_se"][f"{tau:g}"] = devs
+        ax.set_title(f"tau' = {tau:g}")
+        ax.set_xlabel("v'")
+    axs[0].set_ylabel("density (bands: MC ± 2 SE; lines: Touchette)")
+    axs[0].legend()
+    return save(fig, out_dir, "fig6", nums, t0)
+
+
+def fig7(out_dir, quick, seed):
+    t0 = time.perf_counter()
+    paths, length, h = (256, 100.0, 2e-3) if quick else (4096, 400.0, 5e-4)
+    dt_rec = 0.05
+    every = round(dt_rec / h)
+    lags = np.arange(0, round(10 / dt_rec) + 1)
+    fig, ax = plt.subplots(figsize=(6, 4))
+    tl = lags * dt_rec
+    ex = theory.correlation(tl)
+    ax.semilogy(tl, ex, "r-", label="Touchette C(t')")
+    nums = dict(tau_nd=TAUS, h_nd=h, n_paths=paths, length_tau0=length, burn_in_tau0=BURN_TAU0, t=tl, exact=ex,
+                corr={}, se={}, max_dev_in_se={})
+    for j, tau in enumerate(TAUS):
+        V, _ = di_stationary(_model(tau, h), jax.random.fold_in(jax.random.key(seed), j), paths,
+                             round(length / dt_rec), every, burn_steps=round(BURN_TAU0 / h))
+        c, se = autocovariance(V, len(lags) - 1)
+        ax.errorbar(tl[::10], c[::10], 2 * se[::10], fmt="o", ms=3, label=f"tau' = {tau:g}")
+        nums["corr"][f"{tau:g}"], nums["se"][f"{tau:g}"] = c, se
+        nums["max_dev_in_se"][f"{tau:g}"] = float(np.max(np.abs(c - ex) / se))
+    ax.set_xlabel("t'")
+    ax.set_ylabel("<V'(0) V'(t')>")
+    ax.legend()
+    return save(fig, out_dir, "fig7", nums, t0)
