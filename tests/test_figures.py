@@ -72,3 +72,14 @@ def test_fig8_bruteforce_and_long_excursions_agree_and_exponent_is_reported(figs
     visc = figs["fig8"]["cases"]["b = -v/tau_L + gamma_bar"]
     for a, ca, ex in zip(visc["1e-05"]["D"], visc["1e-05"]["D_ci"], visc["exact"]):
         assert abs(a - ex) <= 3 / 1.96 * ca, (a, ca, ex)
+
+
+def test_fig9_speed_against_error_slopes(figs):
+    """Section 5.3: LE RMSE ~ cost^{-1/2}; BF with its best horizon ~ cost^{-1/3}; fitted slopes
+    within 3 of their standard errors."""
+    f = figs["fig9"]
+    assert abs(f["le_slope"] - (-0.5)) <= 3 * f["le_slope_se"], (f["le_slope"], f["le_slope_se"])
+    assert abs(f["bf_slope"] - (-1 / 3)) <= 3 * f["bf_slope_se"], (f["bf_slope"], f["bf_slope_se"])
+    assert f["le_slope_se"] > 0 and f["bf_slope_se"] > 0
+    for rows in (f["di"], f["pdmp"]):
+        assert all(r["D_ci"] > 0 and r["wall_s"] > 0 for r in rows)

@@ -9,9 +9,10 @@ from __future__ import annotations
 import os
 
 from .diffusivity import fig3, fig5, fig8
+from .speed_error import fig9
 from .touchette import fig6, fig7, table1
 
-SCENES = {"3": fig3, "5": fig5, "6": fig6, "table1": table1, "7": fig7, "8": fig8}
+SCENES = {"3": fig3, "5": fig5, "6": fig6, "table1": table1, "7": fig7, "8": fig8, "9": fig9}
 
 
 def run_figures(which: str, out_dir: str, quick: bool = False, seed: int = 0) -> dict:

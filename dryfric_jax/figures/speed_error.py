@@ -1,0 +1,135 @@
+r"""Fig. 9 (new): speed against error.
+
+(a) RMSE of D against compute, long excursions (LE) and brute force (BF) at several horizons t,
+    on a case with a known D (white noise, tau' = 1e-5, with the Fig. 3 viscous term and bias:
+    D from the exact quadrature of MODEL_NOTES section 2).  Replicates are groups of lanes (LE)
+    or of paths (BF) of one run each, so the RMSE at every size comes from independent
+    replicates.  Section 5.3: the LE RMSE falls as cost^{-1/2}; BF at a fixed t stalls at its
+    O(1/t) bias, and its best t at each budget gives the cost^{-1/3} envelope.  Slopes are
+    least-squares fits in log-log with their standard errors.
+(b) D and its 95% CI against h (DI) and delta (PDMP) at the Fig. 3 point, with the wall time on
+    a second axis: which step buys which accuracy at which cost.
+"""
+from __future__ import annotations
+
+import math
+import time
+import warnings
+
+import jax
+import numpy as np
+
+from .. import theory
+from ..api import DryfricWarning, estimate_diffusivity
+from ..di import make_di_model
+from ..estimators import bruteforce_estimates, long_excursion_estimates
+from ..excursions import STAT_NAMES, run_round
+from ..params import FIG3, Params
+from ..paths import di_stationary
+from ..plan import default_h
+from .common import plt, save
+
+
+def fit_slope(x, y):
+    """Least-squares slope of log y on log x and its standard error."""
+    lx, ly = np.log(np.asarray(x, float)), np.log(np.asarray(y, float))
+    A = np.stack([lx, np.ones_like(lx)], 1)
+    coef, res, *_ = np.linalg.lstsq(A, ly, rcond=None)
+    dof = max(len(lx) - 2, 1)
+    s2 = float(((ly - A @ coef) ** 2).sum()) / dof
+    cov = s2 * np.linalg.inv(A.T @ A)
+    return float(coef[0]), float(math.sqrt(cov[0, 0]))
+
+
+def _rmse_le(model, key, lanes, budget, D_true, sizes):
+    res = run_round(model, key, lanes, budget)
+    steps = np.asarray(res.lane_steps, float)
+    out = []
+    for g in sizes:  # lanes per replicate
+        errs, cost, n = [], [], []
+        for r in range(lanes // g):
+            blk = res.stats[r * g:(r + 1) * g].sum(0)
+            errs.append(long_excursion_estimates(dict(zip(STAT_NAMES, blk)))["D"] - D_true)
+            cost.append(steps[r * g:(r + 1) * g].sum())
+            n.append(blk[0])
+        out.append(dict(lanes=g, n_excursions=float(np.mean(n)), cost=float(np.mean(cost)),
+                        rmse=float(np.sqrt(np.mean(np.square(errs)))), replicates=lanes // g))
+    return out
+
+
+def fig9(out_dir, quick, seed):
+    t0 = time.perf_counter()
+    # (a) -------------------------------------------------------------------------------------
+    p = Params(FIG3["Gamma"], FIG3["Delta"], 1e-5 * FIG3["Gamma"] / FIG3["Delta"] ** 2, FIG3["tau_L"],
+               FIG3["gamma_bar"])
+    D_true = theory.exact_D(p) / p.D0
+    h = default_h(p)
+    model = make_di_model(p, h)
+    h_nd = h / p.tau0
+    lanes, budget = (1024, 20_000) if quick else (8192, 100_000)
+    le = _rmse_le(model, jax.random.key(seed), lanes, budget, D_true, [1, 4, 16, 64])
+    paths, t_max = (2048, 60.0) if quick else (16384, 240.0)
+    horizons = [t_max / 16, t_max / 4, t_max]
+    every = round(horizons[0] / h_nd)
+    _, U = di_stationary(model, jax.random.key(seed + 1), paths, round(t_max / horizons[0]), every)
+    bf = {}
+    for t in horizons:
+        j = round(t / horizons[0]) - 1
+        tt = (j + 1) * every * h_nd
+        rows = []
+        for g in (16, 64, 256):
+            errs = [bruteforce_estimates(U[r * g:(r + 1) * g, j], tt)["D_t"] - D_true for r in range(paths // g)]
+            rows.append(dict(paths=g, cost=g * tt / h_nd, rmse=float(np.sqrt(np.mean(np.square(errs)))),
+                             replicates=paths // g))
+        bf[f"{t:g}"] = rows
+    le_slope = fit_slope([r["cost"] for r in le], [r["rmse"] for r in le])
+    # BF envelope: at each budget level, the best horizon
+    pts = sorted((r["cost"], r["rmse"]) for rows in bf.values() for r in rows)
+    env, best = [], math.inf
+    for c, e in pts:
+        if e < best:
+            best = e
+            env.append((c, e))
+    bf_slope = fit_slope(*zip(*env)) if len(env) >= 3 else (math.nan, math.nan)
+    # (b) -------------------------------------------------------------------------------------
+    pf = Params(**FIG3)
+    n = 2000 if quick else 100_000
+    h_rel = (0.1, 0.03, 0.01, 0.003) if quick else (0.1, 0.03, 0.01, 0.003, 0.001)
+    d_nd = (0.15, 0.1, 0.05, 0.025)  # delta'_max = 0.19 here
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DryfricWarning)
+        hs = [hr * min(pf.tau0, pf.tau_L) for hr in h_rel]
+        di = [estimate_diffusivity(pf, seed + i, h=hh, n_excursions=n) for i, hh in enumerate(hs)]
+        ds = [d * pf.Delta / math.sqrt(pf.Gamma) for d in d_nd]
+        pd = [estimate_diffusivity(pf, seed + 10 + i, method="pdmp", delta=dd, n_excursions=n)
+              for i, dd in enumerate(ds)]
+    fig, axs = plt.subplots(1, 3, figsize=(15, 4))
+    a = axs[0]
+    a.loglog([r["cost"] for r in le], [r["rmse"] * p.D0 for r in le], "ko-", label=f"LE, slope {le_slope[0]:.2f} ± {le_slope[1]:.2f}")
+    for i, (t, rows) in enumerate(bf.items()):
+        a.loglog([r["cost"] for r in rows], [r["rmse"] * p.D0 for r in rows], "s--", color=f"C{i}",
+                 label=f"BF t = {t} tau0")
+    if env:
+        a.loglog(*zip(*[(c, e * p.D0) for c, e in env]), "r:", lw=2,
+                 label=f"BF best t, slope {bf_slope[0]:.2f} ± {bf_slope[1]:.2f}")
+    c0 = le[0]["cost"]
+    a.loglog([c0, c0 * 100], [le[0]["rmse"] * p.D0, le[0]["rmse"] * p.D0 / 10], "k:", lw=0.7, label="N^-1/2")
+    a.set_xlabel("lane-steps per estimate")
+    a.set_ylabel("RMSE of D (m^2/s)")
+    a.set_title("(a) white noise, exact D known", fontsize=9)
+    a.legend(fontsize=7)
+    for ax, xs, rs, lab in ((axs[1], hs, di, "h (s)"), (axs[2], ds, pd, "delta (s^-1/2)")):
+        ax.errorbar(xs, [r.D for r in rs], [r.D_ci for r in rs], fmt="o-")
+        ax.set_xscale("log")
+        ax.set_xlabel(lab)
+        ax.set_ylabel("D (m^2/s), 95% CI")
+        ax2 = ax.twinx()
+        ax2.loglog(xs, [r.wall_s for r in rs], "r^--")
+        ax2.set_ylabel("wall time (s)", color="r")
+    axs[1].set_title(f"(b) DI at the Fig. 3 point, N = {n}", fontsize=9)
+    axs[2].set_title(f"(b) PDMP at the Fig. 3 point, N = {n}", fontsize=9)
+    nums = dict(D_true=D_true * p.D0, le=le, bf=bf, le_slope=le_slope[0], le_slope_se=le_slope[1],
+                bf_envelope=env, bf_slope=bf_slope[0], bf_slope_se=bf_slope[1], theory_slopes=dict(le=-0.5, bf=-1 / 3),
+                di=[dict(h=hh, D=r.D, D_ci=r.D_ci, wall_s=r.wall_s) for hh, r in zip(hs, di)],
+                pdmp=[dict(delta=dd, D=r.D, D_ci=r.D_ci, wall_s=r.wall_s) for dd, r in zip(ds, pd)])
+    return save(fig, out_dir, "fig9", nums, t0)
