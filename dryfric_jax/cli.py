@@ -131,7 +131,7 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--burn-in", type=_number("burn-in"), default=0.0, help="uncounted warm-up, s")
     sub.add_parser("theory", parents=[model], help="exact white-noise D and M0")
     fg = sub.add_parser("figures", help="reproduce the paper's figures and tables (PNG, PDF, JSON)")
-    fg.add_argument("--fig", default="all", help="all, 3, 5, 6, 7, 8, 9 or table1")
+    fg.add_argument("--fig", default="all", help="all, 1 (Figs. 1-2), 3, 4, 5, 6, 7, 8, 9 or table1")
     fg.add_argument("--quick", action="store_true", help="small settings: all figures in minutes on a CPU")
     fg.add_argument("--out", required=True, help="output directory (created if its parent exists)")
     fg.add_argument("--seed", type=_int_at_least("seed", 0), default=0)

@@ -7,7 +7,10 @@ nondimensional (:math:`\tau_0, u_0`); times are in steps of the model's h.
 
 * :func:`di_transient`: paths from :math:`V_0 = v_0` with :math:`X_0 \sim \mathcal N(0, 1/\tau')`
   (stationary noise), V recorded after the given step counts (paper Figs. 6, Table 1);
-* :func:`di_stationary`: paths after a burn-in, V and U recorded every ``every`` steps (Figs. 5, 7).
+* :func:`di_stationary`: paths after a burn-in, V and U recorded every ``every`` steps (Figs. 4, 5, 7);
+* :func:`pdmp_stationary`: the PDMP's V on a time grid after a burn-in (Fig. 4);
+* :func:`di_excursion`: one long excursion step by step (Figs. 1-2; the PDMP's is
+  :func:`~dryfric_jax.pdmp.excursion_skeleton`).
 """
 from __future__ import annotations
 
@@ -98,13 +101,125 @@ def di_stationary(model: DIModel, key, n_paths: int, n_records: int, every: int 
     return np.asarray(V), np.asarray(U)
 
 
-def autocovariance(V: np.ndarray, max_lag: int) -> tuple[np.ndarray, np.ndarray]:
-    r"""Stationary autocovariance :math:`\langle V(t)V(t+k)\rangle` (not centred: the paper's pure
-    dry friction case has mean 0) and its standard error over paths, by FFT per path.
+def autocovariance(V: np.ndarray, max_lag: int, center: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    r"""Stationary autocovariance :math:`\langle V(t)V(t+k)\rangle` and its standard error over
+    paths, by FFT per path.  ``center=True`` subtracts the grand mean first (Cov, the paper's
+    :math:`h(\rho)`); the pure dry friction case has mean 0 and uses the raw moment.
 
     ``V`` is ``(paths, samples)``; returns two arrays of length ``max_lag + 1``.
     """
+    if center:
+        V = V - V.mean()
     n = V.shape[1]
     f = np.fft.rfft(V, 2 * n, axis=1)
     acf = np.fft.irfft(f * np.conj(f), axis=1)[:, : max_lag + 1] / (n - np.arange(max_lag + 1))
     return acf.mean(0), acf.std(0, ddof=1) / np.sqrt(V.shape[0])
+
+
+@partial(jax.jit, static_argnames=("max_steps",))
+def _excursion(model: DIModel, key, *, max_steps: int):
+    dt = model.h.dtype
+    h64 = model.h.astype(jnp.float64)
+    buf = dict(X=jnp.zeros(max_steps + 1, dt), V=jnp.zeros(max_steps + 1, dt), U=jnp.zeros(max_steps + 1))
+
+    def cond(c):
+        i, n, phase, *_ = c
+        return (i < 50 * max_steps) & (n < max_steps) & (phase < 3)
+
+    def body(c):
+        i, n, phase, n_half, X, V, U, b = c
+        z1, z2, u = model.draw(jax.random.fold_in(key, i), 1)
+        (Xn, Vn), dU, _, heads = model.advance((X, V), (z1[0], z2[0], u[0]), phase != 1)
+        # phase 0: seeking a regeneration on C_+; 1: +HLE (until C_-); 2: -HLE (until C_+); 3: done
+        start = (phase == 0) & heads
+        U = jnp.where(start, 0.0, U)
+        put = lambda bb, j, vals: {k: bb[k].at[j].set(vals[k]) for k in bb}  # noqa: E731
+        b = jax.lax.cond(start, lambda bb: put(bb, 0, dict(X=X, V=V, U=0.0)), lambda bb: bb, b)
+        ends = (phase == 2) & heads  # the regenerating step belongs to the next excursion
+        rec = ((phase == 1) | (phase == 2) | start) & ~ends
+        U = U + jnp.where(rec, dU, 0.0)
+        n = n + rec
+        b = jax.lax.cond(rec, lambda bb: put(bb, n, dict(X=Xn, V=Vn, U=U)), lambda bb: bb, b)
+        n_half = jnp.where((phase == 1) & heads, n - 1, n_half)
+        phase = jnp.where(start, 1, jnp.where(heads & (phase == 1), 2, jnp.where(ends, 3, phase)))
+        return i + 1, n, phase, n_half, Xn, Vn, U, b
+
+    init = (jnp.asarray(0), jnp.asarray(0), jnp.asarray(0), jnp.asarray(-1), jnp.asarray(model.x_plus, dt),
+            jnp.asarray(0.0, dt), jnp.asarray(0.0, jnp.float64), buf)
+    _, n, phase, n_half, _, _, _, b = jax.lax.while_loop(cond, body, init)
+    return n, phase, n_half, b
+
+
+def di_excursion(model: DIModel, key, max_steps: int = 200_000) -> dict:
+    """One long excursion of the DI (regeneration on C_+, through C_-, back to C_+) step by step.
+
+    Returns nondimensional numpy arrays ``t, x, v, U`` (index 0 is the state before the first
+    step of the excursion), ``i_half`` (the step at which the -HLE begins) and ``complete``
+    (False if ``max_steps`` stopped it first).  The seek before the first regeneration is bounded
+    by 50 ``max_steps`` steps.
+    """
+    n, phase, n_half, b = jax.device_get(_excursion(model, key, max_steps=int(max_steps)))
+    n = int(n)
+    out = {k: np.asarray(v)[: n + 1].astype(np.float64) for k, v in b.items()}
+    out = dict(t=np.arange(n + 1) * float(model.h), x=out["X"], v=out["V"], U=out["U"], i_half=int(n_half),
+               complete=bool(phase == 3))
+    return out
+
+
+@partial(jax.jit, static_argnames=("n_records",))
+def _pdmp_sampled(model, keys, t_burn, dt_rec, max_events, *, n_records: int):
+    from .pdmp import flow
+
+    def path(key):
+        s0 = jax.tree_util.tree_map(lambda a: a[0], model.s_plus(1))
+        vdt = model.delta.dtype
+
+        def cond(c):
+            i, j, *_ = c
+            return (j < n_records) & (i < max_events)
+
+        def body(c):
+            i, j, state, T, buf = c
+            u = jax.random.uniform(jax.random.fold_in(key, i), (2,), vdt, minval=jnp.finfo(vdt).tiny)
+            dt, a, new, _, _ = model.event(state, (u[0], u[1]))
+            k, y, v = state
+            T1 = T + dt.astype(jnp.float64)
+
+            def rec_cond(cc):
+                jj, _ = cc
+                return (jj < n_records) & (t_burn + jj * dt_rec < T1)
+
+            def rec_body(cc):  # every grid time inside this segment: V from the flow (0 if stuck)
+                jj, bb = cc
+                s = (t_burn + jj * dt_rec - T).astype(vdt)
+                val = jnp.where(y != 0, flow(v, a, model.inv_tau_L, jnp.maximum(s, 0)), 0.0)
+                return jj + 1, bb.at[jj].set(val)
+
+            j, buf = jax.lax.while_loop(rec_cond, rec_body, (j, buf))
+            return i + 1, j, new, T1, buf
+
+        init = (jnp.asarray(0, jnp.int64), jnp.asarray(0, jnp.int64), s0, jnp.asarray(0.0, jnp.float64),
+                jnp.zeros(n_records, vdt))
+        i, j, _, _, buf = jax.lax.while_loop(cond, body, init)
+        return buf, j == n_records
+
+    return jax.vmap(path)(keys)
+
+
+def pdmp_stationary(model, key, n_paths: int, n_records: int, dt_rec: float, burn: float,
+                    max_events: int | None = None):
+    """V of the PDMP at times ``burn + j dt_rec`` (nondimensional), ``(n_paths, n_records)``.
+
+    Paths start at s_+; every event is bounded by ``max_events`` per path (default 10x the
+    expected jump count); a path stopped by it raises ``RuntimeError`` rather than returning
+    a short record.
+    """
+    t_end = burn + n_records * dt_rec
+    if max_events is None:
+        max_events = int(10 * float(model.rate) * t_end) + 10_000
+    V, ok = _pdmp_sampled(model, jax.random.split(key, n_paths), jnp.asarray(burn, jnp.float64),
+                          jnp.asarray(dt_rec, jnp.float64), jnp.asarray(max_events, jnp.int64),
+                          n_records=int(n_records))
+    if not bool(np.all(ok)):
+        raise RuntimeError(f"{int((~np.asarray(ok)).sum())} PDMP paths hit max_events = {max_events}")
+    return np.asarray(V, np.float64)

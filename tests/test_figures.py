@@ -14,11 +14,14 @@ def figs(tmp_path_factory):
     out = tmp_path_factory.mktemp("figs")
     assert main(["figures", "--fig", "all", "--quick", "--out", str(out)]) == 0
     for name in SCENES:
-        stem = name if name == "table1" else f"fig{name}"
+        stem = _stem(name)
         for ext in ("png", "pdf", "json"):
             assert (out / f"{stem}.{ext}").stat().st_size > 0, (stem, ext)
-    return {n: json.loads((out / f"{n}.json").read_text()) for n in
-            [n if n == "table1" else f"fig{n}" for n in SCENES]}
+    return {_stem(n): json.loads((out / f"{_stem(n)}.json").read_text()) for n in SCENES}
+
+
+def _stem(name):
+    return {"table1": "table1", "1": "fig1_2"}.get(name, f"fig{name}")
 
 
 def test_table1_first_moment_matches_the_model_not_the_printed_row(figs):
@@ -83,3 +86,18 @@ def test_fig9_speed_against_error_slopes(figs):
     assert f["le_slope_se"] > 0 and f["bf_slope_se"] > 0
     for rows in (f["di"], f["pdmp"]):
         assert all(r["D_ci"] > 0 and r["wall_s"] > 0 for r in rows)
+
+
+def test_fig1_2_one_complete_excursion_each(figs):
+    for name, e in figs["fig1_2"].items():
+        if name == "wall_s":
+            continue
+        assert e["complete"] and 0 < e["half_s"] < e["duration_s"], (name, e)
+
+
+def test_fig4_pdmp_and_di_covariances_agree(figs):
+    """Both models at the same point (the PDMP at delta = 0.125): max over lags of the difference
+    of h/h0 in standard errors (correlated lags: 4 SE)."""
+    for tau, c in figs["fig4"]["curves"].items():
+        assert c["max_diff_in_se"] < 4, (tau, c["max_diff_in_se"])
+        assert c["pdmp"]["h_over_h0"][0] == 1.0 and c["di"]["h_over_h0"][0] == 1.0

@@ -8,11 +8,13 @@ from __future__ import annotations
 
 import os
 
+from .covariance import fig4
 from .diffusivity import fig3, fig5, fig8
+from .excursion import fig1_2
 from .speed_error import fig9
 from .touchette import fig6, fig7, table1
 
-SCENES = {"3": fig3, "5": fig5, "6": fig6, "table1": table1, "7": fig7, "8": fig8, "9": fig9}
+SCENES = {"1": fig1_2, "3": fig3, "4": fig4, "5": fig5, "6": fig6, "table1": table1, "7": fig7, "8": fig8, "9": fig9}
 
 
 def run_figures(which: str, out_dir: str, quick: bool = False, seed: int = 0) -> dict:
