@@ -1,7 +1,9 @@
 r"""Fig. 3 and Fig. 8 (paper sections 7.1, 7.3): D against Gamma, with 95% CI bars.
 
 * Fig. 3: D and the mean excursion duration for tau = 0.125, 0.25, 0.5, 1 s (tau_L = 0.067 s,
-  Delta = 3.84, gamma_bar = 0.342): PDMP (delta = 0.125 s^-1/2) dots, DI lines;
+  Delta = 3.84, gamma_bar = 0.342): PDMP (delta = 0.125 s^-1/2) dots, DI lines; N = 1e5 (full)
+  or 1e3 (quick), lowered by 4x steps where the run would exceed the default ``max_work`` (the
+  N used is in the JSON);
 * Fig. 8: D for b = 0 and for b = -v/tau_L + gamma_bar, tau = 1e-5 .. 1e-2 s: brute force
   (t = 10 s) dots, long excursions lines, the exact white-noise D as reference, and the local
   exponent d ln D / d ln Gamma (finite differences of the long-excursion D, delta-method CI).
@@ -17,6 +19,7 @@ import numpy as np
 from .. import theory
 from ..api import DryfricWarning, bruteforce_diffusivity, estimate_diffusivity
 from ..params import Params
+from ..plan import plan_estimate
 from .common import plt, save
 
 DELTA, TAU_L, GBAR = 3.84, 0.067, 0.342
@@ -26,6 +29,18 @@ def _quiet(f, *a, **kw):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DryfricWarning)
         return f(*a, **kw)
+
+
+def _affordable_n(p, method, n, kw):
+    """N, divided by 4 until the run fits the default max_work (slow noise at small Gamma makes
+    excursions exponentially long: the paper's tau = 1 s, Gamma = 1 point needs ~6e4 tau0 each)."""
+    while n > 1000:
+        try:
+            plan_estimate(p, method=method, n_excursions=n, **kw)
+            return n
+        except ValueError:
+            n //= 4
+    return n
 
 
 def fig3(out_dir, quick, seed):
@@ -40,9 +55,11 @@ def fig3(out_dir, quick, seed):
         for m in ("pdmp", "di"):
             kw = dict(delta=0.125) if m == "pdmp" else {}
             rs = [_quiet(estimate_diffusivity, Params(G, DELTA, tau, TAU_L, GBAR), seed + 17 * i + 1000 * j,
-                         method=m, n_excursions=n, **kw) for i, G in enumerate(gammas)]
+                         method=m, n_excursions=_affordable_n(Params(G, DELTA, tau, TAU_L, GBAR), m, n, kw), **kw)
+                  for i, G in enumerate(gammas)]
             rows[m] = dict(D=[r.D for r in rs], D_ci=[r.D_ci for r in rs], dur=[r.mean_duration for r in rs],
-                           dur_ci=[r.mean_duration_ci for r in rs], wall_s=[r.wall_s for r in rs])
+                           dur_ci=[r.mean_duration_ci for r in rs], wall_s=[r.wall_s for r in rs],
+                           n_excursions=[r.n_excursions for r in rs])
             nums[m][f"{tau:g}"] = rows[m]
         p, d = rows["pdmp"], rows["di"]
         a1.errorbar(gammas, p["D"], p["D_ci"], fmt="o", color=f"C{j}", ms=4)
