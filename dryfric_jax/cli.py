@@ -12,9 +12,9 @@ import json
 import math
 import os
 import sys
-import tempfile
 import warnings
 
+from .outfiles import check_writable, write_atomic
 from .params import FIG3, Params
 
 
@@ -174,29 +174,16 @@ def _fmt(x, ci):
 
 def _check_out(path):
     """Refuse an output path that cannot be written, before anything is simulated."""
-    if path is None:
-        return
-    d = os.path.dirname(os.path.abspath(path))
-    if os.path.isdir(path) or not os.path.isdir(d) or not os.access(d, os.W_OK):
-        raise _UserError(f"--out must be a writable file path in an existing directory (got {path!r})")
+    if path is not None:
+        try:
+            check_writable(path)
+        except ValueError as e:
+            raise _UserError("--" + str(e)) from None
 
 
 def _write_out(path, obj):
-    """Write JSON atomically: a temporary file in the same directory, then rename."""
-    if path is None:
-        return
-    d = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(dir=d, prefix=".dryfric-", suffix=".json")
-    try:
-        with os.fdopen(fd, "w") as f:
-            json.dump(obj, f, indent=1)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes it private; an output file is not
-        os.replace(tmp, path)
-    except BaseException:
-        os.unlink(tmp)
-        raise
+    if path is not None:
+        write_atomic(path, json.dumps(obj, indent=1))
 
 
 def _work_options(a):

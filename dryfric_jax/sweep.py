@@ -21,12 +21,12 @@ import json
 import math
 import os
 import sys
-import tempfile
 import time
 import warnings
 import zlib
 
 from .api import DryfricWarning, estimate_diffusivity
+from .outfiles import check_writable, write_atomic
 from .params import Params
 from .plan import plan_estimate
 
@@ -81,28 +81,7 @@ def read_results(path: str) -> list[dict]:
 
 
 def _write_atomic(path: str, records: list[dict]) -> None:
-    d = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(dir=d, prefix=".dryfric-sweep-", suffix=".jsonl")
-    try:
-        with os.fdopen(fd, "w") as f:
-            for rec in records:
-                f.write(json.dumps(rec) + "\n")
-            f.flush()
-            os.fsync(f.fileno())
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-
-
-def check_writable(path: str) -> None:
-    d = os.path.dirname(os.path.abspath(path))
-    if os.path.isdir(path) or not os.path.isdir(d) or not os.access(d, os.W_OK):
-        raise ValueError(f"out must be a writable file path in an existing directory (got {path!r})")
+    write_atomic(path, "".join(json.dumps(rec) + "\n" for rec in records))
 
 
 def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di", h=None, delta=None,

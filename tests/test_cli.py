@@ -86,6 +86,10 @@ BAD += [
     (["estimate", "--out", "."], "--out"),  # a directory
     (["estimate", "--out", "/etc/passwd/result.json"], "--out"),  # parent is a file
     (["bruteforce", "--t", "1", "--n-paths", "10", "--out", "/nonexistent-dir/bf.json"], "--out"),
+    (["figures", "--fig", "3", "--out", "/etc/passwd/figs"], "--out"),  # parent is a file
+    (["figures", "--fig", "3", "--out", "/nonexistent-dir/deeper/figs"], "--out"),
+    (["figures", "--fig", "99", "--out", "figs"], "--fig"),
+    (["sweep", "--Gamma", "1,2", "--out", "/nonexistent-dir/s.jsonl"], "--out"),
     (["estimate", "--tau", "30"], "max_work must"),  # slow weak noise: predicted work refused up front
     (["estimate", "--tau-L", "inf", "--gamma-bar", "3.84"], "gamma_bar"),  # runaway
     (["bruteforce", "--t", "1e6", "--n-paths", "1000"], "max_work must"),

@@ -1,0 +1,32 @@
+"""Output files: checked writable before any work, written atomically (never a torn file)."""
+from __future__ import annotations
+
+import os
+import tempfile
+
+
+def check_writable(path: str, name: str = "out") -> None:
+    """Raise ``ValueError`` naming ``name`` unless ``path`` can be created or replaced as a file."""
+    d = os.path.dirname(os.path.abspath(path))
+    if os.path.isdir(path) or not os.path.isdir(d) or not os.access(d, os.W_OK):
+        raise ValueError(f"{name} must be a writable file path in an existing directory (got {path!r})")
+
+
+def write_atomic(path: str, text: str) -> None:
+    """Write ``text`` to a temporary file in the same directory, fsync, then rename over ``path``:
+    a reader (or a kill at any moment) sees the old file or the new one, never a part."""
+    d = os.path.dirname(os.path.abspath(path))
+    fd, tmp = tempfile.mkstemp(dir=d, prefix=".dryfric-", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w") as f:
+            f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes it private; an output file is not
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
