@@ -11,7 +11,6 @@ import warnings
 from dataclasses import asdict, dataclass, field
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 
 from .bruteforce import simulate_bruteforce
@@ -22,7 +21,7 @@ from .limits import MAX_WORK
 from .params import Params, check_positive
 from .pdmp import make_pdmp_model, simulate_pdmp_bruteforce
 from .plan import (  # noqa: F401  (default_h, h_max, check_h, METHODS are part of the API)
-    DTYPES, METHODS, Plan, check_count, check_h, check_max_work, choose, default_h, dtype_name, h_max, plan_estimate,
+    DTYPES, METHODS, Plan, check_count, check_h, check_max_work, choose, default_h, h_max, plan_estimate,
 )
 
 class DryfricWarning(UserWarning):
