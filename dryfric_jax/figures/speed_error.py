@@ -30,15 +30,24 @@ from ..plan import default_h
 from .common import plt, save
 
 
-def fit_slope(x, y):
-    """Least-squares slope of log y on log x and its standard error."""
+def fit_slope(x, y, replicates=None):
+    """Slope of log y on log x and its standard error.
+
+    Each RMSE comes from R independent replicates, so log RMSE carries a sampling error of about
+    1/sqrt(2R) (Gaussian errors); the fit is weighted by it and the reported standard error is
+    the larger of the propagated one and the one from the residuals (which alone understates it
+    when a few points happen to lie on a line).
+    """
     lx, ly = np.log(np.asarray(x, float)), np.log(np.asarray(y, float))
+    sig = np.ones_like(lx) if replicates is None else 1.0 / np.sqrt(2.0 * np.asarray(replicates, float))
     A = np.stack([lx, np.ones_like(lx)], 1)
-    coef, res, *_ = np.linalg.lstsq(A, ly, rcond=None)
+    W = np.diag(1.0 / sig**2)
+    cov_known = np.linalg.inv(A.T @ W @ A)
+    coef = cov_known @ A.T @ W @ ly
     dof = max(len(lx) - 2, 1)
-    s2 = float(((ly - A @ coef) ** 2).sum()) / dof
-    cov = s2 * np.linalg.inv(A.T @ A)
-    return float(coef[0]), float(math.sqrt(cov[0, 0]))
+    chi2 = float(((ly - A @ coef) ** 2 / sig**2).sum()) / dof
+    se_known = math.sqrt(cov_known[0, 0]) if replicates is not None else 0.0
+    return float(coef[0]), float(max(se_known, math.sqrt(chi2 * cov_known[0, 0])))
 
 
 def _rmse_le(model, key, lanes, budget, D_true, sizes):
@@ -82,15 +91,16 @@ def fig9(out_dir, quick, seed):
             rows.append(dict(paths=g, cost=g * tt / h_nd, rmse=float(np.sqrt(np.mean(np.square(errs)))),
                              replicates=paths // g))
         bf[f"{t:g}"] = rows
-    le_slope = fit_slope([r["cost"] for r in le], [r["rmse"] for r in le])
+    le_slope = fit_slope([r["cost"] for r in le], [r["rmse"] for r in le], [r["replicates"] for r in le])
     # BF envelope: at each budget level, the best horizon
-    pts = sorted((r["cost"], r["rmse"]) for rows in bf.values() for r in rows)
+    pts = sorted((r["cost"], r["rmse"], r["replicates"]) for rows in bf.values() for r in rows)
     env, best = [], math.inf
-    for c, e in pts:
+    for c, e, rep in pts:
         if e < best:
             best = e
-            env.append((c, e))
+            env.append((c, e, rep))
     bf_slope = fit_slope(*zip(*env)) if len(env) >= 3 else (math.nan, math.nan)
+    env = [(c, e) for c, e, _ in env]
     # (b) -------------------------------------------------------------------------------------
     pf = Params(**FIG3)
     n = 2000 if quick else 100_000
