@@ -19,7 +19,6 @@ from .di import DIModel
 @partial(jax.jit, static_argnames=("block",))
 def _run_paths(model: DIModel, keys, n_burn_blocks, n_blocks, *, block: int):
     dt = model.h.dtype
-    h64 = model.h.astype(jnp.float64)
 
     def lane(key):
         def blk(b, c):
@@ -30,9 +29,7 @@ def _run_paths(model: DIModel, keys, n_burn_blocks, n_blocks, *, block: int):
 
             def step(i, c2):
                 X, V, U = c2
-                Xi, Xn = model.ou.sample(X, zs[i, 0], zs[i, 1])
-                Vn = model.step(V, Xi)
-                dU = 0.5 * h64 * (V.astype(jnp.float64) + Vn.astype(jnp.float64))
+                _, Xn, Vn, dU = model.move(X, V, zs[i, 0], zs[i, 1])
                 return Xn, Vn, U + jnp.where(count, dU, 0.0)
 
             return jax.lax.fori_loop(0, block, step, (X, V, U))

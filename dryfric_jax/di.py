@@ -41,6 +41,14 @@ class DIModel(eqx.Module):
         w = V + self.h * (self.gamma_bar - V * self.inv_tau_L + Xi)
         return jnp.sign(w) * jnp.maximum(jnp.abs(w) - self.h, 0.0)
 
+    def move(self, X, V, z1, z2):
+        """One step of the chain from two standard normals: ``(Xi, X_next, V_next, dU)``, with
+        the float64 trapezoid displacement :math:`dU = h (V_n + V_{n+1})/2`."""
+        Xi, Xn = self.ou.sample(X, z1, z2)
+        Vn = self.step(V, Xi)
+        dU = 0.5 * self.h.astype(jnp.float64) * (V.astype(jnp.float64) + Vn.astype(jnp.float64))
+        return Xi, Xn, Vn, dU
+
     # --- the lane-engine interface (dryfric_jax.excursions) ---
     start_regenerated = False  # lanes seek their first regeneration on C_+
     regen_after_step = False  # the regenerating transition belongs to the new cycle
@@ -66,14 +74,11 @@ class DIModel(eqx.Module):
         (:mod:`dryfric_jax.regeneration`).  Returns ``(state, dU, None, heads)``."""
         X, V = state
         z1, z2, u = r
-        Xi, Xn = self.ou.sample(X, z1, z2)
-        Vn = self.step(V, Xi)
+        _, Xn, Vn, dU = self.move(X, V, z1, z2)
         # coin only when stuck on C_+ and released upwards, or stuck on C_- and released downwards
         s = jax.tree_util.tree_map(lambda p, m: jnp.where(watch_plus, p, m), self.plus, self.minus)
         released = jnp.where(watch_plus, Vn > 0, Vn < 0)
         heads = (V == 0) & released & s.contains(X) & (jnp.log(u) < s.log_coin(X, z1, z2))
-        h64 = self.h.astype(jnp.float64)
-        dU = 0.5 * h64 * (V.astype(jnp.float64) + Vn.astype(jnp.float64))
         return (Xn, Vn), dU, None, heads
 
 

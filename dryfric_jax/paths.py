@@ -21,19 +21,17 @@ import jax.numpy as jnp
 import numpy as np
 
 from .di import DIModel
+from .pdmp import flow
 
 
 def _advance(model: DIModel, carry, key, n_steps: int):
     """``n_steps`` DI steps of one path; U accumulates in float64 (trapezoid)."""
-    dt = model.h.dtype
-    h64 = model.h.astype(jnp.float64)
-    z = jax.random.normal(key, (n_steps, 2), dt)
+    z = jax.random.normal(key, (n_steps, 2), model.h.dtype)
 
     def step(c, zz):
         X, V, U = c
-        Xi, Xn = model.ou.sample(X, zz[0], zz[1])
-        Vn = model.step(V, Xi)
-        return (Xn, Vn, U + 0.5 * h64 * (V.astype(jnp.float64) + Vn.astype(jnp.float64))), None
+        _, Xn, Vn, dU = model.move(X, V, zz[0], zz[1])
+        return (Xn, Vn, U + dU), None
 
     return jax.lax.scan(step, carry, z)[0]
 
@@ -119,7 +117,6 @@ def autocovariance(V: np.ndarray, max_lag: int, center: bool = False) -> tuple[n
 @partial(jax.jit, static_argnames=("max_steps",))
 def _excursion(model: DIModel, key, *, max_steps: int):
     dt = model.h.dtype
-    h64 = model.h.astype(jnp.float64)
     buf = dict(X=jnp.zeros(max_steps + 1, dt), V=jnp.zeros(max_steps + 1, dt), U=jnp.zeros(max_steps + 1))
 
     def cond(c):
@@ -168,8 +165,6 @@ def di_excursion(model: DIModel, key, max_steps: int = 200_000) -> dict:
 
 @partial(jax.jit, static_argnames=("n_records",))
 def _pdmp_sampled(model, keys, t_burn, dt_rec, max_events, *, n_records: int):
-    from .pdmp import flow
-
     def path(key):
         s0 = jax.tree_util.tree_map(lambda a: a[0], model.s_plus(1))
         vdt = model.delta.dtype
