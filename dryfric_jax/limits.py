@@ -78,9 +78,7 @@ def log_ou_passage_time(a: float, b: float, tau: float) -> float:
     if b > a:
         a, b = -a, -b
     s = math.sqrt(tau / 2.0)
-    # past +6 erfcx(u) ~ 1/(u sqrt(pi)): integrating it exactly keeps quad away from long tails
-    hi = a * s
-    return math.log(tau * math.sqrt(math.pi)) + _int_erfcx(b * s, hi) if hi > b * s else -math.inf
+    return math.log(tau * math.sqrt(math.pi)) + _int_erfcx(b * s, a * s)
 
 
 def log_duration_scale(tau: float, tau_L: float, gamma_bar: float) -> float:

@@ -18,6 +18,7 @@ import warnings
 import numpy as np
 from scipy import integrate, special
 
+from .limits import check_recurrent
 from .params import Params
 
 
@@ -27,12 +28,8 @@ from .params import Params
 def _nd(params: Params):
     nd = params.nondim()
     itl = 0.0 if math.isinf(nd.tau_L) else 1.0 / nd.tau_L
-    g = nd.gamma_bar
-    if itl == 0.0 and abs(g) >= 1.0:
-        raise ValueError(
-            f"gamma_bar must satisfy |gamma_bar| < Delta when tau_L = inf (got gamma_bar/Delta = {g}): "
-            "there is no stationary state")
-    return itl, g
+    check_recurrent(nd.tau_L, nd.gamma_bar)
+    return itl, nd.gamma_bar
 
 
 def _log_p_unnorm(v, itl, g):
