@@ -242,19 +242,19 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
     check_count("n_paths", n_paths)
     check_max_work(max_work)
     plan = choose(params, method, h, delta, dtype)
-    model, notes, method, h, grid, dname = _build(params, plan), plan.notes, plan.method, plan.h, plan.grid, plan.dtype
+    notes, method, h, grid, dname = plan.notes, plan.method, plan.h, plan.grid, plan.dtype
     check_positive("t", t)
     if not (isinstance(burn_in, (int, float)) and math.isfinite(burn_in) and burn_in >= 0):
         raise ValueError(f"burn_in must be a finite number >= 0 (got {burn_in!r})")
     if h is not None and t < h:
         raise ValueError(f"t must be >= h = {h:.4g} s (got {t!r})")
     # the work is known in advance: n_paths (t + burn_in) / h steps, or the expected events
-    per_tau0 = params.tau0 / h if h is not None else 2.0 * grid["rate_nd"]
-    work = n_paths * (t + burn_in) / params.tau0 * per_tau0
+    work = n_paths * (t + burn_in) / params.tau0 * plan.per_tau0
     if work > max_work:
         raise ValueError(f"max_work must be >= {work:.3g} {'steps' if h is not None else 'events (expected)'} for "
                          f"t = {t:.4g} s and n_paths = {n_paths} (got {max_work:.3g}); raise --max-work or lower t "
                          "or n_paths")
+    model = _build(params, plan)
     for n in notes:
         warnings.warn(n, DryfricWarning, stacklevel=2)
     key, seed = _key(key)
@@ -267,7 +267,7 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
     else:
         t_nd, b_nd = t / params.tau0, burn_in / params.tau0
         if max_events is None:
-            max_events = int(10 * 2.0 * grid["rate_nd"] * (t_nd + b_nd)) + 1000
+            max_events = int(10 * plan.per_tau0 * (t_nd + b_nd)) + 1000
         U, steps, unfinished = simulate_pdmp_bruteforce(model, key, int(n_paths), t_nd, burn_in=b_nd,
                                                         max_events=max_events, block=block, chunk_lanes=chunk_lanes)
         if unfinished:
