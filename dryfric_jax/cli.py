@@ -14,7 +14,7 @@ import os
 import sys
 import warnings
 
-from .outfiles import check_writable, write_atomic
+from .outfiles import check_writable, check_writable_dir, write_atomic
 from .params import FIG3, Params
 
 
@@ -209,10 +209,10 @@ def _run(a) -> int:
 
         if a.fig != "all" and a.fig not in SCENES:
             raise _UserError(f"--fig must be one of {['all', *SCENES]} (got {a.fig!r})")
-        parent = os.path.dirname(os.path.abspath(a.out))
-        if os.path.exists(a.out) and not os.path.isdir(a.out) or not os.path.isdir(parent) \
-                or not os.access(parent if not os.path.isdir(a.out) else a.out, os.W_OK):
-            raise _UserError(f"--out must be a writable directory, or a new one in an existing directory (got {a.out!r})")
+        try:
+            check_writable_dir(a.out)
+        except ValueError as e:
+            raise _UserError("--" + str(e)) from None
         run_figures(a.fig, a.out, quick=a.quick, seed=a.seed)
         print(f"figures written to {a.out}")
         return 0

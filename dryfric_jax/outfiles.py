@@ -12,6 +12,18 @@ def check_writable(path: str, name: str = "out") -> None:
         raise ValueError(f"{name} must be a writable file path in an existing directory (got {path!r})")
 
 
+def check_writable_dir(path: str, name: str = "out") -> None:
+    """Raise ``ValueError`` naming ``name`` unless ``path`` is a writable directory or can be
+    created as one (its parent exists and is writable)."""
+    if os.path.isdir(path):
+        ok = os.access(path, os.W_OK)
+    else:
+        parent = os.path.dirname(os.path.abspath(path))
+        ok = not os.path.exists(path) and os.path.isdir(parent) and os.access(parent, os.W_OK)
+    if not ok:
+        raise ValueError(f"{name} must be a writable directory, or a new one in an existing directory (got {path!r})")
+
+
 def write_atomic(path: str, text: str) -> None:
     """Write ``text`` to a temporary file in the same directory, fsync, then rename over ``path``:
     a reader (or a kill at any moment) sees the old file or the new one, never a part."""

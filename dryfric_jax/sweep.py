@@ -25,9 +25,11 @@ import time
 import warnings
 import zlib
 
+from . import __version__
 from .api import DryfricWarning, estimate_diffusivity
+from .limits import MAX_WORK
 from .outfiles import check_writable, write_atomic
-from .params import Params
+from .params import FIG3, Params
 from .plan import plan_estimate
 
 PARAM_KEYS = ("Gamma", "Delta", "tau", "tau_L", "gamma_bar")
@@ -48,17 +50,15 @@ def _canon(x):
     return "inf" if isinstance(x, float) and math.isinf(x) else repr(float(x)) if isinstance(x, (int, float)) else x
 
 
+def _ident(seed: int, params: dict, settings: dict) -> str:
+    """Canonical text of a point: sweep seed, parameters, and the settings that determine it."""
+    return json.dumps([seed, {k: _canon(params[k]) for k in PARAM_KEYS},
+                       {k: _canon(settings.get(k)) for k in SETTING_KEYS}], sort_keys=True)
+
+
 def point_seed(seed: int, params: dict, settings: dict) -> int:
     """A 31-bit seed from the sweep seed and the point (stable under grid edits)."""
-    text = json.dumps([seed, {k: _canon(params[k]) for k in PARAM_KEYS},
-                       {k: _canon(settings.get(k)) for k in SETTING_KEYS}], sort_keys=True)
-    return zlib.crc32(text.encode()) & 0x7FFFFFFF
-
-
-def _ident(rec: dict) -> str:
-    return json.dumps([{k: _canon(rec["params"][k]) for k in PARAM_KEYS},
-                       {k: _canon(rec["settings"].get(k)) for k in SETTING_KEYS}, rec["sweep_seed"]],
-                      sort_keys=True)
+    return zlib.crc32(_ident(seed, params, settings).encode()) & 0x7FFFFFFF
 
 
 def read_results(path: str) -> list[dict]:
@@ -85,7 +85,7 @@ def _write_atomic(path: str, records: list[dict]) -> None:
 
 
 def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di", h=None, delta=None,
-              dtype: str = "float64", n_excursions: int = 20_000, rtol=None, max_work: float = 1e11,
+              dtype: str = "float64", n_excursions: int = 20_000, rtol=None, max_work: float = MAX_WORK,
               progress=None) -> dict:
     r"""Estimate D and M0 at every point, one JSON line per finished point in ``out``.
 
@@ -101,9 +101,6 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
         ``dict(computed=k, skipped=s, total=n, interrupted=bool)``.  A Ctrl-C stops after the
         points already written; the point in progress is not written.
     """
-    from . import __version__
-    from .params import FIG3
-
     check_writable(out)
     settings = dict(method=method, h=h, delta=delta, dtype=dtype, n_excursions=n_excursions, rtol=rtol,
                     max_work=max_work)
@@ -115,13 +112,13 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
         except ValueError as e:
             raise ValueError(f"{e} [at sweep point {json.dumps(pt)}]") from None
     records = read_results(out)
-    have = {_ident(r) for r in records}
+    have = {_ident(r["sweep_seed"], r["params"], r["settings"]) for r in records}
     todo = []
     for pt in full:
-        rec = dict(params=pt, settings=settings, sweep_seed=seed)
-        if _ident(rec) not in have:
+        ident = _ident(seed, pt, settings)
+        if ident not in have:
             todo.append(pt)
-            have.add(_ident(rec))  # a point listed twice runs once
+            have.add(ident)  # a point listed twice runs once
     total, done = len(full), len(full) - len(todo)
     if progress:
         progress(done, total, None)
