@@ -14,12 +14,15 @@ import math
 import time
 import warnings
 
+import jax
 import numpy as np
 
 from .. import theory
 from ..api import DryfricWarning, bruteforce_diffusivity, estimate_diffusivity
+from ..di import make_di_model
 from ..params import Params
-from ..plan import plan_estimate
+from ..paths import di_stationary
+from ..plan import default_h, plan_estimate
 from .common import plt, save
 
 DELTA, TAU_L, GBAR = 3.84, 0.067, 0.342
@@ -52,11 +55,11 @@ def fig3(out_dir, quick, seed):
     nums = dict(Gamma=gammas, tau=taus, n_excursions=n, delta=0.125, pdmp={}, di={}, agree={})
     for j, tau in enumerate(taus):
         rows = {}
+        ps = [Params(G, DELTA, tau, TAU_L, GBAR) for G in gammas]
         for m in ("pdmp", "di"):
             kw = dict(delta=0.125) if m == "pdmp" else {}
-            rs = [_quiet(estimate_diffusivity, Params(G, DELTA, tau, TAU_L, GBAR), seed + 17 * i + 1000 * j,
-                         method=m, n_excursions=_affordable_n(Params(G, DELTA, tau, TAU_L, GBAR), m, n, kw), **kw)
-                  for i, G in enumerate(gammas)]
+            rs = [_quiet(estimate_diffusivity, p, seed + 17 * i + 1000 * j, method=m,
+                         n_excursions=_affordable_n(p, m, n, kw), **kw) for i, p in enumerate(ps)]
             rows[m] = dict(D=[r.D for r in rs], D_ci=[r.D_ci for r in rs], dur=[r.mean_duration for r in rs],
                            dur_ci=[r.mean_duration_ci for r in rs], wall_s=[r.wall_s for r in rs],
                            n_excursions=[r.n_excursions for r in rs])
@@ -133,12 +136,6 @@ def fig8(out_dir, quick, seed):
 
 def fig5(out_dir, quick, seed):
     """Stationary velocity histogram against the exact white-noise density, and 10 U(t) paths."""
-    import jax
-
-    from ..di import make_di_model
-    from ..paths import di_stationary
-    from ..plan import default_h
-
     t0 = time.perf_counter()
     p = Params(0.16, DELTA, 1e-5, TAU_L, GBAR)
     h = default_h(p)
