@@ -22,7 +22,8 @@ excursion instead keeps only the cycles that *ended* before the budget, which is
 time and biases D low (``finish_in_flight=False``, kept to demonstrate it in the tests).
 
 Steps run in blocks of ``block`` with the block's normals drawn at once (``split`` per lane,
-``fold_in`` per block).  Work is bounded: an excursion that reaches ``max_steps`` is closed,
+``fold_in`` per block).  On a CPU a step runs the bookkeeping above only when some lane has an
+event (a regeneration, a budget stop, the work bound), behind a real branch (``_block``).  Work is bounded: an excursion that reaches ``max_steps`` is closed,
 counted as truncated and reported, and the lane seeks again; no lane runs more than
 ``budget + max_steps`` steps.
 """
@@ -76,17 +77,22 @@ def _close(lane: _Lane, U, t, complete) -> _Lane:
     return eqx.tree_at(lambda l: l.stats, lane, lane.stats + jnp.where(complete, row, 0.0))
 
 
-def _step(chain, budget, max_steps, finish, lane: _Lane, r) -> _Lane:
-    """One step (DI) or event (PDMP) of one lane, and its excursion bookkeeping.
+def _advance(chain, lane: _Lane, r):
+    """The chain's transition for one lane: ``(state, dU, dt, heads)``."""
+    return chain.advance(lane.state, r, lane.phase != PLUS)
 
-    ``chain.advance`` says whether this transition is a regeneration on the watched set (C_+ in
-    SEEK and MINUS, C_- in PLUS).  For the DI (``regen_after_step`` False) the regenerating
-    transition belongs to the new cycle; for the PDMP (True) the state *after* it is s_+ or
-    s_-, so it belongs to the cycle it closes.
+
+def _book(chain, budget, max_steps, finish, lane: _Lane, adv) -> _Lane:
+    """The excursion bookkeeping of one step (DI) or event (PDMP) of one lane.
+
+    ``adv = chain.advance(...)`` says whether this transition is a regeneration on the watched
+    set (C_+ in SEEK and MINUS, C_- in PLUS).  For the DI (``regen_after_step`` False) the
+    regenerating transition belongs to the new cycle; for the PDMP (True) the state *after* it
+    is s_+ or s_-, so it belongs to the cycle it closes.
     """
     active = ~lane.done
     phase = lane.phase
-    state, dU, dt, heads = chain.advance(lane.state, r, phase != PLUS)
+    state, dU, dt, heads = adv
     heads = heads & active
     spent = lane.work >= budget
     closes = heads & (phase == MINUS)  # long excursion complete
@@ -128,11 +134,52 @@ def _step(chain, budget, max_steps, finish, lane: _Lane, r) -> _Lane:
                         lane.n_trunc + (runaway & (lane.phase != SEEK))))
 
 
-def _lane_block(chain, budget, max_steps, finish, block, lane, lane_key, b):
-    rs = chain.draw(jax.random.fold_in(lane_key, b), block)
+def _step(chain, budget, max_steps, finish, lane: _Lane, r) -> _Lane:
+    """One step (DI) or event (PDMP) of one lane, with its bookkeeping."""
+    return _book(chain, budget, max_steps, finish, lane, _advance(chain, lane, r))
+
+
+def _has_event(budget, max_steps, finish, lane: _Lane, adv):
+    """Lanes whose step needs more than :func:`_quiet`: a regeneration, a stop on the budget,
+    or the work bound (the cases where :func:`_book` changes phase, flag or sums)."""
+    active = ~lane.done
+    stops = (lane.work >= budget) & (~finish | (lane.phase == SEEK))
+    return active & (adv[3] | stops | (lane.n + 1 >= max_steps))
+
+
+def _quiet(lane: _Lane, adv) -> _Lane:
+    """:func:`_book` for a step with no event in any lane (the same arithmetic): the state
+    moves, U, n, t, steps and work grow, nothing else changes."""
+    state, dU, dt, _ = adv
+    active = ~lane.done
+    counted = active & (lane.phase != SEEK)
+    t = lane.t if dt is None else lane.t + jnp.where(counted, dt, 0.0)
+    state = jax.tree_util.tree_map(lambda new, old: jnp.where(active, new, old), state, lane.state)
+    return eqx.tree_at(lambda l: (l.state, l.U, l.n, l.t, l.steps, l.work), lane,
+                       (state, lane.U + jnp.where(counted, dU, 0.0), lane.n + active, t, lane.steps + counted,
+                        lane.work + active))
+
+
+def _block(chain, budget, max_steps, finish, block, sparse, lane: _Lane, keys, b) -> _Lane:
+    """``block`` steps of a batch of lanes, the block's random numbers drawn at once per lane.
+
+    Regenerations are rare (a few per excursion of 1e3-1e5 steps).  With ``sparse`` a step runs
+    the full bookkeeping only if some lane of the batch has an event, through a real branch
+    (``lax.cond`` outside the ``vmap``); otherwise :func:`_quiet`.  On a CPU this halves the
+    cost of a step.  On a GPU the branch would read its predicate back every step, so there
+    every step runs the full bookkeeping (``sparse`` False).  Both run the same chain with the
+    same random numbers; sums agree to rounding (XLA may fuse the arithmetic differently).
+    """
+    rs = jax.vmap(lambda k: chain.draw(jax.random.fold_in(k, b), block))(keys)
+    adv_fn = jax.vmap(partial(_advance, chain))
+    book = jax.vmap(partial(_book, chain, budget, max_steps, finish))
 
     def body(i, ln):
-        return _step(chain, budget, max_steps, finish, ln, jax.tree_util.tree_map(lambda a: a[i], rs))
+        adv = adv_fn(ln, jax.tree_util.tree_map(lambda a: a[:, i], rs))
+        if not sparse:
+            return book(ln, adv)
+        event = jnp.any(jax.vmap(partial(_has_event, budget, max_steps, finish))(ln, adv))
+        return jax.lax.cond(event, book, _quiet, ln, adv)
 
     return jax.lax.fori_loop(0, block, body, lane)
 
@@ -149,11 +196,10 @@ def init_lanes(chain, n_lanes: int) -> _Lane:
     )
 
 
-def _round_impl(chain, lane: _Lane, keys, budget, max_steps, finish, *, block: int):
+def _round_impl(chain, lane: _Lane, keys, budget, max_steps, finish, *, block: int, sparse: bool):
     # every lane stops within budget + max_steps steps: this bound never binds
     max_blocks = (budget + max_steps) // block + 2
     lane = eqx.tree_at(lambda l: (l.done, l.work), lane, (jnp.zeros_like(lane.done), jnp.zeros_like(lane.work)))
-    vblock = jax.vmap(_lane_block, in_axes=(None, None, None, None, None, 0, 0, None))
 
     def cond(c):
         b, ln = c
@@ -161,23 +207,23 @@ def _round_impl(chain, lane: _Lane, keys, budget, max_steps, finish, *, block: i
 
     def body(c):
         b, ln = c
-        return b + 1, vblock(chain, budget, max_steps, finish, block, ln, keys, b)
+        return b + 1, _block(chain, budget, max_steps, finish, block, sparse, ln, keys, b)
 
     nb, lane = jax.lax.while_loop(cond, body, (jnp.asarray(0, jnp.int64), lane))
     return lane, jnp.full((1,), nb)  # blocks run, one entry per device
 
 
-_run_round = jax.jit(_round_impl, static_argnames=("block",))
+_run_round = jax.jit(_round_impl, static_argnames=("block", "sparse"))
 
 
 @lru_cache(maxsize=None)
-def _sharded_round(devices: tuple, block: int):
+def _sharded_round(devices: tuple, block: int, sparse: bool):
     """The round over all ``devices``: lanes split evenly, each device runs its own while_loop
     (no cross-device sync per iteration); lane states stay on their device between rounds."""
     mesh = Mesh(np.array(devices), ("lanes",))
     rep, lanes = PartitionSpec(), PartitionSpec("lanes")
-    f = jax.shard_map(partial(_round_impl, block=block), mesh=mesh, in_specs=(rep, lanes, lanes, rep, rep, rep),
-                      out_specs=(lanes, lanes), check_vma=False)
+    f = jax.shard_map(partial(_round_impl, block=block, sparse=sparse), mesh=mesh,
+                      in_specs=(rep, lanes, lanes, rep, rep, rep), out_specs=(lanes, lanes), check_vma=False)
     return jax.jit(f), NamedSharding(mesh, lanes)
 
 
@@ -220,14 +266,16 @@ class Lanes:
     ``fold_in(lane_key, block)`` per block.
     """
 
-    def __init__(self, chain, n_lanes: int, *, block: int = 32, max_steps: int = 10**8):
+    def __init__(self, chain, n_lanes: int, *, block: int = 32, max_steps: int = 10**8, sparse: bool | None = None):
         self.devices = tuple(jax.local_devices())
         self.n = -(-n_lanes // len(self.devices)) * len(self.devices)
         self.chain, self.block, self.max_steps = chain, block, max_steps
+        # bookkeeping behind a branch on CPUs, every step on GPUs (see _block); None: by platform
+        self.sparse = self.devices[0].platform == "cpu" if sparse is None else bool(sparse)
         self.slot_steps, self.last = 0, None
         lane = init_lanes(chain, self.n)
         if len(self.devices) > 1:
-            self._f, self._sharding = _sharded_round(self.devices, block)
+            self._f, self._sharding = _sharded_round(self.devices, block, self.sparse)
             lane = jax.device_put(lane, self._sharding)
         self.lane = lane
 
@@ -235,7 +283,7 @@ class Lanes:
         keys = jax.random.split(key, self.n)
         args = (jnp.asarray(budget, jnp.int64), jnp.asarray(self.max_steps, jnp.int64), jnp.asarray(finish))
         if len(self.devices) == 1:
-            lane, nb = _run_round(self.chain, self.lane, keys, *args, block=self.block)
+            lane, nb = _run_round(self.chain, self.lane, keys, *args, block=self.block, sparse=self.sparse)
         else:
             lane, nb = self._f(self.chain, self.lane, jax.device_put(keys, self._sharding), *args)
         stats, n_trunc, steps, done, phase = (np.asarray(a) for a in jax.device_get(

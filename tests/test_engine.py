@@ -9,8 +9,9 @@ import pytest
 import dryfric_jax as dj
 from dryfric_jax.di import make_di_model
 from dryfric_jax.estimators import long_excursion_estimates
+from dryfric_jax.pdmp import make_pdmp_model
 from dryfric_jax.excursions import (
-    _run_round, _sharded_round, run_round, simulate_long_excursions, steps_per_excursion,
+    Lanes, _run_round, _sharded_round, run_round, simulate_long_excursions, steps_per_excursion,
 )
 
 
@@ -41,7 +42,7 @@ def test_same_seed_bit_identical():
 
 def _compiled_round(block):
     devices = tuple(jax.local_devices())
-    return _run_round if len(devices) == 1 else _sharded_round(devices, block)[0]
+    return _run_round if len(devices) == 1 else _sharded_round(devices, block, True)[0]
 
 
 def test_second_call_does_not_recompile():
@@ -51,6 +52,25 @@ def test_second_call_does_not_recompile():
     # new parameters, new seed, other budgets and round counts: same shapes, compiled loop reused
     simulate_long_excursions(make_di_model(p2, 0.05), jax.random.key(1), 500, lanes=16, block=8)
     assert _compiled_round(8)._cache_size() == n
+
+
+@pytest.mark.parametrize("method", ["di", "pdmp"])
+def test_branchy_bookkeeping_matches_every_step_bookkeeping(method):
+    """The CPU path (bookkeeping only on steps where some lane has an event) and the GPU path
+    (bookkeeping every step) run the same chains: a paused round, a final round, truncation."""
+    p = dj.Params.from_nondim(0.5, 1.0, 0.2)
+    chain = make_di_model(p, 0.02) if method == "di" else make_pdmp_model(p, 0.3)
+    out = []
+    for sparse in (True, False):
+        ln = Lanes(chain, 32, block=8, max_steps=1500 if method == "di" else 150, sparse=sparse)
+        a = ln.advance(jax.random.key(1), 3000)
+        b = ln.finish(jax.random.key(2), 2000)
+        out.append((a, b))
+    for x, y in zip(*out):
+        assert (x.n_truncated, x.useful_steps, x.slot_steps, x.n_in_flight) == \
+            (y.n_truncated, y.useful_steps, y.slot_steps, y.n_in_flight)
+        np.testing.assert_allclose(x.stats, y.stats, rtol=1e-12, atol=1e-300)
+    assert out[0][1].n_truncated > 0 and out[0][1].n_excursions > 50
 
 
 def test_every_lane_finishes_in_flight_and_work_is_bounded():

@@ -15,7 +15,7 @@ SCRIPT = textwrap.dedent("""
     warnings.simplefilter("ignore")
     p = dj.Params.from_nondim(0.3, 0.5, 0.1)
     r1 = dj.estimate_diffusivity(p, 5, h=0.02 * p.tau0, n_excursions=20000)
-    f, _ = _sharded_round(tuple(jax.local_devices()), 32)
+    f, _ = _sharded_round(tuple(jax.local_devices()), 32, True)
     n = f._cache_size()
     r2 = dj.estimate_diffusivity(p, 6, h=0.03 * p.tau0, n_excursions=5000)
     print(json.dumps(dict(devices=jax.device_count(), D=r1.D, D_ci=r1.D_ci, M0=r1.M0, M0_ci=r1.M0_ci,

@@ -84,7 +84,7 @@ def test_pdmp_same_seed_bit_identical_and_no_recompile():
     p1, p2 = dj.Params.from_nondim(1.0, 0.5, 0.1), dj.Params.from_nondim(2.0, 0.3, -0.2)
     a, _ = simulate_long_excursions(make_pdmp_model(p1, 0.1), jax.random.key(5), 300, lanes=16, block=8)
     devices = tuple(jax.local_devices())
-    f = _run_round if len(devices) == 1 else _sharded_round(devices, 8)[0]
+    f = _run_round if len(devices) == 1 else _sharded_round(devices, 8, True)[0]
     n = f._cache_size()
     b, _ = simulate_long_excursions(make_pdmp_model(p1, 0.1), jax.random.key(5), 300, lanes=16, block=8)
     assert np.array_equal(a.stats, b.stats) and a.n_excursions >= 300
