@@ -16,7 +16,7 @@ import numpy as np
 from .bruteforce import simulate_bruteforce
 from .di import make_di_model
 from .estimators import MIN_RELIABLE_N, WEAK_DAMPING_TAU_L, bruteforce_estimates, long_excursion_estimates
-from .excursions import simulate_long_excursions
+from .excursions import BLOCK, simulate_long_excursions
 from .limits import MAX_WORK
 from .params import Params, check_positive
 from .pdmp import make_pdmp_model, simulate_pdmp_bruteforce
@@ -113,7 +113,7 @@ class BruteForceResult:
 
 def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float | None = None,
                          delta: float | None = None, n_excursions: int = 20_000, dtype="float64", lanes: int | None = None,
-                         chunk_lanes: int = 4096, block: int = 32, max_steps: int | None = None,
+                         chunk_lanes: int = 4096, block: int = BLOCK, max_steps: int | None = None,
                          rtol: float | None = None, max_time: float | None = None, max_work: float = MAX_WORK,
                          progress=None) -> EstimateResult:
     r"""Estimate D and M0 from N i.i.d. long excursions (paper sections 4-6).
@@ -226,7 +226,7 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
 
 def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, method: str = "di",
                            h: float | None = None, delta: float | None = None, burn_in: float = 0.0,
-                           dtype="float64", block: int = 32, chunk_lanes: int = 4096,
+                           dtype="float64", block: int = BLOCK, chunk_lanes: int = 4096,
                            max_events: int | None = None, max_work: float = MAX_WORK) -> BruteForceResult:
     r"""Brute-force :math:`\hat D^t_{N'}` and :math:`\hat M_0^t` on the horizon ``t`` (s).
 

@@ -14,6 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .di import DIModel
+from .excursions import BLOCK
 
 
 @partial(jax.jit, static_argnames=("block",))
@@ -41,7 +42,7 @@ def _run_paths(model: DIModel, keys, n_burn_blocks, n_blocks, *, block: int):
 
 
 def simulate_bruteforce(model: DIModel, key, n_paths: int, n_steps: int, *, burn_in_steps: int = 0,
-                        block: int = 32, chunk_lanes: int = 4096) -> tuple[np.ndarray, float]:
+                        block: int = BLOCK, chunk_lanes: int = 4096) -> tuple[np.ndarray, float]:
     """U(t) of ``n_paths`` paths over ``n_steps`` steps (rounded up to whole blocks).
 
     Returns:

@@ -47,6 +47,7 @@ STAT_NAMES = ("n", "U", "U2", "U3", "U4", "t", "t2", "t3", "t4", "Ut", "U2t", "U
               "t_half")
 
 SEEK, PLUS, MINUS = 0, 1, 2
+BLOCK = 64  # steps per while-iteration (measured best with 32..256 on 2 CPU cores, README)
 
 
 class _Lane(eqx.Module):
@@ -266,7 +267,7 @@ class Lanes:
     ``fold_in(lane_key, block)`` per block.
     """
 
-    def __init__(self, chain, n_lanes: int, *, block: int = 32, max_steps: int = 10**8, sparse: bool | None = None):
+    def __init__(self, chain, n_lanes: int, *, block: int = BLOCK, max_steps: int = 10**8, sparse: bool | None = None):
         self.devices = tuple(jax.local_devices())
         self.n = -(-n_lanes // len(self.devices)) * len(self.devices)
         self.chain, self.block, self.max_steps = chain, block, max_steps
@@ -302,7 +303,7 @@ class Lanes:
         return self._round(key, budget, True)
 
 
-def run_round(chain, key, lanes: int, budget: int, *, block: int = 32, max_steps: int = 10**8,
+def run_round(chain, key, lanes: int, budget: int, *, block: int = BLOCK, max_steps: int = 10**8,
               finish_in_flight: bool = True) -> ExcursionStats:
     """One final round on fresh lanes: each lane refills until ``budget`` steps, then finishes its
     in-flight excursion.  ``finish_in_flight=False`` drops it instead (biased; for the tests)."""
@@ -321,7 +322,7 @@ def lanes_for(n_excursions: int, chunk_lanes: int = 4096, per_lane: int = 64, mi
 
 
 def simulate_long_excursions(chain, key, n_excursions: int, *, lanes: int | None = None,
-                             chunk_lanes: int = 4096, block: int = 32, max_steps: int = 10**8,
+                             chunk_lanes: int = 4096, block: int = BLOCK, max_steps: int = 10**8,
                              pilot_budget: int = 1024, more=None, max_time: float | None = None,
                              max_work: float | None = None, round_lane_steps: int = 2**26, progress=None):
     """Long excursions of ``chain`` (DI or PDMP) in rounds of persistent lanes, until enough.
@@ -411,7 +412,7 @@ def simulate_long_excursions(chain, key, n_excursions: int, *, lanes: int | None
     return total, stopped
 
 
-def steps_per_excursion(chain, key, *, lanes: int = 256, budget: int = 4096, block: int = 32,
+def steps_per_excursion(chain, key, *, lanes: int = 256, budget: int = 4096, block: int = BLOCK,
                         max_steps: int = 10**8) -> float:
     """Pilot estimate of the mean number of steps (events) of one long excursion."""
     while True:
@@ -422,7 +423,7 @@ def steps_per_excursion(chain, key, *, lanes: int = 256, budget: int = 4096, blo
 
 
 def simulate_replicates(chain, key, n_replicates: int, n_per_replicate: int, *,
-                        lanes_per_replicate: int = 16, block: int = 32, max_steps: int = 10**8):
+                        lanes_per_replicate: int = 16, block: int = BLOCK, max_steps: int = 10**8):
     """Independent replicates of about ``n_per_replicate`` excursions each (for calibration).
 
     One pilot round (discarded) measures the steps per excursion; then one final round runs

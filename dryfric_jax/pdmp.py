@@ -47,23 +47,32 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .excursions import BLOCK
 from .noise import check_delta, grid_size
 from .params import Params
 
 ON_GRID_TOL = 1e-9
 
 
+def _small(z):
+    """|z| below 0.01 (float64) or 0.1 (float32), where phi1 and phi2 use their series, and the
+    guarded argument of expm1 outside it.  phi1 and phi2 of the same z build the same expm1, so
+    XLA computes it once per event."""
+    cut = 0.1 if jnp.asarray(z).dtype == jnp.float32 else 0.01
+    small = jnp.abs(z) < cut
+    return small, jnp.where(small, 1.0, z)
+
+
 def phi1(z):
-    """(e^z - 1)/z, 1 at z = 0."""
-    zs = jnp.where(z == 0, 1.0, z)
-    return jnp.where(z == 0, 1.0, jnp.expm1(zs) / zs)
+    """(e^z - 1)/z, 1 at z = 0 (series near 0: the omitted term is below z^6/5040)."""
+    small, zs = _small(z)
+    series = 1.0 + z * (0.5 + z * (1 / 6 + z * (1 / 24 + z * (1 / 120 + z / 720))))
+    return jnp.where(small, series, jnp.expm1(zs) / zs)
 
 
 def phi2(z):
-    """(e^z - 1 - z)/z^2, 1/2 at z = 0 (series for |z| below 0.01 in float64, 0.1 in float32)."""
-    cut = 0.1 if jnp.asarray(z).dtype == jnp.float32 else 0.01
-    small = jnp.abs(z) < cut
-    zs = jnp.where(small, 1.0, z)
+    """(e^z - 1 - z)/z^2, 1/2 at z = 0 (series near 0)."""
+    small, zs = _small(z)
     series = 0.5 + z * (1 / 6 + z * (1 / 24 + z * (1 / 120 + z * (1 / 720 + z / 5040))))
     return jnp.where(small, series, (jnp.expm1(zs) - zs) / (zs * zs))
 
@@ -246,7 +255,7 @@ def _bruteforce_paths(model: PDMPModel, keys, t_start, t_end, max_events, *, blo
 
 
 def simulate_pdmp_bruteforce(model: PDMPModel, key, n_paths: int, t: float, *, burn_in: float = 0.0,
-                             max_events: int = 10**9, block: int = 32, chunk_lanes: int = 4096):
+                             max_events: int = 10**9, block: int = BLOCK, chunk_lanes: int = 4096):
     """U(t) of ``n_paths`` PDMP paths from s_+ (nondimensional t, burn_in).
 
     Returns:

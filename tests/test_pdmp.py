@@ -100,8 +100,13 @@ def _quiet(fn, *a, **kw):
         return fn(*a, **kw)
 
 
-def _agree(x, dx, y, dy):
-    return abs(x - y) <= math.hypot(dx, dy)
+def _agree(x, dx, y, dy, z=2.81):
+    """|x - y| within z combined standard errors (dx, dy are 95% half-widths).  A test makes two
+    to four comparisons; z = 2.81 (0.5% each) keeps the family-wise false alarm at 1-2%.  At the
+    per-comparison 95% level (z = 1.96) about 10% of seeds fail with no bias: the Fig. 3 test
+    did at seed 21 after the block size changed (M0 off by 2.5 sigma), while 2e5 excursions agree
+    (PDMP 4.741 +- 0.11, DI 4.790 +- 0.08, x 1e-3)."""
+    return abs(x - y) <= z / 1.96 * math.hypot(dx, dy)
 
 
 @pytest.mark.slow
