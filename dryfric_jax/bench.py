@@ -25,8 +25,9 @@ from jax.sharding import Mesh, PartitionSpec
 from .api import DryfricWarning, default_h, estimate_diffusivity
 from .cost import default_delta
 from .di import make_di_model
-from .excursions import lanes_for
+from .excursions import BLOCK
 from .pdmp import make_pdmp_model
+from .plan import plan_estimate
 from .params import FIG3, Params
 
 
@@ -61,9 +62,10 @@ def run_bench(n_excursions: int = 10_000, numba_excursions: int = 2000, seed: in
     p = Params(**FIG3)
     out = dict(device=str(jax.devices()[0]), n_devices=jax.device_count(), cpu_count=os.cpu_count(),
                params=p.as_dict(), n_excursions=n_excursions)
-    lanes = lanes_for(n_excursions)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DryfricWarning)
+        lanes = plan_estimate(p, n_excursions=n_excursions).lanes  # the run's lanes, also for the compile
+        out.update(block=BLOCK, di_lanes=lanes)
         for dt in ("float64", "float32"):
             estimate_diffusivity(p, seed, n_excursions=200, dtype=dt, lanes=lanes)  # compile, same shapes
             r = estimate_diffusivity(p, seed + 1, n_excursions=n_excursions, dtype=dt, lanes=lanes)
@@ -75,6 +77,8 @@ def run_bench(n_excursions: int = 10_000, numba_excursions: int = 2000, seed: in
                 n1 = r.n_excursions * (rel / 0.01) ** 2
                 out.update(D=r.D, D_ci=r.D_ci, excursions_for_1pct=n1,
                            time_to_1pct_ci_s=r.wall_s * n1 / r.n_excursions)
+        lanes = plan_estimate(p, method="pdmp", n_excursions=n_excursions).lanes
+        out["pdmp_lanes"] = lanes
         for dt in ("float64", "float32"):  # PDMP events/s at the default delta
             estimate_diffusivity(p, seed, method="pdmp", n_excursions=200, dtype=dt, lanes=lanes)  # compile
             r = estimate_diffusivity(p, seed + 1, method="pdmp", n_excursions=n_excursions, dtype=dt, lanes=lanes)

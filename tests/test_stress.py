@@ -222,9 +222,10 @@ def test_estimators_on_extreme_parameters(G, tau, r, tl, gb, dtype, method, expe
 
 def test_work_bound_stops_the_rounds_and_says_so():
     """A run the predictor lets through (it is a lower estimate) but that costs more than
-    max_work stops at the cap, finishes its in-flight excursions and reports it."""
+    max_work stops at the cap, finishes its in-flight excursions and reports it (256 lanes: the
+    per-excursion cap max_work / lanes then stays above the longest excursion)."""
     p = dj.Params(**dj.FIG3)
-    res = _quiet(dj.estimate_diffusivity, p, 2, n_excursions=4000, max_work=2e7)
+    res = _quiet(dj.estimate_diffusivity, p, 2, n_excursions=4000, max_work=2e7, lanes=256)
     assert res.predicted_work <= 2e7 < res.work and res.stopped_by == "work_bound"
     assert 2 <= res.n_excursions < 4000 and res.n_truncated == 0
     assert any("work bound reached" in w for w in res.warnings)
