@@ -314,12 +314,11 @@ def run_round(chain, key, lanes: int, budget: int, *, block: int = BLOCK, max_st
     return res
 
 
-def lanes_for(n_excursions: int, chunk_lanes: int = 4096, per_lane: int = 64, min_lanes: int = 256) -> int:
+def lanes_for(n_excursions: int, chunk_lanes: int = 4096, per_lane: int = 32, min_lanes: int = 512) -> int:
     """A power of two near n_excursions / per_lane, at least min(min_lanes, N), at most
     ``chunk_lanes`` (few compiled shapes).  More lanes fill the vector units, fewer excursions
-    per lane leave more lanes idle in the final round; measured on 2 CPU cores (README) the DI
-    is best with ``per_lane=32, min_lanes=512``, the PDMP (shorter excursions in events, so a
-    bookkeeping step more often) with the defaults."""
+    per lane leave more lanes idle in the final round; 32 and 512 measured best for the DI and
+    the PDMP at N = 1e4-2e4 on 2 CPU cores (+10-25% over 64 and 256; README)."""
     want = max(1, n_excursions // per_lane, min(min_lanes, n_excursions))
     return int(min(chunk_lanes, 2 ** max(0, int(np.floor(np.log2(want))))))
 

@@ -146,8 +146,7 @@ def plan_estimate(params: Params, *, method: str = "di", h: float | None = None,
     plan = choose(params, method, h, delta, dtype)
     nd = (params.tau_nd, params.tau_L_nd, params.gamma_bar_nd)
     plan.predicted_work = check_work(*nd, plan.per_tau0, int(n_excursions), max_work, plan.unit)
-    shape = dict(per_lane=32, min_lanes=512) if plan.method == "di" else {}
-    plan.lanes = int(lanes or lanes_for(int(n_excursions), chunk_lanes, **shape))
+    plan.lanes = int(lanes or lanes_for(int(n_excursions), chunk_lanes))
     plan.max_work = float(max_work)
     if max_steps is None:
         plan.max_steps = max_steps_per_excursion(*nd, plan.per_tau0, cap=max(max_work / plan.lanes, 64))
