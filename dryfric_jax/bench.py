@@ -3,8 +3,8 @@
 One run, one device, the paper's Fig. 3 point:
 
 * useful lane-steps/s of the DI engine, float32 and float64;
-* the device's raw normal-generation rate (``jax.random.normal``), as a lane-step bound at 2
-  normals per step;
+* the device's raw normal-generation rate (``jax.random.normal``, drawn per lane and per block
+  as the lanes draw them), as a lane-step bound at 2 normals per step;
 * PDMP events/s (default delta), float32 and float64;
 * compiled scalar baselines of the same DI chain and of the same PDMP event loop (numba, 1 and 2
   threads), if numba is installed;
@@ -31,20 +31,31 @@ from .plan import plan_estimate
 from .params import FIG3, Params
 
 
-def rng_bound(dtype, n: int = 1 << 24, reps: int = 5) -> float:
-    """Lane-steps/s the local devices could do if drawing 2 normals per step were all they did
-    (each device draws n / n_devices normals from its own key, as the lanes do)."""
+def rng_bound(dtype, lanes: int = 512, block: int = BLOCK, n: int = 1 << 24, reps: int = 5) -> float:
+    """Lane-steps/s the local devices could do if drawing 2 normals per step were all they did.
+
+    Drawn the way the lanes draw them: each device loops over blocks, and in each block every
+    one of its lanes draws ``(block, 2)`` normals from ``fold_in(lane_key, block_index)``, so the
+    numbers stay in cache as in the engine (one huge array would measure memory bandwidth).
+    """
     devs = jax.local_devices()
     mesh = Mesh(np.array(devs), ("d",))
-    per = n // len(devs)
-    draw = lambda k: jax.random.normal(jax.random.fold_in(k[0], jax.lax.axis_index("d")), (per,), dtype).sum()[None]
+    per_dev = max(1, lanes // len(devs))
+    n_blocks = max(1, n // (len(devs) * per_dev * block * 2))
+
+    def draw(k):
+        keys = jax.random.split(jax.random.fold_in(k[0], jax.lax.axis_index("d")), per_dev)
+        one = lambda kk, b: jax.random.normal(jax.random.fold_in(kk, b), (block, 2), dtype).sum()
+        body = lambda b, acc: acc + jax.vmap(one, in_axes=(0, None))(keys, b)
+        return jax.lax.fori_loop(0, n_blocks, body, jnp.zeros((per_dev,), dtype)).sum()[None]
+
     f = jax.jit(jax.shard_map(draw, mesh=mesh, in_specs=PartitionSpec(), out_specs=PartitionSpec("d"),
                               check_vma=False))
     f(jax.random.key(0)[None]).block_until_ready()
     t = time.perf_counter()
     for i in range(reps):
         f(jax.random.key(i + 1)[None]).block_until_ready()
-    return per * len(devs) * reps / (time.perf_counter() - t) / 2.0
+    return n_blocks * block * per_dev * len(devs) * reps / (time.perf_counter() - t)
 
 
 def _numba_rates(run, model, n_excursions: int, seed: int) -> dict:
@@ -71,7 +82,7 @@ def run_bench(n_excursions: int = 10_000, numba_excursions: int = 2000, seed: in
             r = estimate_diffusivity(p, seed + 1, n_excursions=n_excursions, dtype=dt, lanes=lanes)
             out[f"di_{dt}_lane_steps_per_s"] = r.lane_steps_per_s
             out[f"di_{dt}_utilization"] = r.lane_utilization
-            out[f"rng_bound_{dt}_lane_steps_per_s"] = rng_bound(jnp.dtype(dt))
+            out[f"rng_bound_{dt}_lane_steps_per_s"] = rng_bound(jnp.dtype(dt), lanes)
             if dt == "float64":
                 rel = r.D_ci / r.D
                 n1 = r.n_excursions * (rel / 0.01) ** 2
