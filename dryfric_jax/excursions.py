@@ -135,11 +135,6 @@ def _book(chain, budget, max_steps, finish, lane: _Lane, adv) -> _Lane:
                         lane.n_trunc + (runaway & (lane.phase != SEEK))))
 
 
-def _step(chain, budget, max_steps, finish, lane: _Lane, r) -> _Lane:
-    """One step (DI) or event (PDMP) of one lane, with its bookkeeping."""
-    return _book(chain, budget, max_steps, finish, lane, _advance(chain, lane, r))
-
-
 def _has_event(budget, max_steps, finish, lane: _Lane, adv):
     """Lanes whose step needs more than :func:`_quiet`: a regeneration, a stop on the budget,
     or the work bound (the cases where :func:`_book` changes phase, flag or sums)."""
