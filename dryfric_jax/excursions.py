@@ -47,7 +47,7 @@ STAT_NAMES = ("n", "U", "U2", "U3", "U4", "t", "t2", "t3", "t4", "Ut", "U2t", "U
               "t_half")
 
 SEEK, PLUS, MINUS = 0, 1, 2
-BLOCK = 64  # steps per while-iteration (measured best with 32..256 on 2 CPU cores, README)
+BLOCK = 64  # steps per while-iteration (32..256 measured on 2 CPU cores, README)
 
 
 class _Lane(eqx.Module):
