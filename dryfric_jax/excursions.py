@@ -23,9 +23,9 @@ time and biases D low (``finish_in_flight=False``, kept to demonstrate it in the
 
 Steps run in blocks of ``block`` with the block's normals drawn at once (``split`` per lane,
 ``fold_in`` per block).  On a CPU a step runs the bookkeeping above only when some lane has an
-event (a regeneration, a budget stop, the work bound), behind a real branch (``_block``).  Work is bounded: an excursion that reaches ``max_steps`` is closed,
-counted as truncated and reported, and the lane seeks again; no lane runs more than
-``budget + max_steps`` steps.
+event (a regeneration, a budget stop, the work bound), behind a real branch (``_block``).  Work
+is bounded: an excursion that reaches ``max_steps`` is closed, counted as truncated and
+reported, and the lane seeks again; no lane runs more than ``budget + max_steps`` steps.
 """
 from __future__ import annotations
 
@@ -78,6 +78,13 @@ def _close(lane: _Lane, U, t, complete) -> _Lane:
     return eqx.tree_at(lambda l: l.stats, lane, lane.stats + jnp.where(complete, row, 0.0))
 
 
+def _budget_stop(lane: _Lane, budget, finish, phase):
+    """The budget is spent and the lane stops after this step: at once in a paused round (or the
+    drop-in-flight demo), once nothing is in flight (``phase`` after the step is SEEK) in a
+    final round."""
+    return (lane.work >= budget) & (~finish | (phase == SEEK))
+
+
 def _advance(chain, lane: _Lane, r):
     """The chain's transition for one lane: ``(state, dU, dt, heads)``."""
     return chain.advance(lane.state, r, lane.phase != PLUS)
@@ -118,9 +125,8 @@ def _book(chain, budget, max_steps, finish, lane: _Lane, adv) -> _Lane:
         n = jnp.where(opens, 0, lane.n) + counted
         t = add_t(jnp.where(opens, 0.0, lane.t), counted)
     new_phase = jnp.where(opens, PLUS, jnp.where(halfway, MINUS, jnp.where(closes, SEEK, phase)))
-    # budget spent: a final round stops each lane once nothing is in flight; a paused round (or
-    # the drop-in-flight demo) stops it at once, keeping its state for the next round
-    stop = active & spent & (~finish | (new_phase == SEEK))
+    # a paused round keeps the stopped lane's state for the next round
+    stop = active & _budget_stop(lane, budget, finish, new_phase)
     # seeking steps are not useful work but count against the budget
     n = jnp.where(new_phase == SEEK, jnp.where(phase == SEEK, lane.n + active, 0), n)
     state = jax.tree_util.tree_map(lambda new, old: jnp.where(active, new, old), state, lane.state)
@@ -138,9 +144,9 @@ def _book(chain, budget, max_steps, finish, lane: _Lane, adv) -> _Lane:
 def _has_event(budget, max_steps, finish, lane: _Lane, adv):
     """Lanes whose step needs more than :func:`_quiet`: a regeneration, a stop on the budget,
     or the work bound (the cases where :func:`_book` changes phase, flag or sums)."""
-    active = ~lane.done
-    stops = (lane.work >= budget) & (~finish | (lane.phase == SEEK))
-    return active & (adv[3] | stops | (lane.n + 1 >= max_steps))
+    # with no regeneration the phase does not change, so the budget stop sees the current one
+    stops = _budget_stop(lane, budget, finish, lane.phase)
+    return ~lane.done & (adv[3] | stops | (lane.n + 1 >= max_steps))
 
 
 def _quiet(lane: _Lane, adv) -> _Lane:
