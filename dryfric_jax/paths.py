@@ -165,38 +165,39 @@ def di_excursion(model: DIModel, key, max_steps: int = 200_000) -> dict:
 
 @partial(jax.jit, static_argnames=("n_records",))
 def _pdmp_sampled(model, keys, t_burn, dt_rec, max_events, *, n_records: int):
+    """A ``lax.scan`` over the grid times; for each, a bounded ``while_loop`` runs the events up
+    to it.  Only the current segment is carried (state at its start, its drift, its end), so
+    the record is the scan's output and no buffer is copied per event."""
+    vdt = model.delta.dtype
+
     def path(key):
-        s0 = jax.tree_util.tree_map(lambda a: a[0], model.s_plus(1))
-        vdt = model.delta.dtype
-
-        def cond(c):
-            i, j, *_ = c
-            return (j < n_records) & (i < max_events)
-
-        def body(c):
-            i, j, state, T, buf = c
+        def draw(i, state):
             u = jax.random.uniform(jax.random.fold_in(key, i), (2,), vdt, minval=jnp.finfo(vdt).tiny)
             dt, a, new, _, _ = model.event(state, (u[0], u[1]))
-            k, y, v = state
-            T1 = T + dt.astype(jnp.float64)
+            return dt.astype(jnp.float64), a, new
 
-            def rec_cond(cc):
-                jj, _ = cc
-                return (jj < n_records) & (t_burn + jj * dt_rec < T1)
+        def record(c, j):
+            tj = t_burn + j * dt_rec
 
-            def rec_body(cc):  # every grid time inside this segment: V from the flow (0 if stuck)
-                jj, bb = cc
-                s = (t_burn + jj * dt_rec - T).astype(vdt)
-                val = jnp.where(y != 0, flow(v, a, model.inv_tau_L, jnp.maximum(s, 0)), 0.0)
-                return jj + 1, bb.at[jj].set(val)
+            def cond(cc):  # the segment [T, T + dt] ends before the grid time
+                i, _, T, dt, _, _ = cc
+                return (T + dt < tj) & (i < max_events)
 
-            j, buf = jax.lax.while_loop(rec_cond, rec_body, (j, buf))
-            return i + 1, j, new, T1, buf
+            def body(cc):
+                i, _, T, dt, _, new = cc
+                dt1, a1, new1 = draw(i, new)
+                return i + 1, new, T + dt, dt1, a1, new1
 
-        init = (jnp.asarray(0, jnp.int64), jnp.asarray(0, jnp.int64), s0, jnp.asarray(0.0, jnp.float64),
-                jnp.zeros(n_records, vdt))
-        i, j, _, _, buf = jax.lax.while_loop(cond, body, init)
-        return buf, j == n_records
+            c = jax.lax.while_loop(cond, body, c)
+            i, (k, y, v), T, dt, a, _ = c
+            val = jnp.where(y != 0, flow(v, a, model.inv_tau_L, jnp.maximum(tj - T, 0).astype(vdt)), 0.0)
+            return c, (val, T + dt >= tj)  # False: stopped by max_events, not a grid time
+
+        s0 = jax.tree_util.tree_map(lambda a: a[0], model.s_plus(1))
+        dt0, a0, new0 = draw(jnp.asarray(0, jnp.int64), s0)
+        init = (jnp.asarray(1, jnp.int64), s0, jnp.asarray(0.0, jnp.float64), dt0, a0, new0)
+        _, (V, ok) = jax.lax.scan(record, init, jnp.arange(n_records))
+        return V, jnp.all(ok)
 
     return jax.vmap(path)(keys)
 
