@@ -48,6 +48,7 @@ STAT_NAMES = ("n", "U", "U2", "U3", "U4", "t", "t2", "t3", "t4", "Ut", "U2t", "U
 
 SEEK, PLUS, MINUS = 0, 1, 2
 BLOCK = 64  # steps per while-iteration (32..256 measured on 2 CPU cores, README)
+UNROLL = 4  # steps per iteration of the block's loop: best of 5 runs +7-14% over 1 on 2 CPU cores (8 no better)
 
 
 class _Lane(eqx.Module):
@@ -183,7 +184,7 @@ def _block(chain, budget, max_steps, finish, block, sparse, lane: _Lane, keys, b
         event = jnp.any(jax.vmap(partial(_has_event, budget, max_steps, finish))(ln, adv))
         return jax.lax.cond(event, book, _quiet, ln, adv)
 
-    return jax.lax.fori_loop(0, block, body, lane)
+    return jax.lax.fori_loop(0, block, body, lane, unroll=UNROLL)
 
 
 def init_lanes(chain, n_lanes: int) -> _Lane:
