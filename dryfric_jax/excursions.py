@@ -230,6 +230,14 @@ def _sharded_round(devices: tuple, block: int, sparse: bool):
     return jax.jit(f), NamedSharding(mesh, lanes)
 
 
+def compiled_round(block: int = BLOCK, sparse: bool | None = None):
+    """The jitted round that :class:`Lanes` runs on the local devices (its ``_cache_size()``
+    counts compilations; the tests use it to check that new parameters do not recompile)."""
+    devices = tuple(jax.local_devices())
+    sparse = devices[0].platform == "cpu" if sparse is None else bool(sparse)
+    return _run_round if len(devices) == 1 else _sharded_round(devices, block, sparse)[0]
+
+
 @dataclass
 class ExcursionStats:
     """Per-lane sums over complete long excursions, nondimensional (U in u0, t in tau0).

@@ -11,15 +11,15 @@ import textwrap
 SCRIPT = textwrap.dedent("""
     import json, warnings, jax
     import dryfric_jax as dj
-    from dryfric_jax.excursions import _sharded_round
+    from dryfric_jax.excursions import compiled_round
     warnings.simplefilter("ignore")
     p = dj.Params.from_nondim(0.3, 0.5, 0.1)
     r1 = dj.estimate_diffusivity(p, 5, h=0.02 * p.tau0, n_excursions=20000)
-    f, _ = _sharded_round(tuple(jax.local_devices()), 32, True)
+    f = compiled_round()  # the round the estimate ran (default block)
     n = f._cache_size()
     r2 = dj.estimate_diffusivity(p, 6, h=0.03 * p.tau0, n_excursions=5000)
     print(json.dumps(dict(devices=jax.device_count(), D=r1.D, D_ci=r1.D_ci, M0=r1.M0, M0_ci=r1.M0_ci,
-                          recompiled=f._cache_size() != n)))
+                          compiled=n, recompiled=f._cache_size() != n)))
 """)
 
 
@@ -35,4 +35,4 @@ def test_two_devices_agree_with_one_and_do_not_recompile():
     assert one["devices"] == 1 and two["devices"] == 2
     assert abs(one["D"] - two["D"]) <= (one["D_ci"] ** 2 + two["D_ci"] ** 2) ** 0.5
     assert abs(one["M0"] - two["M0"]) <= (one["M0_ci"] ** 2 + two["M0_ci"] ** 2) ** 0.5
-    assert not two["recompiled"]
+    assert two["compiled"] >= 1 and not two["recompiled"]  # the counted function is the one that ran
