@@ -48,7 +48,7 @@ STAT_NAMES = ("n", "U", "U2", "U3", "U4", "t", "t2", "t3", "t4", "Ut", "U2t", "U
 
 SEEK, PLUS, MINUS = 0, 1, 2
 BLOCK = 64  # steps per while-iteration (32..256 measured on 2 CPU cores, README)
-UNROLL = 4  # steps per iteration of the block's loop: best of 5 runs +7-14% over 1 on 2 CPU cores (8 no better)
+UNROLL = 4  # steps per iteration of the block's loop: best of 5 runs over 1, DI +1-7%, PDMP +10-14% (2 CPU cores; 8 no better)
 
 
 class _Lane(eqx.Module):
@@ -230,12 +230,16 @@ def _sharded_round(devices: tuple, block: int, sparse: bool):
     return jax.jit(f), NamedSharding(mesh, lanes)
 
 
+def _sparse_default(devices, sparse: bool | None) -> bool:
+    """Bookkeeping behind a branch on CPUs, every step on GPUs (see :func:`_block`); None: by platform."""
+    return devices[0].platform == "cpu" if sparse is None else bool(sparse)
+
+
 def compiled_round(block: int = BLOCK, sparse: bool | None = None):
     """The jitted round that :class:`Lanes` runs on the local devices (its ``_cache_size()``
     counts compilations; the tests use it to check that new parameters do not recompile)."""
     devices = tuple(jax.local_devices())
-    sparse = devices[0].platform == "cpu" if sparse is None else bool(sparse)
-    return _run_round if len(devices) == 1 else _sharded_round(devices, block, sparse)[0]
+    return _run_round if len(devices) == 1 else _sharded_round(devices, block, _sparse_default(devices, sparse))[0]
 
 
 @dataclass
@@ -281,8 +285,7 @@ class Lanes:
         self.devices = tuple(jax.local_devices())
         self.n = -(-n_lanes // len(self.devices)) * len(self.devices)
         self.chain, self.block, self.max_steps = chain, block, max_steps
-        # bookkeeping behind a branch on CPUs, every step on GPUs (see _block); None: by platform
-        self.sparse = self.devices[0].platform == "cpu" if sparse is None else bool(sparse)
+        self.sparse = _sparse_default(self.devices, sparse)
         self.slot_steps, self.last = 0, None
         lane = init_lanes(chain, self.n)
         if len(self.devices) > 1:
