@@ -48,7 +48,9 @@ STAT_NAMES = ("n", "U", "U2", "U3", "U4", "t", "t2", "t3", "t4", "Ut", "U2t", "U
 
 SEEK, PLUS, MINUS = 0, 1, 2
 BLOCK = 64  # steps per while-iteration (32..256 measured on 2 CPU cores, README)
-UNROLL = 4  # steps per iteration of the block's loop: best of 5 runs over 1, DI +1-7%, PDMP +10-14% (2 CPU cores; 8 no better)
+# steps per iteration of the block's loop: best of 5 runs against 1, DI +1-7%, PDMP +10-14% on 2 CPU
+# cores; 8 was no better
+UNROLL = 4
 
 
 class _Lane(eqx.Module):
