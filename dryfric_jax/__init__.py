@@ -21,6 +21,7 @@ from .plan import Plan, plan_estimate  # noqa: E402
 __all__ = [
     "Params", "FIG3", "OUStep", "ou_step", "ou_moments", "DIModel", "make_di_model",
     "estimate_diffusivity", "bruteforce_diffusivity", "EstimateResult", "BruteForceResult",
-    "DryfricWarning", "default_h", "Plan", "plan_estimate", "delta_method", "psi_D", "psi_M", "MIN_RELIABLE_N", "theory",
+    "DryfricWarning", "default_h", "Plan", "plan_estimate", "delta_method", "psi_D", "psi_M", "MIN_RELIABLE_N",
+    "theory",
 ]
 __version__ = "0.1.0"

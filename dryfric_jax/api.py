@@ -112,7 +112,8 @@ class BruteForceResult:
 
 
 def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float | None = None,
-                         delta: float | None = None, n_excursions: int = 20_000, dtype="float64", lanes: int | None = None,
+                         delta: float | None = None, n_excursions: int = 20_000, dtype="float64",
+                         lanes: int | None = None,
                          chunk_lanes: int = 4096, block: int = BLOCK, max_steps: int | None = None,
                          rtol: float | None = None, max_time: float | None = None, max_work: float = MAX_WORK,
                          progress=None) -> EstimateResult:
@@ -197,7 +198,8 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
                      + f": result of {sim.n_excursions} excursions")
     if n_truncated:
         notes.append(f"{n_truncated} of {n_truncated + sim.n_excursions} excursions hit the work bound "
-                     f"(max_steps = {plan.max_steps} {unit} per excursion) and are excluded: the estimate is biased low")
+                     f"(max_steps = {plan.max_steps} {unit} per excursion) and are excluded: "
+                     "the estimate is biased low")
     if sim.n_excursions < 2:
         raise RuntimeError("fewer than 2 complete excursions within the work bounds (raise max_work / max_steps): "
                            + "; ".join(notes))

@@ -5,6 +5,9 @@ One run, one device, the paper's Fig. 3 point:
 * useful lane-steps/s of the DI engine, float32 and float64;
 * the device's raw normal-generation rate (``jax.random.normal``, drawn per lane and per block
   as the lanes draw them), as a lane-step bound at 2 normals per step;
+* the chain floor: the same draws and transitions without the excursion bookkeeping (DI
+  lane-steps/s, PDMP events/s), which splits the gap to the RNG bound into the chain's own
+  arithmetic (floor / bound) and the engine's (engine / floor);
 * PDMP events/s (default delta), float32 and float64;
 * compiled scalar baselines of the same DI chain and of the same PDMP event loop (numba, 1 and 2
   threads), if numba is installed;
@@ -25,37 +28,63 @@ from jax.sharding import Mesh, PartitionSpec
 from .api import DryfricWarning, default_h, estimate_diffusivity
 from .cost import default_delta
 from .di import make_di_model
-from .excursions import BLOCK
+from .excursions import BLOCK, UNROLL
 from .pdmp import make_pdmp_model
 from .plan import plan_estimate
 from .params import FIG3, Params
 
 
-def rng_bound(dtype, lanes: int = 512, block: int = BLOCK, n: int = 1 << 24, reps: int = 5) -> float:
-    """Lane-steps/s the local devices could do if drawing 2 normals per step were all they did.
-
-    Drawn the way the lanes draw them: each device loops over blocks, and in each block every
-    one of its lanes draws ``(block, 2)`` normals from ``fold_in(lane_key, block_index)``, so the
-    numbers stay in cache as in the engine (one huge array would measure memory bandwidth).
-    """
+def _device_loop(per_lane_block, init, lanes: int, block: int, n: int, reps: int) -> float:
+    """Lane-steps/s of ``per_lane_block(keys, b, carry) -> carry`` run for ``b = 0, 1, ...`` on
+    every local device, ``lanes`` split evenly, ``n`` lane-steps in all, compile excluded."""
     devs = jax.local_devices()
     mesh = Mesh(np.array(devs), ("d",))
     per_dev = max(1, lanes // len(devs))
-    n_blocks = max(1, n // (len(devs) * per_dev * block * 2))
+    n_blocks = max(1, n // (len(devs) * per_dev * block))
 
-    def draw(k):
+    def run(k):
         keys = jax.random.split(jax.random.fold_in(k[0], jax.lax.axis_index("d")), per_dev)
-        one = lambda kk, b: jax.random.normal(jax.random.fold_in(kk, b), (block, 2), dtype).sum()
-        body = lambda b, acc: acc + jax.vmap(one, in_axes=(0, None))(keys, b)
-        return jax.lax.fori_loop(0, n_blocks, body, jnp.zeros((per_dev,), dtype)).sum()[None]
+        out = jax.lax.fori_loop(0, n_blocks, lambda b, c: per_lane_block(keys, b, c), init(per_dev))
+        return sum(jnp.sum(a).astype(jnp.float64) for a in jax.tree_util.tree_leaves(out))[None]
 
-    f = jax.jit(jax.shard_map(draw, mesh=mesh, in_specs=PartitionSpec(), out_specs=PartitionSpec("d"),
+    f = jax.jit(jax.shard_map(run, mesh=mesh, in_specs=PartitionSpec(), out_specs=PartitionSpec("d"),
                               check_vma=False))
     f(jax.random.key(0)[None]).block_until_ready()
     t = time.perf_counter()
     for i in range(reps):
         f(jax.random.key(i + 1)[None]).block_until_ready()
     return n_blocks * block * per_dev * len(devs) * reps / (time.perf_counter() - t)
+
+
+def rng_bound(dtype, lanes: int = 512, block: int = BLOCK, n: int = 1 << 23, reps: int = 5) -> float:
+    """Lane-steps/s the local devices could do if drawing 2 normals per step were all they did.
+
+    Drawn the way the lanes draw them: each device loops over blocks, and in each block every
+    one of its lanes draws ``(block, 2)`` normals from ``fold_in(lane_key, block_index)``, so the
+    numbers stay in cache as in the engine (one huge array would measure memory bandwidth).
+    """
+    one = lambda kk, b: jax.random.normal(jax.random.fold_in(kk, b), (block, 2), dtype).sum()
+    body = lambda keys, b, acc: acc + jax.vmap(one, in_axes=(0, None))(keys, b)
+    return _device_loop(body, lambda m: jnp.zeros((m,), dtype), lanes, block, n, reps)
+
+
+def chain_floor(chain, lanes: int = 512, block: int = BLOCK, n: int = 1 << 23, reps: int = 5) -> float:
+    """Lane-steps (events) per second of the chain alone: the engine's draws and transitions
+    (``chain.draw``, ``chain.advance`` with its regeneration test) and the float64 sum of U,
+    without the excursion bookkeeping, refills or idle lanes.  Engine / floor is what the
+    bookkeeping costs; floor / RNG bound is what the chain's own arithmetic costs."""
+    def body(keys, b, carry):
+        rs = jax.vmap(lambda k: chain.draw(jax.random.fold_in(k, b), block))(keys)
+
+        def step(i, c):
+            state, U = c
+            new, dU, _, heads = chain.advance(state, jax.tree_util.tree_map(lambda a: a[:, i], rs), True)
+            return new, U + jnp.where(heads, 0.0, dU)
+
+        return jax.lax.fori_loop(0, block, step, carry, unroll=UNROLL)
+
+    init = lambda m: (chain.init_state(m), jnp.zeros((m,), jnp.float64))
+    return _device_loop(body, init, lanes, block, n, reps)
 
 
 def _numba_rates(run, model, n_excursions: int, seed: int) -> dict:
@@ -83,6 +112,7 @@ def run_bench(n_excursions: int = 10_000, numba_excursions: int = 2000, seed: in
             out[f"di_{dt}_lane_steps_per_s"] = r.lane_steps_per_s
             out[f"di_{dt}_utilization"] = r.lane_utilization
             out[f"rng_bound_{dt}_lane_steps_per_s"] = rng_bound(jnp.dtype(dt), lanes)
+            out[f"di_chain_floor_{dt}_lane_steps_per_s"] = chain_floor(make_di_model(p, default_h(p), dt), lanes)
             if dt == "float64":
                 rel = r.D_ci / r.D
                 n1 = r.n_excursions * (rel / 0.01) ** 2
@@ -94,6 +124,7 @@ def run_bench(n_excursions: int = 10_000, numba_excursions: int = 2000, seed: in
             estimate_diffusivity(p, seed, method="pdmp", n_excursions=200, dtype=dt, lanes=lanes)  # compile
             r = estimate_diffusivity(p, seed + 1, method="pdmp", n_excursions=n_excursions, dtype=dt, lanes=lanes)
             out[f"pdmp_{dt}_events_per_s"] = r.events_per_s
+            out[f"pdmp_event_floor_{dt}_events_per_s"] = chain_floor(make_pdmp_model(p, r.delta, dt), lanes)
         out["pdmp_delta"] = r.delta
     try:
         from .bench_numba import run_numba, run_numba_pdmp
@@ -109,7 +140,12 @@ def run_bench(n_excursions: int = 10_000, numba_excursions: int = 2000, seed: in
             out[f"ratio_pdmp_{dt}_to_numba_2t"] = out[f"pdmp_{dt}_events_per_s"] / out["numba_pdmp_2t_events_per_s"]
             out[f"ratio_di_{dt}_to_numba_2t"] = out[f"di_{dt}_lane_steps_per_s"] / out["numba_2t_steps_per_s"]
     for dt in ("float64", "float32"):
-        out[f"ratio_di_{dt}_to_rng_bound"] = out[f"di_{dt}_lane_steps_per_s"] / out[f"rng_bound_{dt}_lane_steps_per_s"]
+        rng, floor = out[f"rng_bound_{dt}_lane_steps_per_s"], out[f"di_chain_floor_{dt}_lane_steps_per_s"]
+        out[f"ratio_di_{dt}_to_rng_bound"] = out[f"di_{dt}_lane_steps_per_s"] / rng
+        out[f"ratio_di_{dt}_to_chain_floor"] = out[f"di_{dt}_lane_steps_per_s"] / floor
+        out[f"ratio_di_chain_floor_{dt}_to_rng_bound"] = floor / rng
+        out[f"ratio_pdmp_{dt}_to_event_floor"] = (out[f"pdmp_{dt}_events_per_s"]
+                                                 / out[f"pdmp_event_floor_{dt}_events_per_s"])
     return out
 
 

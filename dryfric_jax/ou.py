@@ -54,8 +54,9 @@ def ou_moments(h, tau):
         tau: OU correlation time (> 0).
 
     Returns:
-        ``(m1, m2, S11, S12, S22)`` with :math:`m = (m_1, m_2)` and :math:`\Sigma = [[S_{11}, S_{12}], [S_{12}, S_{22}]]`
-        (paper section 6.2), computed in the dtype of the inputs.
+        ``(m1, m2, S11, S12, S22)`` with :math:`m = (m_1, m_2)` and
+        :math:`\Sigma = [[S_{11}, S_{12}], [S_{12}, S_{22}]]` (paper section 6.2), computed in the
+        dtype of the inputs.
     """
     h = jnp.asarray(h)
     tau = jnp.asarray(tau, dtype=h.dtype)

@@ -1,9 +1,10 @@
 """Measure the empirical coverage of the 95% delta-method CI for D against the exact white-noise D.
 
-Sizes must be multiples of the smallest.  One long run of the DI (white-noise regime; b = 0 unless --tau-L / --gamma-bar are given) is cut into
-independent replicates of N excursions each (lanes hold i.i.d. excursions, so groups of lanes
-are independent), for several N.  Prints one line per N: replicates, coverage, its binomial
-standard error, and the mean relative half-width.
+Sizes must be multiples of the smallest.  One long run of the DI (white-noise regime; b = 0
+unless --tau-L / --gamma-bar are given) is cut into independent replicates of N excursions each
+(lanes hold i.i.d. excursions, so groups of lanes are independent), for several N.  Prints
+one line per N: replicates, coverage, its binomial standard error, and the mean relative
+half-width.
 
     python scripts/ci_calibration.py --total 2000000 --sizes 500 1000 2000 5000 10000 20000
 (sizes are approximate: a replicate holds about N excursions, the budget being set from a pilot)

@@ -155,6 +155,10 @@ def test_bench_json_has_the_side_by_side_numbers(capsys):
     for dt in ("float32", "float64"):
         assert b[f"di_{dt}_lane_steps_per_s"] > 0 and b[f"rng_bound_{dt}_lane_steps_per_s"] > 0
         assert b[f"ratio_di_{dt}_to_rng_bound"] > 0
+        # the chain floor splits the gap: engine / floor and floor / bound, both reported
+        assert b[f"di_chain_floor_{dt}_lane_steps_per_s"] > 0 and b[f"pdmp_event_floor_{dt}_events_per_s"] > 0
+        assert b[f"ratio_di_{dt}_to_rng_bound"] == pytest.approx(
+            b[f"ratio_di_{dt}_to_chain_floor"] * b[f"ratio_di_chain_floor_{dt}_to_rng_bound"])
     assert "numba" in b or "numba_2t_steps_per_s" in b  # baseline measured, or why not
     assert b["time_to_1pct_ci_s"] > 0
 

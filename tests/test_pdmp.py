@@ -30,9 +30,9 @@ def test_flow_and_displacement_match_ode(v, a, kappa, s):
     assert abs(got_v - ref[0]) <= 1e-9 * scale_v
     assert abs(got_u - ref[1]) <= 1e-9 * scale_u
     # float32: relative to the same scales
-    assert abs(float(flow(jnp.float32(v), jnp.float32(a), jnp.float32(kappa), jnp.float32(s))) - ref[0]) <= 3e-6 * scale_v
-    assert abs(float(displacement(jnp.float32(v), jnp.float32(a), jnp.float32(kappa), jnp.float32(s))) - ref[1]) \
-        <= 3e-6 * scale_u
+    f32 = (jnp.float32(v), jnp.float32(a), jnp.float32(kappa), jnp.float32(s))
+    assert abs(float(flow(*f32)) - ref[0]) <= 3e-6 * scale_v
+    assert abs(float(displacement(*f32)) - ref[1]) <= 3e-6 * scale_u
 
 
 @pytest.mark.parametrize("v,a,kappa", [(0.7, -1.3, 0.0), (-0.2, 2.0, 0.0), (0.5, -0.3, 1e-7), (-2.0, 0.6, 3.0),

@@ -40,7 +40,8 @@ def test_ctrl_c_keeps_completed_rounds():
     assert r.D > 0 and r.D_ci > 0 and not any("dropped" in w for w in r.warnings)
 
 
-@pytest.mark.parametrize("kw,match", [(dict(rtol=0.0), "rtol"), (dict(rtol=1.5), "rtol"), (dict(max_time=-1), "max_time")])
+@pytest.mark.parametrize("kw,match", [(dict(rtol=0.0), "rtol"), (dict(rtol=1.5), "rtol"),
+                                      (dict(max_time=-1), "max_time")])
 def test_bad_targets(kw, match):
     with pytest.raises(ValueError, match=match):
         dj.estimate_diffusivity(P, 0, **kw)

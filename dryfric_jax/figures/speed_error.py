@@ -115,7 +115,8 @@ def fig9(out_dir, quick, seed):
               for i, dd in enumerate(ds)]
     fig, axs = plt.subplots(1, 3, figsize=(15, 4))
     a = axs[0]
-    a.loglog([r["cost"] for r in le], [r["rmse"] * p.D0 for r in le], "ko-", label=f"LE, slope {le_slope[0]:.2f} ± {le_slope[1]:.2f}")
+    a.loglog([r["cost"] for r in le], [r["rmse"] * p.D0 for r in le], "ko-",
+             label=f"LE, slope {le_slope[0]:.2f} ± {le_slope[1]:.2f}")
     for i, (t, rows) in enumerate(bf.items()):
         a.loglog([r["cost"] for r in rows], [r["rmse"] * p.D0 for r in rows], "s--", color=f"C{i}",
                  label=f"BF t = {t} tau0")
