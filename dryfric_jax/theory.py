@@ -82,11 +82,15 @@ def _pieces(*points):
     return [(-np.inf, brk[0])] + list(zip(brk[:-1], brk[1:])) + [(brk[-1], np.inf)]
 
 
-def _mean_velocity_nd(itl, g):
+def _velocity_moment_nd(itl, g, k=1):
     logZ = _log_norm(itl, g)
     s = _scale(itl, g)
-    f = lambda v: v * math.exp(_log_p_unnorm(v, itl, g) - logZ)
+    f = lambda v: v**k * math.exp(_log_p_unnorm(v, itl, g) - logZ)
     return sum(_quad(f, a, b, s, 1e-13) for a, b in _pieces(0.0))
+
+
+def _mean_velocity_nd(itl, g):
+    return _velocity_moment_nd(itl, g, 1)
 
 
 def _G(v, m, itl, g, s):
@@ -102,6 +106,12 @@ def exact_M0(params: Params) -> float:
     r"""White-noise mobility :math:`M_0 = \int v\,p(v)\,dv` (physical units)."""
     itl, g = _nd(params)
     return _mean_velocity_nd(itl, g) * params.v0
+
+
+def exact_mean_square_velocity(params: Params) -> float:
+    r"""White-noise :math:`E[V^2] = \int v^2 p(v)\,dv` (physical units, m^2/s^2)."""
+    itl, g = _nd(params)
+    return _velocity_moment_nd(itl, g, 2) * params.v0**2
 
 
 def exact_D(params: Params) -> float:

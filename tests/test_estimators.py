@@ -59,15 +59,25 @@ def test_psi_M_and_units():
 
 
 def test_bruteforce_estimates_on_gaussian_displacements():
+    """U ~ N(M t, D t): coverage within 3 binomial SE of 95%, and the mean half-widths equal the
+    exact 1.96 sd (sd of var(U)/t is D sqrt(2/n), of mean(U)/t is sqrt(D / (t n))) within 3%,
+    so a CI too wide (which would cover 100%) fails as well as one too narrow."""
     rng = np.random.default_rng(3)
-    t, D, M, n = 50.0, 3.0, 0.2, 200
+    t, D, M, n, paths = 50.0, 3.0, 0.2, 400, 3000
     hits_D = hits_M = 0
+    w_D, w_M = [], []
     for _ in range(n):
-        U = rng.normal(M * t, np.sqrt(D * t), 3000)
+        U = rng.normal(M * t, np.sqrt(D * t), paths)
         e = bruteforce_estimates(U, t)
         hits_D += abs(e["D_t"] - D) <= e["D_t_ci"]
         hits_M += abs(e["M0_t"] - M) <= e["M0_t_ci"]
-    assert 0.9 <= hits_D / n <= 1.0 and 0.9 <= hits_M / n <= 1.0
+        w_D.append(e["D_t_ci"])
+        w_M.append(e["M0_t_ci"])
+    band = 3 * np.sqrt(0.95 * 0.05 / n)
+    assert abs(hits_D / n - 0.95) <= band and abs(hits_M / n - 0.95) <= band
+    z = 1.959963984540054
+    assert np.mean(w_D) == pytest.approx(z * D * np.sqrt(2 / paths), rel=0.03)
+    assert np.mean(w_M) == pytest.approx(z * np.sqrt(D / (t * paths)), rel=0.03)
 
 
 def test_too_few_samples_refused():

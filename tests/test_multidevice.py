@@ -1,4 +1,4 @@
-"""Lanes sharded over 2 forced CPU devices: the same estimate within CI, no recompilation.
+"""Lanes sharded over 2 forced CPU devices: the same lanes give the same estimate, no recompilation.
 
 Runs in a subprocess because the device count must be fixed before JAX starts.
 """
@@ -7,6 +7,8 @@ import os
 import subprocess
 import sys
 import textwrap
+
+import pytest
 
 SCRIPT = textwrap.dedent("""
     import json, warnings, jax
@@ -18,7 +20,7 @@ SCRIPT = textwrap.dedent("""
     f = compiled_round()  # the round the estimate ran (default block)
     n = f._cache_size()
     r2 = dj.estimate_diffusivity(p, 6, h=0.03 * p.tau0, n_excursions=5000)
-    print(json.dumps(dict(devices=jax.device_count(), D=r1.D, D_ci=r1.D_ci, M0=r1.M0, M0_ci=r1.M0_ci,
+    print(json.dumps(dict(devices=jax.device_count(), D=r1.D, M0=r1.M0, n=r1.n_excursions,
                           compiled=n, recompiled=f._cache_size() != n)))
 """)
 
@@ -31,8 +33,11 @@ def _run(n_devices):
 
 
 def test_two_devices_agree_with_one_and_do_not_recompile():
+    """Same seed, same lanes: lane i gets split(key, lanes)[i] and fold_in(., block) wherever it
+    runs, so sharding must reproduce the one-device chains (measured: bit-identical).  A sharding
+    bug (a device's lanes duplicated, keys reused, sums lost in the reduction) changes N or D."""
     one, two = _run(1), _run(2)
     assert one["devices"] == 1 and two["devices"] == 2
-    assert abs(one["D"] - two["D"]) <= (one["D_ci"] ** 2 + two["D_ci"] ** 2) ** 0.5
-    assert abs(one["M0"] - two["M0"]) <= (one["M0_ci"] ** 2 + two["M0_ci"] ** 2) ** 0.5
+    assert one["n"] == two["n"]
+    assert two["D"] == pytest.approx(one["D"], rel=1e-12) and two["M0"] == pytest.approx(one["M0"], rel=1e-12)
     assert two["compiled"] >= 1 and not two["recompiled"]  # the counted function is the one that ran

@@ -28,6 +28,10 @@ def test_quadrature_constant_bias(gbar_rel):
     assert theory.D_constant_bias(G, Dl, g) == pytest.approx(exact_D, rel=1e-14)
     assert theory.exact_D(p) == pytest.approx(exact_D, rel=1e-7)
     assert theory.exact_M0(p) == pytest.approx(exact_M, rel=1e-9)
+    # asymmetric Laplace p(v) ~ exp(-(Delta |v| - g v)/Gamma), scales A, B on the two sides:
+    # E[V^2] = 2 (A^3 + B^3) / (A + B)
+    A, B = G / (Dl - g), G / (Dl + g)
+    assert theory.exact_mean_square_velocity(p) == pytest.approx(2 * (A**3 + B**3) / (A + B), rel=1e-9)
 
 
 def test_quadrature_viscous_limit():

@@ -165,10 +165,14 @@ def fig5(out_dir, quick, seed):
         a2.plot(tt, u * p.u0, lw=0.8)
     a2.set_xlabel("t (s)")
     a2.set_ylabel("U(t) (m)")
-    # samples are correlated: compare the first two moments with their exact values
+    # samples along a path are correlated, paths are independent: standard errors of the first
+    # two moments from the per-path means, compared with their exact values
     mean_exact = theory.exact_M0(p)
+    V2 = (V * p.v0) ** 2
     nums = dict(params=p.as_dict(), h=h, bin_width=bw, n_paths=paths, length_tau0=length,
                 mean_v=float(v.mean()), mean_v_exact=mean_exact,
                 mean_v_se=float(V.mean(1).std(ddof=1) / math.sqrt(paths) * p.v0),
+                mean_v2=float(V2.mean()), mean_v2_exact=theory.exact_mean_square_velocity(p),
+                mean_v2_se=float(V2.mean(1).std(ddof=1) / math.sqrt(paths)),
                 total_variation=float(0.5 * np.abs(prob - exact).sum()))
     return save(fig, out_dir, "fig5", nums, t0)
