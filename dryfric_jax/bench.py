@@ -28,7 +28,7 @@ from jax.sharding import Mesh, PartitionSpec
 from .api import DryfricWarning, default_h, estimate_diffusivity
 from .cost import default_delta
 from .di import make_di_model
-from .excursions import BLOCK, UNROLL
+from .excursions import BLOCK, UNROLL, draw_block, numbers_at
 from .pdmp import make_pdmp_model
 from .plan import plan_estimate
 from .params import FIG3, Params
@@ -74,11 +74,11 @@ def chain_floor(chain, lanes: int = 512, block: int = BLOCK, n: int = 1 << 23, r
     without the excursion bookkeeping, refills or idle lanes.  Engine / floor is what the
     bookkeeping costs; floor / RNG bound is what the chain's own arithmetic costs."""
     def body(keys, b, carry):
-        rs = jax.vmap(lambda k: chain.draw(jax.random.fold_in(k, b), block))(keys)
+        rs = draw_block(chain, keys, b, block)
 
         def step(i, c):
             state, U = c
-            new, dU, _, heads = chain.advance(state, jax.tree_util.tree_map(lambda a: a[:, i], rs), True)
+            new, dU, _, heads = chain.advance(state, numbers_at(rs, i), True)
             return new, U + jnp.where(heads, 0.0, dU)
 
         return jax.lax.fori_loop(0, block, step, carry, unroll=UNROLL)

@@ -165,6 +165,17 @@ def _quiet(lane: _Lane, adv) -> _Lane:
                         lane.work + active))
 
 
+def draw_block(chain, keys, b, block: int):
+    """Block ``b``'s random numbers of every lane, drawn at once: ``chain.draw`` from
+    ``fold_in(lane_key, b)``, each leaf of shape (lanes, block)."""
+    return jax.vmap(lambda k: chain.draw(jax.random.fold_in(k, b), block))(keys)
+
+
+def numbers_at(rs, i):
+    """Step ``i``'s numbers of every lane from :func:`draw_block`'s output."""
+    return jax.tree_util.tree_map(lambda a: a[:, i], rs)
+
+
 def _block(chain, budget, max_steps, finish, block, sparse, lane: _Lane, keys, b) -> _Lane:
     """``block`` steps of a batch of lanes, the block's random numbers drawn at once per lane.
 
@@ -175,12 +186,12 @@ def _block(chain, budget, max_steps, finish, block, sparse, lane: _Lane, keys, b
     every step runs the full bookkeeping (``sparse`` False).  Both run the same chain with the
     same random numbers; sums agree to rounding (XLA may fuse the arithmetic differently).
     """
-    rs = jax.vmap(lambda k: chain.draw(jax.random.fold_in(k, b), block))(keys)
+    rs = draw_block(chain, keys, b, block)
     adv_fn = jax.vmap(partial(_advance, chain))
     book = jax.vmap(partial(_book, chain, budget, max_steps, finish))
 
     def body(i, ln):
-        adv = adv_fn(ln, jax.tree_util.tree_map(lambda a: a[:, i], rs))
+        adv = adv_fn(ln, numbers_at(rs, i))
         if not sparse:
             return book(ln, adv)
         event = jnp.any(jax.vmap(partial(_has_event, budget, max_steps, finish))(ln, adv))

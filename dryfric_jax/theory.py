@@ -89,10 +89,6 @@ def _velocity_moment_nd(itl, g, k=1):
     return sum(_quad(f, a, b, s, 1e-13) for a, b in _pieces(0.0))
 
 
-def _mean_velocity_nd(itl, g):
-    return _velocity_moment_nd(itl, g, 1)
-
-
 def _G(v, m, itl, g, s):
     r""":math:`G(v) = F(v)/p(v)` taken from the nearer tail, so that :math:`F^2/p = p\,G^2` is stable."""
     psi_v = float(_log_p_unnorm(v, itl, g))
@@ -105,7 +101,7 @@ def _G(v, m, itl, g, s):
 def exact_M0(params: Params) -> float:
     r"""White-noise mobility :math:`M_0 = \int v\,p(v)\,dv` (physical units)."""
     itl, g = _nd(params)
-    return _mean_velocity_nd(itl, g) * params.v0
+    return _velocity_moment_nd(itl, g, 1) * params.v0
 
 
 def exact_mean_square_velocity(params: Params) -> float:
@@ -131,7 +127,7 @@ def exact_D(params: Params) -> float:
 
 
 def _exact_D_nd(itl, g):
-    m = _mean_velocity_nd(itl, g)
+    m = _velocity_moment_nd(itl, g, 1)
     logZ = _log_norm(itl, g)
     s = _scale(itl, g)
     integrand = lambda v: math.exp(float(_log_p_unnorm(v, itl, g)) - logZ) * _G(v, m, itl, g, s) ** 2
