@@ -48,6 +48,10 @@ STAT_NAMES = ("n", "U", "U2", "U3", "U4", "t", "t2", "t3", "t4", "Ut", "U2t", "U
 
 SEEK, PLUS, MINUS = 0, 1, 2
 BLOCK = 64  # steps per while-iteration (32..256 measured on 2 CPU cores, README)
+# final round: the tail runs on lanes / COMPACT lanes once at most that many are still in flight
+# (devices with at least COMPACT_MIN_PER_DEVICE lanes)
+COMPACT = 8
+COMPACT_MIN_PER_DEVICE = 64
 # steps per iteration of the block's loop: best of 5 runs against 1, DI +1-7%, PDMP +10-14% on 2 CPU
 # cores; 8 was no better
 UNROLL = 4
@@ -167,8 +171,10 @@ def _quiet(lane: _Lane, adv) -> _Lane:
 
 def draw_block(chain, keys, b, block: int):
     """Block ``b``'s random numbers of every lane, drawn at once: ``chain.draw`` from
-    ``fold_in(lane_key, b)``, each leaf of shape (lanes, block)."""
-    return jax.vmap(lambda k: chain.draw(jax.random.fold_in(k, b), block))(keys)
+    ``fold_in(lane_key, b)``, each leaf of shape (lanes, block).  ``b`` is one block index for
+    all lanes or one per lane."""
+    bs = jnp.broadcast_to(b, keys.shape[:1])
+    return jax.vmap(lambda k, bb: chain.draw(jax.random.fold_in(k, bb), block))(keys, bs)
 
 
 def numbers_at(rs, i):
@@ -177,7 +183,8 @@ def numbers_at(rs, i):
 
 
 def _block(chain, budget, max_steps, finish, block, sparse, lane: _Lane, keys, b) -> _Lane:
-    """``block`` steps of a batch of lanes, the block's random numbers drawn at once per lane.
+    """``block`` steps of a batch of lanes, the block's random numbers drawn at once per lane
+    (lane i's block index is ``b[i]``).
 
     Regenerations are rare (a few per excursion of 1e3-1e5 steps).  With ``sparse`` a step runs
     the full bookkeeping only if some lane of the batch has an event, through a real branch
@@ -212,18 +219,23 @@ def init_lanes(chain, n_lanes: int) -> _Lane:
     )
 
 
-def _round_impl(chain, lane: _Lane, keys, budget, max_steps, finish, *, block: int, sparse: bool):
+def _round_impl(chain, lane: _Lane, keys, b0, budget, max_steps, finish, min_active, fresh, *, block: int,
+                sparse: bool):
+    """Blocks of a round until every lane is done, or until at most ``min_active`` lanes (of this
+    device) are not (the final round's compaction, :meth:`Lanes._round`).  Lane i runs blocks
+    ``b0[i], b0[i] + 1, ...`` of the round; a ``fresh`` round resets the flags and round work."""
     # every lane stops within budget + max_steps steps: this bound never binds
-    max_blocks = (budget + max_steps) // block + 2
-    lane = eqx.tree_at(lambda l: (l.done, l.work), lane, (jnp.zeros_like(lane.done), jnp.zeros_like(lane.work)))
+    max_blocks = (budget + max_steps) // block + 2 - jnp.max(b0)
+    lane = eqx.tree_at(lambda l: (l.done, l.work), lane,
+                       (lane.done & ~fresh, jnp.where(fresh, 0, lane.work)))
 
     def cond(c):
         b, ln = c
-        return (b < max_blocks) & jnp.any(~ln.done)
+        return (b < max_blocks) & (jnp.sum(~ln.done) > min_active)
 
     def body(c):
         b, ln = c
-        return b + 1, _block(chain, budget, max_steps, finish, block, sparse, ln, keys, b)
+        return b + 1, _block(chain, budget, max_steps, finish, block, sparse, ln, keys, b0 + b)
 
     nb, lane = jax.lax.while_loop(cond, body, (jnp.asarray(0, jnp.int64), lane))
     return lane, jnp.full((1,), nb)  # blocks run, one entry per device
@@ -239,7 +251,7 @@ def _sharded_round(devices: tuple, block: int, sparse: bool):
     mesh = Mesh(np.array(devices), ("lanes",))
     rep, lanes = PartitionSpec(), PartitionSpec("lanes")
     f = jax.shard_map(partial(_round_impl, block=block, sparse=sparse), mesh=mesh,
-                      in_specs=(rep, lanes, lanes, rep, rep, rep), out_specs=(lanes, lanes), check_vma=False)
+                      in_specs=(rep, lanes, lanes, lanes, rep, rep, rep, rep, rep), out_specs=(lanes, lanes), check_vma=False)
     return jax.jit(f), NamedSharding(mesh, lanes)
 
 
@@ -294,30 +306,69 @@ class Lanes:
     ``fold_in(lane_key, block)`` per block.
     """
 
-    def __init__(self, chain, n_lanes: int, *, block: int = BLOCK, max_steps: int = 10**8, sparse: bool | None = None):
+    def __init__(self, chain, n_lanes: int, *, block: int = BLOCK, max_steps: int = 10**8, sparse: bool | None = None,
+                 compact: bool = True):
         self.devices = tuple(jax.local_devices())
-        self.n = -(-n_lanes // len(self.devices)) * len(self.devices)
+        nd = len(self.devices)
+        self.n = -(-n_lanes // nd) * nd
         self.chain, self.block, self.max_steps = chain, block, max_steps
         self.sparse = _sparse_default(self.devices, sparse)
+        # the final round's tail runs on n / COMPACT lanes (see _round)
+        self.compact = compact and self.n // nd >= COMPACT_MIN_PER_DEVICE
         self.slot_steps, self.last = 0, None
         lane = init_lanes(chain, self.n)
-        if len(self.devices) > 1:
+        if nd > 1:
             self._f, self._sharding = _sharded_round(self.devices, block, self.sparse)
             lane = jax.device_put(lane, self._sharding)
         self.lane = lane
 
-    def _round(self, key, budget, finish) -> ExcursionStats:
-        keys = jax.random.split(key, self.n)
-        args = (jnp.asarray(budget, jnp.int64), jnp.asarray(self.max_steps, jnp.int64), jnp.asarray(finish))
+    def _call(self, lane, keys, b0, budget, finish, min_active, fresh):
+        """One run of the jitted round on ``lane`` (any multiple of the device count); returns the
+        lanes and the blocks each device ran."""
+        args = (jnp.asarray(budget, jnp.int64), jnp.asarray(self.max_steps, jnp.int64), jnp.asarray(finish),
+                jnp.asarray(min_active, jnp.int64), jnp.asarray(fresh))
+        b0 = jnp.asarray(b0, jnp.int64)
         if len(self.devices) == 1:
-            lane, nb = _run_round(self.chain, self.lane, keys, *args, block=self.block, sparse=self.sparse)
+            lane, nb = _run_round(self.chain, lane, keys, b0, *args, block=self.block, sparse=self.sparse)
         else:
-            lane, nb = self._f(self.chain, self.lane, jax.device_put(keys, self._sharding), *args)
+            put = lambda a: jax.device_put(a, self._sharding)
+            lane, nb = self._f(self.chain, put(lane), put(keys), put(b0), *args)
+        nb = np.asarray(jax.device_get(nb))
+        self.slot_steps += int(nb.sum()) * self.block * (keys.shape[0] // len(nb))
+        return lane, nb
+
+    def _round(self, key, budget, finish) -> ExcursionStats:
+        """A paused or final round.  Compaction (final round, ``compact``): once at most
+        ``n / COMPACT`` lanes of a device are still finishing their in-flight excursion, those
+        lanes (padded with finished ones) continue as a batch of about ``n / COMPACT`` lanes, so the
+        tail of heavy-tailed excursions no longer pays for the idle lanes.  Each lane keeps its
+        key and its block count, so it runs exactly the chain it would have run without
+        compaction (the results are the same, tested)."""
+        keys = jax.random.split(key, self.n)
+        nd = len(self.devices)
+        compact = finish and self.compact
+        per_dev = self.n // nd
+        small = -(-per_dev // COMPACT)  # lanes per device in the compacted batch
+        lane, nb = self._call(self.lane, keys, np.zeros(self.n, np.int64), budget, finish,
+                              small if compact else 0, True)
+        if compact:
+            host = jax.device_get(lane)
+            done = np.asarray(host.done)
+            m = small * nd
+            active = np.flatnonzero(~done)
+        if compact and active.size <= m:  # (more only if the block bound stopped a device)
+            # finished lanes pad the batch; they do nothing and are written back unchanged
+            sel = np.concatenate([active, np.flatnonzero(done)[: m - active.size]])
+            b0 = nb[sel // per_dev]  # the blocks lane sel[j] has run in this round
+            sub = jax.tree_util.tree_map(lambda a: np.asarray(a)[sel], host)
+            sub, _ = self._call(sub, keys[sel], b0, budget, finish, 0, False)
+            lane = jax.tree_util.tree_map(np.array, host)
+            for full, part in zip(jax.tree_util.tree_leaves(lane), jax.tree_util.tree_leaves(jax.device_get(sub))):
+                full[sel] = np.asarray(part)
+            lane = jax.device_put(lane, self._sharding) if nd > 1 else jax.tree_util.tree_map(jnp.asarray, lane)
         stats, n_trunc, steps, done, phase = (np.asarray(a) for a in jax.device_get(
             (lane.stats, lane.n_trunc, lane.steps, lane.done, lane.phase)))
-        nb = np.asarray(jax.device_get(nb))
         self.lane = lane  # only once the round has completed (Ctrl-C keeps the previous state)
-        self.slot_steps += int(nb.sum()) * self.block * self.n // len(nb)
         self.last = ExcursionStats(stats, int(n_trunc.sum()), int(steps.sum()), self.slot_steps,
                                    int((~done).sum()), int((phase != SEEK).sum()), steps)
         return self.last

@@ -69,6 +69,25 @@ def test_branchy_bookkeeping_matches_every_step_bookkeeping(method):
     assert out[0][1].n_truncated > 0 and out[0][1].n_excursions > 50
 
 
+@pytest.mark.parametrize("method", ["di", "pdmp"])
+def test_final_round_compaction_runs_the_same_chains(method):
+    """Compaction moves the lanes still in flight to a smaller batch, each with its own key and
+    block count: the sums must be exactly those of the uncompacted round, for fewer slots."""
+    p = dj.Params.from_nondim(0.5, 1.0, 0.2)
+    chain = make_di_model(p, 0.02) if method == "di" else make_pdmp_model(p, 0.3)
+    out = []
+    for compact in (False, True):
+        ln = Lanes(chain, 256, block=8, max_steps=1500, compact=compact)
+        assert ln.compact == compact
+        ln.advance(jax.random.key(1), 3000)
+        out.append((ln.finish(jax.random.key(2), 2000), ln.slot_steps))
+    (a, slots_a), (b, slots_b) = out
+    assert np.array_equal(a.stats, b.stats) and np.array_equal(a.lane_steps, b.lane_steps)
+    assert (a.n_truncated, a.useful_steps, a.n_unfinished) == (b.n_truncated, b.useful_steps, b.n_unfinished)
+    assert a.n_excursions > 1000 and b.n_unfinished == 0
+    assert slots_b < slots_a
+
+
 def test_every_lane_finishes_in_flight_and_work_is_bounded():
     m = make_di_model(dj.Params.from_nondim(0.1), 0.02)
     budget, max_steps = 500, 10**6
