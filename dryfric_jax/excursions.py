@@ -65,7 +65,7 @@ class _Lane(eqx.Module):
     t_half: jnp.ndarray  # duration at which the -HLE began
     phase: jnp.ndarray  # SEEK, PLUS or MINUS
     done: jnp.ndarray  # the lane's termination flag (per round)
-    stats: jnp.ndarray  # (len(STAT_NAMES),) float64 sums over complete excursions, all rounds
+    stats: tuple  # len(STAT_NAMES) float64 sums over complete excursions, all rounds (one array each)
     n_trunc: jnp.ndarray  # excursions closed by the work bound
     steps: jnp.ndarray  # useful steps done by the lane, all rounds
     work: jnp.ndarray  # steps done in this round (seeks included): compared with the budget
@@ -80,9 +80,11 @@ def _close(lane: _Lane, U, t, complete) -> _Lane:
     """Add the excursion (U, t) to the lane's sums where ``complete``."""
     th = lane.t_half
     U2, t2 = U * U, t * t
-    row = jnp.stack([jnp.ones_like(U), U, U2, U2 * U, U2 * U2, t, t2, t2 * t, t2 * t2, U * t, U2 * t, U2 * U * t,
-                     U * t2, U2 * t2, U * t2 * t, th])
-    return eqx.tree_at(lambda l: l.stats, lane, lane.stats + jnp.where(complete, row, 0.0))
+    row = (jnp.ones_like(U), U, U2, U2 * U, U2 * U2, t, t2, t2 * t, t2 * t2, U * t, U2 * t, U2 * U * t,
+           U * t2, U2 * t2, U * t2 * t, th)
+    # one array per sum: a (lanes, 16) array built by stacking made the bookkeeping step ~4x slower
+    return eqx.tree_at(lambda l: l.stats, lane,
+                       tuple(s + jnp.where(complete, r, 0.0) for s, r in zip(lane.stats, row)))
 
 
 def _budget_stop(lane: _Lane, budget, finish, phase):
@@ -214,7 +216,7 @@ def init_lanes(chain, n_lanes: int) -> _Lane:
     return _Lane(
         state=chain.init_state(n_lanes), U=z(jnp.float64), n=z(jnp.int64), t=z(jnp.float64), t_half=z(jnp.float64),
         phase=jnp.full((n_lanes,), PLUS if chain.start_regenerated else SEEK, jnp.int32), done=z(bool),
-        stats=jnp.zeros((n_lanes, len(STAT_NAMES)), jnp.float64), n_trunc=z(jnp.int64), steps=z(jnp.int64),
+        stats=tuple(z(jnp.float64) for _ in STAT_NAMES), n_trunc=z(jnp.int64), steps=z(jnp.int64),
         work=z(jnp.int64),
     )
 
@@ -366,8 +368,10 @@ class Lanes:
             for full, part in zip(jax.tree_util.tree_leaves(lane), jax.tree_util.tree_leaves(jax.device_get(sub))):
                 full[sel] = np.asarray(part)
             lane = jax.device_put(lane, self._sharding) if nd > 1 else jax.tree_util.tree_map(jnp.asarray, lane)
-        stats, n_trunc, steps, done, phase = (np.asarray(a) for a in jax.device_get(
-            (lane.stats, lane.n_trunc, lane.steps, lane.done, lane.phase)))
+        stats, n_trunc, steps, done, phase = jax.device_get(
+            (lane.stats, lane.n_trunc, lane.steps, lane.done, lane.phase))
+        stats, n_trunc, steps, done, phase = (np.stack(stats, axis=1), np.asarray(n_trunc), np.asarray(steps),
+                                              np.asarray(done), np.asarray(phase))
         self.lane = lane  # only once the round has completed (Ctrl-C keeps the previous state)
         self.last = ExcursionStats(stats, int(n_trunc.sum()), int(steps.sum()), self.slot_steps,
                                    int((~done).sum()), int((phase != SEEK).sum()), steps)
