@@ -19,7 +19,10 @@ number of excursions a lane starts before its budget runs out is a stopping time
 sequence, so by Wald's identity :math:`E[\sum U] = E[N] E[U]` and the ratio estimators stay
 consistent (regenerative simulation, Glynn & Heidelberger 1990).  Dropping the in-flight
 excursion instead keeps only the cycles that *ended* before the budget, which is not a stopping
-time and biases D low (``finish_in_flight=False``, kept to demonstrate it in the tests).
+time and biases D low (``finish_in_flight=False``, kept to demonstrate it in the tests).  The
+final round's tail (the few lanes still finishing a long excursion) runs on a compacted batch of
+lanes, each lane keeping its key and block count, so compaction changes no result
+(:meth:`Lanes._round`).
 
 Steps run in blocks of ``block`` with the block's normals drawn at once (``split`` per lane,
 ``fold_in`` per block).  On a CPU a step runs the bookkeeping above only when some lane has an
