@@ -22,7 +22,7 @@ excursion instead keeps only the cycles that *ended* before the budget, which is
 time and biases D low (``finish_in_flight=False``, kept to demonstrate it in the tests).  The
 final round's tail (the few lanes still finishing a long excursion) runs on a compacted batch of
 lanes, each lane keeping its key and block count, so compaction changes no result
-(:meth:`Lanes._round`).
+(:meth:`Lanes._compact_tail`).
 
 Steps run in blocks of ``block`` with the block's normals drawn at once (``split`` per lane,
 ``fold_in`` per block).  On a CPU a step runs the bookkeeping above only when some lane has an
@@ -227,7 +227,7 @@ def init_lanes(chain, n_lanes: int) -> _Lane:
 def _round_impl(chain, lane: _Lane, keys, b0, budget, max_steps, finish, min_active, fresh, *, block: int,
                 sparse: bool):
     """Blocks of a round until every lane is done, or until at most ``min_active`` lanes (of this
-    device) are not (the final round's compaction, :meth:`Lanes._round`).  Lane i runs blocks
+    device) are not (the final round's compaction, :meth:`Lanes._compact_tail`).  Lane i runs blocks
     ``b0[i], b0[i] + 1, ...`` of the round; a ``fresh`` round resets the flags and round work."""
     # every lane stops within budget + max_steps steps: this bound never binds
     max_blocks = (budget + max_steps) // block + 2 - jnp.max(b0)
@@ -256,7 +256,8 @@ def _sharded_round(devices: tuple, block: int, sparse: bool):
     mesh = Mesh(np.array(devices), ("lanes",))
     rep, lanes = PartitionSpec(), PartitionSpec("lanes")
     f = jax.shard_map(partial(_round_impl, block=block, sparse=sparse), mesh=mesh,
-                      in_specs=(rep, lanes, lanes, lanes, rep, rep, rep, rep, rep), out_specs=(lanes, lanes), check_vma=False)
+                      in_specs=(rep, lanes, lanes, lanes, rep, rep, rep, rep, rep), out_specs=(lanes, lanes),
+                      check_vma=False)
     return jax.jit(f), NamedSharding(mesh, lanes)
 
 
@@ -318,7 +319,7 @@ class Lanes:
         self.n = -(-n_lanes // nd) * nd
         self.chain, self.block, self.max_steps = chain, block, max_steps
         self.sparse = _sparse_default(self.devices, sparse)
-        # the final round's tail runs on n / COMPACT lanes (see _round)
+        # the final round's tail runs on n / COMPACT lanes (see _compact_tail)
         self.compact = compact and self.n // nd >= COMPACT_MIN_PER_DEVICE
         self.slot_steps, self.last = 0, None
         lane = init_lanes(chain, self.n)
@@ -343,42 +344,47 @@ class Lanes:
         return lane, nb
 
     def _round(self, key, budget, finish) -> ExcursionStats:
-        """A paused or final round.  Compaction (final round, ``compact``): once at most
-        ``n / COMPACT`` lanes of a device are still finishing their in-flight excursion, those
-        lanes (padded with finished ones) continue as a batch of about ``n / COMPACT`` lanes, so the
-        tail of heavy-tailed excursions no longer pays for the idle lanes.  Each lane keeps its
-        key and its block count, so it runs exactly the chain it would have run without
-        compaction (the results are the same, tested)."""
+        """A paused or final round (a final one compacts its tail, :meth:`_compact_tail`)."""
         keys = jax.random.split(key, self.n)
         nd = len(self.devices)
-        compact = finish and self.compact
-        per_dev = self.n // nd
-        small = -(-per_dev // COMPACT)  # lanes per device in the compacted batch
-        lane, nb = self._call(self.lane, keys, np.zeros(self.n, np.int64), budget, finish,
-                              small if compact else 0, True)
-        if compact:
-            host = jax.device_get(lane)
-            done = np.asarray(host.done)
-            m = small * nd
-            active = np.flatnonzero(~done)
-        if compact and active.size <= m:  # (more only if the block bound stopped a device)
-            # finished lanes pad the batch; they do nothing and are written back unchanged
-            sel = np.concatenate([active, np.flatnonzero(done)[: m - active.size]])
-            b0 = nb[sel // per_dev]  # the blocks lane sel[j] has run in this round
-            sub = jax.tree_util.tree_map(lambda a: np.asarray(a)[sel], host)
-            sub, _ = self._call(sub, keys[sel], b0, budget, finish, 0, False)
-            lane = jax.tree_util.tree_map(np.array, host)
-            for full, part in zip(jax.tree_util.tree_leaves(lane), jax.tree_util.tree_leaves(jax.device_get(sub))):
-                full[sel] = np.asarray(part)
-            lane = jax.device_put(lane, self._sharding) if nd > 1 else jax.tree_util.tree_map(jnp.asarray, lane)
+        small = -(-(self.n // nd) // COMPACT) if finish and self.compact else 0  # per device, compacted
+        lane, nb = self._call(self.lane, keys, np.zeros(self.n, np.int64), budget, finish, small, True)
+        host = self._compact_tail(jax.device_get(lane), keys, nb, budget, small) if small else lane
+        if host is not lane:
+            lane = jax.device_put(host, self._sharding) if nd > 1 else jax.tree_util.tree_map(jnp.asarray, host)
         stats, n_trunc, steps, done, phase = jax.device_get(
-            (lane.stats, lane.n_trunc, lane.steps, lane.done, lane.phase))
+            (host.stats, host.n_trunc, host.steps, host.done, host.phase))
         stats, n_trunc, steps, done, phase = (np.stack(stats, axis=1), np.asarray(n_trunc), np.asarray(steps),
                                               np.asarray(done), np.asarray(phase))
         self.lane = lane  # only once the round has completed (Ctrl-C keeps the previous state)
         self.last = ExcursionStats(stats, int(n_trunc.sum()), int(steps.sum()), self.slot_steps,
                                    int((~done).sum()), int((phase != SEEK).sum()), steps)
         return self.last
+
+    def _compact_tail(self, host: _Lane, keys, nb, budget, small: int) -> _Lane:
+        """The final round's tail on a compacted batch.  The first part of the round stopped once
+        at most ``small`` lanes of each device were still finishing their in-flight excursion
+        (``host``, on the host); those lanes, padded with finished ones, continue as a batch of
+        ``small`` lanes per device, so the tail of heavy-tailed excursions no longer pays for the
+        idle lanes.  Each lane keeps its key and its block count, so it runs exactly the chain it
+        would have run without compaction (the results are the same, tested).  Returns the
+        round's lanes, on the host."""
+        done = np.asarray(host.done)
+        active, m = np.flatnonzero(~done), small * len(self.devices)
+        if active.size > m:  # only if the block bound stopped a device: nothing to compact
+            return host
+        # finished lanes pad the batch; they do nothing and are written back unchanged
+        sel = np.concatenate([active, np.flatnonzero(done)[: m - active.size]])
+        b0 = nb[sel // (self.n // len(self.devices))]  # the blocks lane sel[j] has run in this round
+        sub, _ = self._call(jax.tree_util.tree_map(lambda a: np.asarray(a)[sel], host), keys[sel], b0, budget,
+                            True, 0, False)
+
+        def put_back(full, part):
+            full = np.array(full)
+            full[sel] = part
+            return full
+
+        return jax.tree_util.tree_map(put_back, host, jax.device_get(sub))
 
     def advance(self, key, budget: int) -> ExcursionStats:
         return self._round(key, budget, False)
