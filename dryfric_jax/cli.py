@@ -299,10 +299,15 @@ def _sweep(a) -> int:
 
 def _use_all_cpu_cores():
     """One XLA host device per core, so that lanes shard over the cores (the vmapped loop runs
-    on one core per device).  Must run before JAX starts its backend; a user's XLA_FLAGS wins."""
+    on one core per device), and 512-bit vectors where the CPU has them (AVX-512: +5-20% lane
+    steps/s, same results; a hint that CPUs with narrower vectors ignore).  Must run before JAX
+    starts its backend; a flag the user's XLA_FLAGS already sets wins."""
     flags = os.environ.get("XLA_FLAGS", "")
     if "xla_force_host_platform_device_count" not in flags:
-        os.environ["XLA_FLAGS"] = f"{flags} --xla_force_host_platform_device_count={os.cpu_count() or 1}".strip()
+        flags = f"{flags} --xla_force_host_platform_device_count={os.cpu_count() or 1}"
+    if "xla_cpu_prefer_vector_width" not in flags:
+        flags = f"{flags} --xla_cpu_prefer_vector_width=512"
+    os.environ["XLA_FLAGS"] = flags.strip()
 
 
 def main(argv=None) -> int:
