@@ -229,8 +229,10 @@ def _round_impl(chain, lane: _Lane, keys, b0, budget, max_steps, finish, min_act
     """Blocks of a round until every lane is done, or until at most ``min_active`` lanes (of this
     device) are not (the final round's compaction, :meth:`Lanes._compact_tail`).  Lane i runs blocks
     ``b0[i], b0[i] + 1, ...`` of the round; a ``fresh`` round resets the flags and round work."""
-    # every lane stops within budget + max_steps steps: this bound never binds
-    max_blocks = (budget + max_steps) // block + 2 - jnp.max(b0)
+    # every lane stops within budget + max_steps steps of its round: this bound never binds.  The
+    # lane with the fewest blocks behind it sets it (a compacted batch mixes lanes of devices
+    # that ran different block counts; the largest count would cut the others short)
+    max_blocks = (budget + max_steps) // block + 2 - jnp.min(b0)
     lane = eqx.tree_at(lambda l: (l.done, l.work), lane,
                        (lane.done & ~fresh, jnp.where(fresh, 0, lane.work)))
 

@@ -3,6 +3,7 @@ import math
 import warnings
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
@@ -11,7 +12,7 @@ from dryfric_jax.di import make_di_model
 from dryfric_jax.estimators import long_excursion_estimates
 from dryfric_jax.pdmp import make_pdmp_model
 from dryfric_jax.excursions import (
-    Lanes, compiled_round, run_round, simulate_long_excursions, steps_per_excursion,
+    Lanes, _run_round, compiled_round, init_lanes, run_round, simulate_long_excursions, steps_per_excursion,
 )
 
 
@@ -86,6 +87,21 @@ def test_final_round_compaction_runs_the_same_chains(method):
     assert (a.n_truncated, a.useful_steps, a.n_unfinished) == (b.n_truncated, b.useful_steps, b.n_unfinished)
     assert a.n_excursions > 1000 and b.n_unfinished == 0
     assert slots_b < slots_a
+
+
+def test_round_block_bound_counts_from_the_lane_with_fewest_blocks():
+    """A compacted batch mixes lanes whose devices ran different block counts (``b0``).  The
+    round's safety bound (budget + max_steps steps) must hold for the lane with the fewest
+    blocks behind it; counted from the largest ``b0`` it cut that lane short (seen with 2 devices
+    once the DI's coins changed stream)."""
+    chain = make_pdmp_model(dj.Params.from_nondim(0.5, 1.0, 0.2), 0.3)
+    block = 8
+    budget, max_steps = 64 * block, 2 * block  # lane 0 needs >= 64 blocks to spend its budget
+    keys = jax.random.split(jax.random.key(3), 2)
+    i64 = lambda v: jnp.asarray(v, jnp.int64)  # noqa: E731
+    lane, nb = _run_round(chain, init_lanes(chain, 2), keys, i64([0, 60]), i64(budget), i64(max_steps),
+                          jnp.asarray(True), i64(0), jnp.asarray(True), block=block, sparse=True)
+    assert bool(jnp.all(lane.done)) and int(lane.work[0]) >= budget
 
 
 def test_every_lane_finishes_in_flight_and_work_is_bounded():
