@@ -70,8 +70,9 @@ def rng_bound(dtype, lanes: int = 512, block: int = BLOCK, n: int = 1 << 23, rep
 
 def chain_floor(chain, lanes: int = 512, block: int = BLOCK, n: int = 1 << 23, reps: int = 5) -> float:
     """Lane-steps (events) per second of the chain alone: the engine's draws and transitions
-    (``chain.draw``, ``chain.advance`` with its regeneration test) and the float64 sum of U,
-    without the excursion bookkeeping, refills or idle lanes.  Engine / floor is what the
+    (``chain.draw``, ``chain.advance`` with its regeneration test; for the DI the test for a
+    coin to flip, the coins themselves being flipped in the bookkeeping) and the float64 sum of
+    U, without the excursion bookkeeping, refills or idle lanes.  Engine / floor is what the
     bookkeeping costs; floor / RNG bound is what the chain's own arithmetic costs."""
     def body(keys, b, carry):
         rs = draw_block(chain, keys, b, block)

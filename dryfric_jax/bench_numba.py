@@ -27,7 +27,6 @@ def _worker(seed, n_exc, max_steps, h, gb, itl, m1, m2, L11, L21, L22, P, M, x0)
     while cnt < n_exc:
         z1 = np.random.standard_normal()
         z2 = np.random.standard_normal()
-        u = np.random.random()
         Xi = X * m1 + L11 * z1
         Xn = X * m2 + L21 * z1 + L22 * z2
         w = V + h * (gb - V * itl + Xi)
@@ -40,6 +39,7 @@ def _worker(seed, n_exc, max_steps, h, gb, itl, m1, m2, L11, L21, L22, P, M, x0)
                 za = z1 * S[2] + z2 * S[3]
                 d1, d2 = X - S[0], X - S[1]
                 logr = min(-d1 * za - 0.5 * d1 * d1 * S[4], -d2 * za - 0.5 * d2 * d2 * S[4])
+                u = np.random.random()  # the coin's uniform, drawn only when a coin is flipped
                 heads = math.log(u) < logr if u > 0.0 else True
         if heads and phase == MINUS:
             cnt += 1

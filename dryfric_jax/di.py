@@ -63,23 +63,39 @@ class DIModel(eqx.Module):
         return (jnp.full((n,), self.x_plus, dt), jnp.zeros((n,), dt))
 
     def draw(self, key, block: int):
-        """The block's random numbers: 2 normals (exact OU step) and 1 uniform (splitting coin)."""
-        dt = self.h.dtype
-        k_norm, k_unif = jax.random.split(key)
-        zs = jax.random.normal(k_norm, (block, 2), dt)
-        return zs[:, 0], zs[:, 1], jax.random.uniform(k_unif, (block,), dt, minval=jnp.finfo(dt).tiny)
+        """The block's random numbers: 2 normals per step (exact OU step).  The splitting coin's
+        uniform is not drawn here but only at the steps that flip a coin (:meth:`coin`)."""
+        zs = jax.random.normal(jax.random.split(key)[0], (block, 2), self.h.dtype)
+        return zs[:, 0], zs[:, 1]
+
+    def coin_key(self, key):
+        """The key of the block's coins (block key as in :meth:`draw`); step i's coin uses
+        ``fold_in(coin_key, i)``."""
+        return jax.random.split(key)[1]
+
+    def _set(self, watch_plus):
+        return jax.tree_util.tree_map(lambda p, m: jnp.where(watch_plus, p, m), self.plus, self.minus)
 
     def advance(self, state, r, watch_plus):
-        """One step; ``heads`` is a regeneration on C_+ (``watch_plus``) or on C_-
-        (:mod:`dryfric_jax.regeneration`).  Returns ``(state, dU, None, heads)``."""
+        """One step.  Returns ``(state, dU, None, candidate)``: ``candidate`` marks a step that
+        flips the splitting coin (stuck on C_+ and released upwards (``watch_plus``), or stuck on
+        C_- and released downwards); it is a regeneration when :meth:`coin` says heads
+        (:mod:`dryfric_jax.regeneration`).  Candidates are rare, so the lane engine flips coins
+        only at steps where some lane has one."""
         X, V = state
-        z1, z2, u = r
+        z1, z2 = r
         _, Xn, Vn, dU = self.move(X, V, z1, z2)
-        # coin only when stuck on C_+ and released upwards, or stuck on C_- and released downwards
-        s = jax.tree_util.tree_map(lambda p, m: jnp.where(watch_plus, p, m), self.plus, self.minus)
         released = jnp.where(watch_plus, Vn > 0, Vn < 0)
-        heads = (V == 0) & released & s.contains(X) & (jnp.log(u) < s.log_coin(X, z1, z2))
-        return (Xn, Vn), dU, None, heads
+        return (Xn, Vn), dU, None, (V == 0) & released & self._set(watch_plus).contains(X)
+
+    def coin(self, state, r, watch_plus, key):
+        r"""The splitting coin of a candidate step from ``state`` with normals ``r``: heads with
+        probability :math:`r(x, y) = \varepsilon\nu(y)/p(x, y)`, from a fresh uniform of ``key``."""
+        X, _ = state
+        z1, z2 = r
+        dt = self.h.dtype
+        u = jax.random.uniform(key, (), dt, minval=jnp.finfo(dt).tiny)
+        return jnp.log(u) < self._set(watch_plus).log_coin(X, z1, z2)
 
 
 def make_di_model(params: Params, h: float, dtype=jnp.float64) -> DIModel:

@@ -125,8 +125,11 @@ def _excursion(model: DIModel, key, *, max_steps: int):
 
     def body(c):
         i, n, phase, n_half, X, V, U, b = c
-        z1, z2, u = model.draw(jax.random.fold_in(key, i), 1)
-        (Xn, Vn), dU, _, heads = model.advance((X, V), (z1[0], z2[0], u[0]), phase != 1)
+        kb = jax.random.fold_in(key, i)
+        z1, z2 = model.draw(kb, 1)
+        r = (z1[0], z2[0])
+        (Xn, Vn), dU, _, candidate = model.advance((X, V), r, phase != 1)
+        heads = candidate & model.coin((X, V), r, phase != 1, jax.random.fold_in(model.coin_key(kb), 0))
         # phase 0: seeking a regeneration on C_+; 1: +HLE (until C_-); 2: -HLE (until C_+); 3: done
         start = (phase == 0) & heads
         U = jnp.where(start, 0.0, U)

@@ -118,6 +118,7 @@ class PDMPModel(eqx.Module):
     start_regenerated = True  # lanes start at s_+, a regeneration state
     regen_after_step = True  # the event that lands on s_+ or s_- closes the cycle
     fixed_dt = None  # durations are float64 sums of event times
+    coin = None  # s_+ and s_- are hit exactly: an event that lands on them is a regeneration
 
     # ---- one event ----
     def force(self, k, y):
