@@ -189,26 +189,21 @@ def _quiet(lane: _Lane, adv) -> _Lane:
                         lane.work + active))
 
 
+def block_keys(keys, b):
+    """Block ``b``'s key of every lane, ``fold_in(lane_key, b)``; ``b`` is one block index for all
+    lanes or one per lane."""
+    return jax.vmap(jax.random.fold_in)(keys, jnp.broadcast_to(b, keys.shape[:1]))
+
+
 def draw_block(chain, keys, b, block: int):
-    """Block ``b``'s random numbers of every lane, drawn at once: ``chain.draw`` from
-    ``fold_in(lane_key, b)``, each leaf of shape (lanes, block).  ``b`` is one block index for
-    all lanes or one per lane."""
-    bs = jnp.broadcast_to(b, keys.shape[:1])
-    return jax.vmap(lambda k, bb: chain.draw(jax.random.fold_in(k, bb), block))(keys, bs)
+    """Block ``b``'s random numbers of every lane, drawn at once: ``chain.draw`` from the block
+    key (:func:`block_keys`), each leaf of shape (lanes, block)."""
+    return jax.vmap(lambda k: chain.draw(k, block))(block_keys(keys, b))
 
 
 def numbers_at(rs, i):
     """Step ``i``'s numbers of every lane from :func:`draw_block`'s output."""
     return jax.tree_util.tree_map(lambda a: a[:, i], rs)
-
-
-def coin_keys_block(chain, keys, b):
-    """Block ``b``'s coin key of every lane (``chain.coin_key`` of the block key), or None for
-    a chain without a coin."""
-    if chain.coin is None:
-        return None
-    bs = jnp.broadcast_to(b, keys.shape[:1])
-    return jax.vmap(lambda k, bb: chain.coin_key(jax.random.fold_in(k, bb)))(keys, bs)
 
 
 def _block(chain, budget, max_steps, finish, block, sparse, lane: _Lane, keys, b) -> _Lane:
@@ -233,8 +228,9 @@ def _block(chain, budget, max_steps, finish, block, sparse, lane: _Lane, keys, b
       update before the branch made the DI slower (3.2 -> 3.8 us), so it stays inside.  The
       coins: +10% lane-steps/s in a paused round (float64).
     """
-    rs = draw_block(chain, keys, b, block)
-    ck = coin_keys_block(chain, keys, b)
+    bk = block_keys(keys, b)  # hashed once per block, for the draws and the coins
+    rs = jax.vmap(lambda k: chain.draw(k, block))(bk)
+    ck = None if chain.coin is None else jax.vmap(chain.coin_key)(bk)
     adv_fn = jax.vmap(partial(_advance, chain))
     book_fn = jax.vmap(partial(_book, chain, budget, max_steps, finish))
 
