@@ -197,13 +197,15 @@ def block_keys(keys, b):
 
 def draw_block(chain, keys, b, block: int):
     """Block ``b``'s random numbers of every lane, drawn at once: ``chain.draw`` from the block
-    key (:func:`block_keys`), each leaf of shape (lanes, block)."""
-    return jax.vmap(lambda k: chain.draw(k, block))(block_keys(keys, b))
+    key (:func:`block_keys`), each leaf of shape (block, lanes): a step reads one contiguous
+    row.  Against (lanes, block), +3% (float64) and +6% (float32) DI lane-steps/s in paused rounds
+    on 2 CPU cores (7 interleaved runs each); the numbers themselves are the same."""
+    return jax.vmap(lambda k: chain.draw(k, block), out_axes=1)(block_keys(keys, b))
 
 
 def numbers_at(rs, i):
     """Step ``i``'s numbers of every lane from :func:`draw_block`'s output."""
-    return jax.tree_util.tree_map(lambda a: a[:, i], rs)
+    return jax.tree_util.tree_map(lambda a: a[i], rs)
 
 
 def _block(chain, budget, max_steps, finish, block, sparse, lane: _Lane, keys, b) -> _Lane:
@@ -229,7 +231,7 @@ def _block(chain, budget, max_steps, finish, block, sparse, lane: _Lane, keys, b
       coins: +10% lane-steps/s in a paused round (float64).
     """
     bk = block_keys(keys, b)  # hashed once per block, for the draws and the coins
-    rs = jax.vmap(lambda k: chain.draw(k, block))(bk)
+    rs = jax.vmap(lambda k: chain.draw(k, block), out_axes=1)(bk)
     ck = None if chain.coin is None else jax.vmap(chain.coin_key)(bk)
     adv_fn = jax.vmap(partial(_advance, chain))
     book_fn = jax.vmap(partial(_book, chain, budget, max_steps, finish))
