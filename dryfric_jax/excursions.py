@@ -25,9 +25,10 @@ lanes, each lane keeping its key and block count, so compaction changes no resul
 (:meth:`Lanes._compact_tail`).
 
 Steps run in blocks of ``block`` with the block's normals drawn at once (``split`` per lane,
-``fold_in`` per block).  On a CPU a step runs the bookkeeping above only when some lane has an
-event (a regeneration, a budget stop, the work bound), behind a real branch (``_block``); the
-DI's splitting coins are flipped only at steps where some lane has one to flip.  Work
+``fold_in`` per block).  The bookkeeping above runs only for steps with an event (a
+regeneration or a splitting coin to flip, a budget stop, the work bound): on a CPU behind a real
+branch taken when some lane has one, on a GPU once per block for each lane's first event, the
+lane waiting for it (``_block``).  Work
 is bounded: an excursion that reaches ``max_steps`` is closed, counted as truncated and
 reported, and the lane seeks again; no lane runs more than ``budget + max_steps`` steps.
 """
@@ -104,15 +105,14 @@ def _advance(chain, lane: _Lane, r):
     return chain.advance(lane.state, r, lane.phase != PLUS)
 
 
-def _flip_coins(chain, lane: _Lane, adv, r, coin_keys, i):
+def _flip_coins(chain, lane: _Lane, adv, r, coin_keys):
     """Regenerations of a chain with a splitting coin (the DI): a candidate is one when its coin
-    (``chain.coin``, key ``fold_in(coin_key, i)`` for step i of the block) says heads.  Run only
-    in the bookkeeping, so steps where no lane has a candidate draw no coin at all."""
+    (``chain.coin``, one key per lane) says heads.  Run only in the bookkeeping, so steps where
+    no lane has a candidate draw no coin at all."""
     if chain.coin is None:
         return adv
     state, dU, dt, candidate = adv
-    keys = jax.vmap(jax.random.fold_in, (0, None))(coin_keys, i)
-    heads = jax.vmap(chain.coin)(lane.state, r, lane.phase != PLUS, keys)
+    heads = jax.vmap(chain.coin)(lane.state, r, lane.phase != PLUS, coin_keys)
     return state, dU, dt, candidate & heads
 
 
@@ -208,27 +208,67 @@ def numbers_at(rs, i):
     return jax.tree_util.tree_map(lambda a: a[i], rs)
 
 
-def _block(chain, budget, max_steps, finish, block, sparse, lane: _Lane, keys, b) -> _Lane:
+def _quiet_steps(chain, budget, max_steps, finish, block, lane: _Lane, rs):
+    """The ``wait`` layout's loop (:func:`_block`): every lane runs through the block until its
+    first step with an event (:func:`_has_event`) and then waits.  Returns the lanes after their
+    quiet steps and ``at``, each lane's pending step (``block``: none; -1: a done lane).
+
+    Only the chain's state, U, t and ``at`` change per step; the counters (n, steps, work) are
+    added after the loop from the number of steps each lane took (XLA:CPU recomputes a step's
+    arithmetic once per array it writes)."""
+    watch = lane.phase != PLUS
+    counted = lane.phase != SEEK
+    stops = ~finish | (lane.phase == SEEK)  # the budget stops the lane at once (_budget_stop)
+
+    def body(i, c):
+        state, U, t, at = c
+        new, dU, dt, candidate = jax.vmap(chain.advance)(state, numbers_at(rs, i), watch)
+        free = at == block
+        # _has_event at step i: a free lane has taken i steps of this block
+        event = free & (candidate | ((lane.work + i >= budget) & stops) | (lane.n + i + 1 >= max_steps))
+        go = free & ~event
+        state = jax.tree_util.tree_map(lambda a, b: jnp.where(go, a, b), new, state)
+        U = U + jnp.where(go & counted, dU, 0.0)
+        t = t if dt is None else t + jnp.where(go & counted, dt, 0.0)
+        return state, U, t, jnp.where(event, i, at)
+
+    at = jnp.where(lane.done, -1, block).astype(jnp.int32)
+    state, U, t, at = jax.lax.fori_loop(0, block, body, (lane.state, lane.U, lane.t, at))
+    taken = jnp.where(at == block, block, jnp.maximum(at, 0))
+    lane = eqx.tree_at(lambda l: (l.state, l.U, l.t, l.n, l.steps, l.work), lane,
+                       (state, U, t, lane.n + taken, lane.steps + jnp.where(counted, taken, 0), lane.work + taken))
+    return lane, at
+
+
+def _block(chain, budget, max_steps, finish, block, events, lane: _Lane, keys, b) -> _Lane:
     """``block`` steps of a batch of lanes, the block's random numbers drawn at once per lane
-    (lane i's block index is ``b[i]``).
+    (lane i's block index is ``b[i]``).  Events (a regeneration or a coin to flip, a budget
+    stop, the work bound: :func:`_has_event`) are rare, a few per excursion of 1e3-1e5 steps,
+    and only they need the full bookkeeping (:func:`_book`).  Two layouts (``events``; the
+    default is the chain's ``cpu_events`` on a CPU, ``"wait"`` on a GPU):
 
-    Regenerations are rare (a few per excursion of 1e3-1e5 steps).  With ``sparse`` a step runs
-    the full bookkeeping only if some lane of the batch has an event, through a real branch
-    (``lax.cond`` outside the ``vmap``); otherwise :func:`_quiet`.  On a CPU this halves the
-    cost of a step.  On a GPU the branch would read its predicate back every step, so there
-    every step runs the full bookkeeping (``sparse`` False).  Both run the same chain with the
-    same random numbers; sums agree to rounding (XLA may fuse the arithmetic differently).
+    * ``"wait"``: a lane runs quiet steps until its first step with an event and then waits
+      (:func:`_quiet_steps`); its pending step runs after the loop with the full bookkeeping,
+      for all lanes at once, and the DI flips its coin there (one coin key per lane and
+      block).  The block's numbers after a pending step are never used, so the chain's law is
+      that of the step-by-step loop; the rest of the block idles (about ``block/2`` steps per
+      event, counted in the slot steps).  A step reads and writes only the chain's state, U, t
+      and a step index, not the lane's sums, and has no branch (a GPU would read a branch's
+      predicate back every step).  The DI's layout on a CPU too.
+    * ``"branch"``: a step runs the bookkeeping only if some lane of the batch has an event,
+      through a real branch (``lax.cond`` outside the ``vmap``), otherwise the cheap
+      :func:`_quiet` update.  For a chain without a splitting coin the quiet update is computed
+      *before* the branch, where XLA fuses it into the event's kernels, and the branch only
+      chooses (PDMP: 8.9 -> 6.6 us per step); with one, the coins are flipped only at steps
+      where some lane is a candidate (key ``fold_in(coin_key, i)``), then the bookkeeping runs
+      only if a coin said heads or another event is due.  The PDMP's layout on a CPU: with ``"wait"``
+      XLA:CPU recomputes its event (log, expm1, log1p) for each array the step writes.
 
-    How the branch is laid out was measured on XLA:CPU (2 cores, 256 lanes per device; README):
-
-    * PDMP: the quiet update is computed *before* the branch, where XLA fuses it into the
-      event's kernels, and the branch only chooses between it and the bookkeeping: 8.9 -> 6.6 us
-      per step (random numbers drawn beforehand), +14% events/s in a paused round;
-    * DI: the splitting coins (a uniform and a log per lane) are flipped only at steps where some
-      lane is a candidate (:func:`_flip_coins`, ~20% of steps at the Fig. 3 point), and the
-      bookkeeping runs only if a coin said heads or another event is due.  Computing the quiet
-      update before the branch made the DI slower (3.2 -> 3.8 us), so it stays inside.  The
-      coins: +10% lane-steps/s in a paused round (float64).
+    Measured on 2 CPU devices, Fig. 3 point, paused rounds, wait / branch: DI 0.97 (float64)
+    and 1.02 (float32) at 512 lanes, 1.32 and 1.63 at 4096 lanes (there some lane has an event
+    at most steps, so "branch" runs the full bookkeeping at most steps); PDMP 0.85 at 512 lanes,
+    1.01 at 4096.  The two layouts use the block's numbers differently: same law, different
+    sample paths.
     """
     bk = block_keys(keys, b)  # hashed once per block, for the draws and the coins
     rs = jax.vmap(lambda k: chain.draw(k, block), out_axes=1)(bk)
@@ -236,20 +276,25 @@ def _block(chain, budget, max_steps, finish, block, sparse, lane: _Lane, keys, b
     adv_fn = jax.vmap(partial(_advance, chain))
     book_fn = jax.vmap(partial(_book, chain, budget, max_steps, finish))
 
+    if events == "wait":
+        lane, at = _quiet_steps(chain, budget, max_steps, finish, block, lane, rs)
+        pending = (at >= 0) & (at < block)
+        r = jax.tree_util.tree_map(lambda a: jnp.take_along_axis(a, jnp.clip(at, 0, block - 1)[None], 0)[0], rs)
+        adv = _flip_coins(chain, lane, adv_fn(lane, r), r, ck)
+        return jax.tree_util.tree_map(lambda new, old: jnp.where(pending, new, old), book_fn(lane, adv), lane)
+
     def any_event(ln, adv):
         return jnp.any(jax.vmap(partial(_has_event, budget, max_steps, finish))(ln, adv))
 
     def body(i, ln):
         r = numbers_at(rs, i)
         adv = adv_fn(ln, r)
-        if not sparse:
-            return book_fn(ln, _flip_coins(chain, ln, adv, r, ck, i))
         if chain.coin is None:
             q = _quiet(ln, adv)
             return jax.lax.cond(any_event(ln, adv), lambda: book_fn(ln, adv), lambda: q)
 
         def flip(ln, adv):  # some lane has a candidate (or another event): flip, then book if needed
-            adv = _flip_coins(chain, ln, adv, r, ck, i)
+            adv = _flip_coins(chain, ln, adv, r, jax.vmap(jax.random.fold_in, (0, None))(ck, i))
             return jax.lax.cond(any_event(ln, adv), book_fn, _quiet, ln, adv)
 
         return jax.lax.cond(any_event(ln, adv), flip, _quiet, ln, adv)
@@ -270,14 +315,16 @@ def init_lanes(chain, n_lanes: int) -> _Lane:
 
 
 def _round_impl(chain, lane: _Lane, keys, b0, budget, max_steps, finish, min_active, fresh, *, block: int,
-                sparse: bool):
+                events: str):
     """Blocks of a round until every lane is done, or until at most ``min_active`` lanes (of this
     device) are not (the final round's compaction, :meth:`Lanes._compact_tail`).  Lane i runs blocks
     ``b0[i], b0[i] + 1, ...`` of the round; a ``fresh`` round resets the flags and round work."""
-    # every lane stops within budget + max_steps steps of its round: this bound never binds.  The
-    # lane with the fewest blocks behind it sets it (a compacted batch mixes lanes of devices
-    # that ran different block counts; the largest count would cut the others short)
-    max_blocks = (budget + max_steps) // block + 2 - jnp.min(b0)
+    # every lane stops within budget + max_steps + 1 steps of its round, and takes a whole block
+    # of them per block ("branch") or at least one ("wait"): this bound never binds.  The lane
+    # with the fewest blocks behind it sets it (a compacted batch mixes lanes of devices that ran
+    # different block counts; the largest count would cut the others short)
+    per_block = block if events == "branch" else 1
+    max_blocks = (budget + max_steps) // per_block + 2 - jnp.min(b0)
     lane = eqx.tree_at(lambda l: (l.done, l.work), lane,
                        (lane.done & ~fresh, jnp.where(fresh, 0, lane.work)))
 
@@ -287,37 +334,48 @@ def _round_impl(chain, lane: _Lane, keys, b0, budget, max_steps, finish, min_act
 
     def body(c):
         b, ln = c
-        return b + 1, _block(chain, budget, max_steps, finish, block, sparse, ln, keys, b0 + b)
+        return b + 1, _block(chain, budget, max_steps, finish, block, events, ln, keys, b0 + b)
 
     nb, lane = jax.lax.while_loop(cond, body, (jnp.asarray(0, jnp.int64), lane))
     return lane, jnp.full((1,), nb)  # blocks run, one entry per device
 
 
-_run_round = jax.jit(_round_impl, static_argnames=("block", "sparse"))
+_run_round = jax.jit(_round_impl, static_argnames=("block", "events"))
 
 
 @lru_cache(maxsize=None)
-def _sharded_round(devices: tuple, block: int, sparse: bool):
+def _sharded_round(devices: tuple, block: int, events: str):
     """The round over all ``devices``: lanes split evenly, each device runs its own while_loop
     (no cross-device sync per iteration); lane states stay on their device between rounds."""
     mesh = Mesh(np.array(devices), ("lanes",))
     rep, lanes = PartitionSpec(), PartitionSpec("lanes")
-    f = jax.shard_map(partial(_round_impl, block=block, sparse=sparse), mesh=mesh,
+    f = jax.shard_map(partial(_round_impl, block=block, events=events), mesh=mesh,
                       in_specs=(rep, lanes, lanes, lanes, rep, rep, rep, rep, rep), out_specs=(lanes, lanes),
                       check_vma=False)
     return jax.jit(f), NamedSharding(mesh, lanes)
 
 
-def _sparse_default(devices, sparse: bool | None) -> bool:
-    """Bookkeeping behind a branch on CPUs, every step on GPUs (see :func:`_block`); None: by platform."""
-    return devices[0].platform == "cpu" if sparse is None else bool(sparse)
+EVENTS = (None, "branch", "wait")
+DEFAULT_EVENTS = None  # None: by chain and platform; the tests set "wait" to run the GPU layout on a CPU
 
 
-def compiled_round(block: int = BLOCK, sparse: bool | None = None):
-    """The jitted round that :class:`Lanes` runs on the local devices (its ``_cache_size()``
-    counts compilations; the tests use it to check that new parameters do not recompile)."""
+def _events_layout(devices, chain, events: str | None) -> str:
+    """How a block handles events (:func:`_block`): on a GPU ``"wait"``; on a CPU the chain's
+    ``cpu_events`` (the DI ``"wait"``, the PDMP ``"branch"``, measured: README)."""
+    events = DEFAULT_EVENTS if events is None else events
+    if events not in EVENTS:
+        raise ValueError(f"events must be one of 'branch', 'wait' or None (got {events!r})")
+    if events is None:
+        return chain.cpu_events if devices[0].platform == "cpu" else "wait"
+    return events
+
+
+def compiled_round(chain, block: int = BLOCK, events: str | None = None):
+    """The jitted round that :class:`Lanes` runs for ``chain`` (a model or its class) on the local
+    devices (its ``_cache_size()`` counts compilations; the tests use it to check that new
+    parameters do not recompile)."""
     devices = tuple(jax.local_devices())
-    return _run_round if len(devices) == 1 else _sharded_round(devices, block, _sparse_default(devices, sparse))[0]
+    return _run_round if len(devices) == 1 else _sharded_round(devices, block, _events_layout(devices, chain, events))[0]
 
 
 @dataclass
@@ -359,19 +417,19 @@ class Lanes:
     ``fold_in(lane_key, block)`` per block.
     """
 
-    def __init__(self, chain, n_lanes: int, *, block: int = BLOCK, max_steps: int = 10**8, sparse: bool | None = None,
+    def __init__(self, chain, n_lanes: int, *, block: int = BLOCK, max_steps: int = 10**8, events: str | None = None,
                  compact: bool = True):
         self.devices = tuple(jax.local_devices())
         nd = len(self.devices)
         self.n = -(-n_lanes // nd) * nd
         self.chain, self.block, self.max_steps = chain, block, max_steps
-        self.sparse = _sparse_default(self.devices, sparse)
+        self.events = _events_layout(self.devices, chain, events)
         # the final round's tail runs on n / COMPACT lanes (see _compact_tail)
         self.compact = compact and self.n // nd >= COMPACT_MIN_PER_DEVICE
         self.slot_steps, self.last = 0, None
         lane = init_lanes(chain, self.n)
         if nd > 1:
-            self._f, self._sharding = _sharded_round(self.devices, block, self.sparse)
+            self._f, self._sharding = _sharded_round(self.devices, block, self.events)
             lane = jax.device_put(lane, self._sharding)
         self.lane = lane
 
@@ -382,7 +440,7 @@ class Lanes:
                 jnp.asarray(min_active, jnp.int64), jnp.asarray(fresh))
         b0 = jnp.asarray(b0, jnp.int64)
         if len(self.devices) == 1:
-            lane, nb = _run_round(self.chain, lane, keys, b0, *args, block=self.block, sparse=self.sparse)
+            lane, nb = _run_round(self.chain, lane, keys, b0, *args, block=self.block, events=self.events)
         else:
             put = lambda a: jax.device_put(a, self._sharding)
             lane, nb = self._f(self.chain, put(lane), put(keys), put(b0), *args)
@@ -441,10 +499,10 @@ class Lanes:
 
 
 def run_round(chain, key, lanes: int, budget: int, *, block: int = BLOCK, max_steps: int = 10**8,
-              finish_in_flight: bool = True) -> ExcursionStats:
+              finish_in_flight: bool = True, events: str | None = None) -> ExcursionStats:
     """One final round on fresh lanes: each lane refills until ``budget`` steps, then finishes its
     in-flight excursion.  ``finish_in_flight=False`` drops it instead (biased; for the tests)."""
-    ln = Lanes(chain, lanes, block=block, max_steps=max_steps)
+    ln = Lanes(chain, lanes, block=block, max_steps=max_steps, events=events)
     res = ln._round(key, budget, finish_in_flight)
     if not finish_in_flight:
         res.n_in_flight = 0  # dropped

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import dryfric_jax as dj
-from dryfric_jax.di import make_di_model
+from dryfric_jax.di import DIModel, make_di_model
 from dryfric_jax.estimators import long_excursion_estimates
 from dryfric_jax.pdmp import make_pdmp_model
 from dryfric_jax.excursions import (
@@ -17,7 +17,8 @@ from dryfric_jax.excursions import (
 
 
 @pytest.mark.slow
-def test_finish_in_flight_is_unbiased_and_dropping_is_not():
+@pytest.mark.parametrize("events", ["branch", "wait"])
+def test_finish_in_flight_is_unbiased_and_dropping_is_not(events):
     """Heavy-tailed white-noise case, exact D' = 10, ~7 excursions per lane (MODEL_NOTES section 4).
 
     Finishing the in-flight excursion: the CI contains the exact value.  Dropping it (keeping only
@@ -26,7 +27,7 @@ def test_finish_in_flight_is_unbiased_and_dropping_is_not():
     m = make_di_model(dj.Params.from_nondim(1e-5), 0.02)
     per = steps_per_excursion(m, jax.random.key(0))
     budget = int(7 * per)
-    kw = dict(block=16)
+    kw = dict(block=16, events=events)
     fin = long_excursion_estimates(run_round(m, jax.random.key(1), 32768, budget, **kw).total())
     drop = long_excursion_estimates(run_round(m, jax.random.key(1), 32768, budget, finish_in_flight=False,
                                               **kw).total())
@@ -44,41 +45,51 @@ def test_same_seed_bit_identical():
 def test_second_call_does_not_recompile():
     p1, p2 = dj.Params.from_nondim(0.3), dj.Params.from_nondim(0.5, 1.0, 0.1)
     simulate_long_excursions(make_di_model(p1, 0.02), jax.random.key(0), 64, lanes=16, block=8)
-    n = compiled_round(8)._cache_size()
+    n = compiled_round(DIModel, 8)._cache_size()
     assert n >= 1  # the counted function is the one that ran
     # new parameters, new seed, other budgets and round counts: same shapes, compiled loop reused
     simulate_long_excursions(make_di_model(p2, 0.05), jax.random.key(1), 500, lanes=16, block=8)
-    assert compiled_round(8)._cache_size() == n
+    assert compiled_round(DIModel, 8)._cache_size() == n
 
 
+@pytest.mark.parametrize("events", ["branch", "wait"])
 @pytest.mark.parametrize("method", ["di", "pdmp"])
-def test_branchy_bookkeeping_matches_every_step_bookkeeping(method):
-    """The CPU path (bookkeeping only on steps where some lane has an event) and the GPU path
-    (bookkeeping every step) run the same chains: a paused round, a final round, truncation."""
+def test_both_event_layouts_keep_the_round_accounting(method, events):
+    """Both layouts of a block (CPU "branch", GPU "wait", ``_block``): a fresh paused round stops
+    every lane after exactly budget + 1 steps (the step that reaches the budget is the last);
+    a final round then closes every in-flight excursion; truncations are counted; useful steps
+    never exceed the slots paid for, and in "wait" the idle rest of a block after an event is
+    the only difference between them."""
     p = dj.Params.from_nondim(0.5, 1.0, 0.2)
     chain = make_di_model(p, 0.02) if method == "di" else make_pdmp_model(p, 0.3)
-    out = []
-    for sparse in (True, False):
-        ln = Lanes(chain, 32, block=8, max_steps=1500 if method == "di" else 150, sparse=sparse)
-        a = ln.advance(jax.random.key(1), 3000)
-        b = ln.finish(jax.random.key(2), 2000)
-        out.append((a, b))
-    for x, y in zip(*out):
-        assert (x.n_truncated, x.useful_steps, x.slot_steps, x.n_in_flight) == \
-            (y.n_truncated, y.useful_steps, y.slot_steps, y.n_in_flight)
-        np.testing.assert_allclose(x.stats, y.stats, rtol=1e-12, atol=1e-300)
-    assert out[0][1].n_truncated > 0 and out[0][1].n_excursions > 50
+    budget = 3000
+    ln = Lanes(chain, 32, block=8, max_steps=1500 if method == "di" else 150, events=events)
+    assert ln.events == events
+    a = ln.advance(jax.random.key(1), budget)
+    assert np.all(np.asarray(ln.lane.work) == budget + 1)
+    assert a.n_unfinished == 0 and a.n_in_flight > 0
+    slots = ln.slot_steps
+    assert a.useful_steps <= slots and (slots == 32 * 376 * 8 if events == "branch" else slots >= 32 * 3001)
+    b = ln.finish(jax.random.key(2), 2000)
+    assert b.n_unfinished == 0 and b.n_truncated > 0 and b.n_excursions > 50
+    assert np.all(np.asarray(ln.lane.phase) == 0)  # SEEK: nothing left in flight
 
 
+def test_unknown_event_layout_is_refused():
+    with pytest.raises(ValueError, match="events must be one of"):
+        Lanes(make_di_model(dj.Params.from_nondim(0.5), 0.02), 8, events="every")
+
+
+@pytest.mark.parametrize("events", ["branch", "wait"])
 @pytest.mark.parametrize("method", ["di", "pdmp"])
-def test_final_round_compaction_runs_the_same_chains(method):
+def test_final_round_compaction_runs_the_same_chains(method, events):
     """Compaction moves the lanes still in flight to a smaller batch, each with its own key and
     block count: the sums must be exactly those of the uncompacted round, for fewer slots."""
     p = dj.Params.from_nondim(0.5, 1.0, 0.2)
     chain = make_di_model(p, 0.02) if method == "di" else make_pdmp_model(p, 0.3)
     out = []
     for compact in (False, True):
-        ln = Lanes(chain, 256, block=8, max_steps=1500, compact=compact)
+        ln = Lanes(chain, 256, block=8, max_steps=1500, compact=compact, events=events)
         assert ln.compact == compact
         ln.advance(jax.random.key(1), 3000)
         out.append((ln.finish(jax.random.key(2), 2000), ln.slot_steps))
@@ -89,7 +100,8 @@ def test_final_round_compaction_runs_the_same_chains(method):
     assert slots_b < slots_a
 
 
-def test_round_block_bound_counts_from_the_lane_with_fewest_blocks():
+@pytest.mark.parametrize("events", ["branch", "wait"])
+def test_round_block_bound_counts_from_the_lane_with_fewest_blocks(events):
     """A compacted batch mixes lanes whose devices ran different block counts (``b0``).  The
     round's safety bound (budget + max_steps steps) must hold for the lane with the fewest
     blocks behind it; counted from the largest ``b0`` it cut that lane short (seen with 2 devices
@@ -100,22 +112,29 @@ def test_round_block_bound_counts_from_the_lane_with_fewest_blocks():
     keys = jax.random.split(jax.random.key(3), 2)
     i64 = lambda v: jnp.asarray(v, jnp.int64)  # noqa: E731
     lane, nb = _run_round(chain, init_lanes(chain, 2), keys, i64([0, 60]), i64(budget), i64(max_steps),
-                          jnp.asarray(True), i64(0), jnp.asarray(True), block=block, sparse=True)
+                          jnp.asarray(True), i64(0), jnp.asarray(True), block=block, events=events)
     assert bool(jnp.all(lane.done)) and int(lane.work[0]) >= budget
 
 
-def test_every_lane_finishes_in_flight_and_work_is_bounded():
+@pytest.mark.parametrize("events", ["branch", "wait"])
+def test_every_lane_finishes_in_flight_and_work_is_bounded(events):
     m = make_di_model(dj.Params.from_nondim(0.1), 0.02)
     budget, max_steps = 500, 10**6
-    r = run_round(m, jax.random.key(2), 64, budget, max_steps=max_steps)
+    r = run_round(m, jax.random.key(2), 64, budget, max_steps=max_steps, events=events)
     assert r.n_unfinished == 0 and r.n_truncated == 0
     assert r.n_excursions > 0 and 0 < r.useful_steps <= r.slot_steps
-    # a lane stops within budget + max_steps steps (+ the last block): with max_steps about twice
-    # the mean excursion (~1060 steps here) the bound is tight, and some excursions are truncated
+    # a lane stops within budget + max_steps + 1 steps: with max_steps about twice the mean
+    # excursion (~1060 steps here) the bound is tight, and some excursions are truncated
     budget, max_steps, block = 500, 2000, 64
-    r = run_round(m, jax.random.key(2), 64, budget, max_steps=max_steps, block=block)
+    ln = Lanes(m, 64, block=block, max_steps=max_steps, events=events)
+    r = ln.finish(jax.random.key(2), budget)
     assert r.n_unfinished == 0 and r.n_truncated > 0 and r.n_excursions > 0
-    assert r.slot_steps <= 64 * (budget + max_steps + block)
+    work = np.asarray(ln.lane.work)
+    assert work.max() <= budget + max_steps + 1 and work.max() > budget + max_steps // 2
+    if events == "branch":  # whole blocks: the slots are bounded by the same steps plus one block
+        assert r.slot_steps <= 64 * (budget + max_steps + block)
+    else:  # "wait" idles the rest of a block after each event, and takes at least one step per block
+        assert r.slot_steps <= 64 * (budget + max_steps + 1) * block
 
 
 def test_truncation_is_counted_and_reported():

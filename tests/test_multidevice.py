@@ -14,10 +14,11 @@ SCRIPT = textwrap.dedent("""
     import json, warnings, jax
     import dryfric_jax as dj
     from dryfric_jax.excursions import compiled_round
+    from dryfric_jax.di import DIModel
     warnings.simplefilter("ignore")
     p = dj.Params.from_nondim(0.3, 0.5, 0.1)
     r1 = dj.estimate_diffusivity(p, 5, h=0.02 * p.tau0, n_excursions=20000)
-    f = compiled_round()  # the round the estimate ran (default block)
+    f = compiled_round(DIModel)  # the round the estimate ran (default block)
     n = f._cache_size()
     r2 = dj.estimate_diffusivity(p, 6, h=0.03 * p.tau0, n_excursions=5000)
     print(json.dumps(dict(devices=jax.device_count(), D=r1.D, M0=r1.M0, n=r1.n_excursions,

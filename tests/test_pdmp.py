@@ -12,6 +12,7 @@ from scipy.integrate import solve_ivp
 import dryfric_jax as dj
 from dryfric_jax.excursions import compiled_round, simulate_long_excursions
 from dryfric_jax.pdmp import (
+    PDMPModel,
     displacement, excursion_skeleton, flow, grid_offsets, hitting_time, make_pdmp_model,
 )
 
@@ -83,7 +84,7 @@ def test_skeleton_runs_from_s_plus_through_s_minus_back():
 def test_pdmp_same_seed_bit_identical_and_no_recompile():
     p1, p2 = dj.Params.from_nondim(1.0, 0.5, 0.1), dj.Params.from_nondim(2.0, 0.3, -0.2)
     a, _ = simulate_long_excursions(make_pdmp_model(p1, 0.1), jax.random.key(5), 300, lanes=16, block=8)
-    f = compiled_round(8)
+    f = compiled_round(PDMPModel, 8)
     n = f._cache_size()
     assert n >= 1  # the counted function is the one that ran
     b, _ = simulate_long_excursions(make_pdmp_model(p1, 0.1), jax.random.key(5), 300, lanes=16, block=8)
