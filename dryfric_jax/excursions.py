@@ -26,9 +26,9 @@ lanes, each lane keeping its key and block count, so compaction changes no resul
 
 Steps run in blocks of ``block`` with the block's normals drawn at once (``split`` per lane,
 ``fold_in`` per block).  The bookkeeping above runs only for steps with an event (a
-regeneration or a splitting coin to flip, a budget stop, the work bound): on a CPU behind a real
-branch taken when some lane has one, on a GPU once per block for each lane's first event, the
-lane waiting for it (``_block``).  Work
+regeneration or a splitting coin to flip, a budget stop, the work bound): once per block for
+each lane's first event, the lane waiting for it (the DI, and every chain on a GPU), or behind
+a real branch taken when some lane has one (the PDMP on a CPU); see ``_block``.  Work
 is bounded: an excursion that reaches ``max_steps`` is closed, counted as truncated and
 reported, and the lane seeks again; no lane runs more than ``budget + max_steps`` steps.
 """
@@ -277,8 +277,8 @@ def _block(chain, budget, max_steps, finish, block, events, lane: _Lane, keys, b
       *before* the branch, where XLA fuses it into the event's kernels, and the branch only
       chooses (PDMP: 8.9 -> 6.6 us per step); with one, the coins are flipped only at steps
       where some lane is a candidate (key ``fold_in(coin_key, i)``), then the bookkeeping runs
-      only if a coin said heads or another event is due.  The PDMP's layout on a CPU: with ``"wait"``
-      XLA:CPU recomputes its event (log, expm1, log1p) for each array the step writes.
+      only if a coin said heads or another event is due.  The PDMP's layout on a CPU: with
+      ``"wait"`` XLA:CPU recomputes its event (log, expm1, log1p) for each array a step writes.
 
     Measured on 2 CPU devices, Fig. 3 point, paused rounds, wait / branch: DI 0.97 (float64)
     and 1.02 (float32) at 512 lanes, 1.32 and 1.63 at 4096 lanes (there some lane has an event
@@ -391,7 +391,9 @@ def compiled_round(chain, block: int = BLOCK, events: str | None = None):
     devices (its ``_cache_size()`` counts compilations; the tests use it to check that new
     parameters do not recompile)."""
     devices = tuple(jax.local_devices())
-    return _run_round if len(devices) == 1 else _sharded_round(devices, block, _events_layout(devices, chain, events))[0]
+    if len(devices) == 1:
+        return _run_round
+    return _sharded_round(devices, block, _events_layout(devices, chain, events))[0]
 
 
 @dataclass
