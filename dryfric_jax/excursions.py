@@ -52,7 +52,7 @@ STAT_NAMES = ("n", "U", "U2", "U3", "U4", "t", "t2", "t3", "t4", "Ut", "U2t", "U
               "t_half")
 
 SEEK, PLUS, MINUS = 0, 1, 2
-BLOCK = 64  # steps per while-iteration (32..256 measured on 2 CPU cores, README)
+BLOCK = 128  # steps per while-iteration (32..256 measured on 2 CPU cores, README)
 # final round: the tail runs on lanes / COMPACT lanes once at most that many are still in flight
 # (devices with at least COMPACT_MIN_PER_DEVICE lanes)
 COMPACT = 8

@@ -1,6 +1,7 @@
 """Long-excursion D and M0 of the DI against exact white-noise values (tau' = 1e-5 <= 1e-4).
 
-Tolerance: the 95% CI of the estimate, fixed seed; the CI must also be tight (<= 5% of D).
+Tolerance: the CI of the estimate at a family-wise level (``Z`` below), fixed seed; the CI must
+also be tight (<= 5% of D).
 Exact values: MODEL_NOTES section 2 closed forms (a, b) and the quadrature formula (c), whose
 agreement with the closed forms is tested in test_theory.py.
 """
@@ -13,11 +14,21 @@ import dryfric_jax as dj
 TAU_WHITE = 1e-5  # tau' = tau/tau0
 
 
+# The file makes 8 comparisons (D and M0 in 4 tests).  At the 95% level each, about 1 random
+# stream in 3 fails one with no bias: the float32 test did at seed 14 when the block size went
+# from 64 to 128 (D off by 2.03 SE).  z = 2.81 (0.5% each, as test_pdmp._agree) keeps the
+# family-wise false alarm near 4%.  That the CI itself is right was measured: 256 replicates of
+# ~2000 excursions at the paper values, sd(D) / (CI / 1.96) = 1.01, 0.94, 0.95 for K = 64, 128,
+# 32; seeds 10-19 and 20-29 at N = 3e4, K = 128: mean z of D +0.11, +0.03 (float32), +0.53,
+# -0.30 (float64); at N = 3e5 D is within 0.1-0.5% of the exact value (z <= 1.45).
+Z = 2.81
+
+
 def _check(r, D_exact, M_exact):
     assert r.n_truncated == 0
     assert r.D_ci <= 0.05 * r.D, f"CI too wide: {r.D_ci / r.D:.3f}"
-    assert abs(r.D - D_exact) <= r.D_ci, f"D = {r.D} ± {r.D_ci}, exact {D_exact}"
-    assert abs(r.M0 - M_exact) <= r.M0_ci, f"M0 = {r.M0} ± {r.M0_ci}, exact {M_exact}"
+    assert abs(r.D - D_exact) <= Z / 1.96 * r.D_ci, f"D = {r.D} ± {r.D_ci}, exact {D_exact}"
+    assert abs(r.M0 - M_exact) <= Z / 1.96 * r.M0_ci, f"M0 = {r.M0} ± {r.M0_ci}, exact {M_exact}"
 
 
 @pytest.mark.slow
