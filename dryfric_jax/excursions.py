@@ -200,7 +200,12 @@ def draw_block(chain, keys, b, block: int):
     key (:func:`block_keys`), each leaf of shape (block, lanes): a step reads one contiguous
     row.  Against (lanes, block), +3% (float64) and +6% (float32) DI lane-steps/s in paused rounds
     on 2 CPU cores (7 interleaved runs each); the numbers themselves are the same."""
-    return jax.vmap(lambda k: chain.draw(k, block), out_axes=1)(block_keys(keys, b))
+    return _draw(chain, block_keys(keys, b), block)
+
+
+def _draw(chain, bk, block: int):
+    """:func:`draw_block` from the lanes' block keys ``bk`` (already hashed)."""
+    return jax.vmap(lambda k: chain.draw(k, block), out_axes=1)(bk)
 
 
 def numbers_at(rs, i):
@@ -287,7 +292,7 @@ def _block(chain, budget, max_steps, finish, block, events, lane: _Lane, keys, b
     sample paths.
     """
     bk = block_keys(keys, b)  # hashed once per block, for the draws and the coins
-    rs = jax.vmap(lambda k: chain.draw(k, block), out_axes=1)(bk)
+    rs = _draw(chain, bk, block)
     ck = None if chain.coin is None else jax.vmap(chain.coin_key)(bk)
     adv_fn = jax.vmap(partial(_advance, chain))
     book_fn = jax.vmap(partial(_book, chain, budget, max_steps, finish))
