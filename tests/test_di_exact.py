@@ -4,6 +4,9 @@ Tolerance: the CI of the estimate at a family-wise level (``Z`` below), fixed se
 also be tight (<= 5% of D).
 Exact values: MODEL_NOTES section 2 closed forms (a, b) and the quadrature formula (c), whose
 agreement with the closed forms is tested in test_theory.py.
+The DI runs the engine's "wait" block layout on every platform (``DIModel.cpu_events``), so
+these tests also cover its layout on a GPU; the "branch" layout is tested against an exact
+value in test_engine.py (heavy-tailed unbiasedness) and, for the PDMP, in test_pdmp.py.
 """
 import math
 
@@ -57,6 +60,8 @@ def test_viscous_and_bias_at_paper_values():
     p = dj.Params(G, Dl, TAU_WHITE * G / Dl**2, 0.067, 0.342)
     r = dj.estimate_diffusivity(p, 13, n_excursions=30_000)
     _check(r, dj.theory.exact_D(p), dj.theory.exact_M0(p))
+    # the idle rest of a block after each event (wait layout) is paid for, and reported
+    assert 0.5 < r.lane_utilization < 1.0
 
 
 @pytest.mark.slow
