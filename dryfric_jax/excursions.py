@@ -93,10 +93,10 @@ def _close(lane: _Lane, U, t, complete) -> _Lane:
 
 
 def _budget_stop(lane: _Lane, budget, finish, phase):
-    """The budget is spent and the lane stops after this step: at once in a paused round (or the
-    drop-in-flight demo), once nothing is in flight (``phase`` after the step is SEEK) in a
-    final round."""
-    return (lane.work >= budget) & (~finish | (phase == SEEK))
+    """In a final round, the budget is spent and nothing is in flight (``phase`` after the step
+    is SEEK): the lane stops after this step.  A paused round (or the drop-in-flight demo) stops
+    on a block count instead (:func:`_round_impl`), so it has no stop event."""
+    return finish & (lane.work >= budget) & (phase == SEEK)
 
 
 def _advance(chain, lane: _Lane, r):
@@ -337,15 +337,19 @@ def init_lanes(chain, n_lanes: int) -> _Lane:
 
 def _round_impl(chain, lane: _Lane, keys, b0, budget, max_steps, finish, min_active, fresh, *, block: int,
                 events: str):
-    """Blocks of a round until every lane is done, or until at most ``min_active`` lanes (of this
+    """Blocks of a round.  A paused round (``finish`` False) runs ``ceil(budget / block)`` blocks.
+    A final round runs until every lane is done, or until at most ``min_active`` lanes (of this
     device) are not (the final round's compaction, :meth:`Lanes._compact_tail`).  Lane i runs blocks
     ``b0[i], b0[i] + 1, ...`` of the round; a ``fresh`` round resets the flags and round work."""
-    # every lane stops within budget + max_steps + 1 steps of its round, and takes a whole block
-    # of them per block ("branch") or at least one ("wait"): this bound never binds.  The lane
+    # final round: every lane stops within budget + max_steps + 1 steps of its round, and takes a
+    # whole block of them per block ("branch") or at least one ("wait"): this bound never binds.  The lane
     # with the fewest blocks behind it sets it (a compacted batch mixes lanes of devices that ran
     # different block counts; the largest count would cut the others short)
     per_block = block if events == "branch" else 1
-    max_blocks = (budget + max_steps) // per_block + 2 - jnp.min(b0)
+    # a paused round runs every lane for the same ceil(budget / block) blocks: a lane that waited
+    # at events ("wait") has taken fewer steps, but no lane idles at the end of the round
+    # waiting for the lane that waited most (7% of the slots at the Fig. 3 point, K = 128)
+    max_blocks = jnp.where(finish, (budget + max_steps) // per_block + 2 - jnp.min(b0), -(-budget // block))
     lane = eqx.tree_at(lambda l: (l.done, l.work), lane,
                        (lane.done & ~fresh, jnp.where(fresh, 0, lane.work)))
 
@@ -358,7 +362,8 @@ def _round_impl(chain, lane: _Lane, keys, b0, budget, max_steps, finish, min_act
         return b + 1, _block(chain, budget, max_steps, finish, block, events, ln, keys, b0 + b)
 
     nb, lane = jax.lax.while_loop(cond, body, (jnp.asarray(0, jnp.int64), lane))
-    return lane, jnp.full((1,), nb)  # blocks run, one entry per device
+    # a paused round is done (for this round) when its blocks are; blocks run, one entry per device
+    return eqx.tree_at(lambda l: l.done, lane, lane.done | ~finish), jnp.full((1,), nb)
 
 
 _run_round = jax.jit(_round_impl, static_argnames=("block", "events"))
@@ -428,9 +433,10 @@ class ExcursionStats:
 class Lanes:
     """Persistent lanes of one chain: rounds continue the lanes' chains where they paused.
 
-    ``advance(key, budget)`` runs a *paused* round: every lane stops as soon as it has done
-    ``budget`` steps in this round, its in-flight excursion kept for the next round, so no lane
-    idles.  ``finish(key, budget)`` runs the *final* round: after ``budget`` steps a lane starts
+    ``advance(key, budget)`` runs a *paused* round: every lane runs ``ceil(budget / block)``
+    blocks (``budget`` steps, less the idle rest of a block after an event in the ``"wait"``
+    layout) and pauses, its in-flight excursion kept for the next round, so no lane waits for
+    another.  ``finish(key, budget)`` runs the *final* round: after ``budget`` steps a lane starts
     no new excursion, finishes the one in flight and raises its termination flag.  Only the
     final round has idle lanes (waiting for the slowest in-flight excursion).
 

@@ -55,21 +55,21 @@ def test_second_call_does_not_recompile():
 @pytest.mark.parametrize("events", ["branch", "wait"])
 @pytest.mark.parametrize("method", ["di", "pdmp"])
 def test_both_event_layouts_keep_the_round_accounting(method, events):
-    """Both layouts of a block (CPU "branch", GPU "wait", ``_block``): a fresh paused round stops
-    every lane after exactly budget + 1 steps (the step that reaches the budget is the last);
-    a final round then closes every in-flight excursion; truncations are counted; useful steps
-    never exceed the slots paid for, and in "wait" the idle rest of a block after an event is
-    the only difference between them."""
+    """Both layouts of a block (CPU "branch", GPU "wait", ``_block``): a fresh paused round runs
+    every lane for ceil(budget / block) blocks: exactly budget steps in "branch", fewer in
+    "wait" (the idle rest of a block after an event); a final round then closes every in-flight
+    excursion; truncations are counted; useful steps never exceed the steps taken."""
     p = dj.Params.from_nondim(0.5, 1.0, 0.2)
     chain = make_di_model(p, 0.02) if method == "di" else make_pdmp_model(p, 0.3)
     budget = 3000
     ln = Lanes(chain, 32, block=8, max_steps=1500 if method == "di" else 150, events=events)
     assert ln.events == events
     a = ln.advance(jax.random.key(1), budget)
-    assert np.all(np.asarray(ln.lane.work) == budget + 1)
+    work = np.asarray(ln.lane.work)
+    assert np.all(work == budget) if events == "branch" else (np.all(work <= budget) and work.min() < budget)
     assert a.n_unfinished == 0 and a.n_in_flight > 0
     slots = ln.slot_steps
-    assert a.useful_steps <= slots and (slots == 32 * 376 * 8 if events == "branch" else slots >= 32 * 3001)
+    assert a.useful_steps <= work.sum() and slots == 32 * 375 * 8
     b = ln.finish(jax.random.key(2), 2000)
     assert b.n_unfinished == 0 and b.n_truncated > 0 and b.n_excursions > 50
     assert np.all(np.asarray(ln.lane.phase) == 0)  # SEEK: nothing left in flight
