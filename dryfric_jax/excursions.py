@@ -205,7 +205,7 @@ def draw_block(chain, keys, b, block: int):
 
 def _draw(chain, bk, block: int):
     """:func:`draw_block` from the lanes' block keys ``bk`` (already hashed)."""
-    return jax.vmap(lambda k: chain.draw(k, block), out_axes=1)(bk)
+    return chain.draw_lanes(bk, block)
 
 
 def numbers_at(rs, i):

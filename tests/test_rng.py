@@ -1,0 +1,51 @@
+"""The engine's random numbers (dryfric_jax.rng) are exactly jax.random's: bit for bit, for every
+lane, both dtypes, on the CPU path (unrolled threefry) and through the lane engine's draws."""
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import dryfric_jax as dj
+from dryfric_jax import rng
+from dryfric_jax.di import make_di_model
+from dryfric_jax.excursions import draw_block
+from dryfric_jax.pdmp import make_pdmp_model
+
+
+@pytest.mark.parametrize("dtype", [jnp.float32, jnp.float64])
+@pytest.mark.parametrize("block,n", [(128, 2), (7, 3), (1, 1)])
+def test_normals_and_uniforms_are_jax_random_bit_for_bit(key, dtype, block, n):
+    keys = jax.random.split(key, 37)
+    ref_n = jax.vmap(lambda k: jax.random.normal(k, (block, n), dtype))(keys)  # (lanes, block, n)
+    ref_u = jax.vmap(lambda k: jax.random.uniform(k, (block, n), dtype, 0.25, 3.0))(keys)
+    got_n = jax.jit(lambda ks: rng.normals(ks, block, n, dtype))(keys)
+    got_u = jax.jit(lambda ks: rng.uniforms(ks, block, n, dtype, 0.25, 3.0))(keys)
+    for c in range(n):
+        assert got_n[c].shape == (block, 37) and got_n[c].dtype == dtype
+        np.testing.assert_array_equal(np.asarray(got_n[c]), np.asarray(ref_n[:, :, c]).T)
+        np.testing.assert_array_equal(np.asarray(got_u[c]), np.asarray(ref_u[:, :, c]).T)
+    # the CPU path is the hand-compiled one: the hash itself against JAX's primitive
+    kd = jax.random.key_data(keys)
+    i = jnp.arange(5, dtype=jnp.uint32)
+    ours = rng.threefry2x32(kd[:, 0, None], kd[:, 1, None], i[None] * 0, i[None])
+    theirs = jax.vmap(lambda k: jax.random.bits(k, (5,), jnp.uint64))(keys)
+    joined = (np.asarray(ours[0], np.uint64) << np.uint64(32)) | np.asarray(ours[1], np.uint64)
+    np.testing.assert_array_equal(joined, np.asarray(theirs))
+
+
+@pytest.mark.parametrize("dtype", [jnp.float32, jnp.float64])
+def test_chains_draw_every_lane_as_one_lane_at_a_time(key, dtype):
+    """``draw_lanes`` (what the engine uses) gives each lane exactly its ``draw``: the engine's
+    streams are those of the per-lane definition."""
+    p = dj.Params.from_nondim(0.5, 1.0, 0.2)
+    keys = jax.random.split(key, 16)
+    for chain in (make_di_model(p, 0.02, dtype), make_pdmp_model(p, 0.3, dtype)):
+        got = jax.jit(lambda ks: draw_block(chain, ks, 3, 64))(keys)
+        ref = jax.vmap(lambda k: chain.draw(jax.random.fold_in(k, 3), 64), out_axes=1)(keys)
+        for g, r in zip(got, ref):
+            np.testing.assert_array_equal(np.asarray(g), np.asarray(r))
+
+
+def test_other_dtypes_are_refused(key):
+    with pytest.raises(ValueError, match="dtype must be float32 or float64"):
+        rng.normals(jax.random.split(key, 2), 4, 2, jnp.float16)
