@@ -14,31 +14,31 @@ import jax.numpy as jnp
 import numpy as np
 
 from .di import DIModel
-from .excursions import BLOCK
+from . import rng
+from .excursions import BLOCK, block_keys
 
 
 @partial(jax.jit, static_argnames=("block",))
 def _run_paths(model: DIModel, keys, n_burn_blocks, n_blocks, *, block: int):
+    """U of every lane after the burn-in and ``n_blocks`` blocks; lane l's block b draws
+    ``jax.random.normal(fold_in(keys[l], b), (block, 2))`` (through :mod:`dryfric_jax.rng`, the same
+    numbers, all lanes at once)."""
     dt = model.h.dtype
+    n = keys.shape[0]
 
-    def lane(key):
-        def blk(b, c):
-            X, V, U = c
-            k1 = jax.random.fold_in(key, b)
-            zs = jax.random.normal(k1, (block, 2), dt)
-            count = b >= n_burn_blocks
+    def blk(b, c):
+        z1, z2 = rng.normals(block_keys(keys, b), block, 2, dt)
+        count = b >= n_burn_blocks
 
-            def step(i, c2):
-                X, V, U = c2
-                _, Xn, Vn, dU = model.move(X, V, zs[i, 0], zs[i, 1])
-                return Xn, Vn, U + jnp.where(count, dU, 0.0)
+        def step(i, c2):
+            X, V, U = c2
+            _, Xn, Vn, dU = model.move(X, V, z1[i], z2[i])
+            return Xn, Vn, U + jnp.where(count, dU, 0.0)
 
-            return jax.lax.fori_loop(0, block, step, (X, V, U))
+        return jax.lax.fori_loop(0, block, step, c)
 
-        init = (model.x_plus, jnp.zeros((), dt), jnp.zeros((), jnp.float64))
-        return jax.lax.fori_loop(0, n_burn_blocks + n_blocks, blk, init)[2]
-
-    return jax.vmap(lane)(keys)
+    init = (jnp.full((n,), model.x_plus, dt), jnp.zeros((n,), dt), jnp.zeros((n,), jnp.float64))
+    return jax.lax.fori_loop(0, n_burn_blocks + n_blocks, blk, init)[2]
 
 
 def simulate_bruteforce(model: DIModel, key, n_paths: int, n_steps: int, *, burn_in_steps: int = 0,
