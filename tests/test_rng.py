@@ -49,3 +49,16 @@ def test_chains_draw_every_lane_as_one_lane_at_a_time(key, dtype):
 def test_other_dtypes_are_refused(key):
     with pytest.raises(ValueError, match="dtype must be float32 or float64"):
         rng.normals(jax.random.split(key, 2), 4, 2, jnp.float16)
+
+
+@pytest.mark.parametrize("dtype", [jnp.float32, jnp.float64])
+def test_the_jax_random_path_has_the_same_layout(dtype):
+    """The path a GPU takes (``jax.random`` itself) is also the one for keys of another generator:
+    run it here with rbg keys and check its (block, lanes) layout against the per-lane draws."""
+    keys = jax.random.split(jax.random.key(5, impl="rbg"), 9)
+    ref = jax.vmap(lambda k: jax.random.normal(k, (6, 2), dtype))(keys)
+    ref_u = jax.vmap(lambda k: jax.random.uniform(k, (6, 2), dtype, 0.5, 2.0))(keys)
+    got, got_u = rng.normals(keys, 6, 2, dtype), rng.uniforms(keys, 6, 2, dtype, 0.5, 2.0)
+    for c in range(2):
+        np.testing.assert_array_equal(np.asarray(got[c]), np.asarray(ref[:, :, c]).T)
+        np.testing.assert_array_equal(np.asarray(got_u[c]), np.asarray(ref_u[:, :, c]).T)
