@@ -71,8 +71,7 @@ def rng_bound(dtype, lanes: int = 512, block: int = BLOCK, n: int = 1 << 23, rep
     def body(keys, b, acc):
         bk = block_keys(keys, b)
         if via == "jax":
-            zs = jax.vmap(lambda k: jax.random.normal(k, (block, 2), dtype), out_axes=1)(bk)
-            z1, z2 = zs[..., 0], zs[..., 1]
+            z1, z2 = rng.per_lane(lambda k: jax.random.normal(k, (block, 2), dtype), bk, 2)
         else:
             z1, z2 = rng.normals(bk, block, 2, dtype)
         # read row by row as the steps do (3-7% faster than summing the block at once)
@@ -155,11 +154,11 @@ def run_bench(n_excursions: int = 10_000, numba_excursions: int = 2000, seed: in
             out[f"ratio_pdmp_{dt}_to_numba_2t"] = out[f"pdmp_{dt}_events_per_s"] / out["numba_pdmp_2t_events_per_s"]
             out[f"ratio_di_{dt}_to_numba_2t"] = out[f"di_{dt}_lane_steps_per_s"] / out["numba_2t_steps_per_s"]
     for dt in ("float64", "float32"):
-        rng, floor = out[f"rng_bound_{dt}_lane_steps_per_s"], out[f"di_chain_floor_{dt}_lane_steps_per_s"]
-        out[f"ratio_di_{dt}_to_rng_bound"] = out[f"di_{dt}_lane_steps_per_s"] / rng
-        out[f"ratio_rng_bound_{dt}_to_jax_random_normal"] = rng / out[f"jax_random_normal_{dt}_lane_steps_per_s"]
+        bound, floor = out[f"rng_bound_{dt}_lane_steps_per_s"], out[f"di_chain_floor_{dt}_lane_steps_per_s"]
+        out[f"ratio_di_{dt}_to_rng_bound"] = out[f"di_{dt}_lane_steps_per_s"] / bound
+        out[f"ratio_rng_bound_{dt}_to_jax_random_normal"] = bound / out[f"jax_random_normal_{dt}_lane_steps_per_s"]
         out[f"ratio_di_{dt}_to_chain_floor"] = out[f"di_{dt}_lane_steps_per_s"] / floor
-        out[f"ratio_di_chain_floor_{dt}_to_rng_bound"] = floor / rng
+        out[f"ratio_di_chain_floor_{dt}_to_rng_bound"] = floor / bound
         out[f"ratio_pdmp_{dt}_to_event_floor"] = (out[f"pdmp_{dt}_events_per_s"]
                                                  / out[f"pdmp_event_floor_{dt}_events_per_s"])
     return out

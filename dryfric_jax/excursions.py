@@ -200,12 +200,7 @@ def draw_block(chain, keys, b, block: int):
     key (:func:`block_keys`), each leaf of shape (block, lanes): a step reads one contiguous
     row.  Against (lanes, block), +3% (float64) and +6% (float32) DI lane-steps/s in paused rounds
     on 2 CPU cores (7 interleaved runs each); the numbers themselves are the same."""
-    return _draw(chain, block_keys(keys, b), block)
-
-
-def _draw(chain, bk, block: int):
-    """:func:`draw_block` from the lanes' block keys ``bk`` (already hashed)."""
-    return chain.draw_lanes(bk, block)
+    return chain.draw_lanes(block_keys(keys, b), block)
 
 
 def numbers_at(rs, i):
@@ -292,7 +287,7 @@ def _block(chain, budget, max_steps, finish, block, events, lane: _Lane, keys, b
     sample paths.
     """
     bk = block_keys(keys, b)  # hashed once per block, for the draws and the coins
-    rs = _draw(chain, bk, block)
+    rs = chain.draw_lanes(bk, block)
     ck = None if chain.coin is None else jax.vmap(chain.coin_key)(bk)
     adv_fn = jax.vmap(partial(_advance, chain))
     book_fn = jax.vmap(partial(_book, chain, budget, max_steps, finish))
@@ -341,14 +336,14 @@ def _round_impl(chain, lane: _Lane, keys, b0, budget, max_steps, finish, min_act
     A final round runs until every lane is done, or until at most ``min_active`` lanes (of this
     device) are not (the final round's compaction, :meth:`Lanes._compact_tail`).  Lane i runs blocks
     ``b0[i], b0[i] + 1, ...`` of the round; a ``fresh`` round resets the flags and round work."""
-    # final round: every lane stops within budget + max_steps + 1 steps of its round, and takes a
-    # whole block of them per block ("branch") or at least one ("wait"): this bound never binds.  The lane
-    # with the fewest blocks behind it sets it (a compacted batch mixes lanes of devices that ran
-    # different block counts; the largest count would cut the others short)
-    per_block = block if events == "branch" else 1
-    # a paused round runs every lane for the same ceil(budget / block) blocks: a lane that waited
+    # a final round: every lane stops within budget + max_steps + 1 steps of its round, and takes
+    # a whole block of them per block ("branch") or at least one ("wait"): this bound never
+    # binds.  The lane with the fewest blocks behind it sets it (a compacted batch mixes lanes of
+    # devices that ran different block counts; the largest count would cut the others short).
+    # A paused round runs every lane for the same ceil(budget / block) blocks: a lane that waited
     # at events ("wait") has taken fewer steps, but no lane idles at the end of the round
     # waiting for the lane that waited most (7% of the slots at the Fig. 3 point, K = 128)
+    per_block = block if events == "branch" else 1
     max_blocks = jnp.where(finish, (budget + max_steps) // per_block + 2 - jnp.min(b0), -(-budget // block))
     lane = eqx.tree_at(lambda l: (l.done, l.work), lane,
                        (lane.done & ~fresh, jnp.where(fresh, 0, lane.work)))

@@ -24,7 +24,6 @@ already unrolled) :func:`normals` and :func:`uniforms` call ``jax.random`` itsel
 """
 from __future__ import annotations
 
-
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -83,10 +82,23 @@ def _normal(bits, dtype):
     return np.array(np.sqrt(2), dtype) * lax.erf_inv(_unit(bits, dtype, lo, 1.0))
 
 
-def _check(keys, dtype):
+def per_lane(sample, keys, n: int):
+    """``jax.random`` itself: ``sample(key)`` (an array of shape (block, n)) for every lane, as n
+    arrays of shape (block, lanes).  The path off a CPU, and the reference."""
+    zs = jax.vmap(sample, out_axes=2)(keys)
+    return tuple(zs[:, c] for c in range(n))
+
+
+def _draw(keys, block: int, n: int, dtype, sample, transform):
+    """``per_lane(sample, keys, n)``; on a CPU, for threefry keys, the same numbers as
+    ``transform`` of the fused hash's bits (module docstring)."""
     if np.dtype(dtype) not in (np.dtype(np.float32), np.dtype(np.float64)):
         raise ValueError(f"dtype must be float32 or float64 (got {np.dtype(dtype).name})")
-    return str(jax.random.key_impl(keys)) == "threefry2x32"
+    via_jax = lambda ks: per_lane(sample, ks, n)
+    if str(jax.random.key_impl(keys)) != "threefry2x32":
+        return via_jax(keys)
+    fused = lambda ks: tuple(transform(b) for b in _bits(jax.random.key_data(ks), block, n, dtype))
+    return lax.platform_dependent(keys, cpu=fused, default=via_jax)
 
 
 def normals(keys, block: int, n: int, dtype):
@@ -98,21 +110,12 @@ def normals(keys, block: int, n: int, dtype):
         block, n: numbers per lane, (block, n).
         dtype: float32 or float64.
     """
-    via_jax = lambda ks: tuple(jax.vmap(lambda k: jax.random.normal(k, (block, n), dtype), out_axes=2)(ks)[:, c]
-                               for c in range(n))
-    if not _check(keys, dtype):
-        return via_jax(keys)
-    fused = lambda ks: tuple(_normal(b, dtype) for b in _bits(jax.random.key_data(ks), block, n, dtype))
-    return lax.platform_dependent(keys, cpu=fused, default=via_jax)
+    return _draw(keys, block, n, dtype, lambda k: jax.random.normal(k, (block, n), dtype),
+                 lambda b: _normal(b, dtype))
 
 
 def uniforms(keys, block: int, n: int, dtype, minval: float = 0.0, maxval: float = 1.0):
     """Every lane's ``jax.random.uniform(key, (block, n), dtype, minval, maxval)``, laid out as
     :func:`normals`."""
-    via_jax = lambda ks: tuple(
-        jax.vmap(lambda k: jax.random.uniform(k, (block, n), dtype, minval, maxval), out_axes=2)(ks)[:, c]
-        for c in range(n))
-    if not _check(keys, dtype):
-        return via_jax(keys)
-    fused = lambda ks: tuple(_unit(b, dtype, minval, maxval) for b in _bits(jax.random.key_data(ks), block, n, dtype))
-    return lax.platform_dependent(keys, cpu=fused, default=via_jax)
+    return _draw(keys, block, n, dtype, lambda k: jax.random.uniform(k, (block, n), dtype, minval, maxval),
+                 lambda b: _unit(b, dtype, minval, maxval))
