@@ -7,8 +7,6 @@ steps that are not counted, and accumulate :math:`U(t)` over ``n_steps`` steps (
 """
 from __future__ import annotations
 
-from functools import partial
-
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -16,9 +14,9 @@ import numpy as np
 from .di import DIModel
 from . import rng
 from .excursions import BLOCK, block_keys
+from .sharding import over_lanes
 
 
-@partial(jax.jit, static_argnames=("block",))
 def _run_paths(model: DIModel, keys, n_burn_blocks, n_blocks, *, block: int):
     """U of every lane after the burn-in and ``n_blocks`` blocks; lane l's block b draws
     ``jax.random.normal(fold_in(keys[l], b), (block, 2))`` (through :mod:`dryfric_jax.rng`, the same
@@ -54,6 +52,7 @@ def simulate_bruteforce(model: DIModel, key, n_paths: int, n_steps: int, *, burn
     out = []
     for c in range(-(-n_paths // lanes)):
         keys = jax.random.split(jax.random.fold_in(key, c), lanes)
-        out.append(np.asarray(_run_paths(model, keys, n_burn, n_blocks, block=block)))
+        out.append(np.asarray(over_lanes(_run_paths, (model, keys, jnp.asarray(n_burn), jnp.asarray(n_blocks)),
+                                         (False, True, False, False), block=block)))
     U = np.concatenate(out)[:n_paths]
     return U, n_blocks * block * float(model.h)

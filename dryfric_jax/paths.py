@@ -20,20 +20,40 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from . import rng
 from .di import DIModel
+from .excursions import BLOCK, block_keys
+from .sharding import over_lanes
 from .pdmp import flow
 
 
-def _advance(model: DIModel, carry, key, n_steps: int):
-    """``n_steps`` DI steps of one path; U accumulates in float64 (trapezoid)."""
-    z = jax.random.normal(key, (n_steps, 2), model.h.dtype)
+def _segment(model: DIModel, carry, keys, n_steps: int, block: int = BLOCK):
+    """``n_steps`` DI steps of every lane (``carry = (X, V, U)``, arrays over lanes; U in float64,
+    trapezoid).  Lane l's step j uses row j of ``jax.random.normal(keys[l], (n_steps, 2))``,
+    drawn a block of rows at a time for all lanes (:func:`dryfric_jax.rng.normals` with
+    ``start``): the numbers of the per-path definition, without holding a segment's numbers
+    in memory.  Keys of another generator draw the segment at once."""
+    dt = model.h.dtype
+    if not rng.is_threefry(keys):
+        block = n_steps
+    if n_steps * 2 >= 2**32:
+        raise ValueError(f"a recorded segment must have fewer than 2**31 steps (got {n_steps})")
 
-    def step(c, zz):
-        X, V, U = c
-        _, Xn, Vn, dU = model.move(X, V, zz[0], zz[1])
-        return (Xn, Vn, U + dU), None
+    def run(c, start, size):
+        z1, z2 = rng.normals(keys, size, 2, dt, start=start)
 
-    return jax.lax.scan(step, carry, z)[0]
+        def step(i, c2):
+            X, V, U = c2
+            _, Xn, Vn, dU = model.move(X, V, z1[i], z2[i])
+            return Xn, Vn, U + dU
+
+        return jax.lax.fori_loop(0, size, step, c)
+
+    n_blocks, rest = divmod(n_steps, block)
+    if n_blocks == 1 and rest == 0:
+        return run(carry, None, block)
+    carry = jax.lax.fori_loop(0, n_blocks, lambda b, c: run(c, b * block, block), carry)
+    return run(carry, n_blocks * block, rest) if rest else carry
 
 
 def _stationary_sd(model: DIModel):
@@ -41,22 +61,21 @@ def _stationary_sd(model: DIModel):
     return jnp.sqrt((model.ou.L21**2 + model.ou.L22**2) / (1.0 - model.ou.m2**2))
 
 
-@partial(jax.jit, static_argnames=("segments",))
 def _transient(model, keys, x0, v0, *, segments):
-    def path(key, x):
-        c = (x, jnp.asarray(v0, model.h.dtype), jnp.asarray(0.0, jnp.float64))
-        out = []
-        for i, n in enumerate(segments):  # few, static: unrolled
-            c = _advance(model, c, jax.random.fold_in(key, i), n) if n else c
-            out.append(c[1])
-        return jnp.stack(out)
-
-    return jax.vmap(path)(keys, x0)
+    c = (x0, jnp.full(x0.shape, v0, model.h.dtype), jnp.zeros(x0.shape, jnp.float64))
+    out = []
+    for i, n in enumerate(segments):  # few, static: unrolled
+        c = _segment(model, c, block_keys(keys, i), n) if n else c
+        out.append(c[1])
+    return jnp.stack(out, axis=1)
 
 
 def di_transient(model: DIModel, key, n_paths: int, record_steps, v0: float = 1.0, chunk: int = 8192):
     """V after each of ``record_steps`` (increasing step counts) for ``n_paths`` paths from
-    :math:`(X_0, V_0) = (\\mathcal N(0, 1/\\tau'), v_0)`.  Returns ``(n_paths, len(record_steps))``."""
+    :math:`(X_0, V_0) = (\\mathcal N(0, 1/\\tau'), v_0)`.  Returns ``(n_paths, len(record_steps))``.
+
+    Path p of chunk c has key ``split(fold_in(key, c)[1])[p]``; its segment i (up to
+    ``record_steps[i]``) uses ``jax.random.normal(fold_in(path_key, i), (steps, 2))``."""
     steps = [int(s) for s in record_steps]
     if any(b < a for a, b in zip(steps, steps[1:])) or steps[0] < 0:
         raise ValueError(f"record_steps must be non-negative and increasing (got {record_steps})")
@@ -67,35 +86,35 @@ def di_transient(model: DIModel, key, n_paths: int, record_steps, v0: float = 1.
         m = min(chunk, n_paths - c * chunk)
         kx, kp = jax.random.split(jax.random.fold_in(key, c))
         x0 = sd * jax.random.normal(kx, (m,), model.h.dtype)
-        out.append(np.asarray(_transient(model, jax.random.split(kp, m), x0, v0, segments=segments)))
+        out.append(np.asarray(over_lanes(_transient, (model, jax.random.split(kp, m), x0, jnp.asarray(v0, model.h.dtype)),
+                                         (False, True, True, False), segments=segments)))
     return np.concatenate(out)
 
 
-@partial(jax.jit, static_argnames=("n_records", "every", "burn"))
 def _stationary(model, keys, *, n_records, every, burn):
-    def path(key):
-        dt = model.h.dtype
-        x0 = jax.random.normal(jax.random.fold_in(key, n_records + 1), (), dt) * _stationary_sd(model)
-        c = (x0, jnp.asarray(0.0, dt), jnp.asarray(0.0, jnp.float64))
-        if burn:
-            c = _advance(model, c, jax.random.fold_in(key, n_records), burn)
-        c = (c[0], c[1], jnp.asarray(0.0, jnp.float64))  # U counted from the end of the burn-in
+    dt = model.h.dtype
+    x0 = jax.vmap(lambda k: jax.random.normal(jax.random.fold_in(k, n_records + 1), (), dt))(keys)
+    c = (x0 * _stationary_sd(model), jnp.zeros(x0.shape, dt), jnp.zeros(x0.shape, jnp.float64))
+    if burn:
+        c = _segment(model, c, block_keys(keys, n_records), burn)
+    c = (c[0], c[1], jnp.zeros(x0.shape, jnp.float64))  # U counted from the end of the burn-in
 
-        def rec(cc, i):
-            cc = _advance(model, cc, jax.random.fold_in(key, i), every)
-            return cc, (cc[1], cc[2])
+    def rec(cc, i):
+        cc = _segment(model, cc, block_keys(keys, i), every)
+        return cc, (cc[1], cc[2])
 
-        _, (V, U) = jax.lax.scan(rec, c, jnp.arange(n_records))
-        return V, U
-
-    return jax.vmap(path)(keys)
+    _, (V, U) = jax.lax.scan(rec, c, jnp.arange(n_records))
+    return V.T, U.T
 
 
 def di_stationary(model: DIModel, key, n_paths: int, n_records: int, every: int = 1, burn_steps: int = 0):
     """V and U (from the end of the burn-in) every ``every`` steps: two ``(n_paths, n_records)``
-    arrays.  The noise starts stationary; ``burn_steps`` lets the velocity relax too."""
-    V, U = _stationary(model, jax.random.split(key, n_paths), n_records=int(n_records), every=int(every),
-                       burn=int(burn_steps))
+    arrays.  The noise starts stationary; ``burn_steps`` lets the velocity relax too.
+
+    Path p has key ``split(key)[p]``; its burn-in uses ``jax.random.normal(fold_in(path_key,
+    n_records), (burn_steps, 2))``, record i the numbers of ``fold_in(path_key, i)``."""
+    V, U = over_lanes(_stationary, (model, jax.random.split(key, n_paths)), (False, True),
+                      n_records=int(n_records), every=int(every), burn=int(burn_steps))
     return np.asarray(V), np.asarray(U)
 
 

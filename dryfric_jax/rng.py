@@ -49,21 +49,23 @@ def _uint(dtype):
     return np.uint64 if np.dtype(dtype).itemsize == 8 else np.uint32
 
 
-def _bits(kd, block: int, n: int, dtype):
-    """The random bits of counters ``r n + c`` (step r, column c) of every lane (key data ``kd``,
-    (lanes, 2)): one (block, lanes) array per column, materialised (module docstring)."""
+def _bits(kd, block: int, n: int, dtype, start=0, materialise: bool = True):
+    """The random bits of counters ``(start + r) n + c`` (row r, column c) of every lane (key
+    data ``kd``, (lanes, 2)): one (block, lanes) array per column, materialised (module
+    docstring) on a CPU."""
     k1, k2 = kd[:, 0][None, :], kd[:, 1][None, :]
     wide = np.dtype(dtype).itemsize == 8
+    rows = jnp.arange(block, dtype=jnp.uint32)[:, None] + jnp.asarray(start).astype(jnp.uint32)
 
     def hashes():
         out = []
         for c in range(n):
-            i = jnp.arange(block, dtype=jnp.uint32)[:, None] * np.uint32(n) + np.uint32(c)
+            i = rows * np.uint32(n) + np.uint32(c)
             a, b = threefry2x32(k1, k2, jnp.zeros_like(i), i)
             out.append((a.astype(jnp.uint64) << np.uint64(32)) | b.astype(jnp.uint64) if wide else a ^ b)
         return tuple(out)
 
-    return lax.cond(kd[0, 0] > np.uint32(0x7FFFFFFF), hashes, hashes)
+    return lax.cond(kd[0, 0] > np.uint32(0x7FFFFFFF), hashes, hashes) if materialise else hashes()
 
 
 def _unit(bits, dtype, lo, hi):
@@ -89,19 +91,31 @@ def per_lane(sample, keys, n: int):
     return tuple(zs[:, c] for c in range(n))
 
 
-def _draw(keys, block: int, n: int, dtype, sample, transform):
+def is_threefry(keys) -> bool:
+    """True for keys of JAX's default generator (threefry2x32, partitionable, JAX's default),
+    which this module compiles itself on a CPU and which row offsets (``start``) need."""
+    return str(jax.random.key_impl(keys)) == "threefry2x32" and jax.config.jax_threefry_partitionable
+
+
+def _draw(keys, block: int, n: int, dtype, sample, transform, start=None):
     """``per_lane(sample, keys, n)``; on a CPU, for threefry keys, the same numbers as
-    ``transform`` of the fused hash's bits (module docstring)."""
+    ``transform`` of the fused hash's bits (module docstring).  With ``start``, rows
+    ``[start, start + block)`` of the per-lane array (``sample`` is then not used): the fused
+    hash on every platform, materialised on a CPU only (a GPU would read the ``lax.cond``'s
+    predicate back to the host)."""
     if np.dtype(dtype) not in (np.dtype(np.float32), np.dtype(np.float64)):
         raise ValueError(f"dtype must be float32 or float64 (got {np.dtype(dtype).name})")
     via_jax = lambda ks: per_lane(sample, ks, n)
-    if str(jax.random.key_impl(keys)) != "threefry2x32":
+    if not is_threefry(keys):
+        if start is not None:
+            raise ValueError("row offsets (start) need threefry keys, JAX's default generator")
         return via_jax(keys)
-    fused = lambda ks: tuple(transform(b) for b in _bits(jax.random.key_data(ks), block, n, dtype))
-    return lax.platform_dependent(keys, cpu=fused, default=via_jax)
+    s = 0 if start is None else start
+    fused = lambda m: lambda ks: tuple(transform(b) for b in _bits(jax.random.key_data(ks), block, n, dtype, s, m))
+    return lax.platform_dependent(keys, cpu=fused(True), default=via_jax if start is None else fused(False))
 
 
-def normals(keys, block: int, n: int, dtype):
+def normals(keys, block: int, n: int, dtype, start=None):
     """Every lane's ``jax.random.normal(key, (block, n), dtype)``, as n arrays of shape
     (block, lanes) (column c of lane l is ``out[c][:, l]``): a step reads one contiguous row.
 
@@ -109,9 +123,13 @@ def normals(keys, block: int, n: int, dtype):
         keys: typed keys, one per lane (shape (lanes,)).
         block, n: numbers per lane, (block, n).
         dtype: float32 or float64.
+        start: if given (an int or a traced integer), rows ``[start, start + block)`` of every
+            lane's ``jax.random.normal(key, (rows, n), dtype)`` for any ``rows >= start + block``
+            with ``rows * n < 2**32``: a long stream drawn a block at a time, the same numbers
+            as drawn at once (threefry keys only).
     """
     return _draw(keys, block, n, dtype, lambda k: jax.random.normal(k, (block, n), dtype),
-                 lambda b: _normal(b, dtype))
+                 lambda b: _normal(b, dtype), start)
 
 
 def uniforms(keys, block: int, n: int, dtype, minval: float = 0.0, maxval: float = 1.0):

@@ -45,3 +45,87 @@ def test_pdmp_recorder_reports_its_event_bound():
     p = Params(FIG3["Gamma"], FIG3["Delta"], 1.0, FIG3["tau_L"], FIG3["gamma_bar"])
     with pytest.raises(RuntimeError, match="max_events"):
         pdmp_stationary(make_pdmp_model(p, 0.125), jax.random.key(0), 4, 100, 0.05, 10.0, max_events=50)
+
+
+# --- the DI path recorders against the per-path definition of their random numbers ---
+
+def _di_reference(model, carry, key, n_steps):
+    """One path's segment as its definition reads: ``jax.random.normal(key, (n_steps, 2))``, step by step."""
+    z = jax.random.normal(key, (n_steps, 2), model.h.dtype)
+
+    def step(c, zz):
+        X, V, U = c
+        _, Xn, Vn, dU = model.move(X, V, zz[0], zz[1])
+        return (Xn, Vn, U + dU), None
+
+    return jax.lax.scan(step, carry, z)[0] if n_steps else carry
+
+
+@pytest.mark.parametrize("dtype", [jnp.float32, jnp.float64])
+def test_di_recorders_match_the_per_path_definition(dtype):
+    """The recorders run all paths at once and draw a long segment a block of rows at a time; the
+    numbers, hence the paths, are those of each path drawn and stepped on its own (a jitted vmap
+    of one path's loop), for segments shorter than, equal to and longer than a block, with a
+    remainder; on every device count (the paths are split over the devices).  Equal to a few units in
+    the last place: the two programs may contract a multiply-add differently (a wrong number
+    would move a path by O(h^1/2) at once)."""
+    from dryfric_jax.di import make_di_model
+    from dryfric_jax.paths import _stationary_sd, di_stationary, di_transient
+
+    m = make_di_model(Params.from_nondim(0.05), 2e-3, dtype)
+    key = jax.random.key(11)
+    steps = (0, 5, 5 + 128, 5 + 128 + 300)
+    V = di_transient(m, key, 6, steps, v0=1.0, chunk=4)
+    sd = _stationary_sd(m)
+    eps = float(jnp.finfo(dtype).eps)
+    close = lambda a, b: np.testing.assert_allclose(a, np.asarray(b), rtol=16 * eps, atol=16 * eps)  # noqa: E731
+
+    @jax.jit
+    def transient(keys, x0):
+        def path(k, x):
+            c3, out = (x, jnp.asarray(1.0, dtype), jnp.asarray(0.0, jnp.float64)), []
+            for i, s in enumerate(np.diff((0,) + steps)):
+                c3 = _di_reference(m, c3, jax.random.fold_in(k, i), int(s))
+                out.append(c3[1])
+            return jnp.stack(out)
+        return jax.vmap(path)(keys, x0)
+
+    for c, lo in ((0, 0), (1, 4)):  # two chunks (the second one short)
+        kx, kp = jax.random.split(jax.random.fold_in(key, c))
+        n = min(4, 6 - lo)
+        ref = transient(jax.random.split(kp, n), sd * jax.random.normal(kx, (n,), dtype))
+        close(V[lo:lo + n], ref)
+    assert np.all(np.diff(V[:, 1:], axis=1) != 0)  # the paths move
+
+    for every, burn in ((3, 300), (128, 0), (200, 7)):
+        @jax.jit
+        def stationary(keys):
+            def path(k):
+                x0 = jax.random.normal(jax.random.fold_in(k, 5), (), dtype) * sd
+                c3 = _di_reference(m, (x0, jnp.asarray(0.0, dtype), jnp.asarray(0.0, jnp.float64)),
+                                   jax.random.fold_in(k, 4), burn)
+                c3, out = (c3[0], c3[1], jnp.asarray(0.0, jnp.float64)), []
+                for i in range(4):
+                    c3 = _di_reference(m, c3, jax.random.fold_in(k, i), every)
+                    out.append((c3[1], c3[2]))
+                return jnp.stack([o[0] for o in out]), jnp.stack([o[1] for o in out])
+            return jax.vmap(path)(keys)
+
+        Vs, Us = di_stationary(m, key, 3, 4, every, burn_steps=burn)
+        Vr, Ur = stationary(jax.random.split(key, 3))
+        close(Vs, Vr)
+        close(Us, Ur)
+
+
+def test_di_recorders_take_keys_of_another_generator():
+    """rbg keys draw a segment at once through jax.random (no row offsets); jax.random's rbg is not
+    invariant under vmap, so only repeatability and sane values are checked."""
+    from dryfric_jax.di import make_di_model
+    from dryfric_jax.paths import di_stationary, di_transient
+
+    m = make_di_model(Params.from_nondim(0.05), 2e-3)
+    key = jax.random.key(3, impl="rbg")
+    V = di_transient(m, key, 5, (10, 300))
+    np.testing.assert_array_equal(V, di_transient(m, key, 5, (10, 300)))
+    Vs, Us = di_stationary(m, key, 3, 4, 150, burn_steps=20)
+    assert np.all(np.isfinite(V)) and np.all(np.isfinite(Us)) and np.all(np.abs(V) < 10) and len(set(V[:, 1])) == 5

@@ -62,3 +62,22 @@ def test_the_jax_random_path_has_the_same_layout(dtype):
     for c in range(2):
         np.testing.assert_array_equal(np.asarray(got[c]), np.asarray(ref[:, :, c]).T)
         np.testing.assert_array_equal(np.asarray(got_u[c]), np.asarray(ref_u[:, :, c]).T)
+
+
+@pytest.mark.parametrize("dtype", [jnp.float32, jnp.float64])
+def test_rows_of_a_long_stream_are_the_stream(key, dtype):
+    """``start``: rows [start, start + block) of every lane's ``normal(key, (rows, 2))``, the same
+    numbers as the stream drawn at once, on the CPU path and on the plain hash (no ``lax.cond``)
+    that other platforms compile."""
+    keys = jax.random.split(key, 5)
+    ref = jax.vmap(lambda k: jax.random.normal(k, (300, 2), dtype))(keys)
+    draw = jax.jit(lambda ks, s: rng.normals(ks, 50, 2, dtype, start=s))
+    plain = jax.jit(lambda kd, s: rng._bits(kd, 50, 2, dtype, s, materialise=False))
+    for s in (0, 7, 128, 250):
+        got = draw(keys, s)
+        bits = plain(jax.random.key_data(keys), s)
+        for c in range(2):
+            np.testing.assert_array_equal(np.asarray(got[c]), np.asarray(ref[:, s:s + 50, c]).T)
+            np.testing.assert_array_equal(np.asarray(rng._normal(bits[c], dtype)), np.asarray(ref[:, s:s + 50, c]).T)
+    with pytest.raises(ValueError, match="threefry"):
+        rng.normals(jax.random.split(jax.random.key(1, impl="rbg"), 2), 4, 2, dtype, start=3)
