@@ -76,13 +76,13 @@ class DIModel(eqx.Module):
     def draw_lanes(self, keys, block: int):
         """:meth:`draw` of every lane at once, each leaf of shape (block, lanes): the same
         numbers, compiled faster on a CPU (:mod:`dryfric_jax.rng`)."""
-        return rng.normals(jax.vmap(lambda k: jax.random.split(k)[0])(keys), block, 2, self.h.dtype)
+        return rng.normals(rng.split_at(keys, 0), block, 2, self.h.dtype)
 
     def coin_key(self, key):
         """The key of the block's coins (block key as in :meth:`draw`).  A lane flips at most one
         coin per block in the engine's ``"wait"`` layout, with this key; in ``"branch"``, step
         i's coin uses ``fold_in(coin_key, i)`` (:func:`dryfric_jax.excursions._block`)."""
-        return jax.random.split(key)[1]
+        return rng.split_at(key, 1)  # jax.random.split(key)[1], compiled as in draw_lanes
 
     def _set(self, watch_plus):
         return jax.tree_util.tree_map(lambda p, m: jnp.where(watch_plus, p, m), self.plus, self.minus)
@@ -105,7 +105,7 @@ class DIModel(eqx.Module):
         X, _ = state
         z1, z2 = r
         dt = self.h.dtype
-        u = jax.random.uniform(key, (), dt, minval=jnp.finfo(dt).tiny)
+        u = rng.uniform(key, dt, minval=float(jnp.finfo(dt).tiny))  # jax.random.uniform(key, (), dt, tiny)
         return jnp.log(u) < self._set(watch_plus).log_coin(X, z1, z2)
 
 

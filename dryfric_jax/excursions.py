@@ -44,6 +44,8 @@ import jax.numpy as jnp
 import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
+from . import rng
+
 
 
 # per-lane sufficient statistics of the closed excursions, in float64: every product of two
@@ -192,7 +194,7 @@ def _quiet(lane: _Lane, adv) -> _Lane:
 def block_keys(keys, b):
     """Block ``b``'s key of every lane, ``fold_in(lane_key, b)``; ``b`` is one block index for all
     lanes or one per lane."""
-    return jax.vmap(jax.random.fold_in)(keys, jnp.broadcast_to(b, keys.shape[:1]))
+    return rng.fold_in(keys, b)
 
 
 def draw_block(chain, keys, b, block: int):
@@ -310,7 +312,7 @@ def _block(chain, budget, max_steps, finish, block, events, lane: _Lane, keys, b
             return jax.lax.cond(any_event(ln, adv), lambda: book_fn(ln, adv), lambda: q)
 
         def flip(ln, adv):  # some lane has a candidate (or another event): flip, then book if needed
-            adv = _flip_coins(chain, ln, adv, r, jax.vmap(jax.random.fold_in, (0, None))(ck, i))
+            adv = _flip_coins(chain, ln, adv, r, rng.fold_in(ck, i))
             return jax.lax.cond(any_event(ln, adv), book_fn, _quiet, ln, adv)
 
         return jax.lax.cond(any_event(ln, adv), flip, _quiet, ln, adv)

@@ -97,6 +97,56 @@ def is_threefry(keys) -> bool:
     return str(jax.random.key_impl(keys)) == "threefry2x32" and jax.config.jax_threefry_partitionable
 
 
+def _derive(keys, x1, via_jax):
+    """Keys ``threefry2x32(key, (0, x1))``, which is how ``jax.random`` derives ``fold_in(key, x1)``
+    and ``split(key)[x1]`` (partitionable threefry): elementwise, one fused kernel on a CPU, where
+    JAX's own lowering is a rolled loop of 5 iterations per call; ``via_jax`` elsewhere."""
+    if not is_threefry(keys):
+        return via_jax(keys)
+
+    def fused(ks):
+        kd = jax.random.key_data(ks)
+        x1_ = jnp.broadcast_to(jnp.asarray(x1).astype(jnp.uint32), kd.shape[:-1])
+        a, b = threefry2x32(kd[..., 0], kd[..., 1], jnp.zeros_like(x1_), x1_)
+        return jax.random.wrap_key_data(jnp.stack([a, b], -1), impl="threefry2x32")
+
+    return lax.platform_dependent(keys, cpu=fused, default=via_jax)
+
+
+def _each(f, keys, *args):
+    """``f(key, *arg)`` for every key (any shape; ``args`` broadcast to it), through ``vmap``."""
+    flat = [jnp.broadcast_to(a, keys.shape).reshape(-1) for a in args]
+    out = jax.vmap(f)(keys.reshape(-1), *flat)
+    return out.reshape(keys.shape + out.shape[1:])
+
+
+def fold_in(keys, data):
+    """``jax.random.fold_in(key, data)`` of every key (``data``: an integer, or one per key)."""
+    return _derive(keys, data, lambda ks: _each(jax.random.fold_in, ks, data))
+
+
+def split_at(keys, i: int):
+    """``jax.random.split(key)[i]`` of every key (i = 0 or 1)."""
+    return _derive(keys, i, lambda ks: _each(lambda k: jax.random.split(k)[i], ks))
+
+
+def uniform(keys, dtype, minval: float = 0.0, maxval: float = 1.0):
+    """``jax.random.uniform(key, (), dtype, minval, maxval)`` of every key, elementwise (so it also
+    runs under ``vmap``)."""
+    def fused(ks):
+        kd = jax.random.key_data(ks)
+        zero = jnp.zeros(kd.shape[:-1], jnp.uint32)
+        a, b = threefry2x32(kd[..., 0], kd[..., 1], zero, zero)
+        wide = np.dtype(dtype).itemsize == 8
+        return _unit((a.astype(jnp.uint64) << np.uint64(32)) | b.astype(jnp.uint64) if wide else a ^ b,
+                     dtype, minval, maxval)
+
+    via_jax = lambda ks: _each(lambda k: jax.random.uniform(k, (), dtype, minval, maxval), ks)  # noqa: E731
+    if not is_threefry(keys):
+        return via_jax(keys)
+    return lax.platform_dependent(keys, cpu=fused, default=via_jax)
+
+
 def _draw(keys, block: int, n: int, dtype, sample, transform, start=None):
     """``per_lane(sample, keys, n)``; on a CPU, for threefry keys, the same numbers as
     ``transform`` of the fused hash's bits (module docstring).  With ``start``, rows

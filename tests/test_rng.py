@@ -81,3 +81,23 @@ def test_rows_of_a_long_stream_are_the_stream(key, dtype):
             np.testing.assert_array_equal(np.asarray(rng._normal(bits[c], dtype)), np.asarray(ref[:, s:s + 50, c]).T)
     with pytest.raises(ValueError, match="threefry"):
         rng.normals(jax.random.split(jax.random.key(1, impl="rbg"), 2), 4, 2, dtype, start=3)
+
+
+@pytest.mark.parametrize("impl", ["threefry2x32", "rbg"])
+def test_key_derivations_are_jax_random_bit_for_bit(impl):
+    """The engine derives its block keys (fold_in), draw and coin keys (split) and coin uniforms
+    through rng, elementwise (also under vmap): the same keys and numbers as jax.random."""
+    keys = jax.random.split(jax.random.key(7, impl=impl), 6)
+    same = lambda a, b: np.testing.assert_array_equal(jax.random.key_data(a), jax.random.key_data(b))  # noqa: E731
+    d = jnp.array([0, 1, 5, 2**31 + 3, 2**32 + 4, 77], jnp.int64)
+    same(jax.jit(rng.fold_in)(keys, d), jax.vmap(jax.random.fold_in)(keys, d))
+    same(jax.jit(rng.fold_in)(keys, 9), jax.vmap(jax.random.fold_in, (0, None))(keys, 9))
+    for i in (0, 1):
+        ref = jax.vmap(lambda k: jax.random.split(k)[i])(keys)
+        same(jax.jit(lambda k: rng.split_at(k, i))(keys), ref)
+        same(jax.jit(jax.vmap(lambda k: rng.split_at(k, i)))(keys), ref)
+    for dtype in (jnp.float32, jnp.float64):
+        tiny = float(jnp.finfo(dtype).tiny)
+        ref = jax.vmap(lambda k: jax.random.uniform(k, (), dtype, minval=tiny))(keys)
+        np.testing.assert_array_equal(jax.jit(lambda k: rng.uniform(k, dtype, tiny))(keys), ref)
+        np.testing.assert_array_equal(jax.jit(jax.vmap(lambda k: rng.uniform(k, dtype, tiny)))(keys), ref)
