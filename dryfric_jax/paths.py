@@ -23,8 +23,8 @@ import numpy as np
 from . import rng
 from .di import DIModel
 from .excursions import BLOCK, block_keys
-from .sharding import over_lanes
 from .pdmp import flow
+from .sharding import over_lanes
 
 
 def _segment(model: DIModel, carry, keys, n_steps: int, block: int = BLOCK):

@@ -20,7 +20,13 @@ bits give :math:`f \in [0, 1)`, and
 as in ``jax.random``.  Measured, 256 lanes x 128 steps x 2 normals per block, one CPU device:
 float64 3.6e7 -> 7.6e7 lane-steps/s, float32 4.7e7 -> 2.7e8 (``tests/test_rng.py`` checks the
 numbers are bit-identical to ``jax.random``).  On other platforms (a GPU, whose lowering is
-already unrolled) :func:`normals` and :func:`uniforms` call ``jax.random`` itself.
+already unrolled) :func:`normals` and :func:`uniforms` call ``jax.random`` itself, except for
+rows of a longer stream (``start``), which they hash the same way without the ``lax.cond``.
+
+Keys are derived the same way: ``fold_in(key, d)`` and ``split(key)[i]`` are the keys
+``threefry2x32(key, (0, d))`` and ``threefry2x32(key, (0, i))``; :func:`fold_in`, :func:`split_at`
+and :func:`uniform` (one number per key) compute them elementwise, where JAX's CPU lowering runs
+one rolled loop per call (the lane engine derives three keys and a coin per lane and block).
 """
 from __future__ import annotations
 
@@ -51,8 +57,8 @@ def _uint(dtype):
 
 def _bits(kd, block: int, n: int, dtype, start=0, materialise: bool = True):
     """The random bits of counters ``(start + r) n + c`` (row r, column c) of every lane (key
-    data ``kd``, (lanes, 2)): one (block, lanes) array per column, materialised (module
-    docstring) on a CPU."""
+    data ``kd``, (lanes, 2)): one (block, lanes) array per column, materialised by the
+    ``lax.cond`` (module docstring) if ``materialise`` (on a CPU)."""
     k1, k2 = kd[:, 0][None, :], kd[:, 1][None, :]
     wide = np.dtype(dtype).itemsize == 8
     rows = jnp.arange(block, dtype=jnp.uint32)[:, None] + jnp.asarray(start).astype(jnp.uint32)
