@@ -47,7 +47,6 @@ from jax.sharding import Mesh, NamedSharding, PartitionSpec
 from . import rng
 
 
-
 # per-lane sufficient statistics of the closed excursions, in float64: every product of two
 # entries of (U, U^2, t, U t, t^2), which the delta method for D and M0 needs
 STAT_NAMES = ("n", "U", "U2", "U3", "U4", "t", "t2", "t3", "t4", "Ut", "U2t", "U3t", "Ut2", "U2t2", "Ut3",

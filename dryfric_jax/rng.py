@@ -55,6 +55,11 @@ def _uint(dtype):
     return np.uint64 if np.dtype(dtype).itemsize == 8 else np.uint32
 
 
+def _join(a, b, wide: bool):
+    """``jax.random``'s bits from one hash ``(a, b)``: :math:`a \\| b` (64-bit) or :math:`a \\oplus b`."""
+    return (a.astype(jnp.uint64) << np.uint64(32)) | b.astype(jnp.uint64) if wide else a ^ b
+
+
 def _bits(kd, block: int, n: int, dtype, start=0, materialise: bool = True):
     """The random bits of counters ``(start + r) n + c`` (row r, column c) of every lane (key
     data ``kd``, (lanes, 2)): one (block, lanes) array per column, materialised by the
@@ -67,8 +72,7 @@ def _bits(kd, block: int, n: int, dtype, start=0, materialise: bool = True):
         out = []
         for c in range(n):
             i = rows * np.uint32(n) + np.uint32(c)
-            a, b = threefry2x32(k1, k2, jnp.zeros_like(i), i)
-            out.append((a.astype(jnp.uint64) << np.uint64(32)) | b.astype(jnp.uint64) if wide else a ^ b)
+            out.append(_join(*threefry2x32(k1, k2, jnp.zeros_like(i), i), wide))
         return tuple(out)
 
     return lax.cond(kd[0, 0] > np.uint32(0x7FFFFFFF), hashes, hashes) if materialise else hashes()
@@ -103,18 +107,17 @@ def is_threefry(keys) -> bool:
     return str(jax.random.key_impl(keys)) == "threefry2x32" and jax.config.jax_threefry_partitionable
 
 
-def _derive(keys, x1, via_jax):
-    """Keys ``threefry2x32(key, (0, x1))``, which is how ``jax.random`` derives ``fold_in(key, x1)``
-    and ``split(key)[x1]`` (partitionable threefry): elementwise, one fused kernel on a CPU, where
-    JAX's own lowering is a rolled loop of 5 iterations per call; ``via_jax`` elsewhere."""
+def _hashed(keys, x1, finish, via_jax):
+    """``finish(a, b)`` of ``(a, b) = threefry2x32(key, (0, x1))`` for every key (any shape),
+    elementwise: one fused kernel on a CPU, where JAX's own lowering is a rolled loop of 5
+    iterations per call; ``via_jax(keys)`` on other platforms and for other generators."""
     if not is_threefry(keys):
         return via_jax(keys)
 
     def fused(ks):
         kd = jax.random.key_data(ks)
         x1_ = jnp.broadcast_to(jnp.asarray(x1).astype(jnp.uint32), kd.shape[:-1])
-        a, b = threefry2x32(kd[..., 0], kd[..., 1], jnp.zeros_like(x1_), x1_)
-        return jax.random.wrap_key_data(jnp.stack([a, b], -1), impl="threefry2x32")
+        return finish(*threefry2x32(kd[..., 0], kd[..., 1], jnp.zeros_like(x1_), x1_))
 
     return lax.platform_dependent(keys, cpu=fused, default=via_jax)
 
@@ -126,31 +129,27 @@ def _each(f, keys, *args):
     return out.reshape(keys.shape + out.shape[1:])
 
 
+def _key(a, b):
+    return jax.random.wrap_key_data(jnp.stack([a, b], -1), impl="threefry2x32")
+
+
 def fold_in(keys, data):
-    """``jax.random.fold_in(key, data)`` of every key (``data``: an integer, or one per key)."""
-    return _derive(keys, data, lambda ks: _each(jax.random.fold_in, ks, data))
+    """``jax.random.fold_in(key, data)`` of every key (``data``: an integer, or one per key): the
+    key ``threefry2x32(key, (0, data))`` (partitionable threefry)."""
+    return _hashed(keys, data, _key, lambda ks: _each(jax.random.fold_in, ks, data))
 
 
 def split_at(keys, i: int):
-    """``jax.random.split(key)[i]`` of every key (i = 0 or 1)."""
-    return _derive(keys, i, lambda ks: _each(lambda k: jax.random.split(k)[i], ks))
+    """``jax.random.split(key)[i]`` of every key (i = 0 or 1): the key ``threefry2x32(key, (0, i))``."""
+    return _hashed(keys, i, _key, lambda ks: _each(lambda k: jax.random.split(k)[i], ks))
 
 
 def uniform(keys, dtype, minval: float = 0.0, maxval: float = 1.0):
     """``jax.random.uniform(key, (), dtype, minval, maxval)`` of every key, elementwise (so it also
-    runs under ``vmap``)."""
-    def fused(ks):
-        kd = jax.random.key_data(ks)
-        zero = jnp.zeros(kd.shape[:-1], jnp.uint32)
-        a, b = threefry2x32(kd[..., 0], kd[..., 1], zero, zero)
-        wide = np.dtype(dtype).itemsize == 8
-        return _unit((a.astype(jnp.uint64) << np.uint64(32)) | b.astype(jnp.uint64) if wide else a ^ b,
-                     dtype, minval, maxval)
-
-    via_jax = lambda ks: _each(lambda k: jax.random.uniform(k, (), dtype, minval, maxval), ks)  # noqa: E731
-    if not is_threefry(keys):
-        return via_jax(keys)
-    return lax.platform_dependent(keys, cpu=fused, default=via_jax)
+    runs under ``vmap``): counter 0's bits, transformed as in :func:`uniforms`."""
+    wide = np.dtype(dtype).itemsize == 8
+    return _hashed(keys, 0, lambda a, b: _unit(_join(a, b, wide), dtype, minval, maxval),
+                   lambda ks: _each(lambda k: jax.random.uniform(k, (), dtype, minval, maxval), ks))
 
 
 def _draw(keys, block: int, n: int, dtype, sample, transform, start=None):
