@@ -77,6 +77,10 @@ class EstimateResult:
     rtol: float | None = None
     stopped_by: str = "n_excursions"
     warnings: list = field(default_factory=list)
+    # the sufficient statistics behind D and M0: totals over the complete excursions of
+    # STAT_NAMES, nondimensional (U in u0, t in tau0); runs combine by adding them (combine.py)
+    sums: dict = field(default_factory=dict)
+    combined_from: list = field(default_factory=list)  # seeds of the runs a combined result pools
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -223,7 +227,7 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
         warnings=notes, delta=grid and grid["delta"], L_X=grid and grid["L_X"],
         events_per_s=None if grid is None else sim.useful_steps / wall, method_reason=plan.reason,
         max_steps=plan.max_steps, max_work=plan.max_work, predicted_work=plan.predicted_work,
-        work=int(sim.slot_steps))
+        work=int(sim.slot_steps), sums={k: float(v) for k, v in sim.total().items()})
 
 
 def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, method: str = "di",

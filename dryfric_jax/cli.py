@@ -1,4 +1,4 @@
-"""Command line: ``dryfric estimate | bruteforce | theory | sweep | figures | bench``.
+"""Command line: ``dryfric estimate | bruteforce | theory | combine | sweep | figures | bench``.
 
 Exit codes: 0 success; 2 a user mistake (one line on stderr naming the parameter and its valid
 range, no traceback, nothing simulated); 3 a result was printed (and written to ``--out``) but
@@ -150,6 +150,11 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--rtol", type=_number("rtol"), default=None)
     sw.add_argument("--max-work", type=_number("max-work"), default=None)
     sw.add_argument("--json", action="store_true", help="print a JSON summary")
+    cb = sub.add_parser("combine", help="pool the excursions of independent estimate runs (JSON files of "
+                                        "'estimate --out' or '--json', different seeds, same model)")
+    cb.add_argument("files", nargs="+", help="result files")
+    cb.add_argument("--out", default=None, help="also write the pooled JSON result to this file (atomically)")
+    cb.add_argument("--json", action="store_true", help="print the pooled result as one JSON object")
     bn = sub.add_parser("bench", help="throughput: DI engine vs RNG bound vs compiled baseline")
     bn.add_argument("--json", action="store_true", help="print one JSON object")
     bn.add_argument("--n-excursions", type=_int_at_least("n-excursions", 2), default=10_000)
@@ -186,6 +191,28 @@ def _write_out(path, obj):
         write_atomic(path, json.dumps(obj, indent=1))
 
 
+def _read_results(paths):
+    out = []
+    for path in paths:
+        try:
+            with open(path) as f:
+                out.append(json.load(f))
+        except (OSError, json.JSONDecodeError) as e:
+            raise _UserError(f"files: cannot read an estimate result from {path!r} ({e})") from None
+        if not isinstance(out[-1], dict):
+            raise _UserError(f"files: {path!r} holds no estimate result (a JSON object)")
+    return out
+
+
+def _print_estimate(r):
+    print(f"D  = {_fmt(r.D, r.D_ci)} m^2/s   (95% CI)\nM0 = {_fmt(r.M0, r.M0_ci)} m/s\n"
+          f"mean excursion duration = {r.mean_duration:.4g} s\n"
+          f"N = {r.n_excursions} excursions, {r.n_truncated} truncated, {_resolution(r)}, {r.dtype}, "
+          + (f"seeds {r.combined_from}" if r.combined_from else f"seed {r.seed}")
+          + f"\nwall {r.wall_s:.1f} s, {r.lane_steps_per_s:.3g} "
+          f"{'lane-steps' if r.delta is None else 'events'}/s, stopped by: {r.stopped_by}")
+
+
 def _work_options(a):
     kw = {}
     if a.max_work is not None:
@@ -216,6 +243,21 @@ def _run(a) -> int:
         run_figures(a.fig, a.out, quick=a.quick, seed=a.seed)
         print(f"figures written to {a.out}")
         return 0
+    if a.cmd == "combine":
+        from .combine import combine_estimates
+
+        _check_out(a.out)
+        with warnings.catch_warnings(record=True):
+            warnings.simplefilter("always", api.DryfricWarning)
+            r = combine_estimates(_read_results(a.files))
+        for w in r.warnings:
+            print(f"dryfric: warning: {w}", file=sys.stderr)
+        _write_out(a.out, r.to_dict())
+        if a.json:
+            print(json.dumps(r.to_dict()))
+        else:
+            _print_estimate(r)
+        return 0
     params = _params(a)
     if a.cmd == "theory":
         out = dict(D=theory.exact_D(params), M0=theory.exact_M0(params), params=params.as_dict(),
@@ -242,11 +284,7 @@ def _run(a) -> int:
         if a.json:
             print(json.dumps(r.to_dict()))
         else:
-            print(f"D  = {_fmt(r.D, r.D_ci)} m^2/s   (95% CI)\nM0 = {_fmt(r.M0, r.M0_ci)} m/s\n"
-                  f"mean excursion duration = {r.mean_duration:.4g} s\n"
-                  f"N = {r.n_excursions} excursions, {r.n_truncated} truncated, {_resolution(r)}, {r.dtype}, "
-                  f"seed {r.seed}\nwall {r.wall_s:.1f} s, {r.lane_steps_per_s:.3g} "
-                  f"{'lane-steps' if r.delta is None else 'events'}/s, stopped by: {r.stopped_by}")
+            _print_estimate(r)
             if a.method == "auto":
                 print(r.method_reason)
         if r.stopped_by == "interrupted":

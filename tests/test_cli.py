@@ -93,6 +93,8 @@ BAD += [
     (["estimate", "--tau", "30"], "max_work must"),  # slow weak noise: predicted work refused up front
     (["estimate", "--tau-L", "inf", "--gamma-bar", "3.84"], "gamma_bar"),  # runaway
     (["bruteforce", "--t", "1e6", "--n-paths", "1000"], "max_work must"),
+    (["combine", "/nonexistent-dir/r.json"], "files"),
+    (["combine", "/etc/passwd"], "files"),  # not JSON
 ]
 
 
@@ -174,3 +176,21 @@ def test_pdmp_and_auto_json(capsys):
     assert main(["bruteforce", "--method", "pdmp", "--t", "2", "--n-paths", "50", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["method"] == "pdmp" and out["events_per_s"] > 0 and out["n_unfinished"] == 0
+
+
+def test_combine_pools_estimate_files_and_refuses_a_seed_twice(tmp_path, capsys):
+    base = ["estimate", "--nondim", "--tau", "1e-3", "--tau-L", "1", "--gamma-bar", "0.3", "--n-excursions", "300"]
+    files = []
+    for seed in (1, 2):
+        files.append(str(tmp_path / f"r{seed}.json"))
+        assert main(base + ["--seed", str(seed), "--out", files[-1]]) == 0
+    capsys.readouterr()
+    out = tmp_path / "pooled.json"
+    assert main(["combine", *files, "--json", "--out", str(out)]) == 0
+    res = json.loads(capsys.readouterr().out)
+    parts = [json.loads(open(f).read()) for f in files]
+    assert res["n_excursions"] == sum(r["n_excursions"] for r in parts) and res["combined_from"] == [1, 2]
+    assert json.loads(out.read_text()) == res
+    assert main(["combine", files[0], files[0]]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "seeds must differ" in err[0]

@@ -1,0 +1,140 @@
+r"""Pooling independent long-excursion runs: more seeds later, or one run per host.
+
+A run's estimate is a function of its sums over complete excursions (``EstimateResult.sums``,
+:data:`~dryfric_jax.excursions.STAT_NAMES`): the ratio estimators of paper section 4,
+
+.. math::
+    \hat M_0 = \frac{\sum_k U_k}{\sum_k T_k}, \qquad
+    \hat D = \frac{\sum_k (U_k - \hat M_0 T_k)^2}{\sum_k T_k},
+
+with the delta-method CI of :mod:`dryfric_jax.estimators`.  Runs with independent random
+streams (different seeds) are independent sets of i.i.d. excursions of the same law, and each
+run's excursion count is a stopping time (every lane finishes its in-flight excursion), so the
+pooled sums give the estimate of the pooled excursions, with its CI.  :func:`combine_estimates`
+adds them; :func:`gather_hosts` does it across the processes of a ``jax.distributed`` job.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import warnings
+from typing import Sequence
+
+import numpy as np
+
+from .api import DryfricWarning, EstimateResult
+from .estimators import MIN_RELIABLE_N, long_excursion_estimates
+from .excursions import STAT_NAMES
+from .params import Params
+
+# what must agree for two runs to sample the same law (the engine layout does not matter)
+_SAME = ("params", "method", "h", "delta", "L_X", "dtype")
+
+
+def _as_result(r) -> EstimateResult:
+    if isinstance(r, EstimateResult):
+        return r
+    if isinstance(r, dict) and isinstance(r.get("result"), dict) and "params" in r:  # a sweep's record
+        r = {**r["result"], "params": r["params"], "seed": r.get("seed")}
+    if isinstance(r, dict):  # EstimateResult.to_dict() (the JSON of 'dryfric estimate --out')
+        fields = dataclasses.fields(EstimateResult)
+        missing = [f.name for f in fields if f.default is dataclasses.MISSING
+                   and f.default_factory is dataclasses.MISSING and f.name not in r]
+        if missing:
+            raise ValueError(f"results must be estimate results: a dict lacks {missing[:4]} (a brute-force "
+                             "result or another file?)")
+        names = {f.name for f in fields}
+        return EstimateResult(**{k: v for k, v in r.items() if k in names})
+    raise ValueError(f"results must be EstimateResult objects or their to_dict() (got {type(r).__name__})")
+
+
+def combine_estimates(results: Sequence) -> EstimateResult:
+    """One estimate from the pooled excursions of independent runs of the same model.
+
+    Args:
+        results: :class:`~dryfric_jax.api.EstimateResult` objects (or their ``to_dict()``, or
+            records of a sweep's results file) of
+            :func:`~dryfric_jax.api.estimate_diffusivity` with the same parameters, method,
+            step (``h`` or ``delta``) and dtype, and different seeds.
+
+    Returns an :class:`EstimateResult` whose D, M0, CIs and mean duration are those of all the
+    runs' complete excursions together; counts, work and wall time are sums (``wall_s`` is the
+    compute spent, not the elapsed time of runs made side by side), ``combined_from`` lists the
+    seeds.  Raises ``ValueError`` naming what differs, for results without sums (made before
+    they were recorded) and for a seed used twice (the same random stream twice is not
+    independent).  Results made from a ``jax.random`` key carry no seed: their independence is
+    the caller's to ensure, and a :class:`DryfricWarning` says so.
+    """
+    rs = [_as_result(r) for r in results]
+    if not rs:
+        raise ValueError("results must hold at least one EstimateResult (got none)")
+    first = rs[0]
+    for i, r in enumerate(rs):
+        if set(r.sums) != set(STAT_NAMES):
+            raise ValueError(f"results[{i}] has no excursion sums (sums = {sorted(r.sums)!r}): rerun it with this version")
+        for name in _SAME:
+            a, b = getattr(first, name), getattr(r, name)
+            if a != b and not (isinstance(a, float) and isinstance(b, float) and math.isclose(a, b, rel_tol=1e-12)):
+                raise ValueError(f"results must share {name}: results[0] has {a!r}, results[{i}] has {b!r}")
+    seeds = [s for r in rs for s in (r.combined_from or [r.seed])]
+    known = [s for s in seeds if s is not None]
+    if len(set(known)) < len(known):
+        dup = sorted({s for s in known if known.count(s) > 1})
+        raise ValueError(f"seeds must differ between the runs combined (seed(s) {dup} used more than once): "
+                         "the same seed gives the same excursions")
+    if len(known) < len(seeds):
+        warnings.warn("some results were made from a jax.random key, not a seed: their streams are assumed "
+                      "independent", DryfricWarning, stacklevel=2)
+    total = {k: float(sum(r.sums[k] for r in rs)) for k in STAT_NAMES}
+    return _result(first, rs, total, seeds)
+
+
+def _result(first: EstimateResult, rs, total: dict, seeds) -> EstimateResult:
+    p = Params(**first.params)
+    e = long_excursion_estimates(total, first.ci_level)
+    wall = sum(r.wall_s for r in rs)
+    useful = sum(r.lane_steps_per_s * r.wall_s for r in rs)
+    slots = sum(r.lane_steps_per_s * r.wall_s / r.lane_utilization if r.lane_utilization else 0.0 for r in rs)
+    notes = list(dict.fromkeys(w for r in rs for w in r.warnings if not w.startswith("n_excursions = ")))
+    if e["n_excursions"] < MIN_RELIABLE_N:
+        notes.append(f"n_excursions = {e['n_excursions']} < {MIN_RELIABLE_N}: the delta-method CI "
+                     "under-covers at this size (heavy-tailed excursions)")
+    rate = useful / wall if wall > 0 else 0.0
+    return dataclasses.replace(
+        first, D=float(e["D"] * p.D0), D_ci=float(e["D_ci"] * p.D0), M0=float(e["M0"] * p.v0),
+        M0_ci=float(e["M0_ci"] * p.v0), mean_duration=float(e["mean_duration"]) * p.tau0,
+        mean_duration_ci=float(e["mean_duration_ci"]) * p.tau0, n_excursions=e["n_excursions"],
+        n_truncated=sum(r.n_truncated for r in rs), seed=None, wall_s=wall, lane_steps_per_s=rate,
+        events_per_s=None if first.events_per_s is None else rate,
+        lane_utilization=useful / slots if slots else first.lane_utilization,
+        work=sum(r.work for r in rs), predicted_work=sum(r.predicted_work for r in rs),
+        stopped_by="combined", rtol=None, warnings=notes, sums=total, combined_from=list(seeds))
+
+
+def gather_hosts(result: EstimateResult) -> EstimateResult:
+    """The estimate of all processes of a ``jax.distributed`` job, on every process.
+
+    Each process runs :func:`~dryfric_jax.api.estimate_diffusivity` on its own devices with its
+    own seed (e.g. ``seed + jax.process_index()``) and calls this with its result: the sums and
+    counts are all-gathered (``multihost_utils.process_allgather``) and pooled by
+    :func:`combine_estimates` in process order, so every process returns the same numbers.
+    With one process it returns the pooled result of that process alone.
+    """
+    import jax
+    from jax.experimental import multihost_utils
+
+    r = _as_result(result)
+    if set(r.sums) != set(STAT_NAMES):
+        raise ValueError("result has no excursion sums: rerun it with this version")
+    seed = -1 if r.seed is None else r.seed
+    row = np.array([r.sums[k] for k in STAT_NAMES]
+                   + [r.n_truncated, r.wall_s, r.lane_steps_per_s, r.lane_utilization, r.work, r.predicted_work, seed],
+                   np.float64)
+    rows = np.asarray(multihost_utils.process_allgather(row)).reshape(jax.process_count(), row.size)
+    k = len(STAT_NAMES)
+    per_host = [dataclasses.replace(
+        r, sums=dict(zip(STAT_NAMES, map(float, x[:k]))), n_truncated=int(x[k]), wall_s=float(x[k + 1]),
+        lane_steps_per_s=float(x[k + 2]), lane_utilization=float(x[k + 3]), work=int(x[k + 4]),
+        predicted_work=float(x[k + 5]), seed=None if x[k + 6] < 0 else int(x[k + 6]), combined_from=[])
+        for x in rows]
+    return combine_estimates(per_host)

@@ -1,0 +1,115 @@
+"""Pooling independent runs (dryfric_jax.combine): exact against white noise, refusals, and two
+processes of a jax.distributed job on the CPU."""
+import dataclasses
+import json
+import math
+import os
+import socket
+import subprocess
+import sys
+import textwrap
+
+import pytest
+
+import dryfric_jax as dj
+from dryfric_jax.combine import combine_estimates, gather_hosts
+
+Z = 2.81  # as test_di_exact
+P = dj.Params.from_nondim(1e-5, 1.0, 0.3)  # white noise, viscous + bias: light tails
+
+
+@pytest.fixture(scope="module")
+def runs():
+    return [dj.estimate_diffusivity(P, s, n_excursions=10_000) for s in (41, 42, 43)]
+
+
+def test_pooled_runs_match_the_exact_white_noise_values(runs):
+    c = combine_estimates(runs)
+    assert c.n_excursions == sum(r.n_excursions for r in runs)
+    assert c.combined_from == [41, 42, 43] and c.seed is None and c.stopped_by == "combined"
+    assert c.sums["n"] == c.n_excursions
+    # three runs: the CI shrinks like N^-1/2 (within the CIs' own sampling error)
+    assert 0.45 < c.D_ci / math.sqrt(sum(r.D_ci**2 for r in runs) / 3) < 0.7
+    assert abs(c.D - dj.theory.exact_D(P)) <= Z / 1.96 * c.D_ci, (c.D, c.D_ci)
+    assert abs(c.M0 - dj.theory.exact_M0(P)) <= Z / 1.96 * c.M0_ci, (c.M0, c.M0_ci)
+    # the pooled estimate lies within the runs' range, weighted by their excursions
+    assert min(r.D for r in runs) <= c.D <= max(r.D for r in runs)
+
+
+def test_one_run_combines_to_itself_and_round_trips_through_json(runs):
+    r = runs[0]
+    c = combine_estimates([r])
+    assert (c.D, c.D_ci, c.M0, c.M0_ci, c.mean_duration) == (r.D, r.D_ci, r.M0, r.M0_ci, r.mean_duration)
+    via_json = combine_estimates([json.loads(json.dumps(x.to_dict())) for x in runs])
+    assert (via_json.D, via_json.D_ci) == (combine_estimates(runs).D, combine_estimates(runs).D_ci)
+    # a combined result combines further, keeping its seeds
+    assert combine_estimates([combine_estimates(runs[:2]), runs[2]]).D == combine_estimates(runs).D
+
+
+def test_refusals_name_what_differs(runs):
+    with pytest.raises(ValueError, match="seeds must differ .*41"):
+        combine_estimates([runs[0], runs[0]])
+    with pytest.raises(ValueError, match="must share h"):
+        combine_estimates([runs[0], dataclasses.replace(runs[1], h=2 * runs[1].h)])
+    with pytest.raises(ValueError, match="must share params"):
+        combine_estimates([runs[0], dataclasses.replace(runs[1], params={**runs[1].params, "tau": 2e-5})])
+    with pytest.raises(ValueError, match="no excursion sums"):
+        combine_estimates([{**runs[0].to_dict(), "sums": {}}])
+    with pytest.raises(ValueError, match="at least one"):
+        combine_estimates([])
+
+
+def test_gather_hosts_in_one_process_is_the_run_itself(runs):
+    g = gather_hosts(runs[0])
+    assert (g.D, g.D_ci, g.n_excursions, g.combined_from) == (runs[0].D, runs[0].D_ci, runs[0].n_excursions, [41])
+
+
+_HOST = textwrap.dedent("""
+    import json, sys
+    import jax
+    jax.config.update("jax_cpu_collectives_implementation", "gloo")
+    jax.distributed.initialize(coordinator_address=sys.argv[2], num_processes=2, process_id=int(sys.argv[1]))
+    import dryfric_jax as dj
+    from dryfric_jax.combine import gather_hosts
+    p = dj.Params.from_nondim(1e-5, 1.0, 0.3)
+    r = dj.estimate_diffusivity(p, 100 + jax.process_index(), n_excursions=3000)
+    g = gather_hosts(r)
+    print(json.dumps(dict(local=r.to_dict(), pooled=g.to_dict())))
+""")
+
+
+@pytest.mark.slow
+@pytest.mark.filterwarnings("ignore::dryfric_jax.DryfricWarning")
+def test_two_processes_pool_their_runs(tmp_path):
+    """A jax.distributed job of 2 CPU processes: both return the pool of both runs, which is
+    what combining the two runs' results in one process gives."""
+    with socket.socket() as s:
+        s.bind(("localhost", 0))
+        addr = f"localhost:{s.getsockname()[1]}"
+    script = tmp_path / "host.py"
+    script.write_text(_HOST)
+    env = {**os.environ, "XLA_FLAGS": "--xla_force_host_platform_device_count=1"}
+    procs = [subprocess.Popen([sys.executable, str(script), str(i), addr], stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True, env=env) for i in range(2)]
+    outs = []
+    for p in procs:
+        out, err = p.communicate(timeout=300)
+        assert p.returncode == 0, err[-2000:]
+        outs.append(json.loads(out.strip().splitlines()[-1]))
+    local = [o["local"] for o in outs]
+    pooled = [o["pooled"] for o in outs]
+    assert pooled[0]["D"] == pooled[1]["D"] and pooled[0]["combined_from"] == [100, 101]
+    ref = combine_estimates(local)
+    assert (pooled[0]["D"], pooled[0]["D_ci"], pooled[0]["n_excursions"]) == (ref.D, ref.D_ci, ref.n_excursions)
+
+
+def test_a_sweep_record_combines_with_a_new_run(tmp_path, runs):
+    """A point of a sweep's results file pools with a later run of the same point."""
+    from dryfric_jax import sweep
+
+    out = tmp_path / "s.jsonl"
+    sweep.run_sweep(sweep.grid(**{k: [v] for k, v in P.as_dict().items()}), str(out), seed=7, n_excursions=2000)
+    rec = json.loads(out.read_text().splitlines()[0])
+    c = combine_estimates([rec, runs[0]])
+    assert c.n_excursions == rec["result"]["n_excursions"] + runs[0].n_excursions
+    assert c.combined_from == [rec["seed"], 41]
