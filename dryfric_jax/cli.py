@@ -129,7 +129,10 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--t", type=_number("t"), required=True, help="horizon, s")
     b.add_argument("--n-paths", type=_int_at_least("n-paths", 2), required=True)
     b.add_argument("--burn-in", type=_number("burn-in"), default=0.0, help="uncounted warm-up, s")
-    sub.add_parser("theory", parents=[model], help="exact white-noise D and M0")
+    th = sub.add_parser("theory", parents=[model], help="exact white-noise D and M0")
+    th.add_argument("--h", type=_number("h"), default=None,
+                    help="also the exact white-noise D, M0 and E[V^2] of the DI chain at this step, s (its "
+                         "step bias; seconds for small h)")
     fg = sub.add_parser("figures", help="reproduce the paper's figures and tables (PNG, PDF, JSON)")
     fg.add_argument("--fig", default="all", help="all, 1 (Figs. 1-2), 3, 4, 5, 6, 7, 8, 9 or table1")
     fg.add_argument("--quick", action="store_true", help="small settings: all figures in minutes on a CPU")
@@ -262,10 +265,21 @@ def _run(a) -> int:
     if a.cmd == "theory":
         out = dict(D=theory.exact_D(params), M0=theory.exact_M0(params), params=params.as_dict(),
                    convention="model (Gamma_w = 2 Gamma)")
+        if a.h is not None:
+            from .chain_law import white_chain_law
+
+            law = white_chain_law(params, a.h)
+            out.update(h=a.h, chain_D=law.D, chain_M0=law.M0, chain_mean_v2=law.mean_v2,
+                       mean_v2=theory.exact_mean_square_velocity(params))
         if a.json:
             print(json.dumps(out))
         else:
             print(f"white-noise D  = {out['D']:.6g} m^2/s\nwhite-noise M0 = {out['M0']:.6g} m/s")
+            if a.h is not None:
+                rel = lambda x, y: f"{100 * (x / y - 1):+.2f}%" if y else "exactly 0"
+                print(f"DI chain at h = {a.h:.4g} s (white noise, exact): D = {law.D:.6g} ({rel(law.D, out['D'])}), "
+                      f"M0 = {law.M0:.6g} ({rel(law.M0, out['M0'])}), E[V^2] = {law.mean_v2:.6g} "
+                      f"({rel(law.mean_v2, out['mean_v2'])})")
         return 0
     _check_out(getattr(a, "out", None))
     if a.cmd == "estimate":

@@ -94,6 +94,7 @@ BAD += [
     (["estimate", "--tau-L", "inf", "--gamma-bar", "3.84"], "gamma_bar"),  # runaway
     (["bruteforce", "--t", "1e6", "--n-paths", "1000"], "max_work must"),
     (["combine", "/nonexistent-dir/r.json"], "files"),
+    (["theory", "--h", "1"], "h must be in"),
     (["combine", "/etc/passwd"], "files"),  # not JSON
 ]
 
@@ -145,6 +146,11 @@ def test_bruteforce_and_theory_json(capsys):
     assert main(["theory", "--nondim", "--tau", "1e-5", "--tau-L", "inf", "--gamma-bar", "0", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["D"] == pytest.approx(10.0, rel=1e-8) and abs(out["M0"]) < 1e-12
+    # the chain at a step: its exact D lies below the continuum's (test_chain_law), M0 stays 0
+    assert main(["theory", "--nondim", "--tau", "1e-5", "--tau-L", "inf", "--gamma-bar", "0", "--h", "0.05",
+                 "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert 0.97 < out["chain_D"] / out["D"] < 0.99 and abs(out["chain_M0"]) < 1e-12
 
 
 def test_bench_json_has_the_side_by_side_numbers(capsys):
