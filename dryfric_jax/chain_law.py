@@ -39,7 +39,7 @@ import numpy as np
 from scipy import linalg, special
 
 from .params import Params
-from .plan import check_h
+from .plan import check_h, h_max
 from .theory import _nd, _scale
 
 MAX_NODES = 6001  # dense Nystrom: n^2 doubles, O(n^3) solves (6001 nodes: 0.3 GB, ~15 s)
@@ -72,7 +72,9 @@ def white_chain_law(params: Params, h: float, *, nodes_per_sd: int = 8, width: f
     ``nodes_per_sd`` grid nodes per standard deviation :math:`\sqrt{2h'}` of one step's noise,
     the grid reaching ``width`` widths of the continuum law past the origin on each side.
     ``tau`` is not used: this is the :math:`\tau/h \to 0` limit.  Raises ``ValueError`` where
-    the grid would exceed ``MAX_NODES`` (``h`` too small) or for a law that is not recurrent.
+    the grid would exceed ``MAX_NODES`` (``h`` small against the law's width: small h, or a wide
+    law, :math:`|\bar\gamma| \to \Delta` with :math:`\tau_L = \infty`), for an ``h`` outside
+    :func:`~dryfric_jax.plan.check_h`'s range and for a law that is not recurrent.
     """
     h = check_h(params, h)
     itl, g = _nd(params)
@@ -82,8 +84,11 @@ def white_chain_law(params: Params, h: float, *, nodes_per_sd: int = 8, width: f
     L = width * _scale(itl, g) + 10 * s
     k = int(math.ceil(L / dv))
     if 2 * k + 3 > MAX_NODES:
-        raise ValueError(f"h = {h:.4g} s is too small for the dense chain law: {2 * k + 3} grid nodes "
-                         f"> {MAX_NODES}; use h >= {h * ((2 * k + 3) / MAX_NODES) ** 2:.3g} s or fewer nodes_per_sd")
+        need = h * ((2 * k + 3) / MAX_NODES) ** 2
+        fix = (f"use h >= {need:.3g} s or fewer nodes_per_sd" if need <= h_max(params) else
+               f"no admissible h (<= {h_max(params):.3g} s) is large enough: the law is too wide")
+        raise ValueError(f"h = {h:.4g} s: the dense chain law would need {2 * k + 3} grid nodes > {MAX_NODES} (the "
+                         f"law spans +-{L:.3g} against a step noise sd of {s:.3g}, nondimensional); {fix}")
     half = np.arange(k + 1) * dv  # 0+ ... L
     hw = np.full(k + 1, dv)
     hw[0] = hw[-1] = dv / 2

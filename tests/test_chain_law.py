@@ -59,10 +59,33 @@ def test_chain_law_is_grid_converged_and_first_order_in_h(case):
 
 def test_chain_law_refuses_a_step_too_small_or_too_large():
     p = _params("fig5")
-    with pytest.raises(ValueError, match="h = .* too small for the dense chain law"):
+    with pytest.raises(ValueError, match="h = .* grid nodes .* use h >="):
         white_chain_law(p, 1e-4 * p.tau0)
     with pytest.raises(ValueError, match="h must be in"):
         white_chain_law(p, 0.5 * p.tau0)
+
+
+@pytest.mark.parametrize("Gamma,Delta", [(1e-6, 1e-3), (1e4, 1e2)])
+def test_chain_law_is_unit_free_for_tiny_and_huge_gamma(Gamma, Delta):
+    """Physical units only scale the nondimensional law: the same relative step bias, no NaN."""
+    tl, g = CASES["fig5"]
+    ref, p = dj.Params.from_nondim(1e-4, tl, g), dj.Params.from_nondim(1e-4, tl, g, Gamma=Gamma, Delta=Delta)
+    a, b = white_chain_law(ref, 0.05 * ref.tau0), white_chain_law(p, 0.05 * p.tau0)
+    for x, y, scale in ((a.D, b.D, p.D0), (a.M0, b.M0, p.v0), (a.mean_v2, b.mean_v2, p.v0**2)):
+        assert math.isfinite(y) and y / scale == pytest.approx(x, rel=1e-9)
+
+
+def test_chain_law_near_the_runaway_bias():
+    """|gamma_bar| -> Delta with tau_L = inf: the law widens as 1/(Delta - |gamma_bar|); at 0.8
+    Delta it is still solved (finite, below the continuum), at 0.97 Delta the grid is refused by
+    name, and at Delta the runaway is refused (theory's check)."""
+    p = dj.Params.from_nondim(1e-4, math.inf, 0.8)
+    c = white_chain_law(p, 0.1 * p.tau0)
+    assert math.isfinite(c.D) and 0.99 < c.D / dj.theory.exact_D(p) < 1.0
+    with pytest.raises(ValueError, match="grid nodes .* no admissible h"):
+        white_chain_law(dj.Params.from_nondim(1e-4, math.inf, 0.97), 0.1)
+    with pytest.raises(ValueError, match="gamma_bar"):
+        white_chain_law(dj.Params.from_nondim(1e-4, math.inf, 1.0), 0.1)
 
 
 @pytest.mark.parametrize("dtype", ["float64", "float32"])
