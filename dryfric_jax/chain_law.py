@@ -42,7 +42,7 @@ from .params import Params
 from .plan import check_h, h_max
 from .theory import _nd, _scale
 
-MAX_NODES = 6001  # dense Nystrom: n^2 doubles, O(n^3) solves (6001 nodes: 0.3 GB, ~15 s)
+MAX_NODES = 6001  # dense Nystrom: O(n^3) solves; at 6001 nodes 0.29 GB per n x n array, ~2 GB peak, ~15 s
 
 
 @dataclass(frozen=True)
