@@ -28,6 +28,12 @@ class DryfricWarning(UserWarning):
     """A result that should be read with care (too few excursions, truncated excursions)."""
 
 
+def small_n_note(n: int) -> str:
+    """The warning for N below :data:`MIN_RELIABLE_N` (estimates and pooled estimates)."""
+    return (f"n_excursions = {n} < {MIN_RELIABLE_N}: the delta-method CI under-covers at this size "
+            "(heavy-tailed excursions)")
+
+
 def _key(key):
     if isinstance(key, (int, np.integer)):
         if key < 0:
@@ -208,8 +214,7 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
         raise RuntimeError("fewer than 2 complete excursions within the work bounds (raise max_work / max_steps): "
                            + "; ".join(notes))
     if sim.n_excursions < MIN_RELIABLE_N:
-        notes.append(f"n_excursions = {sim.n_excursions} < {MIN_RELIABLE_N}: the delta-method CI "
-                     "under-covers at this size (heavy-tailed excursions)")
+        notes.append(small_n_note(sim.n_excursions))
     if params.tau_L_nd > WEAK_DAMPING_TAU_L:
         notes.append(f"tau_L/tau0 = {params.tau_L_nd:.3g} > {WEAK_DAMPING_TAU_L:g} (weak or no viscous damping): "
                      "the 95% CI for D covers only ~90% (measured), misses are on the low side")

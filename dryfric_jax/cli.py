@@ -8,6 +8,7 @@ excursions hit the work bound, so it is biased (``--allow-truncated`` accepts it
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 import os
@@ -216,6 +217,34 @@ def _print_estimate(r):
           f"{'lane-steps' if r.delta is None else 'events'}/s, stopped by: {r.stopped_by}")
 
 
+@contextlib.contextmanager
+def _warnings_kept_in_result():
+    """Silence the library's DryfricWarnings: each is also in ``result.warnings``, which
+    :func:`_report` prints as one line."""
+    from .api import DryfricWarning
+
+    with warnings.catch_warnings(record=True):
+        warnings.simplefilter("always", DryfricWarning)
+        yield
+
+
+def _report(a, r, print_text):
+    """A result's warnings on stderr, its JSON to ``--out`` (atomically) and, by ``--json``,
+    to stdout; otherwise ``print_text(r)``."""
+    for w in r.warnings:
+        print(f"dryfric: warning: {w}", file=sys.stderr)
+    _write_out(a.out, r.to_dict())
+    if a.json:
+        print(json.dumps(r.to_dict()))
+    else:
+        print_text(r)
+
+
+def _print_bruteforce(r):
+    print(f"D_t  = {_fmt(r.D_t, r.D_t_ci)} m^2/s   (t = {r.t:.4g} s, 95% CI)\n"
+          f"M0_t = {_fmt(r.M0_t, r.M0_t_ci)} m/s\nN' = {r.n_paths} paths, {_resolution(r)}, wall {r.wall_s:.1f} s")
+
+
 def _work_options(a):
     kw = {}
     if a.max_work is not None:
@@ -250,16 +279,9 @@ def _run(a) -> int:
         from .combine import combine_estimates
 
         _check_out(a.out)
-        with warnings.catch_warnings(record=True):
-            warnings.simplefilter("always", api.DryfricWarning)
+        with _warnings_kept_in_result():
             r = combine_estimates(_read_results(a.files))
-        for w in r.warnings:
-            print(f"dryfric: warning: {w}", file=sys.stderr)
-        _write_out(a.out, r.to_dict())
-        if a.json:
-            print(json.dumps(r.to_dict()))
-        else:
-            _print_estimate(r)
+        _report(a, r, _print_estimate)
         return 0
     params = _params(a)
     if a.cmd == "theory":
@@ -284,23 +306,20 @@ def _run(a) -> int:
     _check_out(getattr(a, "out", None))
     if a.cmd == "estimate":
         show = not a.json and sys.stderr.isatty()
-        with warnings.catch_warnings(record=True):
-            warnings.simplefilter("always", api.DryfricWarning)
+        with _warnings_kept_in_result():
             r = api.estimate_diffusivity(params, a.seed, method=a.method, h=a.h, delta=a.delta,
                                          n_excursions=a.n_excursions, max_steps=a.max_steps,
                                          dtype=a.dtype, rtol=a.rtol, max_time=a.max_time,
                                          progress=_progress_line if show else None, **_work_options(a))
         if show:
             print(file=sys.stderr)
-        for w in r.warnings:
-            print(f"dryfric: warning: {w}", file=sys.stderr)
-        _write_out(a.out, r.to_dict())
-        if a.json:
-            print(json.dumps(r.to_dict()))
-        else:
+
+        def text(r):
             _print_estimate(r)
             if a.method == "auto":
                 print(r.method_reason)
+
+        _report(a, r, text)
         if r.stopped_by == "interrupted":
             return 130
         if r.n_truncated and not a.allow_truncated:
@@ -309,19 +328,10 @@ def _run(a) -> int:
             return 3
         return 0
     if a.cmd == "bruteforce":
-        with warnings.catch_warnings(record=True):
-            warnings.simplefilter("always", api.DryfricWarning)
+        with _warnings_kept_in_result():
             r = api.bruteforce_diffusivity(params, a.seed, t=a.t, n_paths=a.n_paths, method=a.method, h=a.h,
                                            delta=a.delta, burn_in=a.burn_in, dtype=a.dtype, **_work_options(a))
-        for w in r.warnings:
-            print(f"dryfric: warning: {w}", file=sys.stderr)
-        _write_out(a.out, r.to_dict())
-        if a.json:
-            print(json.dumps(r.to_dict()))
-        else:
-            print(f"D_t  = {_fmt(r.D_t, r.D_t_ci)} m^2/s   (t = {r.t:.4g} s, 95% CI)\n"
-                  f"M0_t = {_fmt(r.M0_t, r.M0_t_ci)} m/s\nN' = {r.n_paths} paths, {_resolution(r)}, "
-                  f"wall {r.wall_s:.1f} s")
+        _report(a, r, _print_bruteforce)
         return 0
     raise _UserError(f"unknown command {a.cmd!r}")
 

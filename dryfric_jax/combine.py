@@ -22,7 +22,7 @@ from typing import Sequence
 
 import numpy as np
 
-from .api import DryfricWarning, EstimateResult
+from .api import DryfricWarning, EstimateResult, small_n_note
 from .estimators import MIN_RELIABLE_N, long_excursion_estimates
 from .excursions import STAT_NAMES
 from .params import Params
@@ -95,10 +95,10 @@ def _result(first: EstimateResult, rs, total: dict, seeds) -> EstimateResult:
     wall = sum(r.wall_s for r in rs)
     useful = sum(r.lane_steps_per_s * r.wall_s for r in rs)
     slots = sum(r.lane_steps_per_s * r.wall_s / r.lane_utilization if r.lane_utilization else 0.0 for r in rs)
-    notes = list(dict.fromkeys(w for r in rs for w in r.warnings if not w.startswith("n_excursions = ")))
+    # the runs' notes once each, but the small-N note for the pool's N, not each run's
+    notes = list(dict.fromkeys(w for r in rs for w in r.warnings if w != small_n_note(r.n_excursions)))
     if e["n_excursions"] < MIN_RELIABLE_N:
-        notes.append(f"n_excursions = {e['n_excursions']} < {MIN_RELIABLE_N}: the delta-method CI "
-                     "under-covers at this size (heavy-tailed excursions)")
+        notes.append(small_n_note(e["n_excursions"]))
     rate = useful / wall if wall > 0 else 0.0
     return dataclasses.replace(
         first, D=float(e["D"] * p.D0), D_ci=float(e["D_ci"] * p.D0), M0=float(e["M0"] * p.v0),
