@@ -137,7 +137,9 @@ def build_parser() -> argparse.ArgumentParser:
     fg = sub.add_parser("figures", help="reproduce the paper's figures and tables (PNG, PDF, JSON)")
     fg.add_argument("--fig", default="all", help="all, 1 (Figs. 1-2), 3, 4, 5, 6, 7, 8, 9 or table1")
     fg.add_argument("--quick", action="store_true", help="small settings: all figures in minutes on a CPU")
-    fg.add_argument("--out", required=True, help="output directory (created if its parent exists)")
+    fg.add_argument("--out", required=True, help="output directory (created if its parent exists); Figs. 3, 8 "
+                    "and 9 keep each finished run there (<fig>.points.jsonl), so rerunning an interrupted "
+                    "command resumes")
     fg.add_argument("--seed", type=_int_at_least("seed", 0), default=0)
     sw = sub.add_parser("sweep", help="D and M0 with CIs over a grid of parameters, resumable (JSON Lines file)")
     g = sw.add_argument_group("axes: comma-separated lists (SI units); omitted ones stay at the Fig. 3 point")
@@ -272,7 +274,12 @@ def _run(a) -> int:
             check_writable_dir(a.out)
         except ValueError as e:
             raise _UserError("--" + str(e)) from None
-        run_figures(a.fig, a.out, quick=a.quick, seed=a.seed)
+        try:
+            run_figures(a.fig, a.out, quick=a.quick, seed=a.seed)
+        except KeyboardInterrupt:
+            print(f"dryfric: interrupted; the finished runs of Figs. 3, 8 and 9 are kept in {a.out}/*.points.jsonl: "
+                  "the same command resumes from them", file=sys.stderr)
+            return 130
         print(f"figures written to {a.out}")
         return 0
     if a.cmd == "combine":

@@ -1,5 +1,6 @@
 """``dryfric figures --quick``: every scene runs, writes PNG, PDF and JSON, and its numbers agree
 with the exact results it is drawn against (tolerances from the standard errors it reports)."""
+import dataclasses
 import json
 import math
 
@@ -60,6 +61,62 @@ def test_fig3_pdmp_and_di_agree(figs):
     f = figs["fig3"]
     for tau, z in f["agree"].items():  # |D_pdmp - D_di| / hypot(CIs); 3 SE = 1.53
         assert max(z) <= 3 / 1.96, (tau, z)
+
+
+def test_fig3_interrupted_then_resumed_is_bit_identical(figs, tmp_path, monkeypatch, capsys):
+    """A Ctrl-C inside the 7th of Fig. 3's 24 quick runs (the run returns what its rounds reached,
+    ``stopped_by = "interrupted"``): the CLI exits 130, the 6 finished runs are on disk and the
+    interrupted one is not.  The same command then computes only the 18 others, and the figure's
+    numbers are exactly those of the uninterrupted run of the ``figs`` fixture."""
+    from dryfric_jax.figures import points
+
+    real, cls = points._KINDS["estimate"]
+    calls, made = [], []
+
+    def counted(params, seed, **kw):
+        calls.append(seed)
+        made.append(seed)  # never cleared: only the 7th run ever made is interrupted
+        r = real(params, seed, **kw)
+        return dataclasses.replace(r, stopped_by="interrupted") if len(made) == 7 else r
+
+    monkeypatch.setitem(points._KINDS, "estimate", (counted, cls))
+    out = tmp_path / "f3"
+    argv = ["figures", "--fig", "3", "--quick", "--out", str(out)]
+    assert main(argv) == 130
+    assert "resumes" in capsys.readouterr().err
+    assert len((out / "fig3.points.jsonl").read_text().splitlines()) == 6 and not (out / "fig3.json").exists()
+    calls.clear()
+    assert main(argv) == 0 and len(calls) == 24 - 6
+    got, ref = json.loads((out / "fig3.json").read_text()), figs["fig3"]
+    assert got["runs"]["reused"] == 6 and got["runs"]["computed"] == 18
+    for m in ("pdmp", "di"):
+        for tau, row in ref[m].items():
+            for k in ("D", "D_ci", "dur", "dur_ci", "n_excursions"):  # wall_s differs, the numbers do not
+                assert got[m][tau][k] == row[k], (m, tau, k)
+    calls.clear()
+    assert main(argv) == 0 and calls == []  # a finished figure is redrawn from its runs alone
+
+
+def test_figure_points_file_that_is_not_one_is_refused_not_overwritten(tmp_path, capsys):
+    (tmp_path / "fig3.points.jsonl").write_text("not a record\n")
+    assert main(["figures", "--fig", "3", "--quick", "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert "fig3.points.jsonl" in err and "Traceback" not in err
+    assert (tmp_path / "fig3.points.jsonl").read_text() == "not a record\n"
+
+
+def test_figure_points_of_another_version_are_recomputed(tmp_path, monkeypatch):
+    """A kept run is reused only by the package version that made it."""
+    from dryfric_jax.figures import points
+    from dryfric_jax.params import FIG3, Params
+
+    p, kw = Params(**FIG3), dict(n_excursions=64)
+    a = points.Points(str(tmp_path), "s").estimate(p, 3, **kw)
+    again = points.Points(str(tmp_path), "s")
+    assert again.estimate(p, 3, **kw) == a and (again.reused, again.computed) == (1, 0)
+    monkeypatch.setattr(points, "__version__", "0.0.0-other")
+    other = points.Points(str(tmp_path), "s")
+    assert other.estimate(p, 3, **kw).D == a.D and (other.reused, other.computed) == (0, 1)
 
 
 def test_fig8_bruteforce_and_long_excursions_agree_and_exponent_is_reported(figs):

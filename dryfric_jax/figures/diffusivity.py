@@ -12,27 +12,20 @@ from __future__ import annotations
 
 import math
 import time
-import warnings
 
 import jax
 import numpy as np
 
 from .. import theory
-from ..api import DryfricWarning, bruteforce_diffusivity, estimate_diffusivity
 from ..chain_law import white_chain_law
 from ..di import make_di_model
 from ..params import Params
 from ..paths import di_stationary
 from ..plan import default_h, plan_estimate
 from .common import plt, save
+from .points import Points
 
 DELTA, TAU_L, GBAR = 3.84, 0.067, 0.342
-
-
-def _quiet(f, *a, **kw):
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", DryfricWarning)
-        return f(*a, **kw)
 
 
 def _affordable_n(p, method, n, kw):
@@ -54,13 +47,14 @@ def fig3(out_dir, quick, seed):
     n = 1000 if quick else 100_000
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4))
     nums = dict(Gamma=gammas, tau=taus, n_excursions=n, delta=0.125, pdmp={}, di={}, agree={})
+    pts = Points(out_dir, "fig3")  # finished runs are kept: an interrupted figure resumes
     for j, tau in enumerate(taus):
         rows = {}
         ps = [Params(G, DELTA, tau, TAU_L, GBAR) for G in gammas]
         for m in ("pdmp", "di"):
             kw = dict(delta=0.125) if m == "pdmp" else {}
-            rs = [_quiet(estimate_diffusivity, p, seed + 17 * i + 1000 * j, method=m,
-                         n_excursions=_affordable_n(p, m, n, kw), **kw) for i, p in enumerate(ps)]
+            rs = [pts.estimate(p, seed + 17 * i + 1000 * j, method=m, n_excursions=_affordable_n(p, m, n, kw), **kw)
+                  for i, p in enumerate(ps)]
             rows[m] = dict(D=[r.D for r in rs], D_ci=[r.D_ci for r in rs], dur=[r.mean_duration for r in rs],
                            dur_ci=[r.mean_duration_ci for r in rs], wall_s=[r.wall_s for r in rs],
                            n_excursions=[r.n_excursions for r in rs])
@@ -80,6 +74,7 @@ def fig3(out_dir, quick, seed):
         ax.set_ylabel(lab)
     a1.legend(title="dots PDMP, lines DI")
     a2.set_title("the excursion durations depend on the regeneration rule (PDMP vs DI)", fontsize=8)
+    nums["runs"] = pts.summary()
     return save(fig, out_dir, "fig3", nums, t0)
 
 
@@ -100,6 +95,7 @@ def fig8(out_dir, quick, seed):
     cases = {"b = 0": (math.inf, 0.0), "b = -v/tau_L + gamma_bar": (TAU_L, GBAR)}
     fig, axs = plt.subplots(2, 2, figsize=(11, 7), sharex=True)
     nums = dict(Gamma=gammas, tau=taus, n_excursions=n, n_paths_bf=n_bf, t_bf=t_bf, cases={})
+    pts = Points(out_dir, "fig8")
     for k, (name, (tl, gb)) in enumerate(cases.items()):
         ax, ax2 = axs[0, k], axs[1, k]
         exact = [theory.exact_D(Params(G, DELTA, 1e-9, tl, gb)) for G in gammas]
@@ -107,9 +103,8 @@ def fig8(out_dir, quick, seed):
         cnum = dict(exact=exact)
         for j, tau in enumerate(taus):
             ps = [Params(G, DELTA, tau, tl, gb) for G in gammas]
-            le = [_quiet(estimate_diffusivity, p, seed + 31 * i + 1000 * j + 7 * k, n_excursions=n)
-                  for i, p in enumerate(ps)]
-            bf = [_quiet(bruteforce_diffusivity, p, seed + 31 * i + 1000 * j + 7 * k + 1, t=t_bf, n_paths=n_bf)
+            le = [pts.estimate(p, seed + 31 * i + 1000 * j + 7 * k, n_excursions=n) for i, p in enumerate(ps)]
+            bf = [pts.bruteforce(p, seed + 31 * i + 1000 * j + 7 * k + 1, t=t_bf, n_paths=n_bf)
                   for i, p in enumerate(ps)]
             D, Dc = [r.D for r in le], [r.D_ci for r in le]
             ax.errorbar(gammas, D, Dc, fmt="-", color=f"C{j}", label=f"tau = {tau:g} s")
@@ -132,6 +127,7 @@ def fig8(out_dir, quick, seed):
         ax2.set_ylabel("d ln D / d ln Gamma")
         ax.legend(fontsize=7, title="lines LE, dots BF (t = 10 s)", title_fontsize=7)
         nums["cases"][name] = cnum
+    nums["runs"] = pts.summary()
     return save(fig, out_dir, "fig8", nums, t0)
 
 

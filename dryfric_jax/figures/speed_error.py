@@ -14,13 +14,11 @@ from __future__ import annotations
 
 import math
 import time
-import warnings
 
 import jax
 import numpy as np
 
 from .. import theory
-from ..api import DryfricWarning, estimate_diffusivity
 from ..di import make_di_model
 from ..estimators import bruteforce_estimates, long_excursion_estimates
 from ..excursions import STAT_NAMES, run_round
@@ -28,6 +26,7 @@ from ..params import FIG3, Params
 from ..paths import di_stationary
 from ..plan import default_h
 from .common import plt, save
+from .points import Points
 
 
 def fit_slope(x, y, replicates=None):
@@ -110,13 +109,11 @@ def fig9(out_dir, quick, seed):
     n = 2000 if quick else 100_000
     h_rel = (0.1, 0.03, 0.01, 0.003) if quick else (0.1, 0.03, 0.01, 0.003, 0.001)
     d_nd = (0.15, 0.1, 0.05, 0.025)  # delta'_max = 0.19 here
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", DryfricWarning)
-        hs = [hr * min(pf.tau0, pf.tau_L) for hr in h_rel]
-        di = [estimate_diffusivity(pf, seed + i, h=hh, n_excursions=n) for i, hh in enumerate(hs)]
-        ds = [d * pf.Delta / math.sqrt(pf.Gamma) for d in d_nd]
-        pd = [estimate_diffusivity(pf, seed + 10 + i, method="pdmp", delta=dd, n_excursions=n)
-              for i, dd in enumerate(ds)]
+    pts = Points(out_dir, "fig9")  # (b)'s runs are kept: an interrupted figure resumes them
+    hs = [hr * min(pf.tau0, pf.tau_L) for hr in h_rel]
+    di = [pts.estimate(pf, seed + i, h=hh, n_excursions=n) for i, hh in enumerate(hs)]
+    ds = [d * pf.Delta / math.sqrt(pf.Gamma) for d in d_nd]
+    pd = [pts.estimate(pf, seed + 10 + i, method="pdmp", delta=dd, n_excursions=n) for i, dd in enumerate(ds)]
     fig, axs = plt.subplots(1, 3, figsize=(15, 4))
     a = axs[0]
     a.loglog([r["cost"] for r in le], [r["rmse"] * p.D0 for r in le], "ko-",
@@ -146,5 +143,6 @@ def fig9(out_dir, quick, seed):
     nums = dict(D_true=D_true * p.D0, le=le, bf=bf, le_slope=le_slope[0], le_slope_se=le_slope[1],
                 bf_envelope=env, bf_slope=bf_slope[0], bf_slope_se=bf_slope[1], theory_slopes=dict(le=-0.5, bf=-1 / 3),
                 di=[dict(h=hh, D=r.D, D_ci=r.D_ci, wall_s=r.wall_s) for hh, r in zip(hs, di)],
-                pdmp=[dict(delta=dd, D=r.D, D_ci=r.D_ci, wall_s=r.wall_s) for dd, r in zip(ds, pd)])
+                pdmp=[dict(delta=dd, D=r.D, D_ci=r.D_ci, wall_s=r.wall_s) for dd, r in zip(ds, pd)],
+                runs=pts.summary())
     return save(fig, out_dir, "fig9", nums, t0)
