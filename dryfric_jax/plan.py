@@ -129,7 +129,8 @@ def choose(params: Params, method: str, h, delta, dtype) -> Plan:
         return Plan("di", h, None, None, dtype, reason, "steps", params.tau0 / h, notes=notes)
     delta = default_delta(params) if delta is None else delta
     grid = pdmp_grid_info(params, delta)
-    return Plan("pdmp", None, grid["delta"], grid, dtype, reason, "events", 2.0 * grid["rate_nd"], notes=notes)
+    # every noise jump is an event: the jump rate Lambda' is a lower estimate of the events per tau0
+    return Plan("pdmp", None, grid["delta"], grid, dtype, reason, "events", grid["rate_nd"], notes=notes)
 
 
 def plan_estimate(params: Params, *, method: str = "di", h: float | None = None, delta: float | None = None,
