@@ -58,6 +58,8 @@ BLOCK = 128  # steps per while-iteration (32..256 measured on 2 CPU cores, READM
 # (devices with at least COMPACT_MIN_PER_DEVICE lanes)
 COMPACT = 8
 COMPACT_MIN_PER_DEVICE = 64
+# lane-steps (idle lanes included) of one call of a final round (Lanes._call): ~4 s on 2 CPU cores
+FINAL_CALL_LANE_STEPS = 2**27
 # steps per iteration of the block's loop: best of 5 runs against 1, DI +1-7%, PDMP +10-14% on 2 CPU
 # cores; 8 was no better
 UNROLL = 4
@@ -336,12 +338,15 @@ def init_lanes(chain, n_lanes: int) -> _Lane:
     )
 
 
-def _round_impl(chain, lane: _Lane, keys, b0, budget, max_steps, finish, min_active, fresh, *, block: int,
+def _round_impl(chain, lane: _Lane, keys, b0, budget, max_steps, finish, min_active, fresh, cap, *, block: int,
                 events: str):
     """Blocks of a round.  A paused round (``finish`` False) runs ``ceil(budget / block)`` blocks.
     A final round runs until every lane is done, or until at most ``min_active`` lanes (of this
     device) are not (the final round's compaction, :meth:`Lanes._compact_tail`).  Lane i runs blocks
-    ``b0[i], b0[i] + 1, ...`` of the round; a ``fresh`` round resets the flags and round work."""
+    ``b0[i], b0[i] + 1, ...`` of the round; a ``fresh`` round resets the flags and round work.
+    At most ``cap`` blocks run per call: a final round is a sequence of calls, each continuing
+    the last (``fresh`` False, ``b0`` advanced), with the same result as one call
+    (:meth:`Lanes._call`)."""
     # a final round: every lane stops within budget + max_steps + 1 steps of its round, and takes
     # a whole block of them per block ("branch") or at least one ("wait"): this bound never
     # binds.  The lane with the fewest blocks behind it sets it (a compacted batch mixes lanes of
@@ -356,7 +361,7 @@ def _round_impl(chain, lane: _Lane, keys, b0, budget, max_steps, finish, min_act
 
     def cond(c):
         b, ln = c
-        return (b < max_blocks) & (jnp.sum(~ln.done) > min_active)
+        return (b < max_blocks) & (b < cap) & (jnp.sum(~ln.done) > min_active)
 
     def body(c):
         b, ln = c
@@ -377,7 +382,7 @@ def _sharded_round(devices: tuple, block: int, events: str):
     mesh = Mesh(np.array(devices), ("lanes",))
     rep, lanes = PartitionSpec(), PartitionSpec("lanes")
     f = jax.shard_map(partial(_round_impl, block=block, events=events), mesh=mesh,
-                      in_specs=(rep, lanes, lanes, lanes, rep, rep, rep, rep, rep), out_specs=(lanes, lanes),
+                      in_specs=(rep, lanes, lanes, lanes, rep, rep, rep, rep, rep, rep), out_specs=(lanes, lanes),
                       check_vma=False)
     return jax.jit(f), NamedSharding(mesh, lanes)
 
@@ -464,19 +469,37 @@ class Lanes:
         self.lane = lane
 
     def _call(self, lane, keys, b0, budget, finish, min_active, fresh):
-        """One run of the jitted round on ``lane`` (any multiple of the device count); returns the
-        lanes and the blocks each device ran."""
+        """The jitted round on ``lane`` (any multiple of the device count); returns the lanes and
+        the blocks each device ran.
+
+        A paused round is one call (its budget bounds it).  A final round runs in calls of at most
+        ``FINAL_CALL_LANE_STEPS`` lane-steps each (a few seconds on a CPU), each continuing the
+        last, so that a Ctrl-C acts between calls: the in-flight excursions of a heavy-tailed
+        case can take minutes to finish, and one call would not return before they have (seen:
+        > 6 min at Fig. 3's tau = 1 s, Gamma = 1).  The result is the same as one call (tested)."""
+        nd = len(self.devices)
+        per_dev = keys.shape[0] // nd
+        cap = max(1, FINAL_CALL_LANE_STEPS // (per_dev * nd * self.block)) if finish else np.iinfo(np.int64).max
         args = (jnp.asarray(budget, jnp.int64), jnp.asarray(self.max_steps, jnp.int64), jnp.asarray(finish),
-                jnp.asarray(min_active, jnp.int64), jnp.asarray(fresh))
+                jnp.asarray(min_active, jnp.int64))
+        b0, total = np.asarray(b0, np.int64), np.zeros(nd, np.int64)
+        while True:
+            lane, nb = self._call_once(lane, keys, b0, args + (jnp.asarray(fresh), jnp.asarray(cap, jnp.int64)))
+            self.slot_steps += int(nb.sum()) * self.block * per_dev
+            total, b0, fresh = total + nb, b0 + np.repeat(nb, per_dev), False
+            if not (nb >= cap).any():  # every device stopped on its own condition
+                return lane, total
+
+    def _call_once(self, lane, keys, b0, args):
+        """One call of the jitted round (``args``: budget .. cap of :func:`_round_impl`); returns
+        the lanes and the blocks each device ran (on the host)."""
         b0 = jnp.asarray(b0, jnp.int64)
         if len(self.devices) == 1:
             lane, nb = _run_round(self.chain, lane, keys, b0, *args, block=self.block, events=self.events)
         else:
             put = lambda a: jax.device_put(a, self._sharding)
             lane, nb = self._f(self.chain, put(lane), put(keys), put(b0), *args)
-        nb = np.asarray(jax.device_get(nb))
-        self.slot_steps += int(nb.sum()) * self.block * (keys.shape[0] // len(nb))
-        return lane, nb
+        return lane, np.asarray(jax.device_get(nb))
 
     def _round(self, key, budget, finish) -> ExcursionStats:
         """A paused or final round (a final one compacts its tail, :meth:`_compact_tail`)."""

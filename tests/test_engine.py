@@ -112,8 +112,54 @@ def test_round_block_bound_counts_from_the_lane_with_fewest_blocks(events):
     keys = jax.random.split(jax.random.key(3), 2)
     i64 = lambda v: jnp.asarray(v, jnp.int64)  # noqa: E731
     lane, nb = _run_round(chain, init_lanes(chain, 2), keys, i64([0, 60]), i64(budget), i64(max_steps),
-                          jnp.asarray(True), i64(0), jnp.asarray(True), block=block, events=events)
+                          jnp.asarray(True), i64(0), jnp.asarray(True), i64(2**62), block=block, events=events)
     assert bool(jnp.all(lane.done)) and int(lane.work[0]) >= budget
+
+
+@pytest.mark.parametrize("events", ["branch", "wait"])
+@pytest.mark.parametrize("method", ["di", "pdmp"])
+def test_final_round_in_many_calls_equals_one_call(method, events, monkeypatch):
+    """A final round runs in calls of at most FINAL_CALL_LANE_STEPS lane-steps (so a Ctrl-C acts
+    between them): one block per call, compaction included, gives the same lanes as the default."""
+    from dryfric_jax import excursions
+
+    p = dj.Params.from_nondim(0.5, 1.0, 0.2)
+    chain = make_di_model(p, 0.02) if method == "di" else make_pdmp_model(p, 0.3)
+    one = run_round(chain, jax.random.key(4), 128, 600, block=8, events=events)
+    calls = []
+    real = Lanes._call_once
+    monkeypatch.setattr(Lanes, "_call_once", lambda *a: calls.append(1) or real(*a))
+    monkeypatch.setattr(excursions, "FINAL_CALL_LANE_STEPS", 1)  # one block per call
+    many = run_round(chain, jax.random.key(4), 128, 600, block=8, events=events)
+    assert len(calls) > 50  # the round really was split
+    assert np.array_equal(one.stats, many.stats) and np.array_equal(one.lane_steps, many.lane_steps)
+    assert (one.slot_steps, one.n_truncated, one.n_unfinished) == (many.slot_steps, many.n_truncated,
+                                                                  many.n_unfinished)
+
+
+def test_ctrl_c_acts_between_the_calls_of_a_final_round(monkeypatch):
+    """A KeyboardInterrupt arriving during a final round's calls leaves it at the next call's
+    return, instead of after every in-flight excursion has finished; the lanes keep the state of
+    the last completed round."""
+    from dryfric_jax import excursions
+
+    chain = make_di_model(dj.Params.from_nondim(0.5, 1.0, 0.2), 0.02)
+    ln = Lanes(chain, 64, block=8)
+    ln.advance(jax.random.key(0), 400)
+    before = ln.lane
+    calls, real = [], Lanes._call_once
+
+    def interrupted(*a):
+        calls.append(1)
+        if len(calls) == 3:
+            raise KeyboardInterrupt  # as Python raises it once the call returns
+        return real(*a)
+
+    monkeypatch.setattr(Lanes, "_call_once", interrupted)
+    monkeypatch.setattr(excursions, "FINAL_CALL_LANE_STEPS", 1)
+    with pytest.raises(KeyboardInterrupt):
+        ln.finish(jax.random.key(1))
+    assert len(calls) == 3 and ln.lane is before
 
 
 @pytest.mark.parametrize("events", ["branch", "wait"])
