@@ -479,7 +479,7 @@ class Lanes:
         > 6 min at Fig. 3's tau = 1 s, Gamma = 1).  The result is the same as one call (tested)."""
         nd = len(self.devices)
         per_dev = keys.shape[0] // nd
-        cap = max(1, FINAL_CALL_LANE_STEPS // (per_dev * nd * self.block)) if finish else np.iinfo(np.int64).max
+        cap = max(1, FINAL_CALL_LANE_STEPS // (keys.shape[0] * self.block)) if finish else np.iinfo(np.int64).max
         args = (jnp.asarray(budget, jnp.int64), jnp.asarray(self.max_steps, jnp.int64), jnp.asarray(finish),
                 jnp.asarray(min_active, jnp.int64))
         b0, total = np.asarray(b0, np.int64), np.zeros(nd, np.int64)

@@ -1,6 +1,7 @@
 """Output files: checked writable before any work, written atomically (never a torn file)."""
 from __future__ import annotations
 
+import json
 import os
 import tempfile
 
@@ -42,3 +43,29 @@ def write_atomic(path: str, text: str) -> None:
         if os.path.exists(tmp):
             os.unlink(tmp)
         raise
+
+
+def read_records(path: str, keys: tuple, refusal: str) -> list[dict]:
+    """The records of a JSON Lines results file (empty if it does not exist), each a JSON object
+    with ``keys``; any other line raises ``ValueError(refusal.format(path=path, line=i))``, so a
+    foreign file is refused rather than overwritten."""
+    if not os.path.exists(path):
+        return []
+    out = []
+    with open(path) as f:
+        for i, line in enumerate(f, 1):
+            if not line.strip():
+                continue
+            try:
+                rec = json.loads(line)
+                for k in keys:
+                    rec[k]
+            except (ValueError, KeyError, TypeError):
+                raise ValueError(refusal.format(path=path, line=i)) from None
+            out.append(rec)
+    return out
+
+
+def write_records(path: str, records: list[dict]) -> None:
+    """Rewrite a JSON Lines results file with ``records``, atomically (:func:`write_atomic`)."""
+    write_atomic(path, "".join(json.dumps(rec) + "\n" for rec in records))

@@ -19,7 +19,6 @@ from __future__ import annotations
 import itertools
 import json
 import math
-import os
 import sys
 import time
 import warnings
@@ -28,7 +27,7 @@ import zlib
 from . import __version__
 from .api import DryfricWarning, estimate_diffusivity
 from .limits import MAX_WORK
-from .outfiles import check_writable, write_atomic
+from .outfiles import check_writable, read_records, write_records
 from .params import FIG3, Params
 from .plan import plan_estimate
 
@@ -63,25 +62,8 @@ def point_seed(seed: int, params: dict, settings: dict) -> int:
 
 def read_results(path: str) -> list[dict]:
     """The records of a sweep file (empty if it does not exist); refuses a file that is not one."""
-    if not os.path.exists(path):
-        return []
-    out = []
-    with open(path) as f:
-        for i, line in enumerate(f, 1):
-            if not line.strip():
-                continue
-            try:
-                rec = json.loads(line)
-                rec["params"], rec["settings"], rec["sweep_seed"]
-            except (ValueError, KeyError, TypeError):
-                raise ValueError(f"out must be a dryfric sweep file (JSON Lines); {path!r} line {i} is not a "
-                                 "sweep record") from None
-            out.append(rec)
-    return out
-
-
-def _write_atomic(path: str, records: list[dict]) -> None:
-    write_atomic(path, "".join(json.dumps(rec) + "\n" for rec in records))
+    return read_records(path, ("params", "settings", "sweep_seed"),
+                        "out must be a dryfric sweep file (JSON Lines); {path!r} line {line} is not a sweep record")
 
 
 def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di", h=None, delta=None,
@@ -142,7 +124,7 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
         rec = dict(params=pt, settings=settings, sweep_seed=seed, seed=s, version=__version__,
                    finished_at=time.strftime("%Y-%m-%dT%H:%M:%S"), result=res)
         records.append(rec)
-        _write_atomic(out, records)
+        write_records(out, records)
         computed += 1
         done += 1
         if progress:

@@ -13,8 +13,6 @@ import argparse
 import json
 import math
 
-import numpy as np
-
 import dryfric_jax as dj
 from dryfric_jax.di import make_di_model
 from dryfric_jax.estimators import replicate_coverage

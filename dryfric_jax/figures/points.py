@@ -5,7 +5,7 @@ call :func:`~dryfric_jax.api.estimate_diffusivity` and
 :func:`~dryfric_jax.api.bruteforce_diffusivity` through :class:`Points`.  Each finished run is
 appended to ``<out_dir>/<scene>.points.jsonl`` (one JSON line per run: what was asked, the
 package version, the result), the whole file rewritten atomically
-(:func:`~dryfric_jax.outfiles.write_atomic`), so a kill at any moment leaves a valid file.
+(:func:`~dryfric_jax.outfiles.write_records`), so a kill at any moment leaves a valid file.
 Running the same scene again into the same directory reuses every run already there (same
 kind, parameters, seed, settings and package version) instead of computing it: the seeds are
 fixed by the scene, so the resumed figure is bit-identical to an uninterrupted one (tested).
@@ -26,7 +26,7 @@ import warnings
 
 from .. import __version__
 from ..api import BruteForceResult, DryfricWarning, EstimateResult, bruteforce_diffusivity, estimate_diffusivity
-from ..outfiles import write_atomic
+from ..outfiles import read_records, write_records
 
 _KINDS = {"estimate": (estimate_diffusivity, EstimateResult), "bruteforce": (bruteforce_diffusivity, BruteForceResult)}
 
@@ -59,19 +59,10 @@ class Points:
 
     def __init__(self, out_dir: str, scene: str):
         self.path = points_path(out_dir, scene)
-        self.records, self.reused, self.computed, self.runs_wall_s = [], 0, 0, 0.0
-        if os.path.exists(self.path):
-            with open(self.path) as f:
-                for i, line in enumerate(f, 1):
-                    if not line.strip():
-                        continue
-                    try:
-                        rec = json.loads(line)
-                        rec["ident"], rec["kind"], rec["result"]
-                    except (ValueError, KeyError, TypeError):
-                        raise ValueError(f"out must be a directory of dryfric figure outputs; {self.path!r} line "
-                                         f"{i} is not a finished-run record (move the file away)") from None
-                    self.records.append(rec)
+        self.reused, self.computed, self.runs_wall_s = 0, 0, 0.0
+        self.records = read_records(self.path, ("ident", "kind", "result"),
+                                    "out must be a directory of dryfric figure outputs; {path!r} line {line} is "
+                                    "not a finished-run record (move the file away)")
         self._done = {rec["ident"]: rec for rec in self.records}
 
     def estimate(self, params, seed: int, **kw) -> EstimateResult:
@@ -101,7 +92,7 @@ class Points:
                    result=r.to_dict())
         self.records.append(rec)
         self._done[ident] = rec
-        write_atomic(self.path, "".join(json.dumps(x) + "\n" for x in self.records))
+        write_records(self.path, self.records)
         self.computed += 1
         self.runs_wall_s += r.wall_s
         return r
