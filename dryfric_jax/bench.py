@@ -84,17 +84,21 @@ def chain_floor(chain, lanes: int = 512, block: int = BLOCK, n: int = 1 << 23, r
     """Lane-steps (events) per second of the chain alone: the engine's draws and transitions
     (``chain.draw``, ``chain.advance`` with its regeneration test; for the DI the test for a
     coin to flip, the coins themselves being flipped in the bookkeeping) and the float64 sum of
-    U, without the excursion bookkeeping, refills or idle lanes.  Engine / floor is what the
-    bookkeeping costs; floor / RNG bound is what the chain's own arithmetic costs."""
+    U (a block's increments summed in their own dtype first, as the engine does), without the
+    excursion bookkeeping, refills or idle lanes.  Engine / floor is what the bookkeeping costs;
+    floor / RNG bound is what the chain's own arithmetic costs."""
     def body(keys, b, carry):
         rs = draw_block(chain, keys, b, block)
+        state, U = carry
 
         def step(i, c):
-            state, U = c
+            state, S = c
             new, dU, _, heads = chain.advance(state, numbers_at(rs, i), True)
-            return new, U + jnp.where(heads, 0.0, dU)
+            return new, S + jnp.where(heads, 0.0, dU).astype(S.dtype)
 
-        return jax.lax.fori_loop(0, block, step, carry, unroll=UNROLL)
+        dU_dtype = jax.eval_shape(lambda: chain.advance(state, numbers_at(rs, 0), True))[1].dtype
+        state, S = jax.lax.fori_loop(0, block, step, (state, jnp.zeros(U.shape, dU_dtype)), unroll=UNROLL)
+        return state, U + S.astype(U.dtype)
 
     init = lambda m: (chain.init_state(m), jnp.zeros((m,), jnp.float64))
     return _device_loop(body, init, lanes, block, n, reps)

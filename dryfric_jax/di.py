@@ -92,12 +92,17 @@ class DIModel(eqx.Module):
         flips the splitting coin (stuck on C_+ and released upwards (``watch_plus``), or stuck on
         C_- and released downwards); it is a regeneration when :meth:`coin` says heads
         (:mod:`dryfric_jax.regeneration`).  Candidates are rare, so the lane engine flips coins
-        only at steps where some lane has one."""
+        only at steps where some lane has one.
+
+        ``dU`` = :math:`h (V_n + V_{n+1})/2` is in the simulation dtype (:meth:`move`'s is float64):
+        the engine adds it to its float64 U, summing at most one block of increments in the
+        simulation dtype first (``excursions._quiet_steps``)."""
         X, V = state
         z1, z2 = r
-        _, Xn, Vn, dU = self.move(X, V, z1, z2)
+        Xi, Xn = self.ou.sample(X, z1, z2)
+        Vn = self.step(V, Xi)
         released = jnp.where(watch_plus, Vn > 0, Vn < 0)
-        return (Xn, Vn), dU, None, (V == 0) & released & self._set(watch_plus).contains(X)
+        return (Xn, Vn), 0.5 * self.h * (V + Vn), None, (V == 0) & released & self._set(watch_plus).contains(X)
 
     def coin(self, state, r, watch_plus, key):
         r"""The splitting coin of a candidate step from ``state`` with normals ``r``: heads with
