@@ -42,12 +42,13 @@ class DIModel(eqx.Module):
         w = V + self.h * (self.gamma_bar - V * self.inv_tau_L + Xi)
         return jnp.sign(w) * jnp.maximum(jnp.abs(w) - self.h, 0.0)
 
-    def move(self, X, V, z1, z2):
+    def move(self, X, V, z1, z2, dtype=jnp.float64):
         """One step of the chain from two standard normals: ``(Xi, X_next, V_next, dU)``, with
-        the float64 trapezoid displacement :math:`dU = h (V_n + V_{n+1})/2`."""
+        the trapezoid displacement :math:`dU = h (V_n + V_{n+1})/2` in ``dtype`` (float64 unless
+        told: the lane engine asks for the simulation dtype, :meth:`advance`)."""
         Xi, Xn = self.ou.sample(X, z1, z2)
         Vn = self.step(V, Xi)
-        dU = 0.5 * self.h.astype(jnp.float64) * (V.astype(jnp.float64) + Vn.astype(jnp.float64))
+        dU = 0.5 * self.h.astype(dtype) * (V.astype(dtype) + Vn.astype(dtype))
         return Xi, Xn, Vn, dU
 
     # --- the lane-engine interface (dryfric_jax.excursions) ---
@@ -99,10 +100,9 @@ class DIModel(eqx.Module):
         simulation dtype first (``excursions._quiet_steps``)."""
         X, V = state
         z1, z2 = r
-        Xi, Xn = self.ou.sample(X, z1, z2)
-        Vn = self.step(V, Xi)
+        _, Xn, Vn, dU = self.move(X, V, z1, z2, V.dtype)
         released = jnp.where(watch_plus, Vn > 0, Vn < 0)
-        return (Xn, Vn), 0.5 * self.h * (V + Vn), None, (V == 0) & released & self._set(watch_plus).contains(X)
+        return (Xn, Vn), dU, None, (V == 0) & released & self._set(watch_plus).contains(X)
 
     def coin(self, state, r, watch_plus, key):
         r"""The splitting coin of a candidate step from ``state`` with normals ``r``: heads with
