@@ -30,7 +30,7 @@ from .api import DryfricWarning, default_h, estimate_diffusivity
 from .cost import default_delta
 from .di import make_di_model
 from . import rng
-from .excursions import BLOCK, UNROLL, block_keys, draw_block, numbers_at
+from .excursions import BLOCK, UNROLL, block_keys, draw_block, increment_dtype, numbers_at
 from .pdmp import make_pdmp_model
 from .plan import plan_estimate
 from .params import FIG3, Params
@@ -96,7 +96,7 @@ def chain_floor(chain, lanes: int = 512, block: int = BLOCK, n: int = 1 << 23, r
             new, dU, _, heads = chain.advance(state, numbers_at(rs, i), True)
             return new, S + jnp.where(heads, 0.0, dU).astype(S.dtype)
 
-        dU_dtype = jax.eval_shape(lambda: chain.advance(state, numbers_at(rs, 0), True))[1].dtype
+        dU_dtype = increment_dtype(chain.advance, state, rs, True)
         state, S = jax.lax.fori_loop(0, block, step, (state, jnp.zeros(U.shape, dU_dtype)), unroll=UNROLL)
         return state, U + S.astype(U.dtype)
 

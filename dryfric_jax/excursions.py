@@ -212,6 +212,14 @@ def numbers_at(rs, i):
     return jax.tree_util.tree_map(lambda a: a[i], rs)
 
 
+def increment_dtype(advance, state, rs, *args):
+    """The dtype of the increment dU that ``advance(state, numbers_at(rs, 0), *args)`` returns,
+    found by tracing only (``jax.eval_shape``): float64 for the PDMP, the simulation dtype for
+    the DI.  A block of increments narrower than the float64 U is summed in its own dtype first
+    (:func:`_quiet_steps`, ``bench.chain_floor``)."""
+    return jax.eval_shape(lambda: advance(state, numbers_at(rs, 0), *args))[1].dtype
+
+
 def _pair(state):
     """True for a chain state of two float arrays of one dtype (the DI's X, V)."""
     return (isinstance(state, tuple) and len(state) == 2 and state[0].dtype == state[1].dtype
@@ -260,7 +268,7 @@ def _quiet_steps(chain, budget, max_steps, finish, block, lane: _Lane, rs):
     # its dtype from 0 and adds them to the float64 U after the loop, so the loop runs in one
     # dtype: float32 DI 1.60e8 -> 1.78e8 lane-steps/s at the Fig. 3 point (N = 1e4, 4 interleaved
     # runs each), D moved by ~1e-8 relative; a chain with a float64 dU sums straight into U
-    dU_dtype = jax.eval_shape(lambda: jax.vmap(chain.advance)(lane.state, numbers_at(rs, 0), watch))[1].dtype
+    dU_dtype = increment_dtype(jax.vmap(chain.advance), lane.state, rs, watch)
     part = dU_dtype != lane.U.dtype
     U0 = jnp.zeros(lane.U.shape, dU_dtype) if part else lane.U
     at = jnp.where(lane.done, -1.0, float(block)).astype(U0.dtype)
