@@ -87,6 +87,8 @@ class EstimateResult:
     # STAT_NAMES, nondimensional (U in u0, t in tau0); runs combine by adding them (combine.py)
     sums: dict = field(default_factory=dict)
     combined_from: list = field(default_factory=list)  # seeds of the runs a combined result pools
+    lanes: int = 0  # the engine's layout (with the seed, it fixes the random streams)
+    block: int = 0
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -142,7 +144,11 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
             excursion); below :data:`MIN_RELIABLE_N` the CI under-covers and a
             :class:`DryfricWarning` is issued (also for weak viscous damping, see README).
         dtype: ``"float64"`` or ``"float32"`` for the simulation (statistics are float64).
-        lanes, chunk_lanes, block: engine layout (do not change the estimate's law).
+        lanes, chunk_lanes, block: engine layout (do not change the estimate's law, only the
+            random streams; recorded in the result): lanes in [1, 2^22] (default
+            :func:`~dryfric_jax.excursions.lanes_for`, a power of two up to ``chunk_lanes``),
+            block K in [1, 1024], lanes * K <= 2^28 (:func:`~dryfric_jax.plan.check_layout`).
+            On a GPU, ``dryfric bench --lanes ... --block ...`` measures which layout is fastest.
         max_steps: work bound per excursion; default
             :func:`~dryfric_jax.limits.max_steps_per_excursion` (1e4 tail time scales of the
             excursion, at most ``max_work / lanes``).  Excursions reaching it are truncated,
@@ -167,7 +173,8 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
     if max_time is not None and not (isinstance(max_time, (int, float)) and max_time > 0):
         raise ValueError(f"max_time must be > 0 seconds (got {max_time!r})")
     plan = plan_estimate(params, method=method, h=h, delta=delta, dtype=dtype, n_excursions=n_excursions,
-                         max_work=max_work, max_steps=max_steps, lanes=lanes, chunk_lanes=chunk_lanes)
+                         max_work=max_work, max_steps=max_steps, lanes=lanes, chunk_lanes=chunk_lanes,
+                         block=block)
     key, seed = _key(key)
     model, notes, h, grid, unit = _build(params, plan), list(plan.notes), plan.h, plan.grid, plan.unit
 
@@ -232,7 +239,8 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
         warnings=notes, delta=grid and grid["delta"], L_X=grid and grid["L_X"],
         events_per_s=None if grid is None else sim.useful_steps / wall, method_reason=plan.reason,
         max_steps=plan.max_steps, max_work=plan.max_work, predicted_work=plan.predicted_work,
-        work=int(sim.slot_steps), sums={k: float(v) for k, v in sim.total().items()})
+        work=int(sim.slot_steps), sums={k: float(v) for k, v in sim.total().items()}, lanes=plan.lanes,
+        block=int(block))
 
 
 def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, method: str = "di",

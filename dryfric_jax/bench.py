@@ -14,6 +14,9 @@ One run, one device, the paper's Fig. 3 point:
   threads), if numba is installed;
 * the ratios, and the time to a 1% CI on D extrapolated from the measured CI width and rate
   (the CI half-width scales as N^{-1/2}).
+
+``dryfric bench --lanes ... --block ...`` runs :func:`tune_layout` instead: the DI's lane-steps/s
+for each engine layout, to choose one on a new device.
 """
 from __future__ import annotations
 
@@ -32,7 +35,7 @@ from .di import make_di_model
 from . import rng
 from .excursions import BLOCK, UNROLL, block_keys, draw_block, increment_dtype, numbers_at
 from .pdmp import make_pdmp_model
-from .plan import plan_estimate
+from .plan import check_layout, plan_estimate
 from .params import FIG3, Params
 
 
@@ -166,6 +169,71 @@ def run_bench(n_excursions: int = 10_000, numba_excursions: int = 2000, seed: in
         out[f"ratio_pdmp_{dt}_to_event_floor"] = (out[f"pdmp_{dt}_events_per_s"]
                                                  / out[f"pdmp_event_floor_{dt}_events_per_s"])
     return out
+
+
+def tune_layout(lanes_list, blocks, dtype: str = "float32", n_excursions: int = 10_000, seed: int = 0,
+                numba_excursions: int = 2000) -> dict:
+    """DI useful lane-steps/s at the Fig. 3 point for every engine layout (lanes, block K) in
+    ``lanes_list`` x ``blocks`` (``dryfric bench --lanes ... --block ...``): the sweep that
+    picks the layout on a new device (a GPU needs far more lanes than the CPU default).
+
+    Each layout is compiled by a short run first, then timed on ``max(n_excursions, 8 * lanes)``
+    excursions (every lane runs several, so the final round's tail does not dominate), seed
+    ``seed + 1``.  The layout changes the random streams but not the law, so the D of all
+    layouts must agree within their CIs: ``max_z`` is the largest |D_i - pooled| / SE_i
+    against the inverse-variance pooled D (a check, not a speed number).  The RNG bound and
+    the numba 2-thread DI loop are measured once, at the best layout and on the host CPU.
+    """
+    for lanes in lanes_list:
+        for block in blocks:
+            check_layout(lanes, block)
+    if dtype not in ("float32", "float64"):
+        raise ValueError(f"dtype must be 'float32' or 'float64' (got {dtype!r})")
+    p = Params(**FIG3)
+    out = dict(device=str(jax.devices()[0]), n_devices=jax.device_count(), cpu_count=os.cpu_count(),
+               params=p.as_dict(), dtype=dtype, layouts=[])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DryfricWarning)
+        for lanes in lanes_list:
+            for block in blocks:
+                n = max(int(n_excursions), 8 * int(lanes))
+                estimate_diffusivity(p, seed, n_excursions=200, dtype=dtype, lanes=lanes, block=block)  # compile
+                r = estimate_diffusivity(p, seed + 1, n_excursions=n, dtype=dtype, lanes=lanes, block=block)
+                out["layouts"].append(dict(lanes=lanes, block=block, n_excursions=r.n_excursions,
+                                           lane_steps_per_s=r.lane_steps_per_s,
+                                           utilization=r.lane_utilization, wall_s=r.wall_s, D=r.D, D_ci=r.D_ci))
+    rows = out["layouts"]
+    best = max(rows, key=lambda row: row["lane_steps_per_s"])
+    w = [(1.96 / row["D_ci"]) ** 2 for row in rows]
+    pooled = sum(wi * row["D"] for wi, row in zip(w, rows)) / sum(w)
+    out.update(best_lanes=best["lanes"], best_block=best["block"], best_lane_steps_per_s=best["lane_steps_per_s"],
+               D_pooled=pooled, max_z=max(abs(row["D"] - pooled) * 1.96 / row["D_ci"] for row in rows))
+    bound = rng_bound(jnp.dtype(dtype), best["lanes"], best["block"])
+    out.update(rng_bound_lane_steps_per_s=bound, ratio_best_to_rng_bound=best["lane_steps_per_s"] / bound)
+    try:
+        from .bench_numba import run_numba
+    except Exception as exc:
+        out["numba"] = f"unavailable ({type(exc).__name__}: {exc}); pip install -e '.[bench]'"
+    else:
+        rate = _numba_rates(run_numba, make_di_model(p, default_h(p)), numba_excursions, seed)[2]
+        out.update(numba_2t_steps_per_s=rate, ratio_best_to_numba_2t=best["lane_steps_per_s"] / rate)
+    return out
+
+
+def format_layouts(b: dict) -> str:
+    """The table of :func:`tune_layout`."""
+    head = f"device {b['device']} (x{b['n_devices']}, {b['cpu_count']} CPU cores), DI {b['dtype']}, Fig. 3 point"
+    lines = [head, f"{'lanes':>8} {'K':>5} {'N':>9} {'lane-steps/s':>13} {'util':>6} {'wall s':>8}  D (95% CI)"]
+    for r in b["layouts"]:
+        lines.append(f"{r['lanes']:>8} {r['block']:>5} {r['n_excursions']:>9} {r['lane_steps_per_s']:>13.4g} "
+                     f"{r['utilization']:>6.3f} {r['wall_s']:>8.2f}  {r['D']:.5g} ± {r['D_ci']:.2g}")
+    lines.append(f"best: lanes = {b['best_lanes']}, K = {b['best_block']}, {b['best_lane_steps_per_s']:.4g} "
+                 f"lane-steps/s = {b['ratio_best_to_rng_bound']:.3g} x the RNG bound ({b['rng_bound_lane_steps_per_s']:.4g})")
+    if "ratio_best_to_numba_2t" in b:
+        lines.append(f"       {b['ratio_best_to_numba_2t']:.3g} x the numba 2-thread CPU loop "
+                     f"({b['numba_2t_steps_per_s']:.4g} steps/s)")
+    lines.append(f"layouts agree: largest |D - pooled| = {b['max_z']:.2f} SE (pooled D = {b['D_pooled']:.5g})")
+    return "\n".join(lines)
 
 
 def format_table(b: dict) -> str:

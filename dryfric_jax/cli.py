@@ -121,6 +121,11 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--rtol", type=_number("rtol"), default=None,
                    help="run rounds until the 95%% CI half-width of D is <= RTOL*|D|")
     e.add_argument("--max-time", type=_number("max-time"), default=None, help="stop after this many seconds")
+    e.add_argument("--lanes", type=_int_at_least("lanes", 1), default=None,
+                   help="engine lanes (default: a power of two near N/32, 512-4096; a GPU wants many more: "
+                        "'dryfric bench --lanes ...' finds how many); the law does not change, the random streams do")
+    e.add_argument("--block", type=_int_at_least("block", 1), default=None,
+                   help="engine block size K, steps per loop iteration (default 128)")
     e.add_argument("--max-steps", type=_int_at_least("max-steps", 1), default=None,
                    help="work bound per excursion, steps (events); longer excursions are truncated and reported "
                         "(default: 1e4 of the excursion's time scales, README 'Validity ranges')")
@@ -164,6 +169,14 @@ def build_parser() -> argparse.ArgumentParser:
     bn = sub.add_parser("bench", help="throughput: DI engine vs RNG bound vs compiled baseline")
     bn.add_argument("--json", action="store_true", help="print one JSON object")
     bn.add_argument("--n-excursions", type=_int_at_least("n-excursions", 2), default=10_000)
+    bn.add_argument("--lanes", type=_list_of(_int_at_least("lanes", 1), "lanes"), default=None,
+                    help="layout sweep instead of the side-by-side bench: DI lane-steps/s for these lane "
+                         "counts (comma-separated; default: the run's own) ...")
+    bn.add_argument("--block", type=_list_of(_int_at_least("block", 1), "block"), default=None,
+                    help="... and these block sizes K (default: the engine's, 128); each layout runs "
+                         "max(N, 8 lanes) excursions at the Fig. 3 point")
+    bn.add_argument("--dtype", choices=("float32", "float64"), default="float32",
+                    help="simulation dtype of the layout sweep (default float32)")
     return p
 
 
@@ -260,6 +273,15 @@ def _run(a) -> int:
     if a.cmd == "bench":
         from .bench import format_table, run_bench
 
+        if a.lanes or a.block:
+            from .bench import format_layouts, tune_layout
+            from .excursions import BLOCK
+            from .plan import plan_estimate
+
+            lanes = a.lanes or [plan_estimate(Params(**FIG3), n_excursions=a.n_excursions).lanes]
+            b = tune_layout(lanes, a.block or [BLOCK], a.dtype, n_excursions=a.n_excursions)
+            print(json.dumps(b) if a.json else format_layouts(b))
+            return 0
         b = run_bench(n_excursions=a.n_excursions)
         print(json.dumps(b) if a.json else format_table(b))
         return 0
@@ -316,8 +338,9 @@ def _run(a) -> int:
         with _warnings_kept_in_result():
             r = api.estimate_diffusivity(params, a.seed, method=a.method, h=a.h, delta=a.delta,
                                          n_excursions=a.n_excursions, max_steps=a.max_steps,
-                                         dtype=a.dtype, rtol=a.rtol, max_time=a.max_time,
-                                         progress=_progress_line if show else None, **_work_options(a))
+                                         dtype=a.dtype, rtol=a.rtol, max_time=a.max_time, lanes=a.lanes,
+                                         progress=_progress_line if show else None, **_work_options(a),
+                                         **({} if a.block is None else dict(block=a.block)))
         if show:
             print(file=sys.stderr)
 

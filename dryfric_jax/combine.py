@@ -108,7 +108,14 @@ def _result(first: EstimateResult, rs, total: dict, seeds) -> EstimateResult:
         events_per_s=None if first.events_per_s is None else rate,
         lane_utilization=useful / slots if slots else first.lane_utilization,
         work=sum(r.work for r in rs), predicted_work=sum(r.predicted_work for r in rs),
-        stopped_by="combined", rtol=None, warnings=notes, sums=total, combined_from=list(seeds))
+        stopped_by="combined", rtol=None, warnings=notes, sums=total, combined_from=list(seeds),
+        lanes=_common(rs, "lanes"), block=_common(rs, "block"))
+
+
+def _common(rs, name):
+    """The runs' shared value of an engine setting, 0 where they differ (the law does not)."""
+    vals = {getattr(r, name) for r in rs}
+    return vals.pop() if len(vals) == 1 else 0
 
 
 def gather_hosts(result: EstimateResult) -> EstimateResult:

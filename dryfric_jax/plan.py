@@ -26,7 +26,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .cost import choose_method, default_delta
-from .excursions import lanes_for
+from .excursions import BLOCK, lanes_for
 from .limits import MAX_WORK, check_recurrent, check_work, float32_unsafe_reason, max_steps_per_excursion
 from .params import Params
 from .pdmp import pdmp_grid_info
@@ -74,6 +74,23 @@ def dtype_name(dtype) -> str:
 def check_count(name, n, lo=2):
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < lo:
         raise ValueError(f"{name} must be an integer >= {lo} (got {n!r})")
+
+
+MAX_LANES, MAX_BLOCK, MAX_LAYOUT = 1 << 22, 1024, 1 << 28
+
+
+def check_layout(lanes, block):
+    """The engine's layout: ``lanes`` (None: :func:`~dryfric_jax.excursions.lanes_for`) and the
+    block size K, integers in [1, 2^22] and [1, 1024] with lanes * K <= 2^28 (a block's normals
+    are drawn at once, 2 per lane-step: 2 GiB in float32)."""
+    for name, v, hi in (("lanes", lanes, MAX_LANES), ("block", block, MAX_BLOCK)):
+        if v is None and name == "lanes":
+            continue
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not 1 <= v <= hi:
+            raise ValueError(f"{name} must be an integer in [1, {hi}] (got {v!r})")
+    if lanes is not None and lanes * block > MAX_LAYOUT:
+        raise ValueError(f"lanes * block must be <= 2^28 (a block's normals are drawn at once) "
+                         f"(got lanes = {lanes}, block = {block})")
 
 
 def check_max_work(max_work):
@@ -135,7 +152,8 @@ def choose(params: Params, method: str, h, delta, dtype) -> Plan:
 
 def plan_estimate(params: Params, *, method: str = "di", h: float | None = None, delta: float | None = None,
                   dtype="float64", n_excursions: int = 20_000, max_work: float = MAX_WORK,
-                  max_steps: int | None = None, lanes: int | None = None, chunk_lanes: int = 4096) -> Plan:
+                  max_steps: int | None = None, lanes: int | None = None, chunk_lanes: int = 4096,
+                  block: int = BLOCK) -> Plan:
     """Validate a long-excursion run and fix its method, step, dtype and work bounds.
 
     Same arguments as :func:`~dryfric_jax.api.estimate_diffusivity`.  Raises ``ValueError`` (naming
@@ -144,6 +162,7 @@ def plan_estimate(params: Params, *, method: str = "di", h: float | None = None,
     """
     check_count("n_excursions", n_excursions)
     check_max_work(max_work)
+    check_layout(lanes, block)
     plan = choose(params, method, h, delta, dtype)
     nd = (params.tau_nd, params.tau_L_nd, params.gamma_bar_nd)
     plan.predicted_work = check_work(*nd, plan.per_tau0, int(n_excursions), max_work, plan.unit)

@@ -9,6 +9,7 @@ import pytest
 from dryfric_jax.chain_law import white_chain_law
 from dryfric_jax.cli import main
 from dryfric_jax.params import FIG3, Params
+from dryfric_jax.plan import plan_estimate
 
 FIG3_TAU = FIG3["tau"]
 # admissible PDMP grid step at the Fig. 3 point, from the documented condition
@@ -98,6 +99,15 @@ BAD += [
     (["combine", "/nonexistent-dir/r.json"], "files"),
     (["theory", "--h", "1"], "h must be in"),
     (["combine", "/etc/passwd"], "files"),  # not JSON
+    (["bench", "--lanes", "0"], "--lanes"),
+    (["bench", "--lanes", "64,x"], "--lanes"),
+    (["bench", "--block", "2048"], "block must be an integer in [1, 1024]"),
+    (["bench", "--lanes", "4194304", "--block", "1024"], "lanes * block"),  # 2^32 normals per block
+    (["estimate", "--lanes", "0"], "--lanes"),
+    (["estimate", "--lanes", "8388608"], "lanes must be an integer in [1, 4194304]"),
+    (["estimate", "--block", "0"], "--block"),
+    (["estimate", "--block", "4096"], "block must be an integer in [1, 1024]"),
+    (["bench", "--lanes", "64", "--dtype", "half"], "dtype"),
 ]
 
 
@@ -139,6 +149,14 @@ def test_estimate_json(capsys):
     # every lane finishes its in-flight excursion: at least N come back, all reported
     assert out["n_excursions"] >= 200 and out["method"] == "di" and out["params"]["Gamma"] == 1.0
     assert "under-covers" in cap.err  # N below the CI threshold is flagged
+    assert (out["lanes"], out["block"]) == (plan_estimate(Params.from_nondim(1e-3, math.inf, 0.0),
+                                                          n_excursions=200).lanes, 128)
+    # the layout is the user's to choose, and the JSON records it (with the seed it fixes the streams)
+    assert main(["estimate", "--nondim", "--tau", "1e-3", "--tau-L", "inf", "--gamma-bar", "0",
+                 "--n-excursions", "200", "--lanes", "48", "--block", "32", "--json"]) == 0
+    lay = json.loads(capsys.readouterr().out)
+    assert (lay["lanes"], lay["block"]) == (48, 32) and lay["D"] != out["D"]
+    assert abs(lay["D"] - out["D"]) < 3 * math.hypot(lay["D_ci"], out["D_ci"]) / 1.96
 
 
 def test_bruteforce_and_theory_json(capsys, solve_rounding):
@@ -169,6 +187,19 @@ def test_bench_json_has_the_side_by_side_numbers(capsys):
                   f"ratio_di_{dt}_to_chain_floor", f"ratio_di_chain_floor_{dt}_to_rng_bound"):
             assert b[k] > 0, k
     assert b["time_to_1pct_ci_s"] > 0
+
+
+def test_bench_layout_sweep(capsys):
+    """``bench --lanes --block``: one row per layout, the best is the fastest, and the layouts'
+    estimates agree (other random streams, same law)."""
+    assert main(["bench", "--lanes", "32,64", "--block", "64", "--n-excursions", "200", "--dtype", "float64",
+                 "--json"]) == 0
+    b = json.loads(capsys.readouterr().out)
+    rows = b["layouts"]
+    assert [(r["lanes"], r["block"]) for r in rows] == [(32, 64), (64, 64)]
+    assert all(r["n_excursions"] >= max(200, 8 * r["lanes"]) and r["D_ci"] > 0 for r in rows)
+    assert b["best_lane_steps_per_s"] == max(r["lane_steps_per_s"] for r in rows)
+    assert b["ratio_best_to_rng_bound"] > 0 and b["max_z"] < 3
 
 
 def test_pdmp_and_auto_json(capsys):
