@@ -255,14 +255,15 @@ def _quiet_steps(chain, budget, max_steps, finish, block, lane: _Lane, rs):
         state, U, at = unpack(state), jnp.real(Ua), jnp.imag(Ua)
         adv = jax.vmap(chain.advance)(state, numbers_at(rs, i), watch)
         new, dU, dt, _ = adv
+        fi = i.astype(at.dtype)
         free = at == block
         # a free lane has taken the block's first i steps: its counters are i ahead
-        event = free & (adv[3] | (i >= first))
+        event = free & (adv[3] | (fi >= first))
         go = free & ~event
         state = jax.tree_util.tree_map(lambda a, b: jnp.where(go, a, b), new, state)
         U = U + jnp.where(go & counted, dU, 0.0)
         t = t if dt is None else t + jnp.where(go & counted, dt, 0.0)
-        return pack(state), jax.lax.complex(U, jnp.where(event, i, at).astype(U.dtype)), t
+        return pack(state), jax.lax.complex(U, jnp.where(event, fi, at)), t
 
     # a chain whose dU is narrower than float64 (the DI in float32) sums the block's increments in
     # its dtype from 0 and adds them to the float64 U after the loop, so the loop runs in one
@@ -272,6 +273,10 @@ def _quiet_steps(chain, budget, max_steps, finish, block, lane: _Lane, rs):
     part = dU_dtype != lane.U.dtype
     U0 = jnp.zeros(lane.U.shape, dU_dtype) if part else lane.U
     at = jnp.where(lane.done, -1.0, float(block)).astype(U0.dtype)
+    # the step test in the loop's dtype (exact: 0 <= i < block <= 1024): with the int64 ``first``
+    # the float32 loop mixed widths, +14% on the float32 quiet loop (512 lanes, K = 128, 2 CPU devices,
+    # medians of 3), the same events
+    first = jnp.clip(first, 0, block).astype(U0.dtype)
     state, Ua, t = jax.lax.fori_loop(0, block, body, (pack(lane.state), jax.lax.complex(U0, at), lane.t))
     state, U, at = unpack(state), jnp.real(Ua), jnp.imag(Ua).astype(jnp.int32)
     U = lane.U + U.astype(lane.U.dtype) if part else U
