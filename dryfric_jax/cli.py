@@ -106,7 +106,8 @@ def build_parser() -> argparse.ArgumentParser:
                           "(the cheaper by the cost model; estimate only)")
     sim.add_argument("--h", type=_number("h"), default=None, help="DI step, s (default 0.01*min(tau0, tau_L))")
     sim.add_argument("--delta", type=_number("delta"), default=None,
-                     help="PDMP noise grid step, s^-1/2 (default delta' = delta sqrt(Gamma)/Delta = 0.05)")
+                     help="PDMP noise grid step, s^-1/2 (default: delta' = delta sqrt(Gamma)/Delta = 0.05, "
+                          "and delta sqrt(tau) <= 1/16 for slow noise)")
     sim.add_argument("--seed", type=_int_at_least("seed", 0), default=0)
     sim.add_argument("--dtype", default="float64", help="float64 or float32 (the DI falls back to float64 "
                                                         "where float32 is not safe, README)")

@@ -123,6 +123,26 @@ def test_pdmp_agrees_with_di_at_fig3_point():
     assert pd.events_per_s > 0 and pd.delta == 0.0625 and pd.L_X >= 8 / math.sqrt(p.tau)
 
 
+@pytest.mark.parametrize("Gamma,tau", [(5.0, 0.5), (1.0, 1.0), (2.78, 1.0), (5.0, 5.0), (10.0, 0.125), (0.1, 30.0)])
+def test_default_delta_resolves_the_noise_sd(Gamma, tau):
+    """Default grid: delta' <= 0.05, delta sqrt(tau) <= 1/16 (the step at which the Fig. 3 tau = 1 s,
+    Gamma = 1 PDMP meets the DI; 0.12 left it 6-7% low, README), inside the admissible range, and
+    unchanged at the Fig. 3 point (delta' = 0.05 binds there)."""
+    from dryfric_jax.cost import default_delta
+    from dryfric_jax.noise import delta_max
+    p = dj.Params(**{**dj.FIG3, "Gamma": Gamma, "tau": tau})
+    nd = p.nondim()
+    d = default_delta(p)
+    d_nd = d * math.sqrt(Gamma) / p.Delta
+    assert d * math.sqrt(tau) <= 0.0625 * (1 + 1e-12)
+    assert d_nd <= 0.05 * (1 + 1e-12) and 0 < d_nd <= 0.5 * delta_max(nd.tau, nd.gamma_bar)
+    # the tightest cap is attained: no needless refinement
+    caps = (0.05, 0.0625 / math.sqrt(nd.tau), 0.5 * delta_max(nd.tau, nd.gamma_bar))
+    assert d_nd == pytest.approx(min(caps), rel=1e-12)
+    if (Gamma, tau) == (5.0, 0.5):
+        assert d_nd == pytest.approx(0.05, rel=1e-12)
+
+
 @pytest.mark.slow
 def test_pdmp_long_excursions_agree_with_pdmp_bruteforce():
     """Same PDMP (coarse delta' = 0.15, so the test is about the PDMP, not its limit): the
