@@ -28,9 +28,9 @@ EVENT_COST = 1.0
 #: the admissible maximum
 DELTA_ND = 0.05
 #: and at most this fraction of the noise's stationary SD 1/sqrt(tau'): delta' sqrt(tau') =
-#: delta sqrt(tau) <= 1/16, both dimensionless (measured, README "Default delta": at tau = 1 s, Gamma = 1, where the stick
-#: thresholds lie 3.5 and 4.2 SD out, delta sqrt(tau) = 0.12 puts D 6-7% (4 SE) below the DI,
-#: 1/16 agrees with it within 0.7 +- 1.6%)
+#: delta sqrt(tau) <= 1/16, both dimensionless. Measured (README "Default delta"): at tau = 1 s,
+#: Gamma = 1, where the stick thresholds lie 3.5 and 4.2 SD out, delta sqrt(tau) = 0.12 puts D
+#: 6-7% (4 SE) below the DI and 1/16 agrees with it (-0.7 +- 1.8% SE)
 DELTA_PER_SD = 0.0625
 
 

@@ -134,11 +134,11 @@ def test_default_delta_resolves_the_noise_sd(Gamma, tau):
     nd = p.nondim()
     d = default_delta(p)
     d_nd = d * math.sqrt(Gamma) / p.Delta
+    half_max = 0.5 * delta_max(nd.tau, nd.gamma_bar)
     assert d * math.sqrt(tau) <= 0.0625 * (1 + 1e-12)
-    assert d_nd <= 0.05 * (1 + 1e-12) and 0 < d_nd <= 0.5 * delta_max(nd.tau, nd.gamma_bar)
+    assert d_nd <= 0.05 * (1 + 1e-12) and 0 < d_nd <= half_max
     # the tightest cap is attained: no needless refinement
-    caps = (0.05, 0.0625 / math.sqrt(nd.tau), 0.5 * delta_max(nd.tau, nd.gamma_bar))
-    assert d_nd == pytest.approx(min(caps), rel=1e-12)
+    assert d_nd == pytest.approx(min(0.05, 0.0625 / math.sqrt(nd.tau), half_max), rel=1e-12)
     if (Gamma, tau) == (5.0, 0.5):
         assert d_nd == pytest.approx(0.05, rel=1e-12)
 
