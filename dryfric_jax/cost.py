@@ -30,7 +30,8 @@ DELTA_ND = 0.05
 #: and at most this fraction of the noise's stationary SD 1/sqrt(tau'): delta' sqrt(tau') =
 #: delta sqrt(tau) <= 1/16, both dimensionless. Measured (README "Default delta"): at tau = 1 s,
 #: Gamma = 1, where the stick thresholds lie 3.5 and 4.2 SD out, delta sqrt(tau) = 0.12 puts D
-#: 6-7% (4 SE) below the DI and 1/16 agrees with it (-0.7 +- 1.8% SE)
+#: 6-7% (4 SE) below the DI and 1/16 agrees with it (-0.7 +- 1.8% SE); at Gamma = 1 and 1.29
+#: halving 1/16 again moves D by -1.4 +- 1.1% (SE), no visible bias
 DELTA_PER_SD = 0.0625
 
 
