@@ -139,7 +139,8 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
             two by the cost model of :mod:`dryfric_jax.cost`; ``method_reason`` says why).
         h: DI step in seconds; default :func:`default_h` = 0.01 min(tau0, tau_L).
         delta: PDMP noise grid step in s^-1/2; default :func:`dryfric_jax.cost.default_delta`
-            (delta' = min(0.05, 1/(16 sqrt(tau')))); admissible range in :mod:`dryfric_jax.noise`.
+            (delta' = min(0.05, 1/(16 sqrt(tau')), delta'_max/2)); admissible range in
+            :mod:`dryfric_jax.noise`.
         n_excursions: N >= 2 (the run ends with slightly more: every lane finishes its in-flight
             excursion); below :data:`MIN_RELIABLE_N` the CI under-covers and a
             :class:`DryfricWarning` is issued (also for weak viscous damping, see README).
