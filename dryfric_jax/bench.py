@@ -39,9 +39,10 @@ from .plan import check_layout, plan_estimate
 from .params import FIG3, Params
 
 
-def _device_loop(per_lane_block, init, lanes: int, block: int, n: int, reps: int) -> float:
-    """Lane-steps/s of ``per_lane_block(keys, b, carry) -> carry`` run for ``b = 0, 1, ...`` on
-    every local device, ``lanes`` split evenly, ``n`` lane-steps in all, compile excluded."""
+def _device_timer(per_lane_block, init, lanes: int, block: int, n: int, reps: int):
+    """Compile ``per_lane_block(keys, b, carry) -> carry`` run for ``b = 0, 1, ...`` on every local
+    device (``lanes`` split evenly, ``n`` lane-steps in all) and return a function that times it:
+    each call runs it ``reps`` times and returns lane-steps/s, compile excluded."""
     devs = jax.local_devices()
     mesh = Mesh(np.array(devs), ("d",))
     per_dev = max(1, lanes // len(devs))
@@ -55,15 +56,26 @@ def _device_loop(per_lane_block, init, lanes: int, block: int, n: int, reps: int
     f = jax.jit(jax.shard_map(run, mesh=mesh, in_specs=PartitionSpec(), out_specs=PartitionSpec("d"),
                               check_vma=False))
     f(jax.random.key(0)[None]).block_until_ready()
-    t = time.perf_counter()
-    for i in range(reps):
-        f(jax.random.key(i + 1)[None]).block_until_ready()
-    return n_blocks * block * per_dev * len(devs) * reps / (time.perf_counter() - t)
+
+    def rate() -> float:
+        t = time.perf_counter()
+        for i in range(reps):
+            f(jax.random.key(i + 1)[None]).block_until_ready()
+        return n_blocks * block * per_dev * len(devs) * reps / (time.perf_counter() - t)
+
+    return rate
 
 
 def rng_bound(dtype, lanes: int = 512, block: int = BLOCK, n: int = 1 << 23, reps: int = 5,
               via: str = "engine") -> float:
-    """Lane-steps/s the local devices could do if drawing 2 normals per step were all they did.
+    """Lane-steps/s of :func:`rng_bound_timer`, measured once."""
+    return rng_bound_timer(dtype, lanes, block, n, reps, via)()
+
+
+def rng_bound_timer(dtype, lanes: int = 512, block: int = BLOCK, n: int = 1 << 23, reps: int = 5,
+                    via: str = "engine"):
+    """A timer (see :func:`_device_timer`) of the lane-steps/s the local devices could do if
+    drawing 2 normals per step were all they did.
 
     Drawn the way the lanes draw them: each device loops over blocks, and in each block every
     one of its lanes draws ``(block, 2)`` normals from ``fold_in(lane_key, block_index)``, so the
@@ -80,11 +92,17 @@ def rng_bound(dtype, lanes: int = 512, block: int = BLOCK, n: int = 1 << 23, rep
         # read row by row as the steps do (3-7% faster than summing the block at once)
         return jax.lax.fori_loop(0, block, lambda i, a: a + z1[i] + z2[i], acc, unroll=UNROLL)
 
-    return _device_loop(body, lambda m: jnp.zeros((m,), dtype), lanes, block, n, reps)
+    return _device_timer(body, lambda m: jnp.zeros((m,), dtype), lanes, block, n, reps)
 
 
 def chain_floor(chain, lanes: int = 512, block: int = BLOCK, n: int = 1 << 23, reps: int = 5) -> float:
-    """Lane-steps (events) per second of the chain alone: the engine's draws and transitions
+    """Lane-steps (events) per second of :func:`chain_floor_timer`, measured once."""
+    return chain_floor_timer(chain, lanes, block, n, reps)()
+
+
+def chain_floor_timer(chain, lanes: int = 512, block: int = BLOCK, n: int = 1 << 23, reps: int = 5):
+    """A timer (see :func:`_device_timer`) of the lane-steps (events) per second of the chain
+    alone: the engine's draws and transitions
     (``chain.draw``, ``chain.advance`` with its regeneration test; for the DI the test for a
     coin to flip, the coins themselves being flipped in the bookkeeping) and the float64 sum of
     U (a block's increments summed in their own dtype first, as the engine does), without the
@@ -104,11 +122,12 @@ def chain_floor(chain, lanes: int = 512, block: int = BLOCK, n: int = 1 << 23, r
         return state, U + S.astype(U.dtype)
 
     init = lambda m: (chain.init_state(m), jnp.zeros((m,), jnp.float64))
-    return _device_loop(body, init, lanes, block, n, reps)
+    return _device_timer(body, init, lanes, block, n, reps)
 
 
 def _numba_rates(run, model, n_excursions: int, seed: int) -> dict:
-    """Steps (or events) per second of a numba baseline ``run`` with 1 and 2 threads, compiled first."""
+    """Steps (or events) per second of a numba baseline ``run`` with 1 and 2 threads, compiled first
+    (numba caches the compiled loop, so a second call compiles nothing)."""
     run(model, 20, 1)  # compile
     rates = {}
     for k in (1, 2):
@@ -118,56 +137,104 @@ def _numba_rates(run, model, n_excursions: int, seed: int) -> dict:
     return rates
 
 
-def run_bench(n_excursions: int = 10_000, numba_excursions: int = 2000, seed: int = 0) -> dict:
+def _ratios(m: dict) -> dict:
+    """The ratios of one round of measurements ``m`` (all measured within seconds of each other)."""
+    out = {}
+    if "numba_2t_steps_per_s" in m:
+        for dt in ("float64", "float32"):
+            out[f"ratio_pdmp_{dt}_to_numba_2t"] = m[f"pdmp_{dt}_events_per_s"] / m["numba_pdmp_2t_events_per_s"]
+            out[f"ratio_di_{dt}_to_numba_2t"] = m[f"di_{dt}_lane_steps_per_s"] / m["numba_2t_steps_per_s"]
+    for dt in ("float64", "float32"):
+        bound, floor = m[f"rng_bound_{dt}_lane_steps_per_s"], m[f"di_chain_floor_{dt}_lane_steps_per_s"]
+        out[f"ratio_di_{dt}_to_rng_bound"] = m[f"di_{dt}_lane_steps_per_s"] / bound
+        out[f"ratio_rng_bound_{dt}_to_jax_random_normal"] = bound / m[f"jax_random_normal_{dt}_lane_steps_per_s"]
+        out[f"ratio_di_{dt}_to_chain_floor"] = m[f"di_{dt}_lane_steps_per_s"] / floor
+        out[f"ratio_di_chain_floor_{dt}_to_rng_bound"] = floor / bound
+        out[f"ratio_pdmp_{dt}_to_event_floor"] = m[f"pdmp_{dt}_events_per_s"] / m[f"pdmp_event_floor_{dt}_events_per_s"]
+    return out
+
+
+def run_bench(n_excursions: int = 10_000, numba_excursions: int = 2000, seed: int = 0, repeat: int = 1) -> dict:
+    """The side-by-side bench (module docstring), ``repeat`` rounds.
+
+    Everything is compiled first; then each round measures every number once, one after the
+    other (DI float64, its RNG bound, ``jax.random.normal``, chain floor; the same in float32;
+    PDMP; numba), with the same seeds, and computes its ratios.  A 2-core machine's speed drifts
+    by up to +-25% from minute to minute, so a ratio is only meaningful between numbers measured
+    close together: the result gives each rate and each ratio as the **median over the rounds of
+    that round's value** (a ratio is not recomputed from the medians), and with ``repeat > 1``
+    also ``ranges`` (min, max over the rounds) and ``rounds`` (every round's numbers).
+    """
+    if int(repeat) != repeat or repeat < 1:
+        raise ValueError(f"repeat must be an integer >= 1 (got {repeat!r})")
     p = Params(**FIG3)
     out = dict(device=str(jax.devices()[0]), n_devices=jax.device_count(), cpu_count=os.cpu_count(),
-               params=p.as_dict(), n_excursions=n_excursions)
+               params=p.as_dict(), n_excursions=n_excursions, repeat=int(repeat))
+    timers = []  # each returns a dict of this round's numbers
+
+    def di_timer(dt, lanes):
+        def f():
+            r = estimate_diffusivity(p, seed + 1, n_excursions=n_excursions, dtype=dt, lanes=lanes)
+            m = {f"di_{dt}_lane_steps_per_s": r.lane_steps_per_s, f"di_{dt}_utilization": r.lane_utilization}
+            if dt == "float64":
+                rel = r.D_ci / r.D
+                n1 = r.n_excursions * (rel / 0.01) ** 2
+                m.update(D=r.D, D_ci=r.D_ci, excursions_for_1pct=n1, time_to_1pct_ci_s=r.wall_s * n1 / r.n_excursions)
+            return m
+        return f
+
+    def pdmp_timer(dt, lanes):
+        def f():
+            r = estimate_diffusivity(p, seed + 1, method="pdmp", n_excursions=n_excursions, dtype=dt, lanes=lanes)
+            return {f"pdmp_{dt}_events_per_s": r.events_per_s, "pdmp_delta": r.delta}
+        return f
+
+    named = lambda name, timer: (lambda: {name: timer()})
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DryfricWarning)
         lanes = plan_estimate(p, n_excursions=n_excursions).lanes  # the run's lanes, also for the compile
         out.update(block=BLOCK, di_lanes=lanes)
         for dt in ("float64", "float32"):
             estimate_diffusivity(p, seed, n_excursions=200, dtype=dt, lanes=lanes)  # compile, same shapes
-            r = estimate_diffusivity(p, seed + 1, n_excursions=n_excursions, dtype=dt, lanes=lanes)
-            out[f"di_{dt}_lane_steps_per_s"] = r.lane_steps_per_s
-            out[f"di_{dt}_utilization"] = r.lane_utilization
-            out[f"rng_bound_{dt}_lane_steps_per_s"] = rng_bound(jnp.dtype(dt), lanes)
-            out[f"jax_random_normal_{dt}_lane_steps_per_s"] = rng_bound(jnp.dtype(dt), lanes, via="jax")
-            out[f"di_chain_floor_{dt}_lane_steps_per_s"] = chain_floor(make_di_model(p, default_h(p), dt), lanes)
-            if dt == "float64":
-                rel = r.D_ci / r.D
-                n1 = r.n_excursions * (rel / 0.01) ** 2
-                out.update(D=r.D, D_ci=r.D_ci, excursions_for_1pct=n1,
-                           time_to_1pct_ci_s=r.wall_s * n1 / r.n_excursions)
-        lanes = plan_estimate(p, method="pdmp", n_excursions=n_excursions).lanes
-        out["pdmp_lanes"] = lanes
+            timers += [di_timer(dt, lanes),
+                       named(f"rng_bound_{dt}_lane_steps_per_s", rng_bound_timer(jnp.dtype(dt), lanes)),
+                       named(f"jax_random_normal_{dt}_lane_steps_per_s",
+                             rng_bound_timer(jnp.dtype(dt), lanes, via="jax")),
+                       named(f"di_chain_floor_{dt}_lane_steps_per_s",
+                             chain_floor_timer(make_di_model(p, default_h(p), dt), lanes))]
+        pdmp_lanes = plan_estimate(p, method="pdmp", n_excursions=n_excursions).lanes
+        out["pdmp_lanes"] = pdmp_lanes
         for dt in ("float64", "float32"):  # PDMP events/s at the default delta
-            estimate_diffusivity(p, seed, method="pdmp", n_excursions=200, dtype=dt, lanes=lanes)  # compile
-            r = estimate_diffusivity(p, seed + 1, method="pdmp", n_excursions=n_excursions, dtype=dt, lanes=lanes)
-            out[f"pdmp_{dt}_events_per_s"] = r.events_per_s
-            out[f"pdmp_event_floor_{dt}_events_per_s"] = chain_floor(make_pdmp_model(p, r.delta, dt), lanes)
-        out["pdmp_delta"] = r.delta
-    try:
-        from .bench_numba import run_numba, run_numba_pdmp
-    except Exception as exc:  # not installed, or broken in this environment: say so, go on
-        out["numba"] = f"unavailable ({type(exc).__name__}: {exc}); pip install -e '.[bench]'"
-    else:
-        pm = make_pdmp_model(p, default_delta(p))
-        for k, rate in _numba_rates(run_numba_pdmp, pm, numba_excursions, seed).items():
-            out[f"numba_pdmp_{k}t_events_per_s"] = rate
-        for k, rate in _numba_rates(run_numba, make_di_model(p, default_h(p)), numba_excursions, seed).items():
-            out[f"numba_{k}t_steps_per_s"] = rate
-        for dt in ("float64", "float32"):
-            out[f"ratio_pdmp_{dt}_to_numba_2t"] = out[f"pdmp_{dt}_events_per_s"] / out["numba_pdmp_2t_events_per_s"]
-            out[f"ratio_di_{dt}_to_numba_2t"] = out[f"di_{dt}_lane_steps_per_s"] / out["numba_2t_steps_per_s"]
-    for dt in ("float64", "float32"):
-        bound, floor = out[f"rng_bound_{dt}_lane_steps_per_s"], out[f"di_chain_floor_{dt}_lane_steps_per_s"]
-        out[f"ratio_di_{dt}_to_rng_bound"] = out[f"di_{dt}_lane_steps_per_s"] / bound
-        out[f"ratio_rng_bound_{dt}_to_jax_random_normal"] = bound / out[f"jax_random_normal_{dt}_lane_steps_per_s"]
-        out[f"ratio_di_{dt}_to_chain_floor"] = out[f"di_{dt}_lane_steps_per_s"] / floor
-        out[f"ratio_di_chain_floor_{dt}_to_rng_bound"] = floor / bound
-        out[f"ratio_pdmp_{dt}_to_event_floor"] = (out[f"pdmp_{dt}_events_per_s"]
-                                                 / out[f"pdmp_event_floor_{dt}_events_per_s"])
+            estimate_diffusivity(p, seed, method="pdmp", n_excursions=200, dtype=dt, lanes=pdmp_lanes)  # compile
+            timers += [pdmp_timer(dt, pdmp_lanes),
+                       named(f"pdmp_event_floor_{dt}_events_per_s",
+                             chain_floor_timer(make_pdmp_model(p, default_delta(p), dt), pdmp_lanes))]
+        try:
+            from .bench_numba import run_numba, run_numba_pdmp
+        except Exception as exc:  # not installed, or broken in this environment: say so, go on
+            out["numba"] = f"unavailable ({type(exc).__name__}: {exc}); pip install -e '.[bench]'"
+        else:
+            pm, dm = make_pdmp_model(p, default_delta(p)), make_di_model(p, default_h(p))
+
+            def numba_timer():
+                m = {f"numba_pdmp_{k}t_events_per_s": v
+                     for k, v in _numba_rates(run_numba_pdmp, pm, numba_excursions, seed).items()}
+                m.update({f"numba_{k}t_steps_per_s": v for k, v in _numba_rates(run_numba, dm, numba_excursions,
+                                                                                seed).items()})
+                return m
+            timers.append(numba_timer)
+        rounds = []
+        for _ in range(int(repeat)):
+            m = {}
+            for f in timers:
+                m.update(f())
+            m.update(_ratios(m))
+            rounds.append(m)
+    for k in rounds[0]:
+        out[k] = float(np.median([r[k] for r in rounds]))
+    if repeat > 1:
+        out["ranges"] = {k: [min(r[k] for r in rounds), max(r[k] for r in rounds)] for k in rounds[0]}
+        out["rounds"] = rounds
     return out
 
 
@@ -237,10 +304,17 @@ def format_layouts(b: dict) -> str:
 
 
 def format_table(b: dict) -> str:
+    """:func:`run_bench`'s numbers, one per line; with several rounds, medians and [min-max]."""
     rows = [("device", b["device"] + f" (x{b['n_devices']}, {b['cpu_count']} CPU cores)")]
+    ranges = b.get("ranges", {})
     for k, v in b.items():
-        if k in ("device", "n_devices", "cpu_count", "params"):
+        if k in ("device", "n_devices", "cpu_count", "params", "ranges", "rounds"):
             continue
-        rows.append((k, f"{v:.4g}" if isinstance(v, float) else str(v)))
+        text = f"{v:.4g}" if isinstance(v, float) else str(v)
+        if k in ranges and ranges[k][0] != ranges[k][1]:
+            text += f"  [{ranges[k][0]:.4g}-{ranges[k][1]:.4g}]"
+        rows.append((k, text))
+    if ranges:
+        rows.insert(1, ("", f"medians of {b['repeat']} rounds [min-max]; each ratio is taken within its round"))
     w = max(len(k) for k, _ in rows)
     return "\n".join(f"{k:<{w}}  {v}" for k, v in rows)

@@ -108,6 +108,8 @@ BAD += [
     (["estimate", "--block", "0"], "--block"),
     (["estimate", "--block", "4096"], "block must be an integer in [1, 1024]"),
     (["bench", "--lanes", "64", "--dtype", "half"], "dtype"),
+    (["bench", "--repeat", "0"], "--repeat"),
+    (["bench", "--lanes", "64", "--repeat", "2"], "--repeat"),
 ]
 
 
@@ -177,8 +179,17 @@ def test_bruteforce_and_theory_json(capsys, solve_rounding):
 
 
 def test_bench_json_has_the_side_by_side_numbers(capsys):
-    assert main(["bench", "--n-excursions", "50", "--json"]) == 0
+    assert main(["bench", "--n-excursions", "50", "--repeat", "2", "--json"]) == 0
     b = json.loads(capsys.readouterr().out)
+    # two rounds: every number is the median of the rounds' values, every ratio taken within a round
+    rounds = b["rounds"]
+    assert b["repeat"] == 2 and len(rounds) == 2 and set(b["ranges"]) == set(rounds[0])
+    for k, (lo, hi) in b["ranges"].items():
+        assert lo <= b[k] <= hi and b[k] == pytest.approx((rounds[0][k] + rounds[1][k]) / 2, rel=1e-12), k
+    for r in rounds:
+        assert r["ratio_di_float64_to_rng_bound"] == r["di_float64_lane_steps_per_s"] / r["rng_bound_float64_lane_steps_per_s"]
+    # the same seeds in every round: the same estimate
+    assert rounds[0]["D"] == rounds[1]["D"] and rounds[0]["D_ci"] == rounds[1]["D_ci"]
     for dt in ("float32", "float64"):
         assert b[f"di_{dt}_lane_steps_per_s"] > 0 and b[f"rng_bound_{dt}_lane_steps_per_s"] > 0
         assert b[f"ratio_di_{dt}_to_rng_bound"] > 0
