@@ -239,36 +239,49 @@ def run_bench(n_excursions: int = 10_000, numba_excursions: int = 2000, seed: in
 
 
 def tune_layout(lanes_list, blocks, dtype: str = "float32", n_excursions: int = 10_000, seed: int = 0,
-                numba_excursions: int = 2000) -> dict:
+                numba_excursions: int = 2000, repeat: int = 1) -> dict:
     """DI useful lane-steps/s at the Fig. 3 point for every engine layout (lanes, block K) in
     ``lanes_list`` x ``blocks`` (``dryfric bench --lanes ... --block ...``): the sweep that
     picks the layout on a new device (a GPU needs far more lanes than the CPU default).
 
     Each layout is compiled by a short run first, then timed on ``max(n_excursions, 8 * lanes)``
     excursions (every lane runs several, so the final round's tail does not dominate), seed
-    ``seed + 1``.  The layout changes the random streams but not the law, so the D of all
-    layouts must agree within their CIs: ``max_z`` is the largest |D_i - pooled| / SE_i
-    against the inverse-variance pooled D (a check, not a speed number).  The RNG bound and
-    the numba 2-thread DI loop are measured once, at the best layout and on the host CPU.
+    ``seed + 1``, in ``repeat`` rounds that each time every layout once (interleaved, so a
+    drift of the machine's speed hits all layouts alike); a layout's rate is the median of its
+    rounds, with ``lane_steps_per_s_range`` (min, max).  The layout changes the random streams
+    but not the law, so the D of all layouts must agree within their CIs: ``max_z`` is the
+    largest |D_i - pooled| / SE_i against the inverse-variance pooled D (a check, not a speed
+    number).  The RNG bound and the numba 2-thread DI loop are measured once, at the best
+    layout and on the host CPU.
     """
     for lanes in lanes_list:
         for block in blocks:
             check_layout(lanes, block)
     if dtype not in ("float32", "float64"):
         raise ValueError(f"dtype must be 'float32' or 'float64' (got {dtype!r})")
+    if int(repeat) != repeat or repeat < 1:
+        raise ValueError(f"repeat must be an integer >= 1 (got {repeat!r})")
     p = Params(**FIG3)
     out = dict(device=str(jax.devices()[0]), n_devices=jax.device_count(), cpu_count=os.cpu_count(),
-               params=p.as_dict(), dtype=dtype, layouts=[])
+               params=p.as_dict(), dtype=dtype, repeat=int(repeat), layouts=[])
+    layouts = [(int(lanes), int(block)) for lanes in lanes_list for block in blocks]
+    runs = {lb: [] for lb in layouts}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DryfricWarning)
-        for lanes in lanes_list:
-            for block in blocks:
-                n = max(int(n_excursions), 8 * int(lanes))
-                estimate_diffusivity(p, seed, n_excursions=200, dtype=dtype, lanes=lanes, block=block)  # compile
-                r = estimate_diffusivity(p, seed + 1, n_excursions=n, dtype=dtype, lanes=lanes, block=block)
-                out["layouts"].append(dict(lanes=lanes, block=block, n_excursions=r.n_excursions,
-                                           lane_steps_per_s=r.lane_steps_per_s,
-                                           utilization=r.lane_utilization, wall_s=r.wall_s, D=r.D, D_ci=r.D_ci))
+        for lanes, block in layouts:
+            estimate_diffusivity(p, seed, n_excursions=200, dtype=dtype, lanes=lanes, block=block)  # compile
+        for _ in range(int(repeat)):
+            for lanes, block in layouts:
+                runs[lanes, block].append(estimate_diffusivity(
+                    p, seed + 1, n_excursions=max(int(n_excursions), 8 * lanes), dtype=dtype, lanes=lanes,
+                    block=block))
+    for (lanes, block), rs in runs.items():
+        r, rates = rs[0], [x.lane_steps_per_s for x in rs]  # the same seed: every round the same D
+        out["layouts"].append(dict(lanes=lanes, block=block, n_excursions=r.n_excursions,
+                                   lane_steps_per_s=float(np.median(rates)),
+                                   lane_steps_per_s_range=[min(rates), max(rates)],
+                                   utilization=r.lane_utilization, wall_s=float(np.median([x.wall_s for x in rs])),
+                                   D=r.D, D_ci=r.D_ci))
     rows = out["layouts"]
     best = max(rows, key=lambda row: row["lane_steps_per_s"])
     w = [(1.96 / row["D_ci"]) ** 2 for row in rows]
@@ -290,10 +303,14 @@ def tune_layout(lanes_list, blocks, dtype: str = "float32", n_excursions: int = 
 def format_layouts(b: dict) -> str:
     """The table of :func:`tune_layout`."""
     head = f"device {b['device']} (x{b['n_devices']}, {b['cpu_count']} CPU cores), DI {b['dtype']}, Fig. 3 point"
+    if b.get("repeat", 1) > 1:
+        head += f"; medians of {b['repeat']} interleaved rounds [min-max]"
     lines = [head, f"{'lanes':>8} {'K':>5} {'N':>9} {'lane-steps/s':>13} {'util':>6} {'wall s':>8}  D (95% CI)"]
     for r in b["layouts"]:
+        lo, hi = r["lane_steps_per_s_range"]
+        spread = f"  [{lo:.4g}-{hi:.4g}]" if b.get("repeat", 1) > 1 else ""
         lines.append(f"{r['lanes']:>8} {r['block']:>5} {r['n_excursions']:>9} {r['lane_steps_per_s']:>13.4g} "
-                     f"{r['utilization']:>6.3f} {r['wall_s']:>8.2f}  {r['D']:.5g} ± {r['D_ci']:.2g}")
+                     f"{r['utilization']:>6.3f} {r['wall_s']:>8.2f}  {r['D']:.5g} ± {r['D_ci']:.2g}{spread}")
     lines.append(f"best: lanes = {b['best_lanes']}, K = {b['best_block']}, {b['best_lane_steps_per_s']:.4g} "
                  f"lane-steps/s = {b['ratio_best_to_rng_bound']:.3g} x the RNG bound ({b['rng_bound_lane_steps_per_s']:.4g})")
     if "ratio_best_to_numba_2t" in b:

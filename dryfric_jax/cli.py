@@ -171,8 +171,8 @@ def build_parser() -> argparse.ArgumentParser:
     bn.add_argument("--json", action="store_true", help="print one JSON object")
     bn.add_argument("--n-excursions", type=_int_at_least("n-excursions", 2), default=10_000)
     bn.add_argument("--repeat", type=_int_at_least("repeat", 1), default=1,
-                    help="rounds of the side-by-side bench, each measuring every number once; prints the "
-                         "medians of the rounds and the range of each ratio (default 1)")
+                    help="rounds, each measuring every number (or timing every layout) once; prints the "
+                         "medians of the rounds and their ranges, each ratio taken within its round (default 1)")
     bn.add_argument("--lanes", type=_list_of(_int_at_least("lanes", 1), "lanes"), default=None,
                     help="layout sweep instead of the side-by-side bench: DI lane-steps/s for these lane "
                          "counts (comma-separated; default: the run's own) ...")
@@ -278,15 +278,12 @@ def _run(a) -> int:
         from .bench import format_table, run_bench
 
         if a.lanes or a.block:
-            if a.repeat != 1:
-                raise _UserError("--repeat applies to the side-by-side bench, not to the layout sweep "
-                                 "(--lanes/--block)")
             from .bench import format_layouts, tune_layout
             from .excursions import BLOCK
             from .plan import plan_estimate
 
             lanes = a.lanes or [plan_estimate(Params(**FIG3), n_excursions=a.n_excursions).lanes]
-            b = tune_layout(lanes, a.block or [BLOCK], a.dtype, n_excursions=a.n_excursions)
+            b = tune_layout(lanes, a.block or [BLOCK], a.dtype, n_excursions=a.n_excursions, repeat=a.repeat)
             print(json.dumps(b) if a.json else format_layouts(b))
             return 0
         b = run_bench(n_excursions=a.n_excursions, repeat=a.repeat)

@@ -109,7 +109,6 @@ BAD += [
     (["estimate", "--block", "4096"], "block must be an integer in [1, 1024]"),
     (["bench", "--lanes", "64", "--dtype", "half"], "dtype"),
     (["bench", "--repeat", "0"], "--repeat"),
-    (["bench", "--lanes", "64", "--repeat", "2"], "--repeat"),
 ]
 
 
@@ -204,9 +203,13 @@ def test_bench_layout_sweep(capsys):
     """``bench --lanes --block``: one row per layout, the best is the fastest, and the layouts'
     estimates agree (other random streams, same law)."""
     assert main(["bench", "--lanes", "32,64", "--block", "64", "--n-excursions", "200", "--dtype", "float64",
-                 "--json"]) == 0
+                 "--repeat", "2", "--json"]) == 0
     b = json.loads(capsys.readouterr().out)
     rows = b["layouts"]
+    assert b["repeat"] == 2
+    for r in rows:  # two interleaved rounds: the median of two lies between them
+        lo, hi = r["lane_steps_per_s_range"]
+        assert lo <= r["lane_steps_per_s"] <= hi and r["lane_steps_per_s"] == pytest.approx((lo + hi) / 2, rel=1e-12)
     assert [(r["lanes"], r["block"]) for r in rows] == [(32, 64), (64, 64)]
     assert all(r["n_excursions"] >= max(200, 8 * r["lanes"]) and r["D_ci"] > 0 for r in rows)
     assert b["best_lane_steps_per_s"] == max(r["lane_steps_per_s"] for r in rows)
