@@ -32,3 +32,22 @@ def test_long_excursions_match_bruteforce(case):
     assert abs(le.M0 - bf.M0_t) <= tol_M, f"LE {le.M0:.4g}±{le.M0_ci:.2g} vs BF {bf.M0_t:.4g}±{bf.M0_t_ci:.2g}"
     # the comparison has teeth: both CIs are at most 10% of D
     assert le.D_ci <= 0.1 * le.D and bf.D_t_ci <= 0.1 * bf.D_t
+
+
+def test_bruteforce_counts_exactly_the_requested_steps(key):
+    """The horizon is t = n h for the n the user asked for, not rounded to whole blocks: with the
+    same key the chain is the same path whatever the burn-in, so U over steps [a, a + m) is
+    U(a + m) - U(a), for a and m that are not multiples of the block."""
+    from dryfric_jax.bruteforce import simulate_bruteforce
+
+    model = dj.make_di_model(dj.Params(**dj.FIG3), 6.7e-4)
+    a, m, block = 45, 203, 32
+    run = lambda burn, n: simulate_bruteforce(model, key, 6, n, burn_in_steps=burn, block=block)
+    (U_am, t_am), (U_a, _), (U_m, t_m) = run(0, a + m), run(0, a), run(a, m)
+    assert t_m == m * float(model.h) and t_am == (a + m) * float(model.h)
+    assert U_m == pytest.approx(U_am - U_a, rel=1e-9, abs=1e-12)
+    assert not (U_m == pytest.approx(run(0, m)[0], rel=1e-6))  # the burn-in does shift the window
+    # the API reports the horizon it simulated: round(t / h) steps
+    p = dj.Params(**dj.FIG3)
+    bf = dj.bruteforce_diffusivity(p, 3, t=2.0, n_paths=8)
+    assert bf.t == pytest.approx(round(2.0 / bf.h) * bf.h, rel=1e-12)  # 1.99995 s, not 2.058 s (24 blocks)
