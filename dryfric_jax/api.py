@@ -51,9 +51,24 @@ def _build(params: Params, plan: Plan):
     return make_pdmp_model(params, plan.delta, DTYPES[plan.dtype])
 
 
+def _fmt(x, ci):
+    """``x ± ci  (relative %)``."""
+    return f"{x:.6g} ± {ci:.2g}  ({100 * ci / abs(x):.1f}%)" if x else f"{x:.6g} ± {ci:.2g}"
+
+
+def _resolution(r):
+    return f"h = {r.h:.3g} s" if r.delta is None else f"PDMP delta = {r.delta:.3g} s^-1/2, L_X = {r.L_X:.3g}"
+
+
+def _with_warnings(text, ws):
+    return text + "".join(f"\nwarning: {w}" for w in ws)
+
+
 @dataclass
 class EstimateResult:
-    """Long-excursion estimate (physical units; CIs are 95% half-widths)."""
+    """Long-excursion estimate (physical units; CIs are 95% half-widths).
+
+    ``print(result)`` shows :meth:`summary` and the warnings; ``repr`` shows every field."""
 
     D: float
     D_ci: float
@@ -93,10 +108,25 @@ class EstimateResult:
     def to_dict(self) -> dict:
         return asdict(self)
 
+    def summary(self) -> str:
+        """D and M0 with their CIs, the mean duration, N, the resolution, seed and speed (what
+        ``dryfric estimate`` prints)."""
+        return (f"D  = {_fmt(self.D, self.D_ci)} m^2/s   ({100 * self.ci_level:g}% CI)\n"
+                f"M0 = {_fmt(self.M0, self.M0_ci)} m/s\n"
+                f"mean excursion duration = {self.mean_duration:.4g} s\n"
+                f"N = {self.n_excursions} excursions, {self.n_truncated} truncated, {_resolution(self)}, "
+                f"{self.dtype}, " + (f"seeds {self.combined_from}" if self.combined_from else f"seed {self.seed}")
+                + f"\nwall {self.wall_s:.1f} s, {self.lane_steps_per_s:.3g} "
+                f"{'lane-steps' if self.delta is None else 'events'}/s, stopped by: {self.stopped_by}")
+
+    def __str__(self) -> str:
+        return _with_warnings(self.summary(), self.warnings)
+
 
 @dataclass
 class BruteForceResult:
-    """Fixed-horizon estimate (physical units; CIs are 95% half-widths)."""
+    """Fixed-horizon estimate (physical units; CIs are 95% half-widths); ``print`` shows
+    :meth:`summary` and the warnings."""
 
     D_t: float
     D_t_ci: float
@@ -121,6 +151,16 @@ class BruteForceResult:
 
     def to_dict(self) -> dict:
         return asdict(self)
+
+    def summary(self) -> str:
+        """D_t and M0_t with their CIs, the horizon, N' and the resolution (what ``dryfric
+        bruteforce`` prints)."""
+        return (f"D_t  = {_fmt(self.D_t, self.D_t_ci)} m^2/s   (t = {self.t:.4g} s, {100 * self.ci_level:g}% CI)\n"
+                f"M0_t = {_fmt(self.M0_t, self.M0_t_ci)} m/s\nN' = {self.n_paths} paths, {_resolution(self)}, "
+                f"wall {self.wall_s:.1f} s")
+
+    def __str__(self) -> str:
+        return _with_warnings(self.summary(), self.warnings)
 
 
 def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float | None = None,

@@ -192,14 +192,6 @@ def _progress_line(d):
           end="", file=sys.stderr, flush=True)
 
 
-def _resolution(r):
-    return f"h = {r.h:.3g} s" if r.delta is None else f"PDMP delta = {r.delta:.3g} s^-1/2, L_X = {r.L_X:.3g}"
-
-
-def _fmt(x, ci):
-    return f"{x:.6g} ± {ci:.2g}  ({100 * ci / abs(x):.1f}%)" if x else f"{x:.6g} ± {ci:.2g}"
-
-
 def _check_out(path):
     """Refuse an output path that cannot be written, before anything is simulated."""
     if path is not None:
@@ -228,12 +220,7 @@ def _read_results(paths):
 
 
 def _print_estimate(r):
-    print(f"D  = {_fmt(r.D, r.D_ci)} m^2/s   (95% CI)\nM0 = {_fmt(r.M0, r.M0_ci)} m/s\n"
-          f"mean excursion duration = {r.mean_duration:.4g} s\n"
-          f"N = {r.n_excursions} excursions, {r.n_truncated} truncated, {_resolution(r)}, {r.dtype}, "
-          + (f"seeds {r.combined_from}" if r.combined_from else f"seed {r.seed}")
-          + f"\nwall {r.wall_s:.1f} s, {r.lane_steps_per_s:.3g} "
-          f"{'lane-steps' if r.delta is None else 'events'}/s, stopped by: {r.stopped_by}")
+    print(r.summary())  # the warnings go to stderr (_report)
 
 
 @contextlib.contextmanager
@@ -260,8 +247,7 @@ def _report(a, r, print_text):
 
 
 def _print_bruteforce(r):
-    print(f"D_t  = {_fmt(r.D_t, r.D_t_ci)} m^2/s   (t = {r.t:.4g} s, 95% CI)\n"
-          f"M0_t = {_fmt(r.M0_t, r.M0_t_ci)} m/s\nN' = {r.n_paths} paths, {_resolution(r)}, wall {r.wall_s:.1f} s")
+    print(r.summary())
 
 
 def _work_options(a):

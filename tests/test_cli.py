@@ -250,3 +250,25 @@ def test_combine_pools_estimate_files_and_refuses_a_seed_twice(tmp_path, capsys)
     assert main(["combine", files[0], files[0]]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "seeds must differ" in err[0]
+
+
+def test_text_output_is_the_results_summary(capsys):
+    """``dryfric estimate`` / ``bruteforce`` print the result's ``summary()``; ``print(result)``
+    in Python shows the same lines and the warnings (on stderr in the CLI), ``repr`` every field."""
+    import warnings
+
+    import dryfric_jax as dj
+
+    assert main(["estimate", "--n-excursions", "200", "--seed", "4"]) == 0
+    cli = capsys.readouterr()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", dj.DryfricWarning)
+        r = dj.estimate_diffusivity(Params(**FIG3), 4, n_excursions=200)
+    text = r.summary()
+    assert text.startswith(f"D  = {r.D:.6g} ± {r.D_ci:.2g}") and "(95% CI)" in text and f"M0 = {r.M0:.6g}" in text
+    # the same numbers as the CLI's (the wall time and the speed differ between runs)
+    assert cli.out.splitlines()[:4] == text.splitlines()[:4]
+    assert "n_excursions = " in cli.err and str(r) == text + "\nwarning: " + r.warnings[0] and len(r.warnings) == 1
+    assert repr(r).startswith("EstimateResult(D=")
+    bf = dj.bruteforce_diffusivity(Params(**FIG3), 5, t=0.5, n_paths=16)
+    assert str(bf) == bf.summary() and bf.summary().startswith(f"D_t  = {bf.D_t:.6g}")
