@@ -167,9 +167,13 @@ def run_bench(n_excursions: int = 10_000, numba_excursions: int = 2000, seed: in
     """
     if int(repeat) != repeat or repeat < 1:
         raise ValueError(f"repeat must be an integer >= 1 (got {repeat!r})")
+    # a small bench (the tests) is small throughout: the floors' and numba's work scale with N
+    # below the default N = 1e4 (2**23 lane-steps per timing, 2000 numba excursions)
+    floor_n = int(min(1 << 23, max(1 << 20, 840 * n_excursions)))
+    numba_excursions = int(min(numba_excursions, max(20, n_excursions // 5)))
     p = Params(**FIG3)
     out = dict(device=str(jax.devices()[0]), n_devices=jax.device_count(), cpu_count=os.cpu_count(),
-               params=p.as_dict(), n_excursions=n_excursions, repeat=int(repeat))
+               params=p.as_dict(), n_excursions=n_excursions, repeat=int(repeat), numba_excursions=numba_excursions)
     timers = []  # each returns a dict of this round's numbers
 
     def di_timer(dt, lanes):
@@ -197,18 +201,18 @@ def run_bench(n_excursions: int = 10_000, numba_excursions: int = 2000, seed: in
         for dt in ("float64", "float32"):
             estimate_diffusivity(p, seed, n_excursions=200, dtype=dt, lanes=lanes)  # compile, same shapes
             timers += [di_timer(dt, lanes),
-                       named(f"rng_bound_{dt}_lane_steps_per_s", rng_bound_timer(jnp.dtype(dt), lanes)),
+                       named(f"rng_bound_{dt}_lane_steps_per_s", rng_bound_timer(jnp.dtype(dt), lanes, n=floor_n)),
                        named(f"jax_random_normal_{dt}_lane_steps_per_s",
-                             rng_bound_timer(jnp.dtype(dt), lanes, via="jax")),
+                             rng_bound_timer(jnp.dtype(dt), lanes, n=floor_n, via="jax")),
                        named(f"di_chain_floor_{dt}_lane_steps_per_s",
-                             chain_floor_timer(make_di_model(p, default_h(p), dt), lanes))]
+                             chain_floor_timer(make_di_model(p, default_h(p), dt), lanes, n=floor_n))]
         pdmp_lanes = plan_estimate(p, method="pdmp", n_excursions=n_excursions).lanes
         out["pdmp_lanes"] = pdmp_lanes
         for dt in ("float64", "float32"):  # PDMP events/s at the default delta
             estimate_diffusivity(p, seed, method="pdmp", n_excursions=200, dtype=dt, lanes=pdmp_lanes)  # compile
             timers += [pdmp_timer(dt, pdmp_lanes),
                        named(f"pdmp_event_floor_{dt}_events_per_s",
-                             chain_floor_timer(make_pdmp_model(p, default_delta(p), dt), pdmp_lanes))]
+                             chain_floor_timer(make_pdmp_model(p, default_delta(p), dt), pdmp_lanes, n=floor_n))]
         try:
             from .bench_numba import run_numba, run_numba_pdmp
         except Exception as exc:  # not installed, or broken in this environment: say so, go on

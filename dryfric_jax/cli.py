@@ -169,7 +169,9 @@ def build_parser() -> argparse.ArgumentParser:
     cb.add_argument("--json", action="store_true", help="print the pooled result as one JSON object")
     bn = sub.add_parser("bench", help="throughput: DI engine vs RNG bound vs compiled baseline")
     bn.add_argument("--json", action="store_true", help="print one JSON object")
-    bn.add_argument("--n-excursions", type=_int_at_least("n-excursions", 2), default=10_000)
+    bn.add_argument("--n-excursions", type=_int_at_least("n-excursions", 2), default=10_000,
+                    help="excursions per DI/PDMP run (default 10000); a smaller N also shortens the RNG, chain-floor "
+                         "and numba timings")
     bn.add_argument("--repeat", type=_int_at_least("repeat", 1), default=1,
                     help="rounds, each measuring every number (or timing every layout) once; prints the "
                          "medians of the rounds and their ranges, each ratio taken within its round (default 1)")
