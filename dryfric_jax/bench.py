@@ -35,7 +35,7 @@ from .di import make_di_model
 from . import rng
 from .excursions import BLOCK, UNROLL, block_keys, draw_block, increment_dtype, numbers_at
 from .pdmp import make_pdmp_model
-from .plan import check_layout, plan_estimate
+from .plan import check_count, check_layout, plan_estimate
 from .params import FIG3, Params
 
 
@@ -165,15 +165,14 @@ def run_bench(n_excursions: int = 10_000, numba_excursions: int = 2000, seed: in
     that round's value** (a ratio is not recomputed from the medians), and with ``repeat > 1``
     also ``ranges`` (min, max over the rounds) and ``rounds`` (every round's numbers).
     """
-    if int(repeat) != repeat or repeat < 1:
-        raise ValueError(f"repeat must be an integer >= 1 (got {repeat!r})")
+    check_count("repeat", repeat, lo=1)
     # a small bench (the tests) is small throughout: the floors' and numba's work scale with N
     # below the default N = 1e4 (2**23 lane-steps per timing, 2000 numba excursions)
     floor_n = int(min(1 << 23, max(1 << 20, 840 * n_excursions)))
     numba_excursions = int(min(numba_excursions, max(20, n_excursions // 5)))
     p = Params(**FIG3)
     out = dict(device=str(jax.devices()[0]), n_devices=jax.device_count(), cpu_count=os.cpu_count(),
-               params=p.as_dict(), n_excursions=n_excursions, repeat=int(repeat), numba_excursions=numba_excursions)
+               params=p.as_dict(), n_excursions=n_excursions, repeat=repeat, numba_excursions=numba_excursions)
     timers = []  # each returns a dict of this round's numbers
 
     def di_timer(dt, lanes):
@@ -228,7 +227,7 @@ def run_bench(n_excursions: int = 10_000, numba_excursions: int = 2000, seed: in
                 return m
             timers.append(numba_timer)
         rounds = []
-        for _ in range(int(repeat)):
+        for _ in range(repeat):
             m = {}
             for f in timers:
                 m.update(f())
@@ -263,18 +262,17 @@ def tune_layout(lanes_list, blocks, dtype: str = "float32", n_excursions: int = 
             check_layout(lanes, block)
     if dtype not in ("float32", "float64"):
         raise ValueError(f"dtype must be 'float32' or 'float64' (got {dtype!r})")
-    if int(repeat) != repeat or repeat < 1:
-        raise ValueError(f"repeat must be an integer >= 1 (got {repeat!r})")
+    check_count("repeat", repeat, lo=1)
     p = Params(**FIG3)
     out = dict(device=str(jax.devices()[0]), n_devices=jax.device_count(), cpu_count=os.cpu_count(),
-               params=p.as_dict(), dtype=dtype, repeat=int(repeat), layouts=[])
+               params=p.as_dict(), dtype=dtype, repeat=repeat, layouts=[])
     layouts = [(int(lanes), int(block)) for lanes in lanes_list for block in blocks]
     runs = {lb: [] for lb in layouts}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DryfricWarning)
         for lanes, block in layouts:
             estimate_diffusivity(p, seed, n_excursions=200, dtype=dtype, lanes=lanes, block=block)  # compile
-        for _ in range(int(repeat)):
+        for _ in range(repeat):
             for lanes, block in layouts:
                 runs[lanes, block].append(estimate_diffusivity(
                     p, seed + 1, n_excursions=max(int(n_excursions), 8 * lanes), dtype=dtype, lanes=lanes,
