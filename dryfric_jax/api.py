@@ -60,6 +60,40 @@ def _resolution(r):
     return f"h = {r.h:.3g} s" if r.delta is None else f"PDMP delta = {r.delta:.3g} s^-1/2, L_X = {r.L_X:.3g}"
 
 
+def duration_text(s: float) -> str:
+    """Seconds as a short text: "45 s", "12.5 min", "3.2 h"."""
+    return f"{s:.0f} s" if s < 90 else f"{s / 60:.1f} min" if s < 5400 else f"{s / 3600:.1f} h"
+
+
+def time_left(elapsed: float, work: float, closed: int, in_flight: int, target: int, *, rtol=None,
+              rel=None, max_work=None, max_time=None):
+    """Projected seconds left of a long-excursion run and the limit that ends it first
+    (``"n_excursions"``, ``"target"`` (``rtol``), ``"max_work"`` or ``"max_time"``), from the rounds
+    so far: ``work`` lane-steps (events) paid in ``elapsed`` seconds, ``closed`` excursions closed
+    and ``in_flight`` running.  ``(None, None)`` before any excursion has started.
+
+    The work per excursion, ``work / (closed + in_flight)``, counts each in-flight excursion as
+    one: a lower estimate, as the engine's own round sizing, and available before the first
+    excursion closes (at a huge Gamma that takes minutes).  With ``rtol`` the excursions
+    needed follow from the CI's :math:`N^{-1/2}` scaling, :math:`N (rel/rtol)^2`, once ``rel``
+    (the relative half-width so far) is known.  The final round's tail is not counted.
+    """
+    if closed + in_flight < 1 or elapsed <= 0 or work <= 0:
+        return None, None
+    rate, per_exc = work / elapsed, work / (closed + in_flight)
+    need, to = float(target), "n_excursions"
+    if rtol is not None:
+        if rel is None or not math.isfinite(rel):
+            return None, None
+        need, to = max(need, closed * (rel / rtol) ** 2), "target"
+    left = max(need - closed - in_flight, 0.0) * per_exc / rate
+    if max_work is not None and (max_work - work) / rate < left:
+        left, to = max(max_work - work, 0.0) / rate, "max_work"
+    if max_time is not None and max_time - elapsed < left:
+        left, to = max(max_time - elapsed, 0.0), "max_time"
+    return left, to
+
+
 def _with_warnings(text, ws):
     return text + "".join(f"\nwarning: {w}" for w in ws)
 
@@ -201,7 +235,9 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
         rtol: precision target: after the first ``n_excursions``, keep running rounds until
             the 95% half-width of D is at most ``rtol * |D|``.
         max_time: stop after the round that passes this many seconds (``stopped_by`` says so).
-        progress: optional callback ``progress(dict)`` after every round (N, D, D_ci so far).
+        progress: optional callback ``progress(dict)`` after every round: N, D, D_ci so far, the
+            target, ``elapsed_s``, and the projection ``left_s`` (seconds, None until known) to the
+            limit ``left_to`` that ends the run first (:func:`time_left`).
 
     A Ctrl-C between rounds returns what the completed rounds reached (``stopped_by =
     "interrupted"``); nothing already simulated is lost.
@@ -231,11 +267,28 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
         rel = e["D_ci"] / max(abs(e["D"]), 1e-300)
         return 0 if rel <= rtol else int(math.ceil(e["n_excursions"] * ((rel / rtol) ** 2 * 1.1 - 1)))
 
-    def report(st):
+    warned = []
+
+    def report(st):  # after every round: the projection, an early warning, the progress callback
+        e = (snapshot(st) or {}) if progress is not None or rtol else {}
+        el = time.perf_counter() - t0
+        closed = st.n_excursions + st.n_truncated
+        rel = e["D_ci"] / abs(e["D"]) if e.get("D") else None
+        left, to = time_left(el, st.slot_steps, closed, st.n_in_flight, n_excursions, rtol=rtol, rel=rel,
+                             max_work=max_work, max_time=max_time)
+        if to == "max_work" and not warned:  # say so now, not only after the whole max_work
+            warned.append(to)
+            per_exc = st.slot_steps / (closed + st.n_in_flight)
+            warnings.warn(f"max_work = {max_work:.3g} {unit} is projected to end the run in "
+                          f"~{duration_text(left)}, short of "
+                          + (f"rtol = {rtol}" if rtol else f"{n_excursions} excursions")
+                          + f": the rounds so far paid >= {per_exc:.3g} {unit} per excursion (predicted >= "
+                          f"{plan.predicted_work / n_excursions:.3g}).  Lower n_excursions, raise max_work, or "
+                          "coarsen h or delta", DryfricWarning, stacklevel=4)
         if progress is not None:
-            e = snapshot(st) or {}
             progress(dict(n_excursions=st.n_excursions, D=e.get("D", math.nan) * params.D0,
-                          D_ci=e.get("D_ci", math.nan) * params.D0, target=n_excursions, rtol=rtol))
+                          D_ci=e.get("D_ci", math.nan) * params.D0, target=n_excursions, rtol=rtol,
+                          elapsed_s=el, left_s=left, left_to=to))
 
     t0 = time.perf_counter()
     sim, stopped = simulate_long_excursions(model, key, int(n_excursions), lanes=plan.lanes, block=block,

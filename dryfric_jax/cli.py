@@ -187,11 +187,17 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _progress_line(d):
-    """One self-overwriting status line on stderr (terminal only, never under --json)."""
+    """One self-overwriting status line on stderr (terminal only, never under --json): N, D so
+    far, the goal, the time so far and the projected time left (``api.time_left``), naming
+    ``--max-work`` or ``--max-time`` when that limit is projected to end the run first."""
+    from .api import duration_text
+
     rel = d["D_ci"] / abs(d["D"]) if d["D"] == d["D"] and d["D"] else float("nan")
     goal = f"target {100 * d['rtol']:.2g}%" if d["rtol"] else f"target N = {d['target']}"
-    print(f"\r  N = {d['n_excursions']:>9d}   D = {d['D']:.5g} ± {100 * rel:.2f}%   ({goal})   ",
-          end="", file=sys.stderr, flush=True)
+    left = "" if d.get("left_s") is None else f", ~{duration_text(d['left_s'])} left" + (
+        f" (stops at --{d['left_to'].replace('_', '-')})" if d["left_to"] in ("max_work", "max_time") else "")
+    print(f"\r  N = {d['n_excursions']:>9d}   D = {d['D']:.5g} ± {100 * rel:.2f}%   ({goal})   "
+          f"{duration_text(d.get('elapsed_s', 0.0))}{left}\x1b[K", end="", file=sys.stderr, flush=True)
 
 
 def _check_out(path):

@@ -247,12 +247,20 @@ def test_estimators_on_extreme_parameters(G, tau, r, tl, gb, dtype, method, expe
 def test_work_bound_stops_the_rounds_and_says_so():
     """A run the predictor lets through (it is a lower estimate) but that costs more than
     max_work stops at the cap, finishes its in-flight excursions and reports it (256 lanes: the
-    per-excursion cap max_work / lanes then stays above the longest excursion)."""
+    per-excursion cap max_work / lanes then stays above the longest excursion).  It warns as
+    soon as the rounds project the cap to end the run, once, before the result."""
     p = dj.Params(**dj.FIG3)
-    res = _quiet(dj.estimate_diffusivity, p, 2, n_excursions=3000, max_work=2e7, lanes=256)
+    with warnings.catch_warnings(record=True) as ws:
+        warnings.simplefilter("always", dj.DryfricWarning)
+        res = dj.estimate_diffusivity(p, 2, n_excursions=3000, max_work=2e7, lanes=256)
     assert res.predicted_work <= 2e7 < res.work and res.stopped_by == "work_bound"
     assert 2 <= res.n_excursions < 3000 and res.n_truncated == 0
     assert any("work bound reached" in w for w in res.warnings)
+    early = [i for i, w in enumerate(ws) if "is projected to end the run" in str(w.message)]
+    late = [i for i, w in enumerate(ws) if "work bound reached" in str(w.message)]
+    assert len(early) == 1 and early[0] < late[0], [str(w.message) for w in ws]
+    assert ws[early[0]].filename == __file__  # points at the caller's line
+    assert not any("projected" in w for w in res.warnings)  # transient: the result says what happened
 
 
 # ---------------------------------------------------------------------------------------------

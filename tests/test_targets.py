@@ -45,3 +45,46 @@ def test_ctrl_c_keeps_completed_rounds():
 def test_bad_targets(kw, match):
     with pytest.raises(ValueError, match=match):
         dj.estimate_diffusivity(P, 0, **kw)
+
+
+def test_time_left_projects_to_the_first_limit():
+    """The projection behind the progress line: 10 excursions closed after 10 s and 1e6
+    lane-steps (1e5 per excursion at 1e5 lane-steps/s); hand-computed values."""
+    tl = dj.api.time_left
+    assert tl(10.0, 1e6, 0, 0, 100) == (None, None)  # nothing started yet: unknown
+    assert tl(10.0, 1e6, 0, 10, 100) == (90.0, "n_excursions")  # 10 running, none closed yet
+    assert tl(10.0, 1e6, 10, 0, 100) == (90.0, "n_excursions")  # 90 more excursions, 1 s each
+    # in-flight excursions count one each: 8 closed + 2 running -> 1e5 per excursion, 90 left
+    assert tl(10.0, 1e6, 8, 2, 100) == (90.0, "n_excursions")
+    assert tl(10.0, 1e6, 10, 0, 100, max_work=5e6) == (40.0, "max_work")  # 4e6 lane-steps left
+    assert tl(10.0, 1e6, 10, 0, 100, max_work=5e6, max_time=30.0) == (20.0, "max_time")
+    assert tl(10.0, 1e6, 10, 0, 100, max_work=2e7, max_time=300.0) == (90.0, "n_excursions")
+    # precision target: half-width 2% now, 1% wanted -> N x 4 = 400 excursions, 390 more
+    left, to = tl(10.0, 1e6, 100, 0, 50, rtol=0.01, rel=0.02)  # 1e4 lane-steps per excursion
+    assert left == pytest.approx(300 * 1e4 / 1e5) and to == "target"
+    assert tl(10.0, 1e6, 100, 0, 50, rtol=0.01, rel=None) == (None, None)
+
+
+def test_progress_reports_the_projection():
+    """Every round's report carries the time so far and, once excursions close, the projected
+    time left; the CLI's line shows both and names the limit that ends the run first."""
+    seen = []
+    with warnings.catch_warnings(record=True) as ws:
+        warnings.simplefilter("always", dj.DryfricWarning)
+        dj.estimate_diffusivity(P, 7, h=0.02 * P.tau0, n_excursions=500, progress=seen.append)
+    assert not any("projected" in str(w.message) for w in ws)  # the default max_work is far away
+    assert [d["elapsed_s"] for d in seen] == sorted(d["elapsed_s"] for d in seen)
+    known = [d for d in seen if d["left_s"] is not None]
+    assert known and all(d["left_s"] >= 0 and d["left_to"] == "n_excursions" for d in known)
+
+
+def test_progress_line_names_the_limit(capsys):
+    from dryfric_jax.cli import _progress_line
+    d = dict(n_excursions=120, D=2.0, D_ci=0.1, target=1000, rtol=None, elapsed_s=75.0)
+    _progress_line(dict(d, left_s=None, left_to=None))
+    _progress_line(dict(d, left_s=600.0, left_to="n_excursions"))
+    _progress_line(dict(d, left_s=40.0, left_to="max_work"))
+    err = capsys.readouterr().err.split("\r")[1:]
+    assert "5.00%" in err[0] and "75 s" in err[0] and "left" not in err[0]
+    assert "~10.0 min left" in err[1] and "stops at" not in err[1]
+    assert "~40 s left (stops at --max-work)" in err[2]
