@@ -37,7 +37,12 @@ The larger of the two predictions, times the steps (DI, :math:`1/h'`) or the noi
 estimate of the run's work; :func:`check_work` refuses a run predicted to exceed
 ``max_work`` (default :data:`MAX_WORK`) with a message naming the parameters and the numbers.
 Where the prediction is too low, the per-excursion bound (:func:`max_steps_per_excursion`)
-truncates and reports instead.
+truncates and reports instead.  It is far too low for strong noise with stiff damping
+(:math:`\tau', \tau_L' \ll 1`: the particle sticks only where the velocity crosses zero while the
+force is inside the friction window; measured, 0.16-0.22 :math:`\tau_0` at Fig. 3's
+:math:`\tau, \tau_L` and :math:`\Gamma = 10^3`-:math:`10^5`, 200-17000 times the floor), and no
+floor in :math:`\tau_L/\tau` alone held on the measured points (README "Predicted work").  There
+the run projects itself from its rounds and warns early (:func:`dryfric_jax.api.time_left`).
 
 float32
 -------
