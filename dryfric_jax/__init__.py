@@ -9,7 +9,7 @@ jax.config.update("jax_enable_x64", True)
 
 from . import theory  # noqa: E402
 from .api import (  # noqa: E402
-    BruteForceResult, DryfricWarning, EstimateResult, bruteforce_diffusivity, default_h,
+    BruteForceResult, DryfricWarning, EstimateResult, ProjectionWarning, bruteforce_diffusivity, default_h,
     estimate_diffusivity,
 )
 from .chain_law import ChainLaw, white_chain_law  # noqa: E402
@@ -23,7 +23,8 @@ from .plan import Plan, plan_estimate  # noqa: E402
 __all__ = [
     "Params", "FIG3", "OUStep", "ou_step", "ou_moments", "DIModel", "make_di_model",
     "estimate_diffusivity", "bruteforce_diffusivity", "EstimateResult", "BruteForceResult",
-    "DryfricWarning", "default_h", "Plan", "plan_estimate", "delta_method", "psi_D", "psi_M", "MIN_RELIABLE_N",
+    "DryfricWarning", "ProjectionWarning", "default_h", "Plan", "plan_estimate", "delta_method", "psi_D",
+    "psi_M", "MIN_RELIABLE_N",
     "theory", "ChainLaw", "white_chain_law", "combine_estimates", "gather_hosts",
 ]
 __version__ = "0.1.0"

@@ -28,6 +28,11 @@ class DryfricWarning(UserWarning):
     """A result that should be read with care (too few excursions, truncated excursions)."""
 
 
+class ProjectionWarning(DryfricWarning):
+    """Said while a run is going (max_work is projected to end it early): not in the result,
+    which says what did happen."""
+
+
 def small_n_note(n: int) -> str:
     """The warning for N below :data:`MIN_RELIABLE_N` (estimates and pooled estimates)."""
     return (f"n_excursions = {n} < {MIN_RELIABLE_N}: the delta-method CI under-covers at this size "
@@ -284,7 +289,7 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
                           + (f"rtol = {rtol}" if rtol else f"{n_excursions} excursions")
                           + f": the rounds so far paid >= {per_exc:.3g} {unit} per excursion (predicted >= "
                           f"{plan.predicted_work / n_excursions:.3g}).  Lower n_excursions, raise max_work, or "
-                          "coarsen h or delta", DryfricWarning, stacklevel=4)
+                          "coarsen h or delta", ProjectionWarning, stacklevel=4)
         if progress is not None:
             progress(dict(n_excursions=st.n_excursions, D=e.get("D", math.nan) * params.D0,
                           D_ci=e.get("D_ci", math.nan) * params.D0, target=n_excursions, rtol=rtol,

@@ -234,11 +234,18 @@ def _print_estimate(r):
 @contextlib.contextmanager
 def _warnings_kept_in_result():
     """Silence the library's DryfricWarnings: each is also in ``result.warnings``, which
-    :func:`_report` prints as one line."""
-    from .api import DryfricWarning
+    :func:`_report` prints as one line.  A ProjectionWarning, said while the run goes on and
+    not kept in the result, goes to stderr at once (on its own line under a progress line)."""
+    from .api import DryfricWarning, ProjectionWarning
 
-    with warnings.catch_warnings(record=True):
+    def show(message, category, *args, **kw):
+        if issubclass(category, ProjectionWarning):
+            clear = "\r\x1b[K" if sys.stderr.isatty() else ""  # the progress line's
+            print(f"{clear}dryfric: warning: {message}", file=sys.stderr, flush=True)
+
+    with warnings.catch_warnings():
         warnings.simplefilter("always", DryfricWarning)
+        warnings.showwarning = show
         yield
 
 

@@ -135,6 +135,21 @@ def test_truncation_exits_3_unless_allowed_and_the_result_is_kept(tmp_path, caps
     assert json.loads(capsys.readouterr().out)["n_truncated"] == res["n_truncated"]
 
 
+def test_max_work_projection_is_said_at_once_on_stderr(capsys):
+    """A run that max_work will end early says so on stderr while it runs (the library's
+    ProjectionWarning, not kept in the result), before the result's own warnings; the JSON on
+    stdout is untouched."""
+    assert main(["estimate", "--n-excursions", "3000", "--max-work", "2e7", "--lanes", "256", "--seed", "2",
+                 "--json"]) == 0
+    cap = capsys.readouterr()
+    res = json.loads(cap.out)
+    lines = cap.err.splitlines()
+    early = [i for i, ln in enumerate(lines) if ln.startswith("dryfric: warning: max_work = 2e+07 steps is projected")]
+    late = [i for i, ln in enumerate(lines) if "work bound reached" in ln]
+    assert len(early) == 1 and late and early[0] < late[0], lines
+    assert res["stopped_by"] == "work_bound" and not any("projected" in w for w in res["warnings"])
+
+
 def test_bad_input_in_a_real_process_has_no_traceback():
     p = subprocess.run([sys.executable, "-m", "dryfric_jax.cli", "estimate", "--tau", "nan"], capture_output=True,
                        text=True)
