@@ -378,7 +378,8 @@ def _sweep(a) -> int:
     kw = dict(seed=a.seed, method=a.method, h=a.h, delta=a.delta, dtype=a.dtype, n_excursions=a.n_excursions,
               rtol=a.rtol, **_work_options(a))
     try:
-        out = sweep.run_sweep(sweep.grid(**axes), a.out, progress=sweep.progress_bar, **kw)
+        with _warnings_kept_in_result():  # a point's ProjectionWarning on stderr at once
+            out = sweep.run_sweep(sweep.grid(**axes), a.out, progress=sweep.progress_bar, **kw)
     except ValueError as e:
         if str(e).startswith("out must"):
             raise _UserError("--" + str(e)) from None

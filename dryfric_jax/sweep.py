@@ -25,7 +25,7 @@ import warnings
 import zlib
 
 from . import __version__
-from .api import DryfricWarning, estimate_diffusivity
+from .api import DryfricWarning, ProjectionWarning, estimate_diffusivity
 from .limits import MAX_WORK
 from .outfiles import check_writable, read_records, write_records
 from .params import FIG3, Params
@@ -66,6 +66,13 @@ def read_results(path: str) -> list[dict]:
                         "out must be a dryfric sweep file (JSON Lines); {path!r} line {line} is not a sweep record")
 
 
+def _at_point(show, pt):
+    """``show`` (a ``warnings.showwarning``) with the sweep point appended to the message."""
+    def at(message, category, *args, **kw):
+        show(f"{message} [at sweep point {json.dumps(pt)}]", category, *args, **kw)
+    return at
+
+
 def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di", h=None, delta=None,
               dtype: str = "float64", n_excursions: int = 20_000, rtol=None, max_work: float = MAX_WORK,
               progress=None) -> dict:
@@ -78,6 +85,10 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
         method, h, delta, dtype, n_excursions, rtol, max_work: as in
             :func:`~dryfric_jax.api.estimate_diffusivity`, the same for every point.
         progress: optional ``progress(done, total, record)`` after each point (and once at start).
+
+    The points' warnings are kept in their records, not shown; a
+    :class:`~dryfric_jax.api.ProjectionWarning` (max_work will end a point early) is shown at
+    once, with the point.
 
     Returns:
         ``dict(computed=k, skipped=s, total=n, interrupted=bool)``.  A Ctrl-C stops after the
@@ -108,8 +119,10 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
     for pt in todo:
         s = point_seed(seed, pt, settings)
         try:
-            with warnings.catch_warnings():  # the warnings are kept in the record
+            with warnings.catch_warnings():  # the warnings are kept in the record ...
                 warnings.simplefilter("ignore", DryfricWarning)
+                warnings.simplefilter("always", ProjectionWarning)  # ... except this one, said at once
+                warnings.showwarning = _at_point(warnings.showwarning, pt)
                 r = estimate_diffusivity(Params(**pt), s, method=method, h=h, delta=delta, dtype=dtype,
                                          n_excursions=n_excursions, rtol=rtol, max_work=max_work)
         except KeyboardInterrupt:

@@ -35,6 +35,20 @@ def test_resume_skips_finished_points_and_adds_new_ones(tmp_path):
     assert sweep.run_sweep(sweep.grid(Gamma=[2.0]), out, n_excursions=300, seed=3)["computed"] == 1
 
 
+def test_a_point_that_max_work_ends_early_says_so_at_once(tmp_path, capsys):
+    """The sweep keeps its points' warnings in the records, but a ProjectionWarning (max_work
+    will end the point before N) is said at once, naming the point; the CLI prints it on stderr."""
+    out = str(tmp_path / "s.jsonl")
+    assert main(["sweep", "--Gamma", "5", "--n-excursions", "3000", "--max-work", "2e7", "--out", out, "--json"]) == 0
+    err = capsys.readouterr().err
+    said = [ln for ln in err.splitlines() if "is projected to end the run" in ln]
+    assert len(said) == 1 and said[0].startswith("dryfric: warning: max_work = 2e+07") and \
+        '[at sweep point {"Gamma": 5.0' in said[0], err
+    (rec,) = _lines(out)
+    assert rec["result"]["stopped_by"] == "work_bound"
+    assert any("work bound reached" in w for w in rec["result"]["warnings"])
+
+
 def test_point_seed_depends_on_the_point_not_its_position():
     s = dict(method="di", n_excursions=10)
     a, b = dict(Gamma=2.0, Delta=3.84, tau=0.5, tau_L=0.067, gamma_bar=0.342), \
