@@ -59,7 +59,7 @@ def test_time_left_projects_to_the_first_limit():
     assert tl(10.0, 1e6, 10, 0, 100, max_work=5e6) == (40.0, "max_work")  # 4e6 lane-steps left
     assert tl(10.0, 1e6, 10, 0, 100, max_work=5e6, max_time=30.0) == (20.0, "max_time")
     assert tl(10.0, 1e6, 10, 0, 100, max_work=2e7, max_time=300.0) == (90.0, "n_excursions")
-    # precision target: half-width 2% now, 1% wanted -> N x 4 = 400 excursions, 390 more
+    # precision target: half-width 2% now, 1% wanted -> N x 4 = 400 excursions, 300 more
     left, to = tl(10.0, 1e6, 100, 0, 50, rtol=0.01, rel=0.02)  # 1e4 lane-steps per excursion
     assert left == pytest.approx(300 * 1e4 / 1e5) and to == "target"
     assert tl(10.0, 1e6, 100, 0, 50, rtol=0.01, rel=None) == (None, None)
@@ -67,7 +67,7 @@ def test_time_left_projects_to_the_first_limit():
 
 def test_progress_reports_the_projection():
     """Every round's report carries the time so far and, once excursions close, the projected
-    time left; the CLI's line shows both and names the limit that ends the run first."""
+    time left; far below the default max_work, no ProjectionWarning."""
     seen = []
     with warnings.catch_warnings(record=True) as ws:
         warnings.simplefilter("always", dj.DryfricWarning)
