@@ -1,0 +1,34 @@
+#!/usr/bin/env bash
+# The GPU check as one prepared run on a lent machine (see scripts/device_check.py); every stage
+# has its own time limit and writes its log under $OUT as it goes.
+#   bash scripts/device_check.sh            # on the device machine, from the repo root
+# SMALL=1 shrinks every stage for a dry run on a CPU.
+set -u
+OUT=${OUT:-/tmp/device-out}; mkdir -p "$OUT"
+export PYTHONUNBUFFERED=1 XLA_PYTHON_CLIENT_PREALLOCATE=false PYTHONPATH=$PWD
+PY=${PY:-python3}
+if [ "${SMALL:-0}" = 1 ]; then
+  LANES=512,1024; BLOCKS=128; N=2000; BOUND=8388608; BENCH=1000; T=(60 60 120 60); TESTS=tests/test_di_exact.py::test_float32_at_paper_values
+else
+  LANES=16384,65536,131072; BLOCKS=128,256; N=200000; BOUND=1073741824; BENCH=100000; T=(130 110 120 90)
+  TESTS="tests/test_di_exact.py tests/test_chain_law.py tests/test_reproducibility.py"
+fi
+{
+  date -u; nvidia-smi -L 2>&1; nproc
+  $PY -m pip install -q --no-deps --no-build-isolation -e . 2>&1 | tail -3
+  $PY -c 'import jax, numba, equinox, scipy; print("jax", jax.__version__, jax.devices(), "numba", numba.__version__, "equinox", equinox.__version__)'
+} > "$OUT/env.log" 2>&1
+cat "$OUT/env.log"
+stage() {  # name limit command...
+  local name=$1 lim=$2; shift 2
+  local t=$(date +%s)
+  timeout -s INT -k 10 "$lim" "$@" > "$OUT/$name.log" 2>&1
+  echo "== $name: rc $? in $(( $(date +%s) - t )) s (limit $lim)"; tail -4 "$OUT/$name.log"
+}
+stage layouts32 "${T[0]}" $PY scripts/device_check.py --dtypes float32 --lanes $LANES --block $BLOCKS --n $N \
+  --bound-n $BOUND --numba-n 4000 --budget-s $(( ${T[0]} - 40 ))
+stage tests "${T[1]}" $PY -m pytest -q -p no:cacheprovider -rfE --durations=8 $TESTS
+stage layouts64_bench "${T[2]}" $PY scripts/device_check.py --dtypes float64 --lanes $LANES --block 128 --n $N \
+  --bound-n $BOUND --numba-n 0 --bench-n $BENCH --budget-s $(( ${T[2]} - 80 ))
+stage figures "${T[3]}" bash -c "time $PY -c 'import sys; from dryfric_jax.cli import main; sys.exit(main())' figures --quick --out /tmp/figs"
+ls /tmp/figs 2>/dev/null | head -30
