@@ -1,9 +1,15 @@
 """dryfric_jax: diffusivity and mobility of a particle under dry friction and colored noise.
 
 Importing the package enables float64 in JAX (``jax_enable_x64``): the statistics are always
-accumulated in float64; the simulation dtype is chosen per call (``dtype="float32"``).
+accumulated in float64; the simulation dtype is chosen per call (``dtype="float32"``).  It also
+asks XLA for deterministic GPU reductions (:mod:`dryfric_jax.determinism`), so that the same seed
+gives bit-identical results on a GPU too.
 """
-import jax
+from .determinism import request_deterministic_gpu_ops
+
+request_deterministic_gpu_ops()  # before JAX starts its backend
+
+import jax  # noqa: E402
 
 jax.config.update("jax_enable_x64", True)
 

@@ -205,7 +205,7 @@ class BruteForceResult:
 def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float | None = None,
                          delta: float | None = None, n_excursions: int = 20_000, dtype="float64",
                          lanes: int | None = None,
-                         chunk_lanes: int = 4096, block: int = BLOCK, max_steps: int | None = None,
+                         chunk_lanes: int | None = None, block: int = BLOCK, max_steps: int | None = None,
                          rtol: float | None = None, max_time: float | None = None, max_work: float = MAX_WORK,
                          progress=None) -> EstimateResult:
     r"""Estimate D and M0 from N i.i.d. long excursions (paper sections 4-6).
@@ -226,7 +226,8 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
         dtype: ``"float64"`` or ``"float32"`` for the simulation (statistics are float64).
         lanes, chunk_lanes, block: engine layout (do not change the estimate's law, only the
             random streams; recorded in the result): lanes in [1, 2^22] (default
-            :func:`~dryfric_jax.excursions.lanes_for`, a power of two up to ``chunk_lanes``),
+            :func:`~dryfric_jax.excursions.lanes_for`, a power of two near N/32 up to ``chunk_lanes``,
+            default 4096 on a CPU and 2^18 on a GPU),
             block K in [1, 1024], lanes * K <= 2^28 (:func:`~dryfric_jax.plan.check_layout`).
             On a GPU, ``dryfric bench --lanes ... --block ...`` measures which layout is fastest.
         max_steps: work bound per excursion; default

@@ -123,8 +123,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="run rounds until the 95%% CI half-width of D is <= RTOL*|D|")
     e.add_argument("--max-time", type=_number("max-time"), default=None, help="stop after this many seconds")
     e.add_argument("--lanes", type=_int_at_least("lanes", 1), default=None,
-                   help="engine lanes (default: a power of two near N/32, 512-4096; a GPU wants many more: "
-                        "'dryfric bench --lanes ...' finds how many); the law does not change, the random streams do")
+                   help="engine lanes (default: a power of two near N/32, 512-4096 on a CPU, up to 2^18 on a GPU; "
+                        "'dryfric bench --lanes ...' measures layouts); the law does not change, the random streams do")
     e.add_argument("--block", type=_int_at_least("block", 1), default=None,
                    help="engine block size K, steps per loop iteration (default 128)")
     e.add_argument("--max-steps", type=_int_at_least("max-steps", 1), default=None,

@@ -584,17 +584,35 @@ def run_round(chain, key, lanes: int, budget: int, *, block: int = BLOCK, max_st
     return res
 
 
-def lanes_for(n_excursions: int, chunk_lanes: int = 4096, per_lane: int = 32, min_lanes: int = 512) -> int:
+CPU_CHUNK_LANES = 4096
+GPU_CHUNK_LANES = 1 << 18
+
+
+def default_chunk_lanes(backend: str | None = None) -> int:
+    """The most lanes :func:`lanes_for` gives by default: 4096 on a CPU, 2^18 on a GPU (or any
+    accelerator).  A GPU runs one lane per thread and needs ~10^5 of them: on an H200 (jax 0.11.2,
+    Fig. 3 point, float32, K = 256, 8 excursions per lane) the DI ran 0.90, 2.7, 3.9, 6.1, 5.5 and
+    4.8e9 useful lane-steps/s at 2^14, 2^16, 2^17, 2^18, 2^19 and 2^20 lanes, and 1.7e8 at the CPU
+    default's 2048 (README, "GPU")."""
+    backend = backend or jax.default_backend()
+    return CPU_CHUNK_LANES if backend == "cpu" else GPU_CHUNK_LANES
+
+
+def lanes_for(n_excursions: int, chunk_lanes: int | None = None, per_lane: int = 32, min_lanes: int = 512) -> int:
     """A power of two near n_excursions / per_lane, at least min(min_lanes, N), at most
-    ``chunk_lanes`` (few compiled shapes).  More lanes fill the vector units, fewer excursions
-    per lane leave more lanes idle in the final round; 32 and 512 measured best for the DI and
-    the PDMP at N = 1e4-2e4 on 2 CPU cores (+10-25% over 64 and 256; README)."""
+    ``chunk_lanes`` (default :func:`default_chunk_lanes`: few compiled shapes).  More lanes fill
+    the vector units (the GPU's threads), fewer excursions per lane leave more lanes idle in the
+    final round; 32 and 512 measured best for the DI and the PDMP at N = 1e4-2e4 on 2 CPU cores
+    (+10-25% over 64 and 256; README).  32 excursions per lane also keep the per-excursion work
+    bound ``max_work / lanes`` at >= 32 predicted mean excursions for N >= 16384
+    (:mod:`dryfric_jax.plan`)."""
+    chunk_lanes = chunk_lanes or default_chunk_lanes()
     want = max(1, n_excursions // per_lane, min(min_lanes, n_excursions))
     return int(min(chunk_lanes, 2 ** max(0, int(np.floor(np.log2(want))))))
 
 
 def simulate_long_excursions(chain, key, n_excursions: int, *, lanes: int | None = None,
-                             chunk_lanes: int = 4096, block: int = BLOCK, max_steps: int = 10**8,
+                             chunk_lanes: int | None = None, block: int = BLOCK, max_steps: int = 10**8,
                              pilot_budget: int = 1024, more=None, max_time: float | None = None,
                              max_work: float | None = None, round_lane_steps: int = 2**26, progress=None):
     """Long excursions of ``chain`` (DI or PDMP) in rounds of persistent lanes, until enough.

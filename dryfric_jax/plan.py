@@ -152,7 +152,7 @@ def choose(params: Params, method: str, h, delta, dtype) -> Plan:
 
 def plan_estimate(params: Params, *, method: str = "di", h: float | None = None, delta: float | None = None,
                   dtype="float64", n_excursions: int = 20_000, max_work: float = MAX_WORK,
-                  max_steps: int | None = None, lanes: int | None = None, chunk_lanes: int = 4096,
+                  max_steps: int | None = None, lanes: int | None = None, chunk_lanes: int | None = None,
                   block: int = BLOCK) -> Plan:
     """Validate a long-excursion run and fix its method, step, dtype and work bounds.
 

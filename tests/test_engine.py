@@ -35,6 +35,19 @@ def test_finish_in_flight_is_unbiased_and_dropping_is_not(events):
     assert drop["D"] + drop["D_ci"] < 10.0, drop  # biased low, outside its own CI
 
 
+def test_default_lanes_by_backend(monkeypatch):
+    from dryfric_jax.excursions import default_chunk_lanes, lanes_for
+    assert (default_chunk_lanes("cpu"), default_chunk_lanes("gpu"), default_chunk_lanes("tpu")) == (4096, 2**18, 2**18)
+    # a power of two near N/32, at least min(512, N), at most the backend's chunk
+    assert [lanes_for(n, 4096) for n in (100, 300, 20_000, 40_000, 10**6)] == [64, 256, 512, 1024, 4096]
+    assert [lanes_for(n, 2**18) for n in (20_000, 10**6, 10**7, 10**9)] == [512, 16384, 262144, 262144]
+    p = dj.Params(**dj.FIG3)
+    assert dj.plan_estimate(p, n_excursions=10**6).lanes == 4096  # this CPU
+    monkeypatch.setattr(jax, "default_backend", lambda: "gpu")
+    assert dj.plan_estimate(p, n_excursions=10**6).lanes == 16384
+    assert dj.plan_estimate(p, n_excursions=10**6, chunk_lanes=4096).lanes == 4096  # the caller's cap wins
+
+
 def test_same_seed_bit_identical():
     p = dj.Params.from_nondim(0.3, 2.0, 0.2)
     a, _ = simulate_long_excursions(make_di_model(p, 0.02), jax.random.key(5), 300, lanes=8)

@@ -2,6 +2,7 @@
 different lane layouts give different (independent) samples whose estimates agree within the CI."""
 import json
 import math
+import os
 import subprocess
 import sys
 import warnings
@@ -30,6 +31,26 @@ def test_same_seed_bit_identical_in_two_processes(argv):
     a, b = _cli_json(argv), _cli_json(argv)
     assert a == b  # every number, to the last bit (JSON floats round-trip exactly)
     assert math.isfinite(a.get("D", a.get("D_t")))
+
+
+def _xla_flags_seen(flags):
+    """XLA_FLAGS after importing dryfric_jax in a fresh process that then computes (so the backend
+    started with them: an unknown flag would abort it)."""
+    env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}
+    if flags is not None:
+        env["XLA_FLAGS"] = flags
+    code = "import os, dryfric_jax, jax; jax.numpy.ones(3).sum().block_until_ready(); print(os.environ['XLA_FLAGS'])"
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=300)
+    assert p.returncode == 0, p.stderr
+    return p.stdout.strip()
+
+
+def test_import_asks_xla_for_deterministic_gpu_sums():
+    # on a GPU, sums by atomic adds changed D_ci's last bit in 1 of 5 runs (dryfric_jax.determinism)
+    assert _xla_flags_seen(None) == "--xla_gpu_deterministic_ops=true"
+    assert (_xla_flags_seen("--xla_force_host_platform_device_count=2")
+            == "--xla_force_host_platform_device_count=2 --xla_gpu_deterministic_ops=true")
+    assert _xla_flags_seen("--xla_gpu_deterministic_ops=false") == "--xla_gpu_deterministic_ops=false"  # user's wins
 
 
 def test_other_seed_differs():

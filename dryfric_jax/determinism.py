@@ -1,0 +1,26 @@
+"""Bit-identical results on a GPU: XLA's deterministic GPU reductions.
+
+The same seed and settings must give bit-identical results.  On a CPU they do.  On a GPU, XLA may
+sum with atomic additions, whose order (and so the last bit of a float sum) changes from run to
+run: measured on an H200 (jax 0.11.2), ``test_same_seed_bit_identical_in_two_processes`` failed
+once in 5 runs, with ``D_ci`` differing in its 16th digit, and passed 4 of 4 runs with
+``--xla_gpu_deterministic_ops=true`` (4 of 4 is weak evidence on its own; the flag is XLA's switch
+for exactly this).  CPU backends ignore the flag.
+
+XLA reads ``XLA_FLAGS`` when JAX starts its backend (the first computation), so importing
+``dryfric_jax`` sets the flag in time unless the program already computed with JAX; a program
+that did can set ``XLA_FLAGS`` itself before its first computation.  An explicit
+``--xla_gpu_deterministic_ops=false`` in ``XLA_FLAGS`` is kept.
+"""
+from __future__ import annotations
+
+import os
+
+FLAG = "--xla_gpu_deterministic_ops"
+
+
+def request_deterministic_gpu_ops() -> None:
+    """Add ``--xla_gpu_deterministic_ops=true`` to ``XLA_FLAGS`` unless it names the flag already."""
+    flags = os.environ.get("XLA_FLAGS", "")
+    if FLAG.lstrip("-") not in flags:
+        os.environ["XLA_FLAGS"] = f"{flags} {FLAG}=true".strip()
