@@ -6,11 +6,12 @@ keeps what it printed), at the paper's Fig. 3 point:
 * ``layout``: DI useful lane-steps/s for each (dtype, lanes, block K), N = max(--n, 8 lanes)
   excursions after a compile run, with D +- CI (the layouts change the streams, not the law:
   their D must agree within their CIs);
-* ``rng_bound``: the engine's generator alone, at the best layout of each dtype;
+* ``rng_bound``, ``chain_floor``: the engine's generator alone, and the chain without the excursion
+  bookkeeping, at the best layout of each dtype;
 * ``numba``: the compiled CPU loop of the same DI chain with 1, 2 and all host threads;
 * ``bench``: the side-by-side ``dryfric bench`` (the plan's own lanes), when --bench-n > 0.
 
-    python scripts/device_check.py --lanes 16384,65536,131072 --block 128,256 --n 200000
+    python scripts/device_check.py --lanes 65536,262144 --block 128,256 --n 200000
 
 Stops starting new layouts once --budget-s seconds have passed.
 """
@@ -46,7 +47,7 @@ def main(argv=None) -> int:
     import jax.numpy as jnp
     import dryfric_jax as dj
     from dryfric_jax.api import default_h
-    from dryfric_jax.bench import rng_bound, run_bench
+    from dryfric_jax.bench import chain_floor, rng_bound, run_bench
     from dryfric_jax.di import make_di_model
     from dryfric_jax.params import FIG3
 
@@ -79,6 +80,10 @@ def main(argv=None) -> int:
                 bound = rng_bound(jnp.dtype(dt), best["lanes"], best["block"], n=int(a.bound_n))
                 emit(kind="rng_bound", dtype=dt, lanes=best["lanes"], block=best["block"],
                      lane_steps_per_s=bound, ratio_best_to_bound=best["lane_steps_per_s"] / bound)
+                floor = chain_floor(make_di_model(p, default_h(p), dt), best["lanes"], best["block"],
+                                    n=int(a.bound_n))
+                emit(kind="chain_floor", dtype=dt, lanes=best["lanes"], block=best["block"], lane_steps_per_s=floor,
+                     ratio_floor_to_bound=floor / bound, ratio_best_to_floor=best["lane_steps_per_s"] / floor)
         if a.numba_n > 0:
             try:
                 from dryfric_jax.bench_numba import run_numba

@@ -10,7 +10,7 @@ PY=${PY:-python3}
 if [ "${SMALL:-0}" = 1 ]; then
   LANES=512,1024; BLOCKS=128; N=2000; BOUND=8388608; BENCH=1000; T=(60 60 120 60); TESTS=tests/test_di_exact.py::test_float32_at_paper_values
 else
-  LANES=16384,65536,131072; BLOCKS=128,256; N=200000; BOUND=1073741824; BENCH=100000; T=(130 110 120 90)
+  LANES=65536,262144; BLOCKS=128,256; N=200000; BOUND=1073741824; BENCH=100000; T=(150 150 120 60)
   TESTS="tests/test_di_exact.py tests/test_chain_law.py tests/test_reproducibility.py"
 fi
 {
