@@ -592,8 +592,8 @@ def default_chunk_lanes(backend: str | None = None) -> int:
     """The most lanes :func:`lanes_for` gives by default: 4096 on a CPU, 2^18 on a GPU (or any
     accelerator).  A GPU runs one lane per thread and needs ~10^5 of them: on an H200 (jax 0.11.2,
     Fig. 3 point, float32, K = 256, 8 excursions per lane) the DI ran 0.90, 2.7, 3.9, 6.1, 5.5 and
-    4.8e9 useful lane-steps/s at 2^14, 2^16, 2^17, 2^18, 2^19 and 2^20 lanes, and 1.7e8 at the CPU
-    default's 2048 (README, "GPU")."""
+    4.8e9 useful lane-steps/s at 2^14, 2^16, 2^17, 2^18, 2^19 and 2^20 lanes, and 1.7e8 at 2048
+    lanes (K = 128, the CPU default at N = 1e5; README, "On a GPU")."""
     backend = backend or jax.default_backend()
     return CPU_CHUNK_LANES if backend == "cpu" else GPU_CHUNK_LANES
 
