@@ -64,6 +64,13 @@ FINAL_CALL_LANE_STEPS = 2**27
 # steps per iteration of the block's loop: best of 5 runs against 1, DI +1-7%, PDMP +10-14% on 2 CPU
 # cores; 8 was no better
 UNROLL = 4
+# steps per iteration of the wait layout's loop (_quiet_steps): x4 ran 1.4x slower on 2 CPU cores
+# (XLA:CPU recomputes the step in each kernel that writes one of its arrays; README); on a GPU,
+# where each iteration launches kernels, not yet measured (scripts/device_check.py --unroll).
+# Unrolling changes how XLA fuses the step, hence its rounding and, through the sticking
+# decisions, the paths: at 1024 lanes, float32, 2 CPU devices, unroll 1, 4 and 16 gave D =
+# 2.7099e-3, 2.7080e-3 and 2.7085e-3 (CI +-1.5e-4): the law, not the bits, is kept
+QUIET_UNROLL = 1
 
 
 class _Lane(eqx.Module):
@@ -277,7 +284,8 @@ def _quiet_steps(chain, budget, max_steps, finish, block, lane: _Lane, rs):
     # the float32 loop mixed widths, +14% on the float32 quiet loop (512 lanes, K = 128, 2 CPU devices,
     # medians of 3), the same events
     first = jnp.clip(first, 0, block).astype(U0.dtype)
-    state, Ua, t = jax.lax.fori_loop(0, block, body, (pack(lane.state), jax.lax.complex(U0, at), lane.t))
+    state, Ua, t = jax.lax.fori_loop(0, block, body, (pack(lane.state), jax.lax.complex(U0, at), lane.t),
+                                     unroll=QUIET_UNROLL)
     state, U, at = unpack(state), jnp.real(Ua), jnp.imag(Ua).astype(jnp.int32)
     U = lane.U + U.astype(lane.U.dtype) if part else U
     taken = jnp.where(at == block, block, jnp.maximum(at, 0))

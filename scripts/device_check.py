@@ -3,7 +3,7 @@
 Prints one JSON line per measurement as soon as it is made (a run stopped at its time limit
 keeps what it printed), at the paper's Fig. 3 point:
 
-* ``layout``: DI useful lane-steps/s for each (dtype, lanes, block K), N = max(--n, 8 lanes)
+* ``layout``: DI useful lane-steps/s for each (dtype, lanes, block K, unroll), N = max(--n, 8 lanes)
   excursions after a compile run, with D +- CI (the layouts change the streams, not the law:
   their D must agree within their CIs);
 * ``rng_bound``, ``chain_floor``: the engine's generator alone, and the chain without the excursion
@@ -33,6 +33,8 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--lanes", default="16384,65536,131072")
     ap.add_argument("--block", default="128,256")
+    ap.add_argument("--unroll", default="", help="steps per iteration of the wait layout's loop "
+                    "(excursions.QUIET_UNROLL; default: the engine's)")
     ap.add_argument("--dtypes", default="float32,float64")
     ap.add_argument("--n", type=float, default=2e5, help="excursions per layout (at least 8 per lane)")
     ap.add_argument("--numba-n", type=int, default=4000, help="excursions per numba timing (0: skip)")
@@ -53,29 +55,34 @@ def main(argv=None) -> int:
 
     emit(kind="device", devices=[str(d) for d in jax.devices()], jax=jax.__version__, cpu_count=os.cpu_count())
     p = dj.Params(**FIG3)
+    from dryfric_jax import excursions
     lanes_list = [int(x) for x in a.lanes.split(",")]
     blocks = [int(x) for x in a.block.split(",")]
+    unrolls = [int(x) for x in a.unroll.split(",")] if a.unroll else [excursions.QUIET_UNROLL]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", dj.DryfricWarning)
         for dt in a.dtypes.split(","):
             best = None
-            for lanes in lanes_list:
-                for block in blocks:
-                    if time.perf_counter() - t0 > a.budget_s:
-                        emit(kind="skipped", dtype=dt, lanes=lanes, block=block, reason="budget")
-                        continue
-                    tc = time.perf_counter()
-                    dj.estimate_diffusivity(p, 0, n_excursions=200, dtype=dt, lanes=lanes, block=block)
-                    compile_s = time.perf_counter() - tc
-                    r = dj.estimate_diffusivity(p, 1, n_excursions=int(max(a.n, 8 * lanes)), dtype=dt,
-                                                lanes=lanes, block=block)
-                    row = dict(kind="layout", dtype=dt, lanes=lanes, block=block, n_excursions=r.n_excursions,
-                               lane_steps_per_s=r.lane_steps_per_s, utilization=r.lane_utilization,
-                               wall_s=r.wall_s, compile_and_200_s=compile_s, D=r.D, D_ci=r.D_ci,
-                               n_truncated=r.n_truncated, stopped_by=r.stopped_by)
-                    emit(**row)
-                    if best is None or row["lane_steps_per_s"] > best["lane_steps_per_s"]:
-                        best = row
+            for lanes, block, unroll in [(x, y, z) for x in lanes_list for y in blocks for z in unrolls]:
+                if time.perf_counter() - t0 > a.budget_s:
+                    emit(kind="skipped", dtype=dt, lanes=lanes, block=block, unroll=unroll, reason="budget")
+                    continue
+                if unroll != excursions.QUIET_UNROLL:  # traced into the loop: compile afresh
+                    excursions.QUIET_UNROLL = unroll
+                    jax.clear_caches()
+                tc = time.perf_counter()
+                dj.estimate_diffusivity(p, 0, n_excursions=200, dtype=dt, lanes=lanes, block=block)
+                compile_s = time.perf_counter() - tc
+                r = dj.estimate_diffusivity(p, 1, n_excursions=int(max(a.n, 8 * lanes)), dtype=dt,
+                                            lanes=lanes, block=block)
+                row = dict(kind="layout", dtype=dt, lanes=lanes, block=block, unroll=unroll,
+                           n_excursions=r.n_excursions,
+                           lane_steps_per_s=r.lane_steps_per_s, utilization=r.lane_utilization,
+                           wall_s=r.wall_s, compile_and_200_s=compile_s, D=r.D, D_ci=r.D_ci,
+                           n_truncated=r.n_truncated, stopped_by=r.stopped_by)
+                emit(**row)
+                if best is None or row["lane_steps_per_s"] > best["lane_steps_per_s"]:
+                    best = row
             if best is not None:
                 bound = rng_bound(jnp.dtype(dt), best["lanes"], best["block"], n=int(a.bound_n))
                 emit(kind="rng_bound", dtype=dt, lanes=best["lanes"], block=best["block"],
