@@ -11,7 +11,7 @@ keeps what it printed), at the paper's Fig. 3 point:
 * ``numba``: the compiled CPU loop of the same DI chain with 1, 2 and all host threads;
 * ``bench``: the side-by-side ``dryfric bench`` (the plan's own lanes), when --bench-n > 0.
 
-    python scripts/device_check.py --lanes 65536,262144 --block 128,256 --n 200000
+    python scripts/device_check.py --lanes 65536,262144 --block 256,1024 --unroll 1,4 --n 200000
 
 Stops starting new layouts once --budget-s seconds have passed.
 """
@@ -31,8 +31,8 @@ def emit(**kw):
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--lanes", default="16384,65536,131072")
-    ap.add_argument("--block", default="128,256")
+    ap.add_argument("--lanes", default="65536,262144")
+    ap.add_argument("--block", default="256")
     ap.add_argument("--unroll", default="", help="steps per iteration of the wait layout's loop "
                     "(excursions.QUIET_UNROLL; default: the engine's)")
     ap.add_argument("--dtypes", default="float32,float64")
