@@ -2,10 +2,10 @@
 
 Importing the package enables float64 in JAX (``jax_enable_x64``): the statistics are always
 accumulated in float64; the simulation dtype is chosen per call (``dtype="float32"``).  It also
-asks XLA for deterministic GPU reductions (:mod:`dryfric_jax.determinism`), so that the same seed
+asks XLA for deterministic GPU reductions (:mod:`dryfric_jax.xla_flags`), so that the same seed
 gives bit-identical results on a GPU too.
 """
-from .determinism import request_deterministic_gpu_ops
+from .xla_flags import request_deterministic_gpu_ops
 
 request_deterministic_gpu_ops()  # before JAX starts its backend
 

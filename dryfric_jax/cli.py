@@ -17,6 +17,7 @@ import warnings
 
 from .outfiles import check_writable, check_writable_dir, write_atomic
 from .params import FIG3, Params
+from .xla_flags import default_xla_flag
 
 
 class _Parser(argparse.ArgumentParser):
@@ -400,12 +401,8 @@ def _use_all_cpu_cores():
     on one core per device), and 512-bit vectors where the CPU has them (AVX-512: +5-20% lane
     steps/s, same results; a hint that CPUs with narrower vectors ignore).  Must run before JAX
     starts its backend; a flag the user's XLA_FLAGS already sets wins."""
-    flags = os.environ.get("XLA_FLAGS", "")
-    if "xla_force_host_platform_device_count" not in flags:
-        flags = f"{flags} --xla_force_host_platform_device_count={os.cpu_count() or 1}"
-    if "xla_cpu_prefer_vector_width" not in flags:
-        flags = f"{flags} --xla_cpu_prefer_vector_width=512"
-    os.environ["XLA_FLAGS"] = flags.strip()
+    default_xla_flag("xla_force_host_platform_device_count", os.cpu_count() or 1)
+    default_xla_flag("xla_cpu_prefer_vector_width", 512)
 
 
 def main(argv=None) -> int:

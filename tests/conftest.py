@@ -1,10 +1,10 @@
 import os
 
+from dryfric_jax.xla_flags import default_xla_flag
+
 # one XLA host device per core, as the `dryfric` command does: lanes shard over the cores (and the
 # sharded code path is what every test exercises).  Must be set before JAX starts its backend.
-if "xla_force_host_platform_device_count" not in os.environ.get("XLA_FLAGS", ""):
-    os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "") +
-                               f" --xla_force_host_platform_device_count={os.cpu_count() or 1}").strip()
+default_xla_flag("xla_force_host_platform_device_count", os.cpu_count() or 1)
 
 import math  # noqa: E402
 

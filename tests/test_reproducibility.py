@@ -46,7 +46,7 @@ def _xla_flags_seen(flags):
 
 
 def test_import_asks_xla_for_deterministic_gpu_sums():
-    # on a GPU, sums by atomic adds changed D_ci's last bit in 1 of 5 runs (dryfric_jax.determinism)
+    # on a GPU, sums by atomic adds changed D_ci's last bit in 1 of 5 runs (dryfric_jax.xla_flags)
     assert _xla_flags_seen(None) == "--xla_gpu_deterministic_ops=true"
     assert (_xla_flags_seen("--xla_force_host_platform_device_count=2")
             == "--xla_force_host_platform_device_count=2 --xla_gpu_deterministic_ops=true")

@@ -1,4 +1,5 @@
-"""Bit-identical results on a GPU: XLA's deterministic GPU reductions.
+"""The XLA flags the package sets: deterministic GPU reductions (at import) and, through the same
+helper, the CLI's CPU flags (:func:`dryfric_jax.cli._use_all_cpu_cores`).
 
 The same seed and settings must give bit-identical results.  On a CPU they do.  On a GPU, XLA may
 sum with atomic additions, whose order (and so the last bit of a float sum) changes from run to
@@ -9,18 +10,21 @@ for exactly this).  CPU backends ignore the flag.
 
 XLA reads ``XLA_FLAGS`` when JAX starts its backend (the first computation), so importing
 ``dryfric_jax`` sets the flag in time unless the program already computed with JAX; a program
-that did can set ``XLA_FLAGS`` itself before its first computation.  An explicit
-``--xla_gpu_deterministic_ops=false`` in ``XLA_FLAGS`` is kept.
+that did can set ``XLA_FLAGS`` itself before its first computation.  A flag the user's
+``XLA_FLAGS`` already names (``--xla_gpu_deterministic_ops=false``, say) is kept.
 """
 from __future__ import annotations
 
 import os
 
-FLAG = "--xla_gpu_deterministic_ops"
+
+def default_xla_flag(name: str, value) -> None:
+    """Add ``--name=value`` to ``XLA_FLAGS`` unless it names ``name`` already (the user's wins)."""
+    flags = os.environ.get("XLA_FLAGS", "")
+    if name not in flags:
+        os.environ["XLA_FLAGS"] = f"{flags} --{name}={value}".strip()
 
 
 def request_deterministic_gpu_ops() -> None:
-    """Add ``--xla_gpu_deterministic_ops=true`` to ``XLA_FLAGS`` unless it names the flag already."""
-    flags = os.environ.get("XLA_FLAGS", "")
-    if FLAG.lstrip("-") not in flags:
-        os.environ["XLA_FLAGS"] = f"{flags} {FLAG}=true".strip()
+    """``--xla_gpu_deterministic_ops=true`` unless ``XLA_FLAGS`` names the flag (module docstring)."""
+    default_xla_flag("xla_gpu_deterministic_ops", "true")
