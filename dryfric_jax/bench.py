@@ -125,12 +125,12 @@ def chain_floor_timer(chain, lanes: int = 512, block: int = BLOCK, n: int = 1 <<
     return _device_timer(body, init, lanes, block, n, reps)
 
 
-def _numba_rates(run, model, n_excursions: int, seed: int) -> dict:
-    """Steps (or events) per second of a numba baseline ``run`` with 1 and 2 threads, compiled first
-    (numba caches the compiled loop, so a second call compiles nothing)."""
+def _numba_rates(run, model, n_excursions: int, seed: int, threads=(1, 2)) -> dict:
+    """Steps (or events) per second of a numba baseline ``run`` with each number of ``threads``,
+    compiled first (numba caches the compiled loop, so a second call compiles nothing)."""
     run(model, 20, 1)  # compile
     rates = {}
-    for k in (1, 2):
+    for k in threads:
         t = time.perf_counter()
         _, steps = run(model, n_excursions, k, seed)
         rates[k] = steps / (time.perf_counter() - t)
@@ -242,7 +242,8 @@ def run_bench(n_excursions: int = 10_000, numba_excursions: int = 2000, seed: in
 
 
 def tune_layout(lanes_list, blocks, dtype: str = "float32", n_excursions: int = 10_000, seed: int = 0,
-                numba_excursions: int = 2000, repeat: int = 1) -> dict:
+                numba_excursions: int = 2000, repeat: int = 1, *, unrolls=None, budget_s: float | None = None,
+                on_layout=None, bound_n: int = 1 << 23) -> dict:
     """DI useful lane-steps/s at the Fig. 3 point for every engine layout (lanes, block K) in
     ``lanes_list`` x ``blocks`` (``dryfric bench --lanes ... --block ...``): the sweep that
     picks the layout on a new device (a GPU needs far more lanes than the CPU default).
@@ -254,51 +255,94 @@ def tune_layout(lanes_list, blocks, dtype: str = "float32", n_excursions: int = 
     rounds, with ``lane_steps_per_s_range`` (min, max).  The layout changes the random streams
     but not the law, so the D of all layouts must agree within their CIs: ``max_z`` is the
     largest |D_i - pooled| / SE_i against the inverse-variance pooled D (a check, not a speed
-    number).  The RNG bound and the numba 2-thread DI loop are measured once, at the best
-    layout and on the host CPU.
+    number).  At the best layout, on the same device: the RNG bound and the chain floor
+    (``bound_n`` lane-steps each), and on the host CPU the numba 2-thread DI loop
+    (``numba_excursions`` = 0 skips it).
+
+    For a lent accelerator's few minutes (``scripts/device_check.py``): ``unrolls`` also sweeps
+    the wait loop's unroll (:data:`~dryfric_jax.excursions.QUIET_UNROLL`, traced into the loop,
+    so each value compiles afresh; restored at the end), ``budget_s`` starts no new layout after
+    that many seconds (the first always runs; the rest are listed under ``skipped``), and ``on_layout(row)`` receives each
+    layout's row as soon as its rounds are done.
     """
+    from . import excursions
+
     for lanes in lanes_list:
         for block in blocks:
             check_layout(lanes, block)
     if dtype not in ("float32", "float64"):
         raise ValueError(f"dtype must be 'float32' or 'float64' (got {dtype!r})")
     check_count("repeat", repeat, lo=1)
+    unroll0 = excursions.QUIET_UNROLL
+    unrolls = [unroll0] if not unrolls else [int(u) for u in unrolls]
+    for u in unrolls:
+        check_count("unroll", u, lo=1)
     p = Params(**FIG3)
     out = dict(device=str(jax.devices()[0]), n_devices=jax.device_count(), cpu_count=os.cpu_count(),
-               params=p.as_dict(), dtype=dtype, repeat=repeat, layouts=[])
+               params=p.as_dict(), dtype=dtype, repeat=repeat, layouts=[], skipped=[])
+    t0 = time.perf_counter()
+    started = []  # the first layout always runs
+    over = lambda: budget_s is not None and bool(started) and time.perf_counter() - t0 > budget_s
     layouts = [(int(lanes), int(block)) for lanes in lanes_list for block in blocks]
-    runs = {lb: [] for lb in layouts}
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", DryfricWarning)
-        for lanes, block in layouts:
-            estimate_diffusivity(p, seed, n_excursions=200, dtype=dtype, lanes=lanes, block=block)  # compile
-        for _ in range(repeat):
-            for lanes, block in layouts:
-                runs[lanes, block].append(estimate_diffusivity(
-                    p, seed + 1, n_excursions=max(int(n_excursions), 8 * lanes), dtype=dtype, lanes=lanes,
-                    block=block))
-    for (lanes, block), rs in runs.items():
-        r, rates = rs[0], [x.lane_steps_per_s for x in rs]  # the same seed: every round the same D
-        out["layouts"].append(dict(lanes=lanes, block=block, n_excursions=r.n_excursions,
-                                   lane_steps_per_s=float(np.median(rates)),
-                                   lane_steps_per_s_range=[min(rates), max(rates)],
-                                   utilization=r.lane_utilization, wall_s=float(np.median([x.wall_s for x in rs])),
-                                   D=r.D, D_ci=r.D_ci))
-    rows = out["layouts"]
-    best = max(rows, key=lambda row: row["lane_steps_per_s"])
-    w = [(1.96 / row["D_ci"]) ** 2 for row in rows]
-    pooled = sum(wi * row["D"] for wi, row in zip(w, rows)) / sum(w)
-    out.update(best_lanes=best["lanes"], best_block=best["block"], best_lane_steps_per_s=best["lane_steps_per_s"],
-               D_pooled=pooled, max_z=max(abs(row["D"] - pooled) * 1.96 / row["D_ci"] for row in rows))
-    bound = rng_bound(jnp.dtype(dtype), best["lanes"], best["block"])
-    out.update(rng_bound_lane_steps_per_s=bound, ratio_best_to_rng_bound=best["lane_steps_per_s"] / bound)
     try:
-        from .bench_numba import run_numba
-    except Exception as exc:
-        out["numba"] = f"unavailable ({type(exc).__name__}: {exc}); pip install -e '.[bench]'"
-    else:
-        rate = _numba_rates(run_numba, make_di_model(p, default_h(p)), numba_excursions, seed)[2]
-        out.update(numba_2t_steps_per_s=rate, ratio_best_to_numba_2t=best["lane_steps_per_s"] / rate)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DryfricWarning)
+            for unroll in unrolls:
+                if unroll != excursions.QUIET_UNROLL:  # traced into the loop: compile afresh
+                    excursions.QUIET_UNROLL = unroll
+                    jax.clear_caches()
+                runs = {}
+                for rnd in range(repeat):  # interleaved rounds; the first compiles each layout just before
+                    for lanes, block in layouts:
+                        if rnd == 0:
+                            if over():
+                                out["skipped"].append(dict(lanes=lanes, block=block, unroll=unroll))
+                                continue
+                            started.append((lanes, block, unroll))
+                            tc = time.perf_counter()
+                            estimate_diffusivity(p, seed, n_excursions=200, dtype=dtype, lanes=lanes, block=block)
+                            runs[lanes, block] = dict(compile_s=time.perf_counter() - tc, rs=[])
+                        elif (lanes, block) not in runs:
+                            continue
+                        rs = runs[lanes, block]["rs"]
+                        rs.append(estimate_diffusivity(p, seed + 1, n_excursions=max(int(n_excursions), 8 * lanes),
+                                                       dtype=dtype, lanes=lanes, block=block))
+                        if rnd < repeat - 1:
+                            continue
+                        r, rates = rs[0], [x.lane_steps_per_s for x in rs]  # the same seed: the same D
+                        row = dict(lanes=lanes, block=block, unroll=unroll, n_excursions=r.n_excursions,
+                                   lane_steps_per_s=float(np.median(rates)),
+                                   lane_steps_per_s_range=[min(rates), max(rates)], utilization=r.lane_utilization,
+                                   wall_s=float(np.median([x.wall_s for x in rs])),
+                                   compile_and_200_s=runs[lanes, block]["compile_s"], D=r.D, D_ci=r.D_ci,
+                                   n_truncated=r.n_truncated, stopped_by=r.stopped_by)
+                        out["layouts"].append(row)
+                        if on_layout is not None:
+                            on_layout(row)
+            rows = out["layouts"]
+            best = max(rows, key=lambda row: row["lane_steps_per_s"])
+            w = [(1.96 / row["D_ci"]) ** 2 for row in rows]
+            pooled = sum(wi * row["D"] for wi, row in zip(w, rows)) / sum(w)
+            out.update(best_lanes=best["lanes"], best_block=best["block"], best_unroll=best["unroll"],
+                       best_lane_steps_per_s=best["lane_steps_per_s"], D_pooled=pooled,
+                       max_z=max(abs(row["D"] - pooled) * 1.96 / row["D_ci"] for row in rows))
+            bound = rng_bound(jnp.dtype(dtype), best["lanes"], best["block"], n=bound_n)
+            floor = chain_floor(make_di_model(p, default_h(p), dtype), best["lanes"], best["block"], n=bound_n)
+            out.update(rng_bound_lane_steps_per_s=bound, ratio_best_to_rng_bound=best["lane_steps_per_s"] / bound,
+                       chain_floor_lane_steps_per_s=floor, ratio_chain_floor_to_rng_bound=floor / bound,
+                       ratio_best_to_chain_floor=best["lane_steps_per_s"] / floor)
+    finally:
+        if excursions.QUIET_UNROLL != unroll0:
+            excursions.QUIET_UNROLL = unroll0
+            jax.clear_caches()
+    if numba_excursions > 0:
+        try:
+            from .bench_numba import run_numba
+        except Exception as exc:
+            out["numba"] = f"unavailable ({type(exc).__name__}: {exc}); pip install -e '.[bench]'"
+        else:
+            rate = _numba_rates(run_numba, make_di_model(p, default_h(p)), numba_excursions, seed, (2,))[2]
+            out.update(numba_2t_steps_per_s=rate, ratio_best_to_numba_2t=best["lane_steps_per_s"] / rate)
     return out
 
 
@@ -307,14 +351,20 @@ def format_layouts(b: dict) -> str:
     head = f"device {b['device']} (x{b['n_devices']}, {b['cpu_count']} CPU cores), DI {b['dtype']}, Fig. 3 point"
     if b.get("repeat", 1) > 1:
         head += f"; medians of {b['repeat']} interleaved rounds [min-max]"
-    lines = [head, f"{'lanes':>8} {'K':>5} {'N':>9} {'lane-steps/s':>13} {'util':>6} {'wall s':>8}  D (95% CI)"]
+    lines = [head, f"{'lanes':>8} {'K':>5} {'unroll':>6} {'N':>9} {'lane-steps/s':>13} {'util':>6} {'wall s':>8}  "
+                   "D (95% CI)"]
     for r in b["layouts"]:
         lo, hi = r["lane_steps_per_s_range"]
         spread = f"  [{lo:.4g}-{hi:.4g}]" if b.get("repeat", 1) > 1 else ""
-        lines.append(f"{r['lanes']:>8} {r['block']:>5} {r['n_excursions']:>9} {r['lane_steps_per_s']:>13.4g} "
-                     f"{r['utilization']:>6.3f} {r['wall_s']:>8.2f}  {r['D']:.5g} ± {r['D_ci']:.2g}{spread}")
+        lines.append(f"{r['lanes']:>8} {r['block']:>5} {r['unroll']:>6} {r['n_excursions']:>9} "
+                     f"{r['lane_steps_per_s']:>13.4g} {r['utilization']:>6.3f} {r['wall_s']:>8.2f}  "
+                     f"{r['D']:.5g} ± {r['D_ci']:.2g}{spread}")
+    for r in b.get("skipped", []):
+        lines.append(f"{r['lanes']:>8} {r['block']:>5} {r['unroll']:>6}  skipped (budget_s)")
     lines.append(f"best: lanes = {b['best_lanes']}, K = {b['best_block']}, {b['best_lane_steps_per_s']:.4g} "
                  f"lane-steps/s = {b['ratio_best_to_rng_bound']:.3g} x the RNG bound ({b['rng_bound_lane_steps_per_s']:.4g})")
+    lines.append(f"       {b['ratio_best_to_chain_floor']:.3g} x the chain floor ({b['chain_floor_lane_steps_per_s']:.4g}; "
+                 f"floor / bound = {b['ratio_chain_floor_to_rng_bound']:.3g})")
     if "ratio_best_to_numba_2t" in b:
         lines.append(f"       {b['ratio_best_to_numba_2t']:.3g} x the numba 2-thread CPU loop "
                      f"({b['numba_2t_steps_per_s']:.4g} steps/s)")

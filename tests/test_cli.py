@@ -231,6 +231,26 @@ def test_bench_layout_sweep(capsys):
     assert b["ratio_best_to_rng_bound"] > 0 and b["max_z"] < 3
 
 
+def test_layout_sweep_over_unrolls_streams_rows_and_keeps_to_its_budget():
+    """What ``scripts/device_check.py`` asks of :func:`tune_layout`: the wait loop's unroll swept
+    (each value compiled afresh, the engine's restored after), each row handed over as it is
+    measured, the D of every unroll within the CIs (rounding, not the law, changes), and a
+    budget that starts no new layout once spent."""
+    from dryfric_jax import excursions
+    from dryfric_jax.bench import tune_layout
+
+    unroll0, seen = excursions.QUIET_UNROLL, []
+    b = tune_layout([32], [64], "float64", n_excursions=200, numba_excursions=0, unrolls=[1, 2],
+                    on_layout=seen.append, bound_n=1 << 16)
+    assert excursions.QUIET_UNROLL == unroll0
+    assert seen == b["layouts"] and [r["unroll"] for r in seen] == [1, 2] and b["skipped"] == []
+    assert b["best_unroll"] in (1, 2) and b["max_z"] < 3
+    assert b["chain_floor_lane_steps_per_s"] > 0 and b["ratio_best_to_chain_floor"] > 0
+    b = tune_layout([32, 64], [64], "float64", n_excursions=200, numba_excursions=0, budget_s=1e-9,
+                    bound_n=1 << 16)  # the first layout starts at once; none after it
+    assert [r["lanes"] for r in b["layouts"]] == [32] and b["skipped"] == [dict(lanes=64, block=64, unroll=unroll0)]
+
+
 def test_pdmp_and_auto_json(capsys):
     assert main(["estimate", "--method", "pdmp", "--delta", "0.2", "--n-excursions", "200", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
