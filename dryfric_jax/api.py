@@ -70,6 +70,12 @@ def duration_text(s: float) -> str:
     return f"{s:.0f} s" if s < 90 else f"{s / 60:.1f} min" if s < 5400 else f"{s / 3600:.1f} h"
 
 
+def work_per_excursion(work: float, closed: int, in_flight: int) -> float:
+    """Lane-steps (events) paid per excursion so far, each in-flight one counted as one: a lower
+    estimate (:func:`time_left`, the ProjectionWarning)."""
+    return work / (closed + in_flight)
+
+
 def time_left(elapsed: float, work: float, closed: int, in_flight: int, target: int, *, rtol=None,
               rel=None, max_work=None, max_time=None):
     """Projected seconds left of a long-excursion run and the limit that ends it first
@@ -85,7 +91,7 @@ def time_left(elapsed: float, work: float, closed: int, in_flight: int, target: 
     """
     if closed + in_flight < 1 or elapsed <= 0 or work <= 0:
         return None, None
-    rate, per_exc = work / elapsed, work / (closed + in_flight)
+    rate, per_exc = work / elapsed, work_per_excursion(work, closed, in_flight)
     need, to = float(target), "n_excursions"
     if rtol is not None:
         if rel is None or not math.isfinite(rel):
@@ -284,7 +290,7 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
                              max_work=max_work, max_time=max_time)
         if to == "max_work" and not warned:  # say so now, not only after the whole max_work
             warned.append(to)
-            per_exc = st.slot_steps / (closed + st.n_in_flight)
+            per_exc = work_per_excursion(st.slot_steps, closed, st.n_in_flight)
             warnings.warn(f"max_work = {max_work:.3g} {unit} is projected to end the run in "
                           f"~{duration_text(left)}, short of "
                           + (f"rtol = {rtol}" if rtol else f"{n_excursions} excursions")
