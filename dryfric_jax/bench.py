@@ -242,8 +242,8 @@ def run_bench(n_excursions: int = 10_000, numba_excursions: int = 2000, seed: in
 
 
 def tune_layout(lanes_list, blocks, dtype: str = "float32", n_excursions: int = 10_000, seed: int = 0,
-                numba_excursions: int = 2000, repeat: int = 1, *, unrolls=None, budget_s: float | None = None,
-                on_layout=None, bound_n: int = 1 << 23) -> dict:
+                numba_excursions: int = 2000, repeat: int = 1, *, unrolls=None, events=None,
+                budget_s: float | None = None, on_layout=None, bound_n: int = 1 << 23) -> dict:
     """DI useful lane-steps/s at the Fig. 3 point for every engine layout (lanes, block K) in
     ``lanes_list`` x ``blocks`` (``dryfric bench --lanes ... --block ...``): the sweep that
     picks the layout on a new device (a GPU needs far more lanes than the CPU default).
@@ -261,9 +261,13 @@ def tune_layout(lanes_list, blocks, dtype: str = "float32", n_excursions: int = 
 
     For a lent accelerator's few minutes (``scripts/device_check.py``): ``unrolls`` also sweeps
     the wait loop's unroll (:data:`~dryfric_jax.excursions.QUIET_UNROLL`, traced into the loop,
-    so each value compiles afresh; restored at the end), ``budget_s`` starts no new layout after
-    that many seconds (the first always runs; the rest are listed under ``skipped``), and ``on_layout(row)`` receives each
-    layout's row as soon as its rounds are done.
+    so each value compiles afresh; restored at the end); ``events`` the engine's event layouts
+    (``"wait"``, ``"fused"``, ``"branch"``; None: the device's default; :mod:`dryfric_jax.fused`),
+    each (lanes, K) running every one in turn; ``budget_s`` starts no new layout after that many
+    seconds (the first always runs; the rest are listed under ``skipped``); ``on_layout(row)``
+    receives each layout's row as soon as its rounds are done.  A layout whose compile run raises
+    (a kernel the device cannot build) is listed under ``failed`` with its error, and the sweep
+    goes on.
     """
     from . import excursions
 
@@ -273,13 +277,17 @@ def tune_layout(lanes_list, blocks, dtype: str = "float32", n_excursions: int = 
     if dtype not in ("float32", "float64"):
         raise ValueError(f"dtype must be 'float32' or 'float64' (got {dtype!r})")
     check_count("repeat", repeat, lo=1)
-    unroll0 = excursions.QUIET_UNROLL
+    unroll0, events0 = excursions.QUIET_UNROLL, excursions.DEFAULT_EVENTS
     unrolls = [unroll0] if not unrolls else [int(u) for u in unrolls]
     for u in unrolls:
         check_count("unroll", u, lo=1)
+    events = [events0] if not events else list(events)
+    for ev in events:
+        if ev not in excursions.EVENTS:
+            raise ValueError(f"events must be among {list(excursions.EVENTS)} (got {ev!r})")
     p = Params(**FIG3)
     out = dict(device=str(jax.devices()[0]), n_devices=jax.device_count(), cpu_count=os.cpu_count(),
-               params=p.as_dict(), dtype=dtype, repeat=repeat, layouts=[], skipped=[])
+               params=p.as_dict(), dtype=dtype, repeat=repeat, layouts=[], skipped=[], failed=[])
     t0 = time.perf_counter()
     started = []  # the first layout always runs
     over = lambda: budget_s is not None and bool(started) and time.perf_counter() - t0 > budget_s
@@ -293,37 +301,48 @@ def tune_layout(lanes_list, blocks, dtype: str = "float32", n_excursions: int = 
                     jax.clear_caches()
                 runs = {}
                 for rnd in range(repeat):  # interleaved rounds; the first compiles each layout just before
-                    for lanes, block in layouts:
+                    for lanes, block, ev in [(ln, bl, e) for ln, bl in layouts for e in events]:
+                        excursions.DEFAULT_EVENTS = ev  # read when a run builds its lanes
+                        at = (lanes, block, ev)
                         if rnd == 0:
                             if over():
-                                out["skipped"].append(dict(lanes=lanes, block=block, unroll=unroll))
+                                out["skipped"].append(dict(lanes=lanes, block=block, unroll=unroll, events=ev))
                                 continue
-                            started.append((lanes, block, unroll))
+                            started.append(at)
                             tc = time.perf_counter()
-                            estimate_diffusivity(p, seed, n_excursions=200, dtype=dtype, lanes=lanes, block=block)
-                            runs[lanes, block] = dict(compile_s=time.perf_counter() - tc, rs=[])
-                        elif (lanes, block) not in runs:
+                            try:
+                                estimate_diffusivity(p, seed, n_excursions=200, dtype=dtype, lanes=lanes, block=block)
+                            except Exception as exc:  # a layout this device cannot run: say so, go on
+                                out["failed"].append(dict(lanes=lanes, block=block, unroll=unroll, events=ev,
+                                                          error=f"{type(exc).__name__}: {exc}"[:2000]))
+                                continue
+                            runs[at] = dict(compile_s=time.perf_counter() - tc, rs=[])
+                        elif at not in runs:
                             continue
-                        rs = runs[lanes, block]["rs"]
+                        rs = runs[at]["rs"]
                         rs.append(estimate_diffusivity(p, seed + 1, n_excursions=max(int(n_excursions), 8 * lanes),
                                                        dtype=dtype, lanes=lanes, block=block))
                         if rnd < repeat - 1:
                             continue
                         r, rates = rs[0], [x.lane_steps_per_s for x in rs]  # the same seed: the same D
-                        row = dict(lanes=lanes, block=block, unroll=unroll, n_excursions=r.n_excursions,
+                        row = dict(lanes=lanes, block=block, unroll=unroll, events=ev, n_excursions=r.n_excursions,
                                    lane_steps_per_s=float(np.median(rates)),
                                    lane_steps_per_s_range=[min(rates), max(rates)], utilization=r.lane_utilization,
                                    wall_s=float(np.median([x.wall_s for x in rs])),
-                                   compile_and_200_s=runs[lanes, block]["compile_s"], D=r.D, D_ci=r.D_ci,
+                                   compile_and_200_s=runs[at]["compile_s"], D=r.D, D_ci=r.D_ci,
                                    n_truncated=r.n_truncated, stopped_by=r.stopped_by)
                         out["layouts"].append(row)
                         if on_layout is not None:
                             on_layout(row)
+            excursions.DEFAULT_EVENTS = events0
+            if not out["layouts"]:
+                raise ValueError(f"no layout ran: {out['failed']}")
             rows = out["layouts"]
             best = max(rows, key=lambda row: row["lane_steps_per_s"])
             w = [(1.96 / row["D_ci"]) ** 2 for row in rows]
             pooled = sum(wi * row["D"] for wi, row in zip(w, rows)) / sum(w)
             out.update(best_lanes=best["lanes"], best_block=best["block"], best_unroll=best["unroll"],
+                       best_events=best["events"],
                        best_lane_steps_per_s=best["lane_steps_per_s"], D_pooled=pooled,
                        max_z=max(abs(row["D"] - pooled) * 1.96 / row["D_ci"] for row in rows))
             bound = rng_bound(jnp.dtype(dtype), best["lanes"], best["block"], n=bound_n)
@@ -332,6 +351,7 @@ def tune_layout(lanes_list, blocks, dtype: str = "float32", n_excursions: int = 
                        chain_floor_lane_steps_per_s=floor, ratio_chain_floor_to_rng_bound=floor / bound,
                        ratio_best_to_chain_floor=best["lane_steps_per_s"] / floor)
     finally:
+        excursions.DEFAULT_EVENTS = events0
         if excursions.QUIET_UNROLL != unroll0:
             excursions.QUIET_UNROLL = unroll0
             jax.clear_caches()
@@ -351,16 +371,19 @@ def format_layouts(b: dict) -> str:
     head = f"device {b['device']} (x{b['n_devices']}, {b['cpu_count']} CPU cores), DI {b['dtype']}, Fig. 3 point"
     if b.get("repeat", 1) > 1:
         head += f"; medians of {b['repeat']} interleaved rounds [min-max]"
-    lines = [head, f"{'lanes':>8} {'K':>5} {'unroll':>6} {'N':>9} {'lane-steps/s':>13} {'util':>6} {'wall s':>8}  "
-                   "D (95% CI)"]
+    lines = [head, f"{'lanes':>8} {'K':>5} {'unroll':>6} {'events':>7} {'N':>9} {'lane-steps/s':>13} {'util':>6} "
+                   f"{'wall s':>8}  D (95% CI)"]
+    ev = lambda r: str(r["events"] or "default")
     for r in b["layouts"]:
         lo, hi = r["lane_steps_per_s_range"]
         spread = f"  [{lo:.4g}-{hi:.4g}]" if b.get("repeat", 1) > 1 else ""
-        lines.append(f"{r['lanes']:>8} {r['block']:>5} {r['unroll']:>6} {r['n_excursions']:>9} "
+        lines.append(f"{r['lanes']:>8} {r['block']:>5} {r['unroll']:>6} {ev(r):>7} {r['n_excursions']:>9} "
                      f"{r['lane_steps_per_s']:>13.4g} {r['utilization']:>6.3f} {r['wall_s']:>8.2f}  "
                      f"{r['D']:.5g} ± {r['D_ci']:.2g}{spread}")
     for r in b.get("skipped", []):
-        lines.append(f"{r['lanes']:>8} {r['block']:>5} {r['unroll']:>6}  skipped (budget_s)")
+        lines.append(f"{r['lanes']:>8} {r['block']:>5} {r['unroll']:>6} {ev(r):>7}  skipped (budget_s)")
+    for r in b.get("failed", []):
+        lines.append(f"{r['lanes']:>8} {r['block']:>5} {r['unroll']:>6} {ev(r):>7}  failed: {r['error'][:200]}")
     lines.append(f"best: lanes = {b['best_lanes']}, K = {b['best_block']}, {b['best_lane_steps_per_s']:.4g} "
                  f"lane-steps/s = {b['ratio_best_to_rng_bound']:.3g} x the RNG bound ({b['rng_bound_lane_steps_per_s']:.4g})")
     lines.append(f"       {b['ratio_best_to_chain_floor']:.3g} x the chain floor ({b['chain_floor_lane_steps_per_s']:.4g}; "

@@ -58,6 +58,7 @@ class DIModel(eqx.Module):
     # Against a branch per step, 2 CPU devices, Fig. 3 point, paused rounds: 512 lanes float64
     # 0.97x, float32 1.02x; 4096 lanes 1.32x and 1.63x (the branch is taken at most steps there)
     cpu_events = "wait"
+    fused_quiet = True  # the "wait" loop also runs as one Pallas kernel (dryfric_jax.fused)
 
     @property
     def fixed_dt(self):

@@ -233,7 +233,7 @@ def _pair(state):
             and jnp.issubdtype(state[0].dtype, jnp.floating))
 
 
-def _quiet_steps(chain, budget, max_steps, finish, block, lane: _Lane, rs):
+def _quiet_steps(chain, budget, max_steps, finish, block, lane: _Lane, rs, fused: bool = False):
     """The ``wait`` layout's loop (:func:`_block`): every lane runs through the block until its
     first step with an event (:func:`_has_event`) and then waits.  Returns the lanes after their
     quiet steps and ``at``, each lane's pending step (``block``: none; -1: a done lane).
@@ -244,7 +244,10 @@ def _quiet_steps(chain, budget, max_steps, finish, block, lane: _Lane, rs):
     steps each lane took), and the pairs (X, V) of the DI and (U, at) are carried as the real
     and imaginary parts of one complex array each (exact: no arithmetic touches the packing).
     The step went from 1.56 to 0.87 us (float64) and from 1.22 to 0.67 us (float32) at 256
-    lanes, one device; the estimates are bit-identical."""
+    lanes, one device; the estimates are bit-identical.
+
+    ``fused``: the same loop as one Pallas kernel, a lane's steps in registers
+    (:func:`dryfric_jax.fused.quiet_steps`, the ``"fused"`` layout)."""
     watch = lane.phase != PLUS
     counted = lane.phase != SEEK
     # the steps of the block at which a lane's counters trigger an event (_has_event with n and
@@ -284,9 +287,15 @@ def _quiet_steps(chain, budget, max_steps, finish, block, lane: _Lane, rs):
     # the float32 loop mixed widths, +14% on the float32 quiet loop (512 lanes, K = 128, 2 CPU devices,
     # medians of 3), the same events
     first = jnp.clip(first, 0, block).astype(U0.dtype)
-    state, Ua, t = jax.lax.fori_loop(0, block, body, (pack(lane.state), jax.lax.complex(U0, at), lane.t),
-                                     unroll=QUIET_UNROLL)
-    state, U, at = unpack(state), jnp.real(Ua), jnp.imag(Ua).astype(jnp.int32)
+    if fused:
+        from .fused import quiet_steps
+
+        state, U, at = quiet_steps(chain, block, lane.state, U0, at, first, watch, counted, rs)
+        t, at = lane.t, at.astype(jnp.int32)
+    else:
+        state, Ua, t = jax.lax.fori_loop(0, block, body, (pack(lane.state), jax.lax.complex(U0, at), lane.t),
+                                         unroll=QUIET_UNROLL)
+        state, U, at = unpack(state), jnp.real(Ua), jnp.imag(Ua).astype(jnp.int32)
     U = lane.U + U.astype(lane.U.dtype) if part else U
     taken = jnp.where(at == block, block, jnp.maximum(at, 0))
     lane = eqx.tree_at(lambda l: (l.state, l.U, l.t, l.n, l.steps, l.work), lane,
@@ -309,6 +318,9 @@ def _block(chain, budget, max_steps, finish, block, events, lane: _Lane, keys, b
       event, counted in the slot steps).  A step reads and writes only the chain's state, U, t
       and a step index, not the lane's sums, and has no branch (a GPU would read a branch's
       predicate back every step).  The DI's layout on a CPU too.
+    * ``"fused"``: ``"wait"`` with the quiet loop as one Pallas kernel, a lane's steps in
+      registers (:mod:`dryfric_jax.fused`; the DI only, asked for, never a default): the same
+      arithmetic, bit for bit on a CPU (where Pallas interprets it), for a GPU.
     * ``"branch"``: a step runs the bookkeeping only if some lane of the batch has an event,
       through a real branch (``lax.cond`` outside the ``vmap``), otherwise the cheap
       :func:`_quiet` update.  For a chain without a splitting coin the quiet update is computed
@@ -330,8 +342,8 @@ def _block(chain, budget, max_steps, finish, block, events, lane: _Lane, keys, b
     adv_fn = jax.vmap(partial(_advance, chain))
     book_fn = jax.vmap(partial(_book, chain, budget, max_steps, finish))
 
-    if events == "wait":
-        lane, at = _quiet_steps(chain, budget, max_steps, finish, block, lane, rs)
+    if events in ("wait", "fused"):
+        lane, at = _quiet_steps(chain, budget, max_steps, finish, block, lane, rs, events == "fused")
         pending = (at >= 0) & (at < block)
         r = jax.tree_util.tree_map(lambda a: jnp.take_along_axis(a, jnp.clip(at, 0, block - 1)[None], 0)[0], rs)
         adv = _flip_coins(chain, lane, adv_fn(lane, r), r, ck)
@@ -417,16 +429,19 @@ def _sharded_round(devices: tuple, block: int, events: str):
     return jax.jit(f), NamedSharding(mesh, lanes)
 
 
-EVENTS = (None, "branch", "wait")
+EVENTS = (None, "branch", "wait", "fused")
 DEFAULT_EVENTS = None  # None: by chain and platform; the tests set "wait" to run the GPU layout on a CPU
 
 
 def _events_layout(devices, chain, events: str | None) -> str:
     """How a block handles events (:func:`_block`): on a GPU ``"wait"``; on a CPU the chain's
-    ``cpu_events`` (the DI ``"wait"``, the PDMP ``"branch"``, measured: README)."""
+    ``cpu_events`` (the DI ``"wait"``, the PDMP ``"branch"``, measured: README).  ``"fused"``
+    (:mod:`dryfric_jax.fused`) is asked for, never a default, and only the DI has it."""
     events = DEFAULT_EVENTS if events is None else events
     if events not in EVENTS:
-        raise ValueError(f"events must be one of 'branch', 'wait' or None (got {events!r})")
+        raise ValueError(f"events must be one of 'branch', 'wait', 'fused' or None (got {events!r})")
+    if events == "fused" and not getattr(chain, "fused_quiet", False):
+        raise ValueError(f"events 'fused' is only for the DI (got a {type(chain).__name__})")
     if events is None:
         return chain.cpu_events if devices[0].platform == "cpu" else "wait"
     return events

@@ -3,7 +3,7 @@
 Prints one JSON line per measurement as soon as it is made (a run stopped at its time limit
 keeps what it printed), at the paper's Fig. 3 point:
 
-* ``layout``: DI useful lane-steps/s for each (dtype, lanes, block K, unroll), N = max(--n, 8 lanes)
+* ``layout``: DI useful lane-steps/s for each (dtype, lanes, block K, unroll, event layout), N = max(--n, 8 lanes)
   excursions after a compile run, with D +- CI (the layouts change the streams, not the law:
   their D must agree within their CIs);
 * ``tune``: per dtype, :func:`dryfric_jax.bench.tune_layout`'s summary: the best layout, the RNG
@@ -39,6 +39,8 @@ def main(argv=None) -> int:
     ap.add_argument("--block", default="256")
     ap.add_argument("--unroll", default="", help="steps per iteration of the wait layout's loop "
                     "(excursions.QUIET_UNROLL; default: the engine's)")
+    ap.add_argument("--events", default="", help="event layouts to sweep, e.g. wait,fused (default: the "
+                    "device's; 'fused' is the DI's quiet loop as one Pallas kernel, dryfric_jax.fused)")
     ap.add_argument("--dtypes", default="float32,float64")
     ap.add_argument("--n", type=float, default=2e5, help="excursions per layout (at least 8 per lane)")
     ap.add_argument("--numba-n", type=int, default=4000, help="excursions per numba timing (0: skip)")
@@ -63,11 +65,13 @@ def main(argv=None) -> int:
             emit(kind="skipped", dtype=dt, reason="budget")
             continue
         b = tune_layout(ints(a.lanes), ints(a.block), dt, n_excursions=int(a.n), numba_excursions=0,
-                        unrolls=ints(a.unroll), budget_s=left, bound_n=int(a.bound_n),
-                        on_layout=lambda row: emit(kind="layout", dtype=dt, **row))
+                        unrolls=ints(a.unroll), events=a.events.split(",") if a.events else None, budget_s=left,
+                        bound_n=int(a.bound_n), on_layout=lambda row: emit(kind="layout", dtype=dt, **row))
         for row in b["skipped"]:
             emit(kind="skipped", dtype=dt, reason="budget", **row)
-        emit(kind="tune", **{k: v for k, v in b.items() if k not in ("layouts", "skipped", "params")})
+        for row in b["failed"]:
+            emit(kind="failed", dtype=dt, **row)
+        emit(kind="tune", **{k: v for k, v in b.items() if k not in ("layouts", "skipped", "failed", "params")})
     if a.numba_n > 0:
         try:
             from dryfric_jax.bench_numba import run_numba

@@ -8,10 +8,10 @@ OUT=${OUT:-/tmp/device-out}; mkdir -p "$OUT"
 export PYTHONUNBUFFERED=1 XLA_PYTHON_CLIENT_PREALLOCATE=false PYTHONPATH=$PWD
 PY=${PY:-python3}
 if [ "${SMALL:-0}" = 1 ]; then
-  LANES=512,1024; BLOCKS=128; BIG=1024; N=2000; BOUND=8388608; BENCH=1000; T=(60 60 60 120)
+  LANES=512,1024; BLOCKS=128; BIG=1024; N=2000; BOUND=8388608; BENCH=1000; T=(150 60 120 60)
   TESTS=tests/test_di_exact.py::test_float32_at_paper_values
 else  # the H200 of 2026-11-26: best at 2^18 lanes, K = 256 (README "On a GPU")
-  LANES=65536,262144; BLOCKS=256,1024; BIG=262144; N=200000; BOUND=1073741824; BENCH=100000; T=(150 90 120 120)
+  LANES=65536,262144; BLOCKS=256,1024; BIG=262144; N=200000; BOUND=1073741824; BENCH=100000; T=(170 120 120 70)
   TESTS="tests/test_di_exact.py tests/test_chain_law.py tests/test_reproducibility.py"
 fi
 {
@@ -26,10 +26,11 @@ stage() {  # name limit command...
   timeout -s INT -k 10 "$lim" "$@" > "$OUT/$name.log" 2>&1
   echo "== $name: rc $? in $(( $(date +%s) - t )) s (limit $lim)"; tail -4 "$OUT/$name.log"
 }
-stage layouts32 "${T[0]}" $PY scripts/device_check.py --dtypes float32 --lanes $LANES --block $BLOCKS --n $N \
-  --bound-n $BOUND --numba-n 4000 --budget-s $(( ${T[0]} - 40 ))
-stage unroll32 "${T[1]}" $PY scripts/device_check.py --dtypes float32 --lanes $BIG --block 256 --unroll 1,4,16 \
-  --n $N --bound-n $BOUND --numba-n 0 --budget-s $(( ${T[1]} - 30 ))
-stage tests "${T[2]}" $PY -m pytest -q -p no:cacheprovider -rfE --durations=8 $TESTS
-stage layouts64_bench "${T[3]}" $PY scripts/device_check.py --dtypes float64 --lanes $BIG --block 256 --n $N \
-  --bound-n $BOUND --numba-n 0 --bench-n $BENCH --budget-s $(( ${T[3]} - 80 ))
+# the wait loop against the same loop as one Pallas kernel (dryfric_jax.fused), every layout
+stage layouts32 "${T[0]}" $PY scripts/device_check.py --dtypes float32 --lanes $LANES --block $BLOCKS \
+  --events fused,wait --n $N --bound-n $BOUND --numba-n 4000 --budget-s $(( ${T[0]} - 50 ))
+stage tests "${T[1]}" $PY -m pytest -q -p no:cacheprovider -rfE --durations=8 $TESTS
+stage layouts64_bench "${T[2]}" $PY scripts/device_check.py --dtypes float64 --lanes $BIG --block 256 \
+  --events fused,wait --n $N --bound-n $BOUND --numba-n 0 --bench-n $BENCH --budget-s $(( ${T[2]} - 80 ))
+stage unroll32 "${T[3]}" $PY scripts/device_check.py --dtypes float32 --lanes $BIG --block 256 --unroll 1,4 \
+  --events wait --n $N --bound-n $BOUND --numba-n 0 --budget-s $(( ${T[3]} - 30 ))

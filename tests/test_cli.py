@@ -232,23 +232,28 @@ def test_bench_layout_sweep(capsys):
 
 
 def test_layout_sweep_over_unrolls_streams_rows_and_keeps_to_its_budget():
-    """What ``scripts/device_check.py`` asks of :func:`tune_layout`: the wait loop's unroll swept
-    (each value compiled afresh, the engine's restored after), each row handed over as it is
-    measured, the D of every unroll within the CIs (rounding, not the law, changes), and a
-    budget that starts no new layout once spent."""
+    """What ``scripts/device_check.py`` asks of :func:`tune_layout`: the wait loop's unroll and the
+    event layouts swept (each unroll compiled afresh, the engine's settings restored after),
+    each row handed over as it is measured, the D of every layout within the CIs (rounding, not
+    the law, changes), and a budget that starts no new layout once spent."""
     from dryfric_jax import excursions
     from dryfric_jax.bench import tune_layout
 
     unroll0, seen = excursions.QUIET_UNROLL, []
     b = tune_layout([32], [64], "float64", n_excursions=200, numba_excursions=0, unrolls=[1, 2],
-                    on_layout=seen.append, bound_n=1 << 16)
-    assert excursions.QUIET_UNROLL == unroll0
-    assert seen == b["layouts"] and [r["unroll"] for r in seen] == [1, 2] and b["skipped"] == []
+                    events=["wait", "fused", "branch"], on_layout=seen.append, bound_n=1 << 16)
+    assert excursions.QUIET_UNROLL == unroll0 and excursions.DEFAULT_EVENTS is None
+    assert seen == b["layouts"] and b["skipped"] == [] and b["failed"] == []
+    assert [(r["unroll"], r["events"]) for r in seen] == [(u, e) for u in (1, 2) for e in ("wait", "fused", "branch")]
+    # "fused" is the "wait" loop with no unroll, bit for bit on a CPU, whatever QUIET_UNROLL says
+    # (unrolling changes the loop's rounding); "branch" uses the numbers otherwise
+    assert seen[0]["D"] == seen[1]["D"] == seen[4]["D"]
     assert b["best_unroll"] in (1, 2) and b["max_z"] < 3
     assert b["chain_floor_lane_steps_per_s"] > 0 and b["ratio_best_to_chain_floor"] > 0
     b = tune_layout([32, 64], [64], "float64", n_excursions=200, numba_excursions=0, budget_s=1e-9,
                     bound_n=1 << 16)  # the first layout starts at once; none after it
-    assert [r["lanes"] for r in b["layouts"]] == [32] and b["skipped"] == [dict(lanes=64, block=64, unroll=unroll0)]
+    assert [r["lanes"] for r in b["layouts"]] == [32]
+    assert b["skipped"] == [dict(lanes=64, block=64, unroll=unroll0, events=None)]
 
 
 def test_pdmp_and_auto_json(capsys):

@@ -93,6 +93,31 @@ def test_unknown_event_layout_is_refused():
         Lanes(make_di_model(dj.Params.from_nondim(0.5), 0.02), 8, events="every")
 
 
+@pytest.mark.parametrize("dtype", ["float64", "float32"])
+def test_fused_kernel_is_the_wait_loop_bit_for_bit(dtype):
+    """The "fused" layout (the wait loop as one Pallas kernel, run by Pallas's interpreter on a
+    CPU) is the "wait" loop step for step: the same sums, steps and slots, bit for bit, in a
+    final round with refills, coins, budget stops and truncations.  96 lanes on 2 devices are 48
+    per device, so the kernel's tiles are 16 lanes (fused.tile_for), not 256."""
+    from dryfric_jax.fused import tile_for
+
+    p = dj.Params.from_nondim(0.5, 1.0, 0.2)
+    m = make_di_model(p, 0.02, dtype)
+    runs = {ev: run_round(m, jax.random.key(5), 96, 1500, block=32, max_steps=1200, events=ev)
+            for ev in ("wait", "fused")}
+    w, f = runs["wait"], runs["fused"]
+    assert w.n_excursions > 50 and w.n_truncated > 0  # the events of every kind happened
+    assert np.array_equal(w.stats, f.stats) and np.array_equal(w.lane_steps, f.lane_steps)
+    assert (w.n_truncated, w.useful_steps, w.slot_steps) == (f.n_truncated, f.useful_steps, f.slot_steps)
+    assert [tile_for(n) for n in (1 << 18, 48, 96, 7)] == [256, 16, 32, 1]
+
+
+def test_fused_layout_is_only_for_the_di():
+    p = dj.Params.from_nondim(0.5, 1.0, 0.2)
+    with pytest.raises(ValueError, match="events 'fused' is only for the DI"):
+        Lanes(make_pdmp_model(p, 0.3), 8, events="fused")
+
+
 @pytest.mark.parametrize("events", ["branch", "wait"])
 @pytest.mark.parametrize("method", ["di", "pdmp"])
 def test_final_round_compaction_runs_the_same_chains(method, events):

@@ -1,0 +1,109 @@
+r"""Where the GPU's fused quiet loop is: the ``"fused"`` event layout, one Pallas kernel per block.
+
+The ``"wait"`` layout (:func:`dryfric_jax.excursions._quiet_steps`) runs a block's K quiet steps
+as a ``fori_loop`` of whole-lane array operations: XLA launches at least one kernel per step and
+each step reads and writes every lane's state in device memory.  On an H200 that engine reached
+0.09 of the RNG bound (README "On a GPU"): a step of 2^18 lanes took ~43 us where its memory
+traffic needs ~3 us.  Here the loop is turned inside out: one GPU thread runs its lane's K steps
+in registers, reading only the two normals of each step (Pallas, Triton backend), so a block is
+one kernel.
+
+The kernel is the same arithmetic as the ``"wait"`` loop, step by step: for each step i of the
+block, a lane that has not yet met an event takes the DI step
+(:meth:`~dryfric_jax.di.DIModel.advance`) unless the step is an event (a coin to flip, or the
+step index reaches ``first``, the lane's budget stop or work bound), where it stops and records
+``at = i``; the engine then runs that pending step with the full bookkeeping, as for ``"wait"``.
+So the law, and on a CPU the numbers, are those of ``"wait"`` (tested bit for bit, in Pallas's
+interpreter).  Only the DI has it (a chain with ``fused_quiet = True``).
+
+On a CPU the kernel runs in Pallas's interpreter (slow: for the tests only); ``"fused"`` is
+never a default.  **Not yet measured on a GPU** (``scripts/device_check.py --events fused``).
+"""
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+from jax import lax
+
+#: lanes per kernel instance (one Triton program), at most; a power of two dividing the lanes
+TILE = 256
+#: Triton warps per program
+NUM_WARPS = 4
+
+
+def tile_for(n_lanes: int) -> int:
+    """The largest power of two <= :data:`TILE` that divides ``n_lanes``."""
+    t = TILE
+    while n_lanes % t:
+        t //= 2
+    return t
+
+
+def _compiler_params():
+    from jax.experimental.pallas import triton as pltriton
+
+    return pltriton.CompilerParams(num_warps=NUM_WARPS)
+
+
+def quiet_steps(chain, block: int, state, U0, at0, first, watch, counted, rs):
+    r"""The ``"wait"`` layout's quiet loop as one kernel (module docstring).
+
+    Args:
+        chain: the DI chain (its leaves are passed to the kernel as scalars).
+        block: K, steps of the block.
+        state: ``(X, V)``, each (lanes,) in the simulation dtype.
+        U0: (lanes,) displacement sum to add to (the dtype of the increments).
+        at0: (lanes,) ``block`` for a lane that is free, -1 for a done lane (dtype of ``U0``).
+        first: (lanes,) step index at which a lane's counters make an event (dtype of ``U0``).
+        watch: (lanes,) bool, the lane watches :math:`C_+` (phase is not PLUS).
+        counted: (lanes,) bool, the lane's steps count (phase is not SEEK).
+        rs: ``(z1, z2)``, each (block, lanes): the block's normals.
+
+    Returns:
+        ``(state, U, at)`` after the block: ``at`` is each lane's pending step (``block``: none,
+        -1: done), as :func:`dryfric_jax.excursions._quiet_steps`'s loop returns them.
+    """
+    from jax.experimental import pallas as pl
+
+    X0, V0 = state
+    z1, z2 = rs
+    n = X0.shape[0]
+    tile = tile_for(n)
+    leaves, treedef = jax.tree_util.tree_flatten(chain)
+    consts = [jnp.reshape(c, (1,)) for c in leaves]
+    nc = len(consts)
+    flags = (watch.astype(jnp.int32), counted.astype(jnp.int32))
+
+    def kernel(*refs):
+        chain_k = jax.tree_util.tree_unflatten(treedef, [r[0] for r in refs[:nc]])
+        x_ref, v_ref, u_ref, at_ref, first_ref, w_ref, c_ref, z1_ref, z2_ref = refs[nc:nc + 9]
+        xo, vo, uo, ato = refs[nc + 9:]
+        fst, wat, cnt = first_ref[...], w_ref[...] != 0, c_ref[...] != 0
+
+        def body(i, c):
+            X, V, U, at = c
+            (Xn, Vn), dU, _, cand = chain_k.advance((X, V), (z1_ref[i, :], z2_ref[i, :]), wat)
+            fi = i.astype(at.dtype)
+            free = at == block
+            event = free & (cand | (fi >= fst))
+            go = free & ~event
+            return (jnp.where(go, Xn, X), jnp.where(go, Vn, V), U + jnp.where(go & cnt, dU, 0.0),
+                    jnp.where(event, fi, at))
+
+        X, V, U, at = lax.fori_loop(0, block, body, (x_ref[...], v_ref[...], u_ref[...], at_ref[...]))
+        xo[...], vo[...], uo[...], ato[...] = X, V, U, at
+
+    lane_spec = pl.BlockSpec((tile,), lambda j: (j,))
+    row_spec = pl.BlockSpec((block, tile), lambda j: (0, j))
+    const_spec = pl.BlockSpec((1,), lambda j: (0,))
+    in_specs = [const_spec] * nc + [lane_spec] * 7 + [row_spec] * 2
+    out_shape = [jax.ShapeDtypeStruct((n,), a.dtype) for a in (X0, V0, U0, at0)]
+    args = (*consts, X0, V0, U0, at0, first, *flags, z1, z2)
+
+    def call(interpret: bool):
+        kw = dict(interpret=True) if interpret else dict(compiler_params=_compiler_params())
+        return lambda *a: tuple(pl.pallas_call(kernel, out_shape=out_shape, grid=(n // tile,), in_specs=in_specs,
+                                               out_specs=[lane_spec] * 4, **kw)(*a))
+
+    X, V, U, at = lax.platform_dependent(*args, cpu=call(True), default=call(False))
+    return (X, V), U, at
