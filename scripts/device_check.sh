@@ -28,9 +28,9 @@ stage() {  # name limit command...
 }
 # the wait loop against the same loop as one Pallas kernel (dryfric_jax.fused), every layout
 stage layouts32 "${T[0]}" $PY scripts/device_check.py --dtypes float32 --lanes $LANES --block $BLOCKS \
-  --events fused,wait --n $N --bound-n $BOUND --numba-n 4000 --budget-s $(( ${T[0]} - 50 ))
+  --events wait,fused --n $N --bound-n $BOUND --numba-n 4000 --budget-s $(( ${T[0]} - 50 ))
 stage tests "${T[1]}" $PY -m pytest -q -p no:cacheprovider -rfE --durations=8 $TESTS
 stage layouts64_bench "${T[2]}" $PY scripts/device_check.py --dtypes float64 --lanes $BIG --block 256 \
-  --events fused,wait --n $N --bound-n $BOUND --numba-n 0 --bench-n $BENCH --budget-s $(( ${T[2]} - 80 ))
+  --events wait,fused --n $N --bound-n $BOUND --numba-n 0 --bench-n $BENCH --budget-s $(( ${T[2]} - 80 ))
 stage unroll32 "${T[3]}" $PY scripts/device_check.py --dtypes float32 --lanes $BIG --block 256 --unroll 1,4 \
   --events wait --n $N --bound-n $BOUND --numba-n 0 --budget-s $(( ${T[3]} - 30 ))
