@@ -16,7 +16,7 @@ import numpy as np
 from .bruteforce import simulate_bruteforce
 from .di import make_di_model
 from .estimators import MIN_RELIABLE_N, WEAK_DAMPING_TAU_L, bruteforce_estimates, long_excursion_estimates
-from .excursions import BLOCK, simulate_long_excursions
+from .excursions import BLOCK, simulate_long_excursions, work_per_excursion
 from .limits import MAX_WORK
 from .params import Params, check_positive
 from .pdmp import make_pdmp_model, simulate_pdmp_bruteforce
@@ -68,12 +68,6 @@ def _resolution(r):
 def duration_text(s: float) -> str:
     """Seconds as a short text: "45 s", "12.5 min", "3.2 h"."""
     return f"{s:.0f} s" if s < 90 else f"{s / 60:.1f} min" if s < 5400 else f"{s / 3600:.1f} h"
-
-
-def work_per_excursion(work: float, closed: int, in_flight: int) -> float:
-    """Lane-steps (events) paid per excursion so far, each in-flight one counted as one: a lower
-    estimate (:func:`time_left`, the ProjectionWarning)."""
-    return work / (closed + in_flight)
 
 
 def time_left(elapsed: float, work: float, closed: int, in_flight: int, target: int, *, rtol=None,

@@ -334,7 +334,6 @@ def tune_layout(lanes_list, blocks, dtype: str = "float32", n_excursions: int = 
                         out["layouts"].append(row)
                         if on_layout is not None:
                             on_layout(row)
-            excursions.DEFAULT_EVENTS = events0
             if not out["layouts"]:
                 raise ValueError(f"no layout ran: {out['failed']}")
             rows = out["layouts"]

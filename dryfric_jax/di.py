@@ -69,16 +69,23 @@ class DIModel(eqx.Module):
         dt = self.h.dtype
         return (jnp.full((n,), self.x_plus, dt), jnp.zeros((n,), dt))
 
+    @property
+    def random_dtype(self):
+        """The dtype the random numbers are drawn in (:meth:`draw`, :meth:`coin`): the simulation
+        dtype.  A test widens float32 numbers into a float64 chain to pair the two precisions."""
+        return self.h.dtype
+
     def draw(self, key, block: int):
         """The block's random numbers: 2 normals per step (exact OU step).  The splitting coin's
         uniform is not drawn here but only at the steps that flip a coin (:meth:`coin`)."""
-        zs = jax.random.normal(jax.random.split(key)[0], (block, 2), self.h.dtype)
+        zs = jax.random.normal(jax.random.split(key)[0], (block, 2), self.random_dtype).astype(self.h.dtype)
         return zs[:, 0], zs[:, 1]
 
     def draw_lanes(self, keys, block: int):
         """:meth:`draw` of every lane at once, each leaf of shape (block, lanes): the same
         numbers, compiled faster on a CPU (:mod:`dryfric_jax.rng`)."""
-        return rng.normals(rng.split_at(keys, 0), block, 2, self.h.dtype)
+        zs = rng.normals(rng.split_at(keys, 0), block, 2, self.random_dtype)
+        return tuple(z.astype(self.h.dtype) for z in zs)
 
     def coin_key(self, key):
         """The key of the block's coins (block key as in :meth:`draw`).  A lane flips at most one
@@ -110,9 +117,9 @@ class DIModel(eqx.Module):
         probability :math:`r(x, y) = \varepsilon\nu(y)/p(x, y)`, from a fresh uniform of ``key``."""
         X, _ = state
         z1, z2 = r
-        dt = self.h.dtype
+        dt = self.random_dtype
         u = rng.uniform(key, dt, minval=float(jnp.finfo(dt).tiny))  # jax.random.uniform(key, (), dt, tiny)
-        return jnp.log(u) < self._set(watch_plus).log_coin(X, z1, z2)
+        return jnp.log(u.astype(self.h.dtype)) < self._set(watch_plus).log_coin(X, z1, z2)
 
 
 def make_di_model(params: Params, h: float, dtype=jnp.float64) -> DIModel:

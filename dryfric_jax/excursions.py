@@ -634,6 +634,13 @@ def lanes_for(n_excursions: int, chunk_lanes: int | None = None, per_lane: int =
     return int(min(chunk_lanes, 2 ** max(0, int(np.floor(np.log2(want))))))
 
 
+def work_per_excursion(work: float, closed: int, in_flight: int) -> float:
+    """Lane-steps (events) paid per excursion so far, each in-flight one counted as one: a lower
+    estimate (the round sizing of :func:`simulate_long_excursions`; ``api.time_left`` and the
+    ProjectionWarning)."""
+    return work / (closed + in_flight)
+
+
 def simulate_long_excursions(chain, key, n_excursions: int, *, lanes: int | None = None,
                              chunk_lanes: int | None = None, block: int = BLOCK, max_steps: int = 10**8,
                              pilot_budget: int = 1024, more=None, max_time: float | None = None,
@@ -700,7 +707,7 @@ def simulate_long_excursions(chain, key, n_excursions: int, *, lanes: int | None
                         break
                 else:
                     # in-flight excursions count as one each: an underestimate, so rounds never overshoot
-                    per_exc = total.useful_steps / (done + total.n_in_flight)
+                    per_exc = work_per_excursion(total.useful_steps, done, total.n_in_flight)
                     budget = int(np.ceil((want - done - total.n_in_flight) * per_exc / ln.n))
                     budget = max(4 * block, int(per_exc) // 4, min(budget, round_lane_steps // ln.n))
                 if max_work is not None:  # never plan past the work cap

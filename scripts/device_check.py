@@ -78,8 +78,9 @@ def main(argv=None) -> int:
         except Exception as exc:
             emit(kind="numba", error=f"{type(exc).__name__}: {exc}")
         else:
-            rates = _numba_rates(run_numba, make_di_model(dj.Params(**FIG3), default_h(dj.Params(**FIG3))),
-                                 a.numba_n, 0, sorted({1, 2, os.cpu_count() or 1}))
+            p = dj.Params(**FIG3)
+            rates = _numba_rates(run_numba, make_di_model(p, default_h(p)), a.numba_n, 0,
+                                 sorted({1, 2, os.cpu_count() or 1}))
             for k, v in rates.items():
                 emit(kind="numba", threads=k, steps_per_s=v)
     if a.bench_n > 0:

@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 
 import dryfric_jax as dj
-from dryfric_jax import rng
 from dryfric_jax.di import DIModel, make_di_model
 from dryfric_jax.estimators import long_excursion_estimates
 from dryfric_jax.pdmp import make_pdmp_model
@@ -251,16 +250,9 @@ class _DI64OnFloat32Numbers(DIModel):
     """The DI in float64 arithmetic on the float32 chain's random numbers (normals and coin
     uniforms drawn in float32, then widened): float32 against this isolates the arithmetic."""
 
-    def draw_lanes(self, keys, block):
-        z1, z2 = DIModel.draw_lanes(self.astype32(), keys, block)
-        return z1.astype(self.h.dtype), z2.astype(self.h.dtype)
-
-    def coin(self, state, r, watch_plus, key):
-        u = rng.uniform(key, jnp.float32, minval=float(jnp.finfo(jnp.float32).tiny)).astype(self.h.dtype)
-        return jnp.log(u) < self._set(watch_plus).log_coin(state[0], *r)
-
-    def astype32(self):
-        return jax.tree_util.tree_map(lambda a: a.astype(jnp.float32), self)
+    @property
+    def random_dtype(self):
+        return jnp.dtype(jnp.float32)
 
 
 def test_float32_arithmetic_matches_float64_on_the_same_numbers():
