@@ -20,6 +20,7 @@ for each engine layout, to choose one on a new device.
 """
 from __future__ import annotations
 
+import contextlib
 import os
 import time
 import warnings
@@ -277,11 +278,10 @@ def tune_layout(lanes_list, blocks, dtype: str = "float32", n_excursions: int = 
     if dtype not in ("float32", "float64"):
         raise ValueError(f"dtype must be 'float32' or 'float64' (got {dtype!r})")
     check_count("repeat", repeat, lo=1)
-    unroll0, events0 = excursions.QUIET_UNROLL, excursions.DEFAULT_EVENTS
-    unrolls = [unroll0] if not unrolls else [int(u) for u in unrolls]
+    unrolls = [excursions.QUIET_UNROLL] if not unrolls else [int(u) for u in unrolls]
     for u in unrolls:
         check_count("unroll", u, lo=1)
-    events = [events0] if not events else list(events)
+    events = [excursions.DEFAULT_EVENTS] if not events else list(events)
     for ev in events:
         if ev not in excursions.EVENTS:
             raise ValueError(f"events must be among {list(excursions.EVENTS)} (got {ev!r})")
@@ -289,71 +289,38 @@ def tune_layout(lanes_list, blocks, dtype: str = "float32", n_excursions: int = 
     out = dict(device=str(jax.devices()[0]), n_devices=jax.device_count(), cpu_count=os.cpu_count(),
                params=p.as_dict(), dtype=dtype, repeat=repeat, layouts=[], skipped=[], failed=[])
     t0 = time.perf_counter()
-    started = []  # the first layout always runs
-    over = lambda: budget_s is not None and bool(started) and time.perf_counter() - t0 > budget_s
-    layouts = [(int(lanes), int(block)) for lanes in lanes_list for block in blocks]
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", DryfricWarning)
-            for unroll in unrolls:
-                if unroll != excursions.QUIET_UNROLL:  # traced into the loop: compile afresh
-                    excursions.QUIET_UNROLL = unroll
-                    jax.clear_caches()
-                runs = {}
-                for rnd in range(repeat):  # interleaved rounds; the first compiles each layout just before
-                    for lanes, block, ev in [(ln, bl, e) for ln, bl in layouts for e in events]:
-                        excursions.DEFAULT_EVENTS = ev  # read when a run builds its lanes
-                        at = (lanes, block, ev)
-                        if rnd == 0:
-                            if over():
-                                out["skipped"].append(dict(lanes=lanes, block=block, unroll=unroll, events=ev))
-                                continue
-                            started.append(at)
-                            tc = time.perf_counter()
-                            try:
-                                estimate_diffusivity(p, seed, n_excursions=200, dtype=dtype, lanes=lanes, block=block)
-                            except Exception as exc:  # a layout this device cannot run: say so, go on
-                                out["failed"].append(dict(lanes=lanes, block=block, unroll=unroll, events=ev,
-                                                          error=f"{type(exc).__name__}: {exc}"[:2000]))
-                                continue
-                            runs[at] = dict(compile_s=time.perf_counter() - tc, rs=[])
-                        elif at not in runs:
-                            continue
-                        rs = runs[at]["rs"]
-                        rs.append(estimate_diffusivity(p, seed + 1, n_excursions=max(int(n_excursions), 8 * lanes),
-                                                       dtype=dtype, lanes=lanes, block=block))
-                        if rnd < repeat - 1:
-                            continue
-                        r, rates = rs[0], [x.lane_steps_per_s for x in rs]  # the same seed: the same D
-                        row = dict(lanes=lanes, block=block, unroll=unroll, events=ev, n_excursions=r.n_excursions,
-                                   lane_steps_per_s=float(np.median(rates)),
-                                   lane_steps_per_s_range=[min(rates), max(rates)], utilization=r.lane_utilization,
-                                   wall_s=float(np.median([x.wall_s for x in rs])),
-                                   compile_and_200_s=runs[at]["compile_s"], D=r.D, D_ci=r.D_ci,
-                                   n_truncated=r.n_truncated, stopped_by=r.stopped_by)
-                        out["layouts"].append(row)
+    over = lambda: budget_s is not None and time.perf_counter() - t0 > budget_s
+    attempted = 0  # layouts compiled or tried: the first always runs, later ones only within budget_s
+    combos = [(int(lanes), int(block), ev) for lanes in lanes_list for block in blocks for ev in events]
+    timed = lambda lanes, block: estimate_diffusivity(p, seed + 1, n_excursions=max(int(n_excursions), 8 * lanes),
+                                                      dtype=dtype, lanes=lanes, block=block)
+    with _engine_settings_restored(), warnings.catch_warnings():
+        warnings.simplefilter("ignore", DryfricWarning)
+        for unroll in unrolls:
+            _set_quiet_unroll(unroll)
+            runs = {}  # (lanes, block, events) -> compile time and the timed runs; None: skipped or failed
+            for rnd in range(repeat):  # interleaved rounds; the first compiles each layout just before
+                for lanes, block, ev in combos:
+                    at = (lanes, block, ev)
+                    excursions.DEFAULT_EVENTS = ev  # read when a run builds its lanes
+                    if rnd == 0:
+                        runs[at] = _compile_layout(p, seed, dtype, at, unroll, out, attempted > 0 and over())
+                        attempted += 1
+                    if runs[at] is None:
+                        continue
+                    runs[at]["rs"].append(timed(lanes, block))
+                    if rnd == repeat - 1:
+                        out["layouts"].append(_layout_row(at, unroll, **runs[at]))
                         if on_layout is not None:
-                            on_layout(row)
-            if not out["layouts"]:
-                raise ValueError(f"no layout ran: {out['failed']}")
-            rows = out["layouts"]
-            best = max(rows, key=lambda row: row["lane_steps_per_s"])
-            w = [(1.96 / row["D_ci"]) ** 2 for row in rows]
-            pooled = sum(wi * row["D"] for wi, row in zip(w, rows)) / sum(w)
-            out.update(best_lanes=best["lanes"], best_block=best["block"], best_unroll=best["unroll"],
-                       best_events=best["events"],
-                       best_lane_steps_per_s=best["lane_steps_per_s"], D_pooled=pooled,
-                       max_z=max(abs(row["D"] - pooled) * 1.96 / row["D_ci"] for row in rows))
-            bound = rng_bound(jnp.dtype(dtype), best["lanes"], best["block"], n=bound_n)
-            floor = chain_floor(make_di_model(p, default_h(p), dtype), best["lanes"], best["block"], n=bound_n)
-            out.update(rng_bound_lane_steps_per_s=bound, ratio_best_to_rng_bound=best["lane_steps_per_s"] / bound,
-                       chain_floor_lane_steps_per_s=floor, ratio_chain_floor_to_rng_bound=floor / bound,
-                       ratio_best_to_chain_floor=best["lane_steps_per_s"] / floor)
-    finally:
-        excursions.DEFAULT_EVENTS = events0
-        if excursions.QUIET_UNROLL != unroll0:
-            excursions.QUIET_UNROLL = unroll0
-            jax.clear_caches()
+                            on_layout(out["layouts"][-1])
+        if not out["layouts"]:
+            raise ValueError(f"no layout ran: {out['failed']}")
+        best = _summarise_layouts(out)
+        bound = rng_bound(jnp.dtype(dtype), best["lanes"], best["block"], n=bound_n)
+        floor = chain_floor(make_di_model(p, default_h(p), dtype), best["lanes"], best["block"], n=bound_n)
+        out.update(rng_bound_lane_steps_per_s=bound, ratio_best_to_rng_bound=best["lane_steps_per_s"] / bound,
+                   chain_floor_lane_steps_per_s=floor, ratio_chain_floor_to_rng_bound=floor / bound,
+                   ratio_best_to_chain_floor=best["lane_steps_per_s"] / floor)
     if numba_excursions > 0:
         try:
             from .bench_numba import run_numba
@@ -363,6 +330,69 @@ def tune_layout(lanes_list, blocks, dtype: str = "float32", n_excursions: int = 
             rate = _numba_rates(run_numba, make_di_model(p, default_h(p)), numba_excursions, seed, (2,))[2]
             out.update(numba_2t_steps_per_s=rate, ratio_best_to_numba_2t=best["lane_steps_per_s"] / rate)
     return out
+
+
+@contextlib.contextmanager
+def _engine_settings_restored():
+    """Restore the engine's module-level layout settings (event layout, wait-loop unroll) on exit."""
+    from . import excursions
+
+    events0, unroll0 = excursions.DEFAULT_EVENTS, excursions.QUIET_UNROLL
+    try:
+        yield
+    finally:
+        excursions.DEFAULT_EVENTS = events0
+        _set_quiet_unroll(unroll0)
+
+
+def _set_quiet_unroll(unroll: int) -> None:
+    """Set the wait loop's unroll; it is traced into the loop, so a change compiles afresh."""
+    from . import excursions
+
+    if unroll != excursions.QUIET_UNROLL:
+        excursions.QUIET_UNROLL = unroll
+        jax.clear_caches()
+
+
+def _compile_layout(p, seed, dtype, at, unroll, out, skip: bool):
+    """A layout's compile run (200 excursions): ``dict(compile_s, rs=[])``, or None after listing
+    it under ``out["skipped"]`` (``skip``: past the time budget) or ``out["failed"]`` (it raised:
+    a kernel the device cannot build)."""
+    lanes, block, ev = at
+    where = dict(lanes=lanes, block=block, unroll=unroll, events=ev)
+    if skip:
+        out["skipped"].append(where)
+        return None
+    tc = time.perf_counter()
+    try:
+        estimate_diffusivity(p, seed, n_excursions=200, dtype=dtype, lanes=lanes, block=block)
+    except Exception as exc:  # a layout this device cannot run: say so, go on
+        out["failed"].append(dict(where, error=f"{type(exc).__name__}: {exc}"[:2000]))
+        return None
+    return dict(compile_s=time.perf_counter() - tc, rs=[])
+
+
+def _layout_row(at, unroll, compile_s, rs) -> dict:
+    """A layout's row: the median rate of its rounds and its range; the rounds share a seed, so
+    they share D."""
+    lanes, block, ev = at
+    r, rates = rs[0], [x.lane_steps_per_s for x in rs]
+    return dict(lanes=lanes, block=block, unroll=unroll, events=ev, n_excursions=r.n_excursions,
+                lane_steps_per_s=float(np.median(rates)), lane_steps_per_s_range=[min(rates), max(rates)],
+                utilization=r.lane_utilization, wall_s=float(np.median([x.wall_s for x in rs])),
+                compile_and_200_s=compile_s, D=r.D, D_ci=r.D_ci, n_truncated=r.n_truncated, stopped_by=r.stopped_by)
+
+
+def _summarise_layouts(out: dict) -> dict:
+    """Add the best layout, the inverse-variance pooled D and ``max_z`` to ``out``; return the best row."""
+    rows = out["layouts"]
+    best = max(rows, key=lambda row: row["lane_steps_per_s"])
+    w = [(1.96 / row["D_ci"]) ** 2 for row in rows]
+    pooled = sum(wi * row["D"] for wi, row in zip(w, rows)) / sum(w)
+    out.update(best_lanes=best["lanes"], best_block=best["block"], best_unroll=best["unroll"],
+               best_events=best["events"], best_lane_steps_per_s=best["lane_steps_per_s"], D_pooled=pooled,
+               max_z=max(abs(row["D"] - pooled) * 1.96 / row["D_ci"] for row in rows))
+    return best
 
 
 def format_layouts(b: dict) -> str:
