@@ -205,7 +205,7 @@ class BruteForceResult:
 def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float | None = None,
                          delta: float | None = None, n_excursions: int = 20_000, dtype="float64",
                          lanes: int | None = None,
-                         chunk_lanes: int | None = None, block: int = BLOCK, max_steps: int | None = None,
+                         chunk_lanes: int | None = None, block: int | None = None, max_steps: int | None = None,
                          rtol: float | None = None, max_time: float | None = None, max_work: float = MAX_WORK,
                          progress=None) -> EstimateResult:
     r"""Estimate D and M0 from N i.i.d. long excursions (paper sections 4-6).
@@ -228,7 +228,8 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
             random streams; recorded in the result): lanes in [1, 2^22] (default
             :func:`~dryfric_jax.excursions.lanes_for`, a power of two near N/32 up to ``chunk_lanes``,
             default 4096 on a CPU and 2^18 on a GPU),
-            block K in [1, 1024], lanes * K <= 2^28 (:func:`~dryfric_jax.plan.check_layout`).
+            block K in [1, 1024] (default :func:`~dryfric_jax.excursions.default_block`: 128,
+            and 256 for the DI on a GPU), lanes * K <= 2^28 (:func:`~dryfric_jax.plan.check_layout`).
             On a GPU, ``dryfric bench --lanes ... --block ...`` measures which layout is fastest.
         max_steps: work bound per excursion; default
             :func:`~dryfric_jax.limits.max_steps_per_excursion` (1e4 tail time scales of the
@@ -297,7 +298,7 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
                           elapsed_s=el, left_s=left, left_to=to))
 
     t0 = time.perf_counter()
-    sim, stopped = simulate_long_excursions(model, key, int(n_excursions), lanes=plan.lanes, block=block,
+    sim, stopped = simulate_long_excursions(model, key, int(n_excursions), lanes=plan.lanes, block=plan.block,
                                             max_steps=plan.max_steps, more=more if rtol else None,
                                             max_time=max_time, max_work=max_work, progress=report)
     wall = time.perf_counter() - t0
@@ -340,7 +341,7 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
         events_per_s=None if grid is None else sim.useful_steps / wall, method_reason=plan.reason,
         max_steps=plan.max_steps, max_work=plan.max_work, predicted_work=plan.predicted_work,
         work=int(sim.slot_steps), sums={k: float(v) for k, v in sim.total().items()}, lanes=plan.lanes,
-        block=int(block))
+        block=plan.block)
 
 
 def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, method: str = "di",

@@ -196,16 +196,17 @@ def run_bench(n_excursions: int = 10_000, numba_excursions: int = 2000, seed: in
     named = lambda name, timer: (lambda: {name: timer()})
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DryfricWarning)
-        lanes = plan_estimate(p, n_excursions=n_excursions).lanes  # the run's lanes, also for the compile
-        out.update(block=BLOCK, di_lanes=lanes)
+        plan = plan_estimate(p, n_excursions=n_excursions)  # the run's layout, also for the compile
+        lanes, block = plan.lanes, plan.block
+        out.update(block=block, di_lanes=lanes)
         for dt in ("float64", "float32"):
             estimate_diffusivity(p, seed, n_excursions=200, dtype=dt, lanes=lanes)  # compile, same shapes
             timers += [di_timer(dt, lanes),
-                       named(f"rng_bound_{dt}_lane_steps_per_s", rng_bound_timer(jnp.dtype(dt), lanes, n=floor_n)),
+                       named(f"rng_bound_{dt}_lane_steps_per_s", rng_bound_timer(jnp.dtype(dt), lanes, block, n=floor_n)),
                        named(f"jax_random_normal_{dt}_lane_steps_per_s",
-                             rng_bound_timer(jnp.dtype(dt), lanes, n=floor_n, via="jax")),
+                             rng_bound_timer(jnp.dtype(dt), lanes, block, n=floor_n, via="jax")),
                        named(f"di_chain_floor_{dt}_lane_steps_per_s",
-                             chain_floor_timer(make_di_model(p, default_h(p), dt), lanes, n=floor_n))]
+                             chain_floor_timer(make_di_model(p, default_h(p), dt), lanes, block, n=floor_n))]
         pdmp_lanes = plan_estimate(p, method="pdmp", n_excursions=n_excursions).lanes
         out["pdmp_lanes"] = pdmp_lanes
         for dt in ("float64", "float32"):  # PDMP events/s at the default delta

@@ -127,7 +127,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="engine lanes (default: a power of two near N/32, 512-4096 on a CPU, up to 2^18 on a GPU; "
                         "'dryfric bench --lanes ...' measures layouts); the law does not change, the random streams do")
     e.add_argument("--block", type=_int_at_least("block", 1), default=None,
-                   help="engine block size K, steps per loop iteration (default 128)")
+                   help="engine block size K, steps per loop iteration (default 128; 256 for the DI on a GPU)")
     e.add_argument("--max-steps", type=_int_at_least("max-steps", 1), default=None,
                    help="work bound per excursion, steps (events); longer excursions are truncated and reported "
                         "(default: 1e4 of the excursion's time scales, README 'Validity ranges')")
@@ -180,7 +180,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="layout sweep instead of the side-by-side bench: DI lane-steps/s for these lane "
                          "counts (comma-separated; default: the run's own) ...")
     bn.add_argument("--block", type=_list_of(_int_at_least("block", 1), "block"), default=None,
-                    help="... and these block sizes K (default: the engine's, 128); each layout runs "
+                    help="... and these block sizes K (default: the run's own, 128 on a CPU); each layout runs "
                          "max(N, 8 lanes) excursions at the Fig. 3 point")
     bn.add_argument("--dtype", choices=("float32", "float64"), default="float32",
                     help="simulation dtype of the layout sweep (default float32)")
@@ -281,11 +281,11 @@ def _run(a) -> int:
 
         if a.lanes or a.block:
             from .bench import format_layouts, tune_layout
-            from .excursions import BLOCK
             from .plan import plan_estimate
 
-            lanes = a.lanes or [plan_estimate(Params(**FIG3), n_excursions=a.n_excursions).lanes]
-            b = tune_layout(lanes, a.block or [BLOCK], a.dtype, n_excursions=a.n_excursions, repeat=a.repeat)
+            plan = plan_estimate(Params(**FIG3), n_excursions=a.n_excursions)
+            b = tune_layout(a.lanes or [plan.lanes], a.block or [plan.block], a.dtype, n_excursions=a.n_excursions,
+                            repeat=a.repeat)
             print(json.dumps(b) if a.json else format_layouts(b))
             return 0
         b = run_bench(n_excursions=a.n_excursions, repeat=a.repeat)

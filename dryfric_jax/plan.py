@@ -26,7 +26,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .cost import choose_method, default_delta
-from .excursions import BLOCK, lanes_for
+from .excursions import default_block, lanes_for
 from .limits import MAX_WORK, check_recurrent, check_work, float32_unsafe_reason, max_steps_per_excursion
 from .params import Params
 from .pdmp import pdmp_grid_info
@@ -114,6 +114,7 @@ class Plan:
     predicted_work: float = 0.0  # lane-steps (events) predicted for the run: a lower estimate
     max_steps: int = 0  # work bound per excursion
     lanes: int = 0
+    block: int = 0  # steps per loop iteration (default_block unless given)
     max_work: float = MAX_WORK
     notes: list = field(default_factory=list)  # e.g. float32 -> float64
 
@@ -153,7 +154,7 @@ def choose(params: Params, method: str, h, delta, dtype) -> Plan:
 def plan_estimate(params: Params, *, method: str = "di", h: float | None = None, delta: float | None = None,
                   dtype="float64", n_excursions: int = 20_000, max_work: float = MAX_WORK,
                   max_steps: int | None = None, lanes: int | None = None, chunk_lanes: int | None = None,
-                  block: int = BLOCK) -> Plan:
+                  block: int | None = None) -> Plan:
     """Validate a long-excursion run and fix its method, step, dtype and work bounds.
 
     Same arguments as :func:`~dryfric_jax.api.estimate_diffusivity`.  Raises ``ValueError`` (naming
@@ -162,11 +163,13 @@ def plan_estimate(params: Params, *, method: str = "di", h: float | None = None,
     """
     check_count("n_excursions", n_excursions)
     check_max_work(max_work)
-    check_layout(lanes, block)
+    check_layout(lanes, 1 if block is None else block)  # a default K is fitted to the lanes below
     plan = choose(params, method, h, delta, dtype)
     nd = (params.tau_nd, params.tau_L_nd, params.gamma_bar_nd)
     plan.predicted_work = check_work(*nd, plan.per_tau0, int(n_excursions), max_work, plan.unit)
     plan.lanes = int(lanes or lanes_for(int(n_excursions), chunk_lanes))
+    plan.block = int(default_block(plan.method, plan.lanes) if block is None else block)
+    check_layout(plan.lanes, plan.block)
     plan.max_work = float(max_work)
     if max_steps is None:
         plan.max_steps = max_steps_per_excursion(*nd, plan.per_tau0, cap=max(max_work / plan.lanes, 64))

@@ -50,6 +50,23 @@ def test_default_lanes_by_backend(monkeypatch):
     assert dj.plan_estimate(p, n_excursions=10**6, chunk_lanes=4096).lanes == 4096  # the caller's cap wins
 
 
+def test_default_block_by_backend_and_method(monkeypatch):
+    """K = 128 on a CPU and for the PDMP; 256 for the DI on a GPU (measured faster there); halved
+    while lanes * K would pass the layout bound; a K the caller gives is kept (and checked)."""
+    from dryfric_jax.excursions import default_block
+    assert [default_block(m, None, b) for m in ("di", "pdmp") for b in ("cpu", "gpu")] == [128, 256, 128, 128]
+    assert [default_block("di", n, "gpu") for n in (2**18, 2**20, 2**21, 2**22)] == [256, 256, 128, 64]
+    assert [default_block("pdmp", n, "cpu") for n in (2**21, 2**22)] == [128, 64]
+    p = dj.Params(**dj.FIG3)
+    assert dj.plan_estimate(p).block == 128  # this CPU
+    assert dj.plan_estimate(p, n_excursions=10**9, lanes=2**22, max_work=1e16).block == 64
+    monkeypatch.setattr(jax, "default_backend", lambda: "gpu")
+    assert [dj.plan_estimate(p, method=m).block for m in ("di", "pdmp")] == [256, 128]
+    assert dj.plan_estimate(p, block=64).block == 64
+    with pytest.raises(ValueError, match="lanes \\* block"):
+        dj.plan_estimate(p, n_excursions=10**9, lanes=2**22, block=128, max_work=1e16)
+
+
 def test_same_seed_bit_identical():
     p = dj.Params.from_nondim(0.3, 2.0, 0.2)
     a, _ = simulate_long_excursions(make_di_model(p, 0.02), jax.random.key(5), 300, lanes=8)
