@@ -202,7 +202,8 @@ def run_bench(n_excursions: int = 10_000, numba_excursions: int = 2000, seed: in
         for dt in ("float64", "float32"):
             estimate_diffusivity(p, seed, n_excursions=200, dtype=dt, lanes=lanes)  # compile, same shapes
             timers += [di_timer(dt, lanes),
-                       named(f"rng_bound_{dt}_lane_steps_per_s", rng_bound_timer(jnp.dtype(dt), lanes, block, n=floor_n)),
+                       named(f"rng_bound_{dt}_lane_steps_per_s",
+                             rng_bound_timer(jnp.dtype(dt), lanes, block, n=floor_n)),
                        named(f"jax_random_normal_{dt}_lane_steps_per_s",
                              rng_bound_timer(jnp.dtype(dt), lanes, block, n=floor_n, via="jax")),
                        named(f"di_chain_floor_{dt}_lane_steps_per_s",
