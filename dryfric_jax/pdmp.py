@@ -164,16 +164,24 @@ class PDMPModel(eqx.Module):
     def init_state(self, n: int):
         return self.s_plus(n)
 
+    @property
+    def random_dtype(self):
+        """The dtype the uniforms are drawn in: the simulation dtype.  A test widens float32
+        numbers into a float64 chain to pair the two precisions (as for the DI)."""
+        return self.delta.dtype
+
     def draw(self, key, block: int):
-        dt = self.delta.dtype
-        u = jax.random.uniform(key, (block, 2), dt, minval=jnp.finfo(dt).tiny)
+        """The block's random numbers: 2 uniforms in (0, 1) per event (waiting time, jump side)."""
+        dt = self.random_dtype
+        u = jax.random.uniform(key, (block, 2), dt, minval=jnp.finfo(dt).tiny).astype(self.delta.dtype)
         return u[:, 0], u[:, 1]
 
     def draw_lanes(self, keys, block: int):
         """:meth:`draw` of every lane at once, each leaf of shape (block, lanes): the same
         numbers, compiled faster on a CPU (:mod:`dryfric_jax.rng`)."""
-        dt = self.delta.dtype
-        return rng.uniforms(keys, block, 2, dt, minval=float(jnp.finfo(dt).tiny))
+        dt = self.random_dtype
+        us = rng.uniforms(keys, block, 2, dt, minval=float(jnp.finfo(dt).tiny))
+        return tuple(u.astype(self.delta.dtype) for u in us)
 
     def advance(self, state, r, watch_plus):
         """One event; ``heads`` when it lands on s_+ (``watch_plus``) or s_-."""
