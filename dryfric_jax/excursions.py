@@ -56,6 +56,7 @@ STAT_NAMES = ("n", "U", "U2", "U3", "U4", "t", "t2", "t3", "t4", "Ut", "U2t", "U
 SEEK, PLUS, MINUS = 0, 1, 2
 BLOCK = 128  # steps per while-iteration (32..256 measured on 2 CPU cores, README)
 GPU_DI_BLOCK = 256  # the DI's default K off a CPU (default_block)
+MAX_LAYOUT = 1 << 28  # lanes * K: a block's normals are drawn at once (plan.check_layout)
 # final round: the tail runs on lanes / COMPACT lanes once at most that many are still in flight
 # (devices with at least COMPACT_MIN_PER_DEVICE lanes)
 COMPACT = 8
@@ -630,7 +631,7 @@ def default_block(method: str = "di", lanes: int | None = None, backend: str | N
     2^17 lanes (README "On a GPU"); the PDMP's K was not measured there."""
     backend = backend or jax.default_backend()
     k = BLOCK if backend == "cpu" or method != "di" else GPU_DI_BLOCK
-    while lanes is not None and k > 1 and lanes * k > (1 << 28):
+    while lanes is not None and k > 1 and lanes * k > MAX_LAYOUT:
         k //= 2
     return k
 

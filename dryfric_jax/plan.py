@@ -26,7 +26,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .cost import choose_method, default_delta
-from .excursions import default_block, lanes_for
+from .excursions import MAX_LAYOUT, default_block, lanes_for
 from .limits import MAX_WORK, check_recurrent, check_work, float32_unsafe_reason, max_steps_per_excursion
 from .params import Params
 from .pdmp import pdmp_grid_info
@@ -76,7 +76,7 @@ def check_count(name, n, lo=2):
         raise ValueError(f"{name} must be an integer >= {lo} (got {n!r})")
 
 
-MAX_LANES, MAX_BLOCK, MAX_LAYOUT = 1 << 22, 1024, 1 << 28
+MAX_LANES, MAX_BLOCK = 1 << 22, 1024
 
 
 def check_layout(lanes, block):

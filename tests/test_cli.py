@@ -256,7 +256,6 @@ def test_layout_sweep_over_unrolls_streams_rows_and_keeps_to_its_budget():
     assert b["skipped"] == [dict(lanes=64, block=64, unroll=unroll0, events=None)]
 
 
-
 def test_layout_sweep_lists_a_layout_that_fails_and_goes_on(monkeypatch):
     """A layout whose compile run raises (a kernel a device cannot build) is listed under
     ``failed`` with its error, and the sweep measures the others."""
@@ -276,6 +275,7 @@ def test_layout_sweep_lists_a_layout_that_fails_and_goes_on(monkeypatch):
     monkeypatch.setattr(bench, "estimate_diffusivity", lambda p, seed, **kw: flaky(p, seed, lanes=64))
     with pytest.raises(ValueError, match="no layout ran"):
         bench.tune_layout([64], [64], "float64", n_excursions=200, numba_excursions=0, bound_n=1 << 16)
+
 
 def test_pdmp_and_auto_json(capsys):
     assert main(["estimate", "--method", "pdmp", "--delta", "0.2", "--n-excursions", "200", "--json"]) == 0

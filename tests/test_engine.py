@@ -282,6 +282,32 @@ def _coupled_unit(a, b):
     return jax.lax.bitcast_convert_type(m | np.array(1.0).view(np.uint64), jnp.float64) - 1.0
 
 
+def _coupled_units(keys, block: int):
+    """Every lane's two columns of coupled uniforms (counter ``2 row + column``, the layout of
+    ``rng.normals`` / ``rng.uniforms``), each (block, lanes)."""
+    kd = jax.random.key_data(keys)
+    rows = jnp.arange(block, dtype=jnp.uint32)[:, None]
+    out = []
+    for c in range(2):
+        i = rows * np.uint32(2) + np.uint32(c)
+        out.append(_coupled_unit(*rng.threefry2x32(kd[:, 0][None, :], kd[:, 1][None, :], jnp.zeros_like(i), i)))
+    return tuple(out)
+
+
+def _coupled_coin_unit(keys):
+    """The coupled uniform of ``rng.uniform``'s counter 0 of every key."""
+    kd = jax.random.key_data(keys)
+    zero = jnp.zeros_like(kd[..., 0])
+    return _coupled_unit(*rng.threefry2x32(kd[..., 0], kd[..., 1], zero, zero))
+
+
+def _twin(cls, model):
+    """``model``'s fields in the test subclass ``cls`` (its numbers drawn another way)."""
+    import dataclasses
+
+    return cls(**{f.name: getattr(model, f.name) for f in dataclasses.fields(model)})
+
+
 class _DI64OnCoupledNumbers(DIModel):
     r"""The DI in float64 on float64 random numbers coupled to the float32 chain's: each normal
     is :math:`\sqrt2\operatorname{erf}^{-1}(2f - 1)` and each coin :math:`f` of a
@@ -289,20 +315,12 @@ class _DI64OnCoupledNumbers(DIModel):
     :class:`_DI64OnFloat32Numbers` it isolates the float32 generator's coarser numbers."""
 
     def draw_lanes(self, keys, block: int):
-        kd = jax.random.key_data(rng.split_at(keys, 0))
-        rows = jnp.arange(block, dtype=jnp.uint32)[:, None]
         lo = np.nextafter(-1.0, 0.0)
-        out = []
-        for c in range(2):
-            i = rows * np.uint32(2) + np.uint32(c)
-            a, b = rng.threefry2x32(kd[:, 0][None, :], kd[:, 1][None, :], jnp.zeros_like(i), i)
-            out.append(math.sqrt(2.0) * jax.lax.erf_inv(jnp.maximum(lo, 2.0 * _coupled_unit(a, b) - 1.0)))
-        return tuple(out)
+        return tuple(math.sqrt(2.0) * jax.lax.erf_inv(jnp.maximum(lo, 2.0 * f - 1.0))
+                     for f in _coupled_units(rng.split_at(keys, 0), block))
 
     def coin(self, state, r, watch_plus, key):
-        kd = jax.random.key_data(key)
-        zero = jnp.zeros_like(kd[..., 0])
-        u = jnp.maximum(np.finfo(np.float64).tiny, _coupled_unit(*rng.threefry2x32(kd[..., 0], kd[..., 1], zero, zero)))
+        u = jnp.maximum(np.finfo(np.float64).tiny, _coupled_coin_unit(key))
         return jnp.log(u) < self._set(watch_plus).log_coin(state[0], *r)
 
 
@@ -312,17 +330,13 @@ def _fig3_paired_round(numbers: str):
     float32 chain (``numbers="float32"``) or of the float64 chain on the float32 chain's numbers
     (``"float32_in_float64"``) or on the coupled float64 numbers (``"coupled_float64"``): the lanes'
     sums, (lanes, len(STAT_NAMES))."""
-    import dataclasses
-
     from dryfric_jax.params import FIG3
 
     p = dj.Params(**FIG3)
     h = dj.default_h(p)
-    m64 = make_di_model(p, h, "float64")
-    fields = {f.name: getattr(m64, f.name) for f in dataclasses.fields(m64)}
     model = {"float32": lambda: make_di_model(p, h, "float32"),
-             "float32_in_float64": lambda: _DI64OnFloat32Numbers(**fields),
-             "coupled_float64": lambda: _DI64OnCoupledNumbers(**fields)}[numbers]()
+             "float32_in_float64": lambda: _twin(_DI64OnFloat32Numbers, make_di_model(p, h, "float64")),
+             "coupled_float64": lambda: _twin(_DI64OnCoupledNumbers, make_di_model(p, h, "float64"))}[numbers]()
     budget = int(4 * 23.2 * p.tau0 / h)
     return np.asarray(run_round(model, jax.random.key(7), 2048, budget).stats)
 
@@ -359,12 +373,9 @@ def test_coupled_float64_numbers_are_normal_and_within_float32s_resolution():
     them have the normal law's mean and variance (5 SE)."""
     p = dj.Params(**dj.FIG3)
     m64 = make_di_model(p, dj.default_h(p), "float64")
-    import dataclasses
-
-    fields = {f.name: getattr(m64, f.name) for f in dataclasses.fields(m64)}
     keys = jax.random.split(jax.random.key(3), 1024)
-    z32 = np.stack(_DI64OnFloat32Numbers(**fields).draw_lanes(keys, 512))
-    z64 = np.stack(_DI64OnCoupledNumbers(**fields).draw_lanes(keys, 512))
+    z32 = np.stack(_twin(_DI64OnFloat32Numbers, m64).draw_lanes(keys, 512))
+    z64 = np.stack(_twin(_DI64OnCoupledNumbers, m64).draw_lanes(keys, 512))
     slope = math.sqrt(math.pi / 2) * np.exp(z64**2 / 2)  # dZ/dU
     assert np.all(np.abs(z64 - z32) <= 2.0**-22 * slope + 1e-6 * (1 + np.abs(z64)))
     assert np.mean(z64 != z32) > 0.99  # the low bits are there
@@ -372,9 +383,7 @@ def test_coupled_float64_numbers_are_normal_and_within_float32s_resolution():
     assert abs(z64.mean()) < 5 / math.sqrt(n) and abs(z64.var() - 1) < 5 * math.sqrt(2 / n)
     ck = rng.split_at(keys, 1)
     u32 = np.asarray(rng.uniform(ck, jnp.float32)).astype(np.float64)
-    kd = jax.random.key_data(ck)
-    u64 = np.asarray(_coupled_unit(*rng.threefry2x32(kd[:, 0], kd[:, 1], jnp.zeros(1024, jnp.uint32),
-                                                     jnp.zeros(1024, jnp.uint32))))
+    u64 = np.asarray(_coupled_coin_unit(ck))
     assert np.all((u64 >= u32) & (u64 < u32 + 2.0**-23))
 
 
@@ -407,15 +416,8 @@ class _PDMP64OnCoupledNumbers(PDMPModel):
     mapped to [tiny, 1) as ``rng.uniforms`` maps them)."""
 
     def draw_lanes(self, keys, block: int):
-        kd = jax.random.key_data(keys)
-        rows = jnp.arange(block, dtype=jnp.uint32)[:, None]
         tiny = np.finfo(np.float64).tiny
-        out = []
-        for c in range(2):
-            i = rows * np.uint32(2) + np.uint32(c)
-            a, b = rng.threefry2x32(kd[:, 0][None, :], kd[:, 1][None, :], jnp.zeros_like(i), i)
-            out.append(jnp.maximum(tiny, _coupled_unit(a, b) * (1.0 - tiny) + tiny))
-        return tuple(out)
+        return tuple(jnp.maximum(tiny, f * (1.0 - tiny) + tiny) for f in _coupled_units(keys, block))
 
 
 def test_pdmp_float32_matches_float64_paired():
@@ -426,19 +428,16 @@ def test_pdmp_float32_matches_float64_paired():
     paired SE plus 1e-6 relative (a few float32 ulps: what rounding alone can reach when the
     paths coincide; float32 arithmetic measured -3.8e-8 +- 0.4e-8, coupled numbers -1.1e-5 +-
     1.1e-5)."""
-    import dataclasses
-
     from dryfric_jax.cost import default_delta
     from dryfric_jax.params import FIG3
 
     p = dj.Params(**FIG3)
     delta = default_delta(p)
     m64 = make_pdmp_model(p, delta, "float64")
-    fields = {f.name: getattr(m64, f.name) for f in dataclasses.fields(m64)}
     budget = 4 * 4500  # ~4 excursions per lane (~4 500 events each)
     s = [np.asarray(run_round(m, jax.random.key(7), 1024, budget).stats)
-         for m in (make_pdmp_model(p, delta, "float32"), _PDMP64OnFloat32Numbers(**fields),
-                   _PDMP64OnCoupledNumbers(**fields))]
+         for m in (make_pdmp_model(p, delta, "float32"), _twin(_PDMP64OnFloat32Numbers, m64),
+                   _twin(_PDMP64OnCoupledNumbers, m64))]
     assert s[2][:, 0].sum() > 4000
     for a, b in ((s[0], s[1]), (s[1], s[2]), (s[0], s[2])):
         assert np.mean(a[:, 0] == b[:, 0]) >= 0.99
