@@ -51,8 +51,10 @@ is what sets the noise's correlation time, and float32 rounds :math:`m_2` near 1
 :math:`3\cdot 10^{-8}`: the stationary variance of X is then off by :math:`\sim 3\cdot10^{-8}\tau/h`
 (1.3% at :math:`h/\tau = 10^{-6}`).  Velocity increments of size :math:`h'` must also stay far
 above float32's resolution of :math:`V = O(1)`.  float32 is therefore used only for
-:math:`h/\tau \ge` :data:`FLOAT32_MIN_H_OVER_TAU` and :math:`h' \ge` :data:`FLOAT32_MIN_H_ND`;
-elsewhere the DI runs in float64 and the result says so (:func:`float32_unsafe_reason`).
+:math:`h/\tau \ge` :data:`FLOAT32_MIN_H_OVER_TAU` and :math:`h' \ge` :data:`FLOAT32_MIN_H_ND`, and
+for :math:`\tau' \ge` :data:`FLOAT32_MIN_TAU_ND` (the noise's stationary SD :math:`1/\sqrt{\tau'}` and
+the regeneration's squared distances :math:`\sim 16/\tau'` must stay far inside float32's range,
+3.4e38); elsewhere the DI runs in float64 and the result says so (:func:`float32_unsafe_reason`).
 """
 from __future__ import annotations
 
@@ -70,6 +72,8 @@ MAX_TIME_REL = 1.0e4
 FLOAT32_MIN_H_OVER_TAU = 1e-4
 #: ... and where a step's velocity increment h' is > 100 float32 ulps of V = O(1)
 FLOAT32_MIN_H_ND = 1e-5
+#: ... and where X's stationary SD 1/sqrt(tau') is at most 1e15 (float32 overflows near 3.4e38)
+FLOAT32_MIN_TAU_ND = 1e-30
 
 
 def _int_erfcx(lo: float, hi: float) -> float:
@@ -135,7 +139,8 @@ def max_steps_per_excursion(tau: float, tau_L: float, gamma_bar: float, steps_pe
     r"""Work bound of one excursion: :data:`MAX_TIME_REL` tail time scales, in steps (events), at
     most ``cap``.  An excursion reaching it is closed, counted as truncated and reported."""
     want = MAX_TIME_REL * tail_time_scale(tau, tau_L, gamma_bar) * steps_per_tau0
-    return int(max(64, min(math.ceil(want), cap, 2**62)))
+    want = math.ceil(want) if want < 2.0**62 else 2**62  # want may be inf (tau' or 1/h' huge)
+    return int(max(64, min(want, cap, 2**62)))
 
 
 def check_work(tau: float, tau_L: float, gamma_bar: float, steps_per_tau0: float, n_excursions: int,
@@ -147,10 +152,13 @@ def check_work(tau: float, tau_L: float, gamma_bar: float, steps_per_tau0: float
     log_t = log_duration_scale(tau, tau_L, gamma_bar)
     log_w = math.log(n_excursions) + log_t + math.log(steps_per_tau0)
     if log_w > math.log(max_work):
-        why = ("the noise rarely reaches the far threshold (slow weak noise: tau large against tau0)"
-               if log_t > 0 and abs(gamma_bar) < 1.0 else
-               "the bias |gamma_bar| >= Delta keeps the particle moving" if abs(gamma_bar) >= 1.0 else
-               "each excursion needs many small steps (h or delta small against the excursion)")
+        # the reason: the largest of the three factors of the predicted work
+        factors = {"n": math.log(n_excursions), "t": log_t, "steps": math.log(steps_per_tau0)}
+        why = {"n": "many excursions (lower N)",
+               "steps": "each excursion needs many small steps (h or delta small against the excursion)",
+               "t": "the bias |gamma_bar| >= Delta keeps the particle moving" if abs(gamma_bar) >= 1.0 else
+               "the noise rarely reaches the far threshold (slow weak noise: tau large against tau0)"
+               }[max(factors, key=factors.get)]
         raise ValueError(
             f"max_work must be >= {_exp10(log_w)} {unit} for these parameters (got {max_work:.3g}): "
             f"{n_excursions} excursions of predicted mean duration >= {_exp10(log_t)} tau0 at "
@@ -161,15 +169,26 @@ def check_work(tau: float, tau_L: float, gamma_bar: float, steps_per_tau0: float
 
 
 def _exp10(log_x: float) -> str:
+    """``exp(log_x)`` as text, also far beyond float range ("2.5e1234", "10^(1.9e+300)", "inf")."""
     e = log_x / math.log(10.0)
-    return f"{10 ** (e - math.floor(e)):.2g}e{int(math.floor(e))}" if e > 15 else f"{math.exp(log_x):.3g}"
+    if e <= 15:
+        return f"{math.exp(log_x):.3g}"
+    if not math.isfinite(e):
+        return "inf"
+    if e >= 1e6:
+        return f"10^({e:.3g})"
+    return f"{10 ** (e - math.floor(e)):.2g}e{int(math.floor(e))}"
 
 
-def float32_unsafe_reason(h_over_tau: float, h_nd: float) -> str | None:
-    """Why float32 is not safe for the DI at this step (None if it is); module docstring."""
+def float32_unsafe_reason(h_over_tau: float, h_nd: float, tau_nd: float = 1.0) -> str | None:
+    r"""Why float32 is not safe for the DI at this step and :math:`\tau'` (None if it is); module
+    docstring."""
     if h_over_tau < FLOAT32_MIN_H_OVER_TAU:
         return (f"h/tau = {h_over_tau:.3g} < {FLOAT32_MIN_H_OVER_TAU:g}: float32 rounds the OU decay "
                 f"1 - exp(-h/tau) by up to {3e-8 / h_over_tau:.1%}")
     if h_nd < FLOAT32_MIN_H_ND:
         return f"h/tau0 = {h_nd:.3g} < {FLOAT32_MIN_H_ND:g}: velocity increments near float32 resolution"
+    if tau_nd < FLOAT32_MIN_TAU_ND:
+        return (f"tau/tau0 = {tau_nd:.3g} < {FLOAT32_MIN_TAU_ND:g}: the noise's stationary SD "
+                f"{1 / math.sqrt(tau_nd):.3g} nears float32's range")
     return None

@@ -40,7 +40,10 @@ def required_reach(tau: float, gamma_bar: float = 0.0) -> float:
 def delta_max(tau: float, gamma_bar: float = 0.0) -> float:
     """Largest admissible nondimensional grid step (exclusive), module docstring."""
     L = required_reach(tau, gamma_bar)
-    return (-tau * L + math.sqrt(tau * tau * L * L + 16.0 * tau)) / (4.0 * tau)
+    # (-a + sqrt(a^2 + 16 tau)) / (4 tau) with a = tau L, rationalised: no cancellation for
+    # tau L^2 >> 1 and no underflow of tau^2 for tiny tau
+    a = tau * L
+    return 4.0 / (a + math.hypot(a, 4.0 * math.sqrt(tau)))
 
 
 def check_delta(delta: float, tau: float, gamma_bar: float = 0.0, *, scale: float = 1.0) -> None:
@@ -57,9 +60,11 @@ def check_delta(delta: float, tau: float, gamma_bar: float = 0.0, *, scale: floa
 def grid_size(delta: float, tau: float, gamma_bar: float = 0.0) -> int:
     """N, the grid is x_k = k delta for |k| <= N (nondimensional delta, tau, gamma_bar)."""
     check_delta(delta, tau, gamma_bar)
-    N = math.ceil(required_reach(tau, gamma_bar) / delta) + 1
-    if N >= 2**30:
-        raise ValueError(f"delta = {delta!r} is too small: the noise grid would have {2 * N + 1} points")
+    n = required_reach(tau, gamma_bar) / delta  # may be inf
+    if not n < 2**30 - 2:
+        raise ValueError(f"delta = {delta!r} is too small: the noise grid would have {2.0 * n + 3:.3g} points "
+                         f"(at most {2**31 - 1}); for these parameters use method 'di'")
+    N = math.ceil(n) + 1
     assert tau * delta * N * delta < 2.0
     return N
 

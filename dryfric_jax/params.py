@@ -16,20 +16,28 @@ from __future__ import annotations
 import math
 
 import equinox as eqx
+import jax
 import numpy as np
 
 
-def _concrete(x):
-    """Return a Python float if ``x`` is concrete, else None (traced under jit/vmap)."""
-    try:
-        return float(np.asarray(x))
-    except Exception:  # a tracer: validation happens on the concrete call
+def _concrete(name: str, x):
+    """``x`` as a Python float; None for a tracer (under jit/vmap: validated on the concrete call).
+    ``ValueError`` naming ``name`` for anything but a real scalar (a string, None, a bool, a
+    complex number, an array with more than one element: loop over a grid instead)."""
+    if isinstance(x, jax.core.Tracer):
         return None
+    a = None if isinstance(x, (bool, np.bool_, str, bytes)) else np.asarray(x)
+    if a is None or a.shape != () or a.dtype.kind not in "iuf":
+        if a is not None and a.shape != ():
+            raise ValueError(f"{name} must be a real number (got an array of shape {a.shape}): make one Params "
+                             "per grid point (or run 'dryfric sweep')")
+        raise ValueError(f"{name} must be a real number (got {x!r})")
+    return float(a)
 
 
 def check_positive(name: str, value, *, allow_inf: bool = False) -> None:
     """Raise ``ValueError`` naming ``name`` unless ``value`` is a number > 0 (finite unless allowed)."""
-    v = _concrete(value)
+    v = _concrete(name, value)
     if v is None:
         return
     ok = v > 0 and (math.isfinite(v) or (allow_inf and v == math.inf))
@@ -39,9 +47,42 @@ def check_positive(name: str, value, *, allow_inf: bool = False) -> None:
 
 
 def check_finite(name: str, value) -> None:
-    v = _concrete(value)
+    v = _concrete(name, value)
     if v is not None and not math.isfinite(v):
         raise ValueError(f"{name} must be a finite number (got {value!r})")
+
+
+#: the reference units and the nondimensional numbers must lie in this range (_check_scales)
+SCALE_RANGE = (1e-300, 1e300)
+
+
+def _check_scales(p: "Params") -> None:
+    r"""``ValueError`` unless the reference units :math:`\tau_0, u_0, v_0, D_0` and the numbers
+    :math:`\tau', \tau_L'` (unless infinite) lie in :data:`SCALE_RANGE` and
+    :math:`|\bar\gamma'|` below its top: D and M0 are reported as D' D0 and M0' v0, so a unit
+    that overflows (or underflows to 0) would turn a finite estimate into inf (or 0).  Only for
+    concrete values."""
+    v = {k: _concrete(k, getattr(p, k)) for k in ("Gamma", "Delta", "tau", "tau_L", "gamma_bar")}
+    if None in v.values():
+        return
+    lo, hi = SCALE_RANGE
+    div = lambda a, b: a / b if b != 0.0 else math.inf
+    tau0, v0 = div(v["Gamma"], v["Delta"] * v["Delta"]), v["Gamma"] / v["Delta"]  # as the properties do
+    checks = [("Gamma and Delta", "tau0 = Gamma/Delta^2", tau0), ("Gamma and Delta", "v0 = Gamma/Delta", v0),
+              ("Gamma and Delta", "u0 = Gamma^2/Delta^3", tau0 * v0),
+              ("Gamma and Delta", "D0 = Gamma^3/Delta^4", tau0 * v0 * v0),
+              ("tau", "tau' = tau/tau0", div(v["tau"], tau0))]
+    if math.isfinite(v["tau_L"]):
+        checks.append(("tau_L", "tau_L' = tau_L/tau0", div(v["tau_L"], tau0)))
+    for names, what, x in checks:
+        if not lo <= x <= hi:
+            raise ValueError(
+                f"{names} must keep {what} in [{lo:g}, {hi:g}] (got {x:.3g} from Gamma = {v['Gamma']!r}, "
+                f"Delta = {v['Delta']!r}, tau = {v['tau']!r}, tau_L = {v['tau_L']!r}): out of floating-point "
+                "range, express the parameters in other units")
+    if not abs(v["gamma_bar"] / v["Delta"]) <= hi:
+        raise ValueError(f"gamma_bar must keep |gamma_bar/Delta| <= {hi:g} (got gamma_bar = {v['gamma_bar']!r}, "
+                         f"Delta = {v['Delta']!r})")
 
 
 class Params(eqx.Module):
@@ -69,17 +110,18 @@ class Params(eqx.Module):
         check_positive("tau", self.tau)
         check_positive("tau_L", self.tau_L, allow_inf=True)
         check_finite("gamma_bar", self.gamma_bar)
+        _check_scales(self)
 
     # ---- reference units (section 2) ------------------------------------------------------
     @property
     def tau0(self):
         r"""Reference time :math:`\tau_0 = \Gamma/\Delta^2` (s)."""
-        return self.Gamma / self.Delta**2
+        return self.Gamma / (self.Delta * self.Delta)  # not Delta**2: a float's ** raises on overflow
 
     @property
     def u0(self):
         r"""Reference length :math:`u_0 = \Gamma^2/\Delta^3` (m)."""
-        return self.Gamma**2 / self.Delta**3
+        return self.tau0 * self.v0
 
     @property
     def v0(self):
@@ -89,7 +131,7 @@ class Params(eqx.Module):
     @property
     def D0(self):
         r"""Reference diffusivity :math:`u_0^2/\tau_0 = \Gamma^3/\Delta^4` (m^2/s)."""
-        return self.Gamma**3 / self.Delta**4
+        return self.u0 * self.v0
 
     # ---- nondimensional numbers -----------------------------------------------------------
     @property
@@ -123,7 +165,7 @@ class Params(eqx.Module):
         :math:`\Gamma, \Delta` (default 1, i.e. the nondimensional model itself)."""
         check_positive("Gamma", Gamma)
         check_positive("Delta", Delta)
-        tau0 = Gamma / Delta**2
+        tau0 = Gamma / (Delta * Delta)
         return cls(Gamma=Gamma, Delta=Delta, tau=tau * tau0, tau_L=tau_L * tau0,
                    gamma_bar=gamma_bar * Delta)
 

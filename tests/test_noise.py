@@ -85,3 +85,26 @@ def test_grid_choice(tau):
 def test_bad_delta(d):
     with pytest.raises(ValueError, match=r"delta must be in \(0, 0.2"):
         check_delta(d, 1.0)
+
+
+def test_delta_max_is_stable_at_extreme_tau():
+    """delta_max = 4 / (tau L + sqrt((tau L)^2 + 16 tau)), the rationalised root: the printed
+    form (-tau L + sqrt(...))/(4 tau) lost every digit to cancellation for tau L^2 >> 1 and came
+    out negative for tiny tau (tau^2 underflows), which made the refusal print "(0, -1e+150)"."""
+    def printed(tau, g=0.0):
+        L = max(8 / math.sqrt(tau), 1 + abs(g))
+        return (-tau * L + math.sqrt(tau * tau * L * L + 16 * tau)) / (4 * tau)
+
+    for tau in (1e-6, 1e-2, 1.0, 30.0, 1e3):
+        assert delta_max(tau) == pytest.approx(printed(tau), rel=1e-9)
+    for tau in (1e-300, 1e-150):  # the noise sets L = 8/sqrt(tau): delta_max = 0.2361/sqrt(tau)
+        assert delta_max(tau) * math.sqrt(tau) == pytest.approx(4 / (8 + math.sqrt(80)), rel=1e-12)
+    for tau in (1e150, 1e300):  # the thresholds set L = 1: delta_max -> 2/(tau L)
+        assert delta_max(tau) * tau == pytest.approx(2.0, rel=1e-12)
+
+
+def test_a_grid_beyond_int_range_is_refused_with_a_readable_count():
+    with pytest.raises(ValueError, match=r"^delta = .* too small: the noise grid would have 1.6e\+11 points"):
+        grid_size(1e-10, 1.0)
+    with pytest.raises(ValueError, match=r"would have inf points"):
+        grid_size(1e-300, 1.0, 1e300)  # L_req / delta overflows

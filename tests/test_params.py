@@ -1,5 +1,8 @@
 import math
 
+import jax
+import jax.numpy as jnp
+import numpy as np
 import pytest
 
 from dryfric_jax import FIG3, Params
@@ -45,3 +48,50 @@ def test_thresholds():
     p = Params(Gamma=4.0, Delta=2.0, tau=1.0, gamma_bar=0.5)
     xp, xm = p.x_thresholds
     assert xp == pytest.approx((2.0 - 0.5) / 2.0) and xm == pytest.approx((-2.0 - 0.5) / 2.0)
+
+
+@pytest.mark.parametrize("bad", ["5", None, True, 1 + 2j, np.array([1.0, 2.0]), np.array([])])
+def test_anything_but_a_real_scalar_is_refused_by_name(bad):
+    """Before, a string or a bool passed validation (float("5") works) and failed later with a
+    TypeError, and None or an array skipped it (taken for a tracer)."""
+    with pytest.raises(ValueError, match="^Gamma must be a real number"):
+        Params(Gamma=bad, Delta=1.0, tau=1.0)
+
+
+@pytest.mark.parametrize("G", [5, 5.0, np.float32(5.0), np.int64(5), np.array(5.0), jnp.asarray(5.0)])
+def test_real_scalars_of_any_type_are_accepted(G):
+    assert float(Params(G, 2.0, 1.0).tau0) == 1.25
+
+
+def test_traced_parameters_are_validated_on_the_concrete_call():
+    f = jax.jit(lambda G: Params(G, 2.0, 1.0).tau_nd)
+    assert float(f(5.0)) == pytest.approx(0.8, rel=1e-15)
+    assert np.allclose(jax.vmap(lambda G: Params(G, 2.0, 1.0).tau_nd)(jnp.array([1.0, 4.0])), [4.0, 1.0])
+
+
+@pytest.mark.parametrize("kw,names", [
+    (dict(Gamma=1e-300), "Gamma and Delta"),  # tau0 underflows
+    (dict(Gamma=1e150), "Gamma and Delta"),  # D0 = Gamma^3/Delta^4 overflows
+    (dict(Delta=1e-300), "Gamma and Delta"),  # Delta^2 underflows to 0: was a ZeroDivisionError
+    (dict(Delta=1e300), "Gamma and Delta"),  # Delta^2 overflows: was an OverflowError
+    (dict(Gamma=1e200, Delta=1e-200), "Gamma and Delta"),
+    (dict(tau=1e300), "tau"),
+    (dict(tau=1e-305), "tau"),
+    (dict(tau_L=1e300), "tau_L"),
+    (dict(gamma_bar=1e300, Delta=1e-10, Gamma=1e-20), "gamma_bar"),
+])
+def test_units_out_of_floating_range_are_refused_by_name(kw, names):
+    """D and M0 are reported as D' D0 and M0' v0: a reference unit or a nondimensional number
+    outside [1e-300, 1e300] would make a finite estimate inf or 0, or crash the planner."""
+    full = dict(Gamma=5.0, Delta=3.84, tau=0.5, tau_L=0.067, gamma_bar=0.342) | kw
+    with pytest.raises(ValueError, match=f"^{names} must keep"):
+        Params(**full)
+
+
+def test_extreme_but_representable_units_are_exact():
+    """Gamma = 1e200, Delta = 1e100: Delta**2 etc. would overflow in Python floats (OverflowError)
+    although every unit is representable; the units are built as products."""
+    p = Params(1e200, 1e100, 1.0, 1.0)
+    assert p.tau0 == 1.0 and p.v0 == 1e100
+    assert p.u0 == pytest.approx(1e100, rel=1e-14) and p.D0 == pytest.approx(1e200, rel=1e-14)
+    assert p.D0 == pytest.approx(p.u0 * p.u0 / p.tau0, rel=1e-14)
