@@ -38,16 +38,20 @@ def _log_p_unnorm(v, itl, g):
     return -0.5 * itl * v * v - np.abs(v) + g * v
 
 
-def _half_line_mass(beta, itl):
-    r""":math:`\int_0^\infty e^{-\mathrm{itl}\,v^2/2 - \beta v} dv`, stable (erfcx, no overflow)."""
+def _log_half_line_mass(beta, itl):
+    r"""log of :math:`\int_0^\infty e^{-\mathrm{itl}\,v^2/2 - \beta v} dv`, stable for any sign and size
+    of :math:`\beta` (erfcx for :math:`x \ge 0`; :math:`x^2 + \log\operatorname{erfc}(x)` below 0,
+    where erfcx overflows: a strong bias :math:`|\bar\gamma'| \gg 1`)."""
     if itl == 0.0:
-        return 1.0 / beta
+        return -math.log(beta)  # beta > 0: check_recurrent refuses |gamma_bar'| >= 1 here
     s = math.sqrt(itl)
-    return math.sqrt(math.pi / 2) / s * special.erfcx(beta / (s * math.sqrt(2)))
+    x = beta / (s * math.sqrt(2))
+    log_erfcx = math.log(special.erfcx(x)) if x >= 0 else x * x + math.log(special.erfc(x))
+    return 0.5 * math.log(math.pi / 2) - math.log(s) + log_erfcx
 
 
 def _log_norm(itl, g):
-    return math.log(_half_line_mass(1.0 - g, itl) + _half_line_mass(1.0 + g, itl))
+    return float(np.logaddexp(_log_half_line_mass(1.0 - g, itl), _log_half_line_mass(1.0 + g, itl)))
 
 
 def stationary_density(v, params: Params):
@@ -77,25 +81,60 @@ def _quad(f, a, b, s, epsrel):
     return s * integrate.quad(lambda w: f(s * w), a / s, b / s, epsabs=0, epsrel=epsrel, limit=200)[0]
 
 
+def _mode_points(itl, g):
+    r"""For :math:`|\bar\gamma'| > 1` with viscous damping, p is a bump of width
+    :math:`\sqrt{\tau_L'}` at :math:`v^* = \operatorname{sgn}(\bar\gamma')(|\bar\gamma'| - 1)\tau_L'`,
+    which may lie far from 0 on the quadrature's scale: break the integrals there too."""
+    if itl == 0.0 or abs(g) <= 1.0:
+        return ()
+    v, sd = math.copysign((abs(g) - 1.0) / itl, g), 1.0 / math.sqrt(itl)
+    return v - 8.0 * sd, v, v + 8.0 * sd
+
+
 def _pieces(*points):
     brk = sorted(set(points))
     return [(-np.inf, brk[0])] + list(zip(brk[:-1], brk[1:])) + [(brk[-1], np.inf)]
 
 
+#: beyond this barrier :math:`\psi(v^*) - \psi(0)` the velocity reaches 0 with probability
+#: :math:`< e^{-745}` (below float64's smallest number): the friction never acts
+LINEAR_BARRIER = 745.0
+
+
+def _linear_limit(itl, g):
+    r"""``(mean, variance)`` of :math:`N(v^*, \tau_L')` when the bias holds the velocity away from 0
+    beyond float64's reach, :math:`(|\bar\gamma'| - 1)^2\tau_L'/2 >` :data:`LINEAR_BARRIER`: the
+    particle then never sticks and V is the OU process :math:`dV = (-V/\tau_L' + \bar\gamma' \mp 1)\,dt
+    + \sqrt2\,dW`, so :math:`M_0' = v^*` and :math:`D' = 2\tau_L'^2` (:func:`D_viscous_only`) to double
+    precision.  None otherwise (quadrature)."""
+    if itl == 0.0 or abs(g) <= 1.0 or (abs(g) - 1.0) * (abs(g) - 1.0) / (2.0 * itl) <= LINEAR_BARRIER:
+        return None
+    return math.copysign((abs(g) - 1.0) / itl, g), 1.0 / itl
+
+
 def _velocity_moment_nd(itl, g, k=1):
+    lin = _linear_limit(itl, g)
+    if lin is not None and k in (1, 2):
+        mean, var = lin
+        return mean if k == 1 else mean * mean + var
+    return _moment_quad(itl, g, k)
+
+
+def _moment_quad(itl, g, k):
     logZ = _log_norm(itl, g)
     s = _scale(itl, g)
     f = lambda v: v**k * math.exp(_log_p_unnorm(v, itl, g) - logZ)
-    return sum(_quad(f, a, b, s, 1e-13) for a, b in _pieces(0.0))
+    return sum(_quad(f, a, b, s, 1e-13) for a, b in _pieces(0.0, *_mode_points(itl, g)))
 
 
 def _G(v, m, itl, g, s):
     r""":math:`G(v) = F(v)/p(v)` taken from the nearer tail, so that :math:`F^2/p = p\,G^2` is stable."""
     psi_v = float(_log_p_unnorm(v, itl, g))
     f = lambda u: (u - m) * math.exp(float(_log_p_unnorm(u, itl, g)) - psi_v)
+    pieces = _pieces(0.0, *_mode_points(itl, g))
     if v > m:
-        return -sum(_quad(f, max(a, v), b, s, 1e-12) for a, b in _pieces(0.0) if b > v)
-    return sum(_quad(f, a, min(b, v), s, 1e-12) for a, b in _pieces(0.0) if a < v)
+        return -sum(_quad(f, max(a, v), b, s, 1e-12) for a, b in pieces if b > v)
+    return sum(_quad(f, a, min(b, v), s, 1e-12) for a, b in pieces if a < v)
 
 
 def exact_M0(params: Params) -> float:
@@ -107,7 +146,7 @@ def exact_M0(params: Params) -> float:
 def exact_mean_square_velocity(params: Params) -> float:
     r"""White-noise :math:`E[V^2] = \int v^2 p(v)\,dv` (physical units, m^2/s^2)."""
     itl, g = _nd(params)
-    return _velocity_moment_nd(itl, g, 2) * params.v0**2
+    return _velocity_moment_nd(itl, g, 2) * params.v0 * params.v0
 
 
 def exact_D(params: Params) -> float:
@@ -127,11 +166,14 @@ def exact_D(params: Params) -> float:
 
 
 def _exact_D_nd(itl, g):
+    lin = _linear_limit(itl, g)
+    if lin is not None:
+        return 2.0 * lin[1] * lin[1]
     m = _velocity_moment_nd(itl, g, 1)
     logZ = _log_norm(itl, g)
     s = _scale(itl, g)
     integrand = lambda v: math.exp(float(_log_p_unnorm(v, itl, g)) - logZ) * _G(v, m, itl, g, s) ** 2
-    return 2.0 * sum(_quad(integrand, a, b, s, 1e-10) for a, b in _pieces(0.0, m))
+    return 2.0 * sum(_quad(integrand, a, b, s, 1e-10) for a, b in _pieces(0.0, m, *_mode_points(itl, g)))
 
 
 def D_pure_dry(Gamma, Delta) -> float:

@@ -42,6 +42,26 @@ def test_quadrature_viscous_limit():
     assert abs(vals[-1] - 2) < abs(vals[0] - 2)  # converging
 
 
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+def test_strong_bias_reaches_the_linear_ou_limit(sign):
+    """|gamma_bar| >> Delta with viscous damping: the velocity stays near
+    v* = (|gamma_bar| - Delta) tau_L and never reaches 0 (the barrier psi(v*) - psi(0) =
+    (|gamma_bar'| - 1)^2 tau_L'/2 is large), so V is an OU process: D = 2 tau_L^2 Gamma
+    (MODEL_NOTES section 2, the Delta -> 0 limit) and M0 = sgn(gamma_bar) v*, up to O(e^-barrier).
+    The quadrature (barrier 40-700) must reach these independent values; beyond the float64
+    barrier the closed form is used.  Before, the normalisation overflowed (erfcx of a large
+    negative number) and exact_M0 returned 0.0 at gamma_bar = 1000 m/s^2."""
+    G, Dl, tL = 5.0, 3.84, 0.067
+    tL_nd = tL / (G / Dl**2)
+    for g_rel in (20.0, 60.0, 85.0, 150.0, 1e4):  # barrier 36, 344, 697 (quadrature); 2190, 1e7
+        p = Params(G, Dl, 0.5, tL, sign * g_rel * Dl)
+        barrier = (g_rel - 1.0) ** 2 * tL_nd / 2
+        assert theory.exact_D(p) == pytest.approx(2 * tL**2 * G, rel=1e-9), (g_rel, barrier)
+        assert theory.exact_M0(p) == pytest.approx(sign * (g_rel - 1.0) * Dl * tL, rel=1e-9), (g_rel, barrier)
+        v = (g_rel - 1.0) * Dl * tL
+        assert theory.exact_mean_square_velocity(p) == pytest.approx(v * v + G * tL, rel=1e-9), g_rel
+
+
 def test_no_stationary_state_is_refused():
     with pytest.raises(ValueError, match="gamma_bar"):
         theory.exact_D(Params(1.0, 1.0, 1e-3, math.inf, 1.0))
