@@ -19,7 +19,8 @@ it is evaluated by its Taylor series :math:`\hat g = \sum_{k\ge3} (-1)^k (4-2^k)
 
 never from a numerical factorisation of a rounded matrix: the correlation of the pair tends
 to 1 as :math:`r \to 0`, where :math:`\det\Sigma \sim r^2/(3\tau^2)` is all that is left.
-All expressions stay accurate for :math:`r \in [10^{-8}, 10^{8}]` in float64 and float32.
+All expressions stay accurate for :math:`r \in [10^{-8}, 10^{8}]` in float64 and float32, and
+for larger r, where :math:`\hat g = (2 - 3/r)/r` exactly and :math:`r^2` would overflow.
 """
 from __future__ import annotations
 
@@ -33,6 +34,9 @@ _N_SERIES = 30
 _GHAT_COEFFS = [(-1) ** k * (4 - 2**k) / math.factorial(k) for k in range(3, 3 + _N_SERIES)]
 
 
+_R_HUGE = 1e8  # beyond this r the exponentials of ghat vanish (e^{-1e8} = 0)
+
+
 def _ghat(r):
     r = jnp.asarray(r)
     small = r < 1.0
@@ -43,7 +47,10 @@ def _ghat(r):
     series = acc * rs
     rb = jnp.where(small, 2.0, r)
     direct = (2 * rb - 3 + 4 * jnp.exp(-rb) - jnp.exp(-2 * rb)) / rb**2
-    return jnp.where(small, series, direct)
+    # r > 1e8: the exponentials are exactly 0 and r^2 may overflow (white noise, tau' -> 0)
+    rh = jnp.where(r > _R_HUGE, r, 2.0)
+    huge = (2.0 - 3.0 / rh) / rh
+    return jnp.where(small, series, jnp.where(r > _R_HUGE, huge, direct))
 
 
 def ou_moments(h, tau):

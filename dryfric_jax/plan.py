@@ -140,7 +140,7 @@ def choose(params: Params, method: str, h, delta, dtype) -> Plan:
     notes = []
     if method == "di":
         h = check_h(params, h)
-        unsafe = float32_unsafe_reason(h / params.tau, h / params.tau0) if dtype == "float32" else None
+        unsafe = float32_unsafe_reason(h / params.tau, h / params.tau0, params.tau_nd) if dtype == "float32" else None
         if unsafe:
             notes.append(f"float32 is not safe here ({unsafe}): simulated in float64")
             dtype = "float64"
@@ -164,6 +164,8 @@ def plan_estimate(params: Params, *, method: str = "di", h: float | None = None,
     check_count("n_excursions", n_excursions)
     check_max_work(max_work)
     check_layout(lanes, 1 if block is None else block)  # a default K is fitted to the lanes below
+    if chunk_lanes is not None:
+        check_count("chunk_lanes", chunk_lanes, 1)
     plan = choose(params, method, h, delta, dtype)
     nd = (params.tau_nd, params.tau_L_nd, params.gamma_bar_nd)
     plan.predicted_work = check_work(*nd, plan.per_tau0, int(n_excursions), max_work, plan.unit)

@@ -100,3 +100,21 @@ def test_pair_law_against_fine_grid_ou(key):
     for i in range(2):
         for j in range(2):
             assert abs(C[i, j] - S[i, j]) < 5 * np.sqrt((S[i, i] * S[j, j] + S[i, j] ** 2) / n)
+
+
+@pytest.mark.parametrize("r,tau", [(1e9, 0.37), (1e12, 1e-12), (1e100, 1e-100), (1e298, 1e-300)])
+def test_white_noise_limit_beyond_r_1e8(r, tau):
+    """r = h/tau > 1e8 (tau' -> 0, white noise): the exponentials vanish and Sigma is exactly
+    (1/tau) [[(2 - 3/r)/r, 1/r], [1/r, 1]]; before, r^2 overflowed at r ~ 1e154 and the factor
+    came out (0, inf, nan).  Checked against the 60-digit closed forms where Decimal reaches."""
+    s = ou_step(r * tau, tau)
+    L11, L21, L22 = (float(v) for v in (s.L11, s.L21, s.L22))
+    assert all(np.isfinite([L11, L21, L22])) and L11 > 0 and L22 > 0
+    S11, S12, S22 = L11 * L11, L11 * L21, L21 * L21 + L22 * L22
+    for got, want in ((S11, (2 - 3 / r) / r / tau), (S12, 1 / r / tau), (S22, 1 / tau)):
+        assert _rel(got, want) < 1e-14, (got, want)
+    if r < 1e20:
+        _, _, rS11, rS12, rS22 = ou_moments_reference(r * tau, tau)
+        assert _rel(S11, rS11) < 1e-14 and _rel(S12, rS12) < 1e-14 and _rel(S22, rS22) < 1e-14
+    m1, m2, *_ = (float(v) for v in ou_moments(jnp.float64(r * tau), tau))
+    assert _rel(m1, 1 / r) < 1e-15 and m2 == 0.0

@@ -14,6 +14,7 @@ tau_L in {1e-4, 0.067, inf} s, gamma_bar/Delta in {0, 0.5, 0.99, 1.5}, float32 a
 """
 import itertools
 import math
+import re
 import warnings
 from decimal import Decimal, localcontext
 
@@ -201,6 +202,7 @@ INF = math.inf
 RUNS = [  # (Gamma, tau, h/tau or None (default h), tau_L, gamma_bar/Delta, dtype, method, expected)
     (1e3, 1e-8, 1e6, INF, 0.0, "float32", "di", "finite"),  # white noise, h/tau = 1e6
     (1e3, 1e-8, None, INF, 0.5, "float64", "di", "finite"),
+    (5.0, 1e-300, None, 0.067, 0.0, "float32", "di", "finite"),  # tau' = 3e-300: float64 (r = 2e297)
     (1e-3, 1e-6, None, 1e-4, 0.0, "float64", "di", "finite"),  # tiny Gamma
     (1e-3, 1e-4, 1e-3, 1e-4, 0.0, "float32", "di", "finite"),
     (1e-1, 1e-2, 1e-3, 0.067, 0.99, "float32", "di", "finite"),  # |gamma_bar| near Delta
@@ -279,3 +281,70 @@ def test_bias_near_and_above_friction_white_noise_exact(gb, dtype):
     assert r.D_ci < 0.05 * r.D
     assert abs(r.D - dj.theory.exact_D(p)) <= r.D_ci, (r.D, r.D_ci, dj.theory.exact_D(p))
     assert abs(r.M0 - dj.theory.exact_M0(p)) <= r.M0_ci, (r.M0, r.M0_ci, dj.theory.exact_M0(p))
+
+
+# ---------------------------------------------------------------------------------------------
+# magnitudes out to the ends of float64: a plan, a theory value, or a refusal by name
+# ---------------------------------------------------------------------------------------------
+MAGS = [1e-300, 1e-150, 1e-30, 1e-3, 1e3, 1e30, 1e150, 1e300]
+BASE = dict(Gamma=5.0, Delta=3.84, tau=0.5, tau_L=0.067, gamma_bar=0.342)
+
+
+def _extreme_cases():
+    for name in BASE:
+        for m in MAGS:
+            for sgn in ((1, -1) if name == "gamma_bar" else (1,)):
+                yield {**BASE, name: sgn * m}
+    for a, b in itertools.combinations(["Gamma", "Delta", "tau", "tau_L"], 2):
+        for ma, mb in itertools.product([1e-200, 1e200], repeat=2):
+            yield {**BASE, a: ma, b: mb}
+
+
+def _readable_refusal(e: ValueError, names=PARAM_NAMES + ("Gamma and Delta",)):
+    msg = str(e)
+    assert msg.split(" must ")[0] in names or msg.startswith("delta = "), msg
+    assert "\n" not in msg and len(msg) < 700, msg
+    assert not re.search(r"\d{20}", msg) and "(0, -" not in msg and "nan" not in msg.replace("got nan", ""), msg
+
+
+def test_extreme_magnitudes_are_planned_computed_or_refused_by_name():
+    """Each parameter (and pairs) from 1e-300 to 1e300: the parameters are refused by name when a
+    unit or a nondimensional number leaves [1e-300, 1e300], and otherwise every method is planned
+    with finite numbers or refused by name in one readable line, and the white-noise theory is
+    finite.  Before: ZeroDivisionError and OverflowError from the units, the delta range and the
+    message formatting; "delta must be in (0, -1e+150)"; 300-digit exponents in a refusal;
+    exact_M0 = 0.0 for gamma_bar = 1000."""
+    counts, theory_done = {}, set()
+    for c in _extreme_cases():
+        try:
+            p = dj.Params(**c)
+        except ValueError as e:
+            _readable_refusal(e)
+            counts["params"] = counts.get("params", 0) + 1
+            continue
+        for method in ("di", "pdmp", "auto"):
+            try:
+                plan = plan_estimate(p, method=method, n_excursions=1000)
+            except ValueError as e:
+                _readable_refusal(e)
+                counts["refused"] = counts.get("refused", 0) + 1
+                continue
+            counts["planned"] = counts.get("planned", 0) + 1
+            step = plan.h if plan.method == "di" else plan.delta
+            assert all(math.isfinite(v) and v > 0 for v in (plan.per_tau0, plan.predicted_work, step)), (c, plan)
+            assert 64 <= plan.max_steps <= 2**62
+        nd = (p.tau_L_nd, p.gamma_bar_nd)  # the white-noise theory depends on these alone
+        if not (math.isinf(p.tau_L) and abs(p.gamma_bar) >= p.Delta) and nd not in theory_done:
+            theory_done.add(nd)
+            vals = (dj.theory.exact_M0(p), dj.theory.exact_D(p))
+            assert all(math.isfinite(v) for v in vals), (c, vals)
+    assert min(counts.get(k, 0) for k in ("params", "refused", "planned")) >= 10, counts
+
+
+def test_float32_falls_back_where_the_noise_would_leave_its_range():
+    """tau' < 1e-30: X's stationary SD 1/sqrt(tau') and the regeneration's squared distances
+    16/tau' near float32's 3.4e38 (at tau' = 3e-300 the step's L22 is inf in float32)."""
+    p = dj.Params(5.0, DELTA, 1e-300, 0.067, 0.342)
+    plan = plan_estimate(p, dtype="float32", n_excursions=1000)
+    assert plan.dtype == "float64" and "tau/tau0" in plan.notes[0]
+    assert plan_estimate(dj.Params(5.0, DELTA, 1e-20, 0.067, 0.342), dtype="float32").dtype == "float32"
