@@ -21,7 +21,7 @@ from .limits import MAX_WORK
 from .params import Params, check_positive
 from .pdmp import make_pdmp_model, simulate_pdmp_bruteforce
 from .plan import (  # noqa: F401  (default_h, h_max, check_h, METHODS are part of the API)
-    DTYPES, METHODS, Plan, check_count, check_h, check_max_work, choose, default_h, h_max, plan_estimate,
+    DTYPES, METHODS, Plan, check_count, check_h, check_layout, check_max_work, choose, default_h, h_max, plan_estimate,
 )
 
 class DryfricWarning(UserWarning):
@@ -39,14 +39,26 @@ def small_n_note(n: int) -> str:
             "(heavy-tailed excursions)")
 
 
+#: seeds are integers in [0, MAX_SEED] (jax.random.key takes a signed 64-bit seed; the figures add
+#: offsets below 2^20 to theirs)
+MAX_SEED = 2**62
+
+
 def _key(key):
-    if isinstance(key, (int, np.integer)):
-        if key < 0:
-            raise ValueError(f"seed must be a non-negative integer (got {key})")
+    """``(key, seed)`` from a seed in [0, :data:`MAX_SEED`] (None: 0) or a ``jax.random`` key
+    (``seed`` None); ``ValueError`` naming ``key`` for anything else."""
+    if isinstance(key, (int, np.integer)) and not isinstance(key, (bool, np.bool_)):
+        if not 0 <= key <= MAX_SEED:
+            raise ValueError(f"seed must be an integer in [0, 2^62] (got {key})")
         return jax.random.key(int(key)), int(key)
     if key is None:
         return jax.random.key(0), 0
-    return key, None
+    typed = isinstance(key, jax.Array) and jax.dtypes.issubdtype(key.dtype, jax.dtypes.prng_key) and key.shape == ()
+    raw = isinstance(key, (jax.Array, np.ndarray)) and key.dtype == np.uint32 and key.shape == (2,)  # PRNGKey
+    if not (typed or raw):
+        what = f"an array of shape {key.shape} and dtype {key.dtype}" if hasattr(key, "shape") else repr(key)
+        raise ValueError(f"key must be a seed (an integer in [0, 2^62]) or one jax.random key (got {what})")
+    return (jax.random.wrap_key_data(jax.numpy.asarray(key)) if raw else key), None
 
 
 def _build(params: Params, plan: Plan):
@@ -212,7 +224,7 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
 
     Args:
         params: physical parameters.
-        key: a ``jax.random`` key or a non-negative integer seed.
+        key: a ``jax.random`` key or an integer seed in [0, 2^62].
         method: ``"di"`` (differential inclusion with exact OU step, section 6), ``"pdmp"``
             (exact event-driven jump-noise model, section 3) or ``"auto"`` (the cheaper of the
             two by the cost model of :mod:`dryfric_jax.cost`; ``method_reason`` says why).
@@ -361,6 +373,10 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
         raise ValueError("method must be 'di' or 'pdmp' for brute force (got 'auto')")
     check_count("n_paths", n_paths)
     check_max_work(max_work)
+    check_layout(None, block)
+    check_count("chunk_lanes", chunk_lanes, 1)
+    if max_events is not None:
+        check_count("max_events", max_events, 1)
     plan = choose(params, method, h, delta, dtype)
     notes, method, h, grid, dname = plan.notes, plan.method, plan.h, plan.grid, plan.dtype
     check_positive("t", t)

@@ -15,6 +15,7 @@ import os
 import sys
 import warnings
 
+from .api import MAX_SEED
 from .outfiles import check_writable, check_writable_dir, write_atomic
 from .params import FIG3, Params
 from .xla_flags import default_xla_flag
@@ -60,16 +61,21 @@ def _list_of(conv, name):
     return parse
 
 
-def _int_at_least(name, lo):
+def _int_at_least(name, lo, hi=None, hi_text=None):
+    rng = f">= {lo}" if hi is None else f"in [{lo}, {hi_text or hi}]"
+
     def conv(s):
         try:
             v = int(s)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"--{name} must be an integer >= {lo} (got {s!r})") from None
-        if v < lo:
-            raise argparse.ArgumentTypeError(f"--{name} must be an integer >= {lo} (got {s!r})")
+            raise argparse.ArgumentTypeError(f"--{name} must be an integer {rng} (got {s!r})") from None
+        if v < lo or (hi is not None and v > hi):
+            raise argparse.ArgumentTypeError(f"--{name} must be an integer {rng} (got {s!r})")
         return v
     return conv
+
+
+_seed = _int_at_least("seed", 0, MAX_SEED - 2**20, "2^62 - 2^20")  # the figures add offsets < 2^20
 
 
 def _model_options() -> argparse.ArgumentParser:
@@ -109,7 +115,7 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--delta", type=_number("delta"), default=None,
                      help="PDMP noise grid step, s^-1/2 (default: delta' = delta sqrt(Gamma)/Delta = 0.05, "
                           "and delta sqrt(tau) <= 1/16 for slow noise)")
-    sim.add_argument("--seed", type=_int_at_least("seed", 0), default=0)
+    sim.add_argument("--seed", type=_seed, default=0)
     sim.add_argument("--dtype", default="float64", help="float64 or float32 (the DI falls back to float64 "
                                                         "where float32 is not safe, README)")
     sim.add_argument("--max-work", type=_number("max-work"), default=None,
@@ -147,7 +153,7 @@ def build_parser() -> argparse.ArgumentParser:
     fg.add_argument("--out", required=True, help="output directory (created if its parent exists); Figs. 3, 8 "
                     "and 9 keep each finished run there (<fig>.points.jsonl), so rerunning an interrupted "
                     "command resumes")
-    fg.add_argument("--seed", type=_int_at_least("seed", 0), default=0)
+    fg.add_argument("--seed", type=_seed, default=0)
     sw = sub.add_parser("sweep", help="D and M0 with CIs over a grid of parameters, resumable (JSON Lines file)")
     g = sw.add_argument_group("axes: comma-separated lists (SI units); omitted ones stay at the Fig. 3 point")
     for name, conv in (("Gamma", _number("Gamma")), ("Delta", _number("Delta")), ("tau", _number("tau")),
@@ -158,7 +164,7 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--h", type=_number("h"), default=None)
     sw.add_argument("--delta", type=_number("delta"), default=None)
     sw.add_argument("--dtype", default="float64")
-    sw.add_argument("--seed", type=_int_at_least("seed", 0), default=0)
+    sw.add_argument("--seed", type=_seed, default=0)
     sw.add_argument("--n-excursions", type=_int_at_least("n-excursions", 2), default=20_000)
     sw.add_argument("--rtol", type=_number("rtol"), default=None)
     sw.add_argument("--max-work", type=_number("max-work"), default=None)

@@ -109,6 +109,11 @@ BAD += [
     (["estimate", "--block", "4096"], "block must be an integer in [1, 1024]"),
     (["bench", "--lanes", "64", "--dtype", "half"], "dtype"),
     (["bench", "--repeat", "0"], "--repeat"),
+    (["estimate", "--seed", str(2**70)], "--seed"),  # was an OverflowError traceback
+    (["figures", "--seed", "-1", "--out", "figs"], "--seed"),
+    (["estimate", "--Gamma", "1e-300"], "Gamma and Delta"),  # tau0 underflows
+    (["estimate", "--tau", "1e300"], "tau must keep"),
+    (["estimate", "--Gamma", "1e-30"], "max_work must be >= 10^("),  # a 1e30-digit work bound, in brief
 ]
 
 

@@ -448,12 +448,19 @@ def test_pdmp_float32_matches_float64_paired():
 @pytest.mark.parametrize("kw,match", [
     (dict(h=-1.0), "h must"), (dict(h=math.nan), "h must"), (dict(h=1.0), "h must"),
     (dict(n_excursions=1), "n_excursions"), (dict(method="euler"), "method"), (dict(dtype="float16"), "dtype"),
+    (dict(chunk_lanes=0), "chunk_lanes"),  # was taken for the default
 ])
 def test_api_bad_input(kw, match):
     with pytest.raises(ValueError, match=match):
         dj.estimate_diffusivity(dj.Params(**dj.FIG3), 0, **kw)
 
 
-def test_negative_seed_refused():
-    with pytest.raises(ValueError, match="seed"):
-        dj.estimate_diffusivity(dj.Params(**dj.FIG3), -1)
+@pytest.mark.parametrize("kw,match", [
+    (dict(block=0), "^block must"), (dict(chunk_lanes=0), "^chunk_lanes must"),
+    (dict(method="pdmp", max_events=0), "^max_events must"), (dict(t="1"), "^t must be a real number"),
+])
+def test_bruteforce_bad_input(kw, match):
+    """Before: an IndexError (block 0), a ZeroDivisionError (chunk_lanes 0), a run that failed
+    after simulating (max_events 0), a TypeError (t = "1")."""
+    with pytest.raises(ValueError, match=match):
+        dj.bruteforce_diffusivity(dj.Params(**dj.FIG3), 0, **(dict(t=1.0, n_paths=10) | kw))

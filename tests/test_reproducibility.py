@@ -59,6 +59,39 @@ def test_other_seed_differs():
     assert a["D"] != b["D"]
 
 
+def test_a_legacy_prngkey_is_the_same_stream_as_its_seed():
+    """jax.random.PRNGKey(s) (raw uint32[2]) and the seed s give bit-identical results; before, the
+    raw key reached the engine unwrapped and failed there with a broadcasting error."""
+    import jax
+
+    p = dj.Params(**dj.FIG3)
+    run = lambda k: _quiet_run(p, k)
+    a, b, c = run(3), run(jax.random.PRNGKey(3)), run(jax.random.key(3))
+    assert a.D == b.D == c.D and a.D_ci == b.D_ci == c.D_ci and a.M0 == b.M0 == c.M0
+    assert a.seed == 3 and b.seed is None
+
+
+@pytest.mark.parametrize("key,word", [(-1, "seed"), (2**62 + 1, "seed"), (True, "key"), (1.5, "key"), ("7", "key")])
+def test_bad_keys_are_refused_by_name(key, word):
+    """A seed out of [0, 2^62] or anything that is not a seed or one key: a ValueError naming it
+    (before: OverflowError for 2^70, JAX's TypeError for 1.5 and "7")."""
+    with pytest.raises(ValueError, match=f"^{word} must be"):
+        dj.estimate_diffusivity(dj.Params(**dj.FIG3), key, n_excursions=100)
+
+
+def test_a_batch_of_keys_is_refused():
+    import jax
+
+    with pytest.raises(ValueError, match=r"^key must be .* \(got an array of shape \(2,\)"):
+        dj.estimate_diffusivity(dj.Params(**dj.FIG3), jax.random.split(jax.random.key(0)), n_excursions=100)
+
+
+def _quiet_run(p, key):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", dj.DryfricWarning)
+        return dj.estimate_diffusivity(p, key, n_excursions=300)
+
+
 @pytest.mark.parametrize("method", ["di", "pdmp"])
 def test_lane_layouts_agree_within_ci(method):
     """128 and 1024 lanes: different chunking of the same law.  Other seeds, so the samples are
