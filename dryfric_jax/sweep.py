@@ -19,13 +19,14 @@ from __future__ import annotations
 import itertools
 import json
 import math
+import numbers
 import sys
 import time
 import warnings
 import zlib
 
 from . import __version__
-from .api import DryfricWarning, ProjectionWarning, estimate_diffusivity
+from .api import MAX_SEED, DryfricWarning, ProjectionWarning, estimate_diffusivity
 from .limits import MAX_WORK
 from .outfiles import check_writable, read_records, write_records
 from .params import FIG3, Params
@@ -66,6 +67,22 @@ def read_results(path: str) -> list[dict]:
                         "out must be a dryfric sweep file (JSON Lines); {path!r} line {line} is not a sweep record")
 
 
+def _check_points(points) -> list[dict]:
+    """``points`` as a list of parameter dicts; ``ValueError`` naming what is wrong (a TypeError
+    from ``Params`` or a dict merge before)."""
+    if isinstance(points, (str, bytes, dict)) or not hasattr(points, "__iter__"):
+        raise ValueError(f"points must be a list of parameter dicts, e.g. sweep.grid(Gamma=[1, 2]) "
+                         f"(got {type(points).__name__})")
+    points = list(points)
+    for i, pt in enumerate(points):
+        if not isinstance(pt, dict):
+            raise ValueError(f"points[{i}] must be a dict of parameters (got {type(pt).__name__})")
+        unknown = sorted(set(pt) - set(PARAM_KEYS))
+        if unknown:
+            raise ValueError(f"points[{i}] has unknown parameters {unknown} (known: {list(PARAM_KEYS)})")
+    return points
+
+
 def _at_point(show, pt):
     """``show`` (a ``warnings.showwarning``) with the sweep point appended to the message."""
     def at(message, category, *args, **kw):
@@ -95,6 +112,10 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
         points already written; the point in progress is not written.
     """
     check_writable(out)
+    points = _check_points(points)
+    if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or not 0 <= seed <= MAX_SEED:
+        raise ValueError(f"seed must be an integer in [0, 2^62] (got {seed!r})")
+    seed = int(seed)
     settings = dict(method=method, h=h, delta=delta, dtype=dtype, n_excursions=n_excursions, rtol=rtol,
                     max_work=max_work)
     full = [{**{k: FIG3[k] for k in PARAM_KEYS}, **pt} for pt in points]

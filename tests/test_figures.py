@@ -162,3 +162,13 @@ def test_fig4_pdmp_and_di_covariances_agree(figs):
     of h/h0 in standard errors (correlated lags: 4 SE)."""
     for tau, c in figs["fig4"]["curves"].items():
         assert c["max_diff_in_se"] < 4, (tau, c["max_diff_in_se"])
+
+
+@pytest.mark.parametrize("which,seed,match", [("99", 0, "^fig must be one of"), ("1", -1, "^seed must be"),
+                                              ("1", 2**62, "^seed must be"), ("1", 1.5, "^seed must be")])
+def test_run_figures_refuses_bad_input_by_name(tmp_path, which, seed, match):
+    from dryfric_jax.figures import run_figures
+
+    with pytest.raises(ValueError, match=match):
+        run_figures(which, str(tmp_path / "figs"), True, seed)
+    assert not (tmp_path / "figs").exists()

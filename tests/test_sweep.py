@@ -96,3 +96,17 @@ def test_bad_sweep_input_exit_2_one_line(argv, word, tmp_path, capsys):
     assert len(err) == 1 and err[0].startswith("dryfric: error:") and word in err[0], err
     assert (tmp_path / "bad.jsonl").read_text() == "not json\n"
     assert not (tmp_path / "a.jsonl").exists()
+
+
+@pytest.mark.parametrize("points,kw,match", [
+    ([{"Gamma": 5.0, "Gama": 1.0}], {}, r"^points\[0\] has unknown parameters \['Gama'\]"),  # was a TypeError
+    ("Gamma=5", {}, "^points must be a list of parameter dicts"),
+    ([5.0], {}, r"^points\[0\] must be a dict"),
+    ([{"Gamma": 5.0}], dict(seed=-1), "^seed must be an integer in"),  # was accepted
+    ([{"Gamma": 5.0}], dict(seed=2**63), "^seed must be an integer in"),
+])
+def test_bad_points_and_seeds_are_refused_by_name(tmp_path, points, kw, match):
+    out = tmp_path / "s.jsonl"
+    with pytest.raises(ValueError, match=match):
+        sweep.run_sweep(points, str(out), n_excursions=100, **kw)
+    assert not out.exists()
