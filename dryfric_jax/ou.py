@@ -29,6 +29,8 @@ import math
 import equinox as eqx
 import jax.numpy as jnp
 
+from .params import check_positive
+
 _N_SERIES = 30
 # coefficients c_j of ghat(r) = sum_j c_j r^j, j = k - 2, k = 3 .. 3 + _N_SERIES - 1
 _GHAT_COEFFS = [(-1) ** k * (4 - 2**k) / math.factorial(k) for k in range(3, 3 + _N_SERIES)]
@@ -106,6 +108,8 @@ def ou_step(h, tau, dtype=None) -> OUStep:
     The factor is assembled from the stable closed forms (module docstring), in float64 when
     the inputs are Python numbers, and cast to ``dtype`` at the end.
     """
+    check_positive("h", h)  # concrete values only; a tracer is checked where it was made
+    check_positive("tau", tau)
     if dtype is None:
         dtype = jnp.result_type(float)
     h = jnp.asarray(h, jnp.result_type(h, float))

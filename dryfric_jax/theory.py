@@ -19,7 +19,7 @@ import numpy as np
 from scipy import integrate, special
 
 from .limits import check_recurrent
-from .params import Params
+from .params import Params, check_finite, check_positive
 
 
 # ---------------------------------------------------------------------------------------------
@@ -65,7 +65,8 @@ def stationary_density(v, params: Params):
     """
     itl, g = _nd(params)
     vn = np.asarray(v, np.float64) / params.v0
-    return np.exp(_log_p_unnorm(vn, itl, g) - _log_norm(itl, g)) / params.v0
+    inf = np.isinf(vn)  # p(+-inf) = 0 (the exponent would be inf - inf there)
+    return np.where(inf, 0.0, np.exp(_log_p_unnorm(np.where(inf, 0.0, vn), itl, g) - _log_norm(itl, g)) / params.v0)
 
 
 def _scale(itl, g):
@@ -214,6 +215,16 @@ def _log_erfc(z):
     return math.log(2.0) + special.log_ndtr(-np.asarray(z, np.float64) * math.sqrt(2.0))
 
 
+def _times(t, *, zero_ok: bool):
+    """``t`` as a float64 array; ``ValueError`` naming ``t`` unless every entry is finite and > 0
+    (``>= 0`` with ``zero_ok``)."""
+    t = np.asarray(t, np.float64)
+    bad = ~np.isfinite(t) | ((t < 0) if zero_ok else (t <= 0))
+    if np.any(bad):
+        raise ValueError(f"t must be finite and {'>= 0' if zero_ok else '> 0'} (got {float(t[bad].flat[0])!r})")
+    return t
+
+
 def propagator(v, t, v0):
     r"""Transient density :math:`p(v, t \mid v_0)` (nondimensional, Touchette eq. 2.10 with
     :math:`\Gamma_w = 2`):
@@ -222,6 +233,8 @@ def propagator(v, t, v0):
         \frac{e^{-t/4}}{2\sqrt{\pi t}} e^{-(|v|-|v_0|)/2} e^{-(v-v_0)^2/(4t)}
         + \frac{e^{-|v|}}{4}\operatorname{erfc}\Big(\frac{|v|+|v_0|-t}{2\sqrt t}\Big).
     """
+    check_positive("t", t)
+    check_finite("v0", v0)
     v = np.asarray(v, np.float64)
     a, av = abs(v0), np.abs(v)
     st = math.sqrt(t)
@@ -236,14 +249,17 @@ def first_moment(t, v0):
         \frac{\mathrm{sgn}(v_0)}2\Big[(a-t)\operatorname{erfc}\frac{t-a}{2\sqrt t}
         + e^{a}(a+t)\operatorname{erfc}\frac{a+t}{2\sqrt t}\Big],
 
-    with :math:`e^{a}\operatorname{erfc}(\cdot)` evaluated in logs (it overflows otherwise).
+    with :math:`e^{a}\operatorname{erfc}(\cdot)` evaluated in logs (it overflows otherwise);
+    :math:`v_0` itself at t = 0.
     """
-    t = np.asarray(t, np.float64)
+    check_finite("v0", v0)
+    t = _times(t, zero_ok=True)
     a = abs(v0)
-    st = np.sqrt(t)
-    term1 = (a - t) * special.erfc((t - a) / (2 * st))
-    term2 = (a + t) * np.exp(a + _log_erfc((a + t) / (2 * st)))
-    return 0.5 * math.copysign(1.0, v0) * (term1 + term2)
+    tp = np.where(t > 0, t, 1.0)
+    st = np.sqrt(tp)
+    term1 = (a - tp) * special.erfc((tp - a) / (2 * st))
+    term2 = (a + tp) * np.exp(a + _log_erfc((a + tp) / (2 * st)))
+    return np.where(t > 0, 0.5 * math.copysign(1.0, v0) * (term1 + term2), float(v0))
 
 
 def _corr_asymptotic(t, n_terms=14):
@@ -267,7 +283,7 @@ def correlation(t):
     large t, so the common factor :math:`e^{-t/4}` is taken out through ``erfcx`` and, beyond
     t = 300, the cancelled asymptotic series is used.
     """
-    t = np.abs(np.asarray(t, np.float64))
+    t = _times(np.abs(np.asarray(t, np.float64)), zero_ok=True)  # C(-t) = C(t)
     small = t <= 300.0
     ts = np.where(small, t, 1.0)
     x = np.sqrt(ts) / 2

@@ -118,3 +118,10 @@ def test_white_noise_limit_beyond_r_1e8(r, tau):
         assert _rel(S11, rS11) < 1e-14 and _rel(S12, rS12) < 1e-14 and _rel(S22, rS22) < 1e-14
     m1, m2, *_ = (float(v) for v in ou_moments(jnp.float64(r * tau), tau))
     assert _rel(m1, 1 / r) < 1e-15 and m2 == 0.0
+
+
+@pytest.mark.parametrize("h,tau,name", [(0.0, 1.0, "h"), (-1.0, 1.0, "h"), (1.0, float("nan"), "tau")])
+def test_a_step_that_is_not_positive_is_refused(h, tau, name):
+    """Before: a factor of NaNs (h = 0: 0/0 in m1 and the Cholesky terms)."""
+    with pytest.raises(ValueError, match=f"^{name} must be finite and > 0"):
+        ou_step(h, tau)

@@ -124,3 +124,25 @@ def test_correlation_no_cancellation_in_the_tail():
     # leading behaviour C ~ 128 e^{-t/4}/(sqrt(pi) t^{3/2}), first correction -24/t
     lead = 128 * np.exp(-t[4:] / 4) / (np.sqrt(np.pi) * t[4:] ** 1.5)
     assert np.allclose(c[4:] / lead, 1 - 24 / t[4:], atol=1e-3)
+
+
+@pytest.mark.parametrize("call,match", [
+    (lambda: theory.propagator(0.5, 0.0, 1.0), "^t must be finite and > 0"),  # was a divide-by-zero
+    (lambda: theory.propagator(0.5, -1.0, 1.0), "^t must be finite and > 0"),  # was a math domain error
+    (lambda: theory.propagator(0.5, math.nan, 1.0), "^t must be finite and > 0"),  # was NaN
+    (lambda: theory.first_moment([1.0, -1.0], 1.0), "^t must be finite and >= 0"),  # was NaN
+    (lambda: theory.first_moment(1.0, math.inf), "^v0 must be a finite number"),
+    (lambda: theory.correlation([0.5, math.nan]), "^t must be finite"),
+])
+def test_touchette_formulas_refuse_bad_times_by_name(call, match):
+    with pytest.raises(ValueError, match=match):
+        call()
+
+
+def test_touchette_formulas_at_their_edges():
+    """<v(0)> = v0 (the formula divides by sqrt t); C is even; p(+-inf) = 0 (was NaN: inf - inf)."""
+    assert np.array_equal(theory.first_moment([0.0, 0.0], -1.5), [-1.5, -1.5])
+    assert theory.first_moment(1e-12, 1.0) == pytest.approx(1.0, abs=1e-6)
+    assert np.array_equal(theory.correlation([-2.0, 2.0]), theory.correlation([2.0, 2.0]))
+    p = Params(5.0, 3.84, 1e-6, 0.067, 0.342)
+    assert np.array_equal(theory.stationary_density([-np.inf, np.inf], p), [0.0, 0.0])
