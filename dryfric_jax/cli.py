@@ -16,7 +16,7 @@ import sys
 import warnings
 
 from .api import MAX_SEED
-from .outfiles import check_writable, check_writable_dir, write_atomic
+from .outfiles import check_writable, check_writable_dir, dumps, loads, write_atomic
 from .params import FIG3, Params
 from .xla_flags import default_xla_flag
 
@@ -218,7 +218,7 @@ def _check_out(path):
 
 def _write_out(path, obj):
     if path is not None:
-        write_atomic(path, json.dumps(obj, indent=1))
+        write_atomic(path, dumps(obj, indent=1))
 
 
 def _read_results(paths):
@@ -226,7 +226,7 @@ def _read_results(paths):
     for path in paths:
         try:
             with open(path) as f:
-                out.append(json.load(f))
+                out.append(loads(f.read()))
         except (OSError, json.JSONDecodeError) as e:
             raise _UserError(f"files: cannot read an estimate result from {path!r} ({e})") from None
         if not isinstance(out[-1], dict):
@@ -263,7 +263,7 @@ def _report(a, r, print_text):
         print(f"dryfric: warning: {w}", file=sys.stderr)
     _write_out(a.out, r.to_dict())
     if a.json:
-        print(json.dumps(r.to_dict()))
+        print(dumps(r.to_dict()))
     else:
         print_text(r)
 
@@ -292,10 +292,10 @@ def _run(a) -> int:
             plan = plan_estimate(Params(**FIG3), n_excursions=a.n_excursions)
             b = tune_layout(a.lanes or [plan.lanes], a.block or [plan.block], a.dtype, n_excursions=a.n_excursions,
                             repeat=a.repeat)
-            print(json.dumps(b) if a.json else format_layouts(b))
+            print(dumps(b) if a.json else format_layouts(b))
             return 0
         b = run_bench(n_excursions=a.n_excursions, repeat=a.repeat)
-        print(json.dumps(b) if a.json else format_table(b))
+        print(dumps(b) if a.json else format_table(b))
         return 0
     if a.cmd == "sweep":
         return _sweep(a)
@@ -335,7 +335,7 @@ def _run(a) -> int:
             out.update(h=a.h, chain_D=law.D, chain_M0=law.M0, chain_mean_v2=law.mean_v2,
                        mean_v2=theory.exact_mean_square_velocity(params))
         if a.json:
-            print(json.dumps(out))
+            print(dumps(out))
         else:
             print(f"white-noise D  = {out['D']:.6g} m^2/s\nwhite-noise M0 = {out['M0']:.6g} m/s")
             if a.h is not None:
@@ -392,7 +392,7 @@ def _sweep(a) -> int:
             raise _UserError("--" + str(e)) from None
         raise
     if a.json:
-        print(json.dumps(out))
+        print(dumps(out))
     else:
         print(f"{out['computed']} points computed, {out['skipped']} already in {a.out}, {out['total']} in the grid")
     if out["interrupted"]:

@@ -1,9 +1,47 @@
-"""Output files: checked writable before any work, written atomically (never a torn file)."""
+"""Output files: checked writable before any work, written atomically (never a torn file), in strict
+JSON (:func:`dumps`, :func:`loads`)."""
 from __future__ import annotations
 
 import json
+import math
 import os
 import tempfile
+
+
+_NONFINITE = {"inf": math.inf, "-inf": -math.inf, "nan": math.nan}
+
+
+def _to_strict(x):
+    if isinstance(x, float) and not math.isfinite(x):
+        return "nan" if math.isnan(x) else ("inf" if x > 0 else "-inf")
+    if isinstance(x, dict):
+        return {k: _to_strict(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_to_strict(v) for v in x]
+    return x
+
+
+def _from_strict(x):
+    if isinstance(x, str):
+        return _NONFINITE.get(x, x)
+    if isinstance(x, dict):
+        return {k: _from_strict(v) for k, v in x.items()}
+    if isinstance(x, list):
+        return [_from_strict(v) for v in x]
+    return x
+
+
+def dumps(obj, **kw) -> str:
+    """``json.dumps`` as strict JSON: a non-finite float (tau_L = inf, a D with no CI) is written as
+    the string ``"inf"``, ``"-inf"`` or ``"nan"``; Python's ``Infinity`` / ``NaN`` are refused by
+    jq, JavaScript and other strict readers.  :func:`loads` reads them back as floats."""
+    return json.dumps(_to_strict(obj), allow_nan=False, **kw)
+
+
+def loads(text: str):
+    """``json.loads`` of :func:`dumps` output (and of older files with ``Infinity``): the strings
+    ``"inf"``, ``"-inf"``, ``"nan"`` become floats again."""
+    return _from_strict(json.loads(text))
 
 
 def check_writable(path: str, name: str = "out") -> None:
@@ -57,7 +95,7 @@ def read_records(path: str, keys: tuple, refusal: str) -> list[dict]:
             if not line.strip():
                 continue
             try:
-                rec = json.loads(line)
+                rec = loads(line)
                 for k in keys:
                     rec[k]
             except (ValueError, KeyError, TypeError):
@@ -68,4 +106,4 @@ def read_records(path: str, keys: tuple, refusal: str) -> list[dict]:
 
 def write_records(path: str, records: list[dict]) -> None:
     """Rewrite a JSON Lines results file with ``records``, atomically (:func:`write_atomic`)."""
-    write_atomic(path, "".join(json.dumps(rec) + "\n" for rec in records))
+    write_atomic(path, "".join(dumps(rec) + "\n" for rec in records))

@@ -66,7 +66,8 @@ def stationary_density(v, params: Params):
     itl, g = _nd(params)
     vn = np.asarray(v, np.float64) / params.v0
     inf = np.isinf(vn)  # p(+-inf) = 0 (the exponent would be inf - inf there)
-    return np.where(inf, 0.0, np.exp(_log_p_unnorm(np.where(inf, 0.0, vn), itl, g) - _log_norm(itl, g)) / params.v0)
+    p = np.where(inf, 0.0, np.exp(_log_p_unnorm(np.where(inf, 0.0, vn), itl, g) - _log_norm(itl, g)) / params.v0)
+    return p[()]  # a scalar for a scalar v
 
 
 def _scale(itl, g):
@@ -259,7 +260,7 @@ def first_moment(t, v0):
     st = np.sqrt(tp)
     term1 = (a - tp) * special.erfc((tp - a) / (2 * st))
     term2 = (a + tp) * np.exp(a + _log_erfc((a + tp) / (2 * st)))
-    return np.where(t > 0, 0.5 * math.copysign(1.0, v0) * (term1 + term2), float(v0))
+    return np.where(t > 0, 0.5 * math.copysign(1.0, v0) * (term1 + term2), float(v0))[()]  # a scalar for a scalar t
 
 
 def _corr_asymptotic(t, n_terms=14):

@@ -338,3 +338,23 @@ def test_text_output_is_the_results_summary(capsys):
     assert repr(r).startswith("EstimateResult(D=")
     bf = dj.bruteforce_diffusivity(Params(**FIG3), 5, t=0.5, n_paths=16)
     assert str(bf) == bf.summary() and bf.summary().startswith(f"D_t  = {bf.D_t:.6g}")
+
+
+def test_json_is_strict_with_tau_L_inf_and_reads_back(tmp_path, capsys):
+    """tau_L = inf (pure dry friction) used to be written as Python's ``Infinity``, which jq,
+    JavaScript and other strict JSON readers refuse: it is the string "inf" now, on stdout and
+    in --out files, and combine reads it back as the float."""
+    def strict(text):
+        return json.loads(text, parse_constant=lambda c: pytest.fail(f"non-standard JSON constant {c}"))
+
+    common = ["estimate", "--tau-L", "inf", "--Gamma", "10", "--tau", "0.125", "--n-excursions", "100", "--json"]
+    n = 0
+    for seed in (1, 2):
+        assert main(common + ["--seed", str(seed), "--out", str(tmp_path / f"r{seed}.json")]) == 0
+        out = strict(capsys.readouterr().out)
+        assert out["params"]["tau_L"] == "inf" and math.isfinite(out["D"])
+        assert strict((tmp_path / f"r{seed}.json").read_text()) == out
+        n += out["n_excursions"]
+    assert main(["combine", str(tmp_path / "r1.json"), str(tmp_path / "r2.json"), "--json"]) == 0
+    pooled = strict(capsys.readouterr().out)
+    assert pooled["params"]["tau_L"] == "inf" and pooled["n_excursions"] == n

@@ -1,7 +1,6 @@
 """Shared by the scenes: output files (PNG, PDF and the JSON of the numbers behind the figure)."""
 from __future__ import annotations
 
-import json
 import os
 import time
 
@@ -10,6 +9,8 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+
+from ..outfiles import dumps  # noqa: E402
 
 
 def _plain(x):
@@ -32,5 +33,5 @@ def save(fig, out_dir: str, name: str, numbers: dict, t0: float) -> dict:
     fig.savefig(os.path.join(out_dir, f"{name}.pdf"))
     plt.close(fig)
     with open(os.path.join(out_dir, f"{name}.json"), "w") as f:
-        json.dump(_plain(numbers), f, indent=1)
+        f.write(dumps(_plain(numbers), indent=1))
     return numbers
