@@ -6,6 +6,7 @@ return physical numbers (D in m^2/s, M0 in m/s, durations in s) with 95% CIs.
 from __future__ import annotations
 
 import math
+import numbers
 import time
 import warnings
 from dataclasses import asdict, dataclass, field
@@ -44,13 +45,19 @@ def small_n_note(n: int) -> str:
 MAX_SEED = 2**62
 
 
+def check_seed(seed, hi: int = MAX_SEED, hi_text: str = "2^62") -> int:
+    """``seed`` as an int; ``ValueError`` naming it unless it is an integer in [0, ``hi``]."""
+    if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, numbers.Integral) or not 0 <= seed <= hi:
+        raise ValueError(f"seed must be an integer in [0, {hi_text}] (got {seed!r})")
+    return int(seed)
+
+
 def _key(key):
     """``(key, seed)`` from a seed in [0, :data:`MAX_SEED`] (None: 0) or a ``jax.random`` key
     (``seed`` None); ``ValueError`` naming ``key`` for anything else."""
-    if isinstance(key, (int, np.integer)) and not isinstance(key, (bool, np.bool_)):
-        if not 0 <= key <= MAX_SEED:
-            raise ValueError(f"seed must be an integer in [0, 2^62] (got {key})")
-        return jax.random.key(int(key)), int(key)
+    if isinstance(key, numbers.Integral) and not isinstance(key, (bool, np.bool_)):
+        seed = check_seed(key)
+        return jax.random.key(seed), seed
     if key is None:
         return jax.random.key(0), 0
     typed = isinstance(key, jax.Array) and jax.dtypes.issubdtype(key.dtype, jax.dtypes.prng_key) and key.shape == ()

@@ -19,14 +19,13 @@ from __future__ import annotations
 import itertools
 import json
 import math
-import numbers
 import sys
 import time
 import warnings
 import zlib
 
 from . import __version__
-from .api import MAX_SEED, DryfricWarning, ProjectionWarning, estimate_diffusivity
+from .api import DryfricWarning, ProjectionWarning, check_seed, estimate_diffusivity
 from .limits import MAX_WORK
 from .outfiles import check_writable, read_records, write_records
 from .params import FIG3, Params
@@ -113,9 +112,7 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
     """
     check_writable(out)
     points = _check_points(points)
-    if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or not 0 <= seed <= MAX_SEED:
-        raise ValueError(f"seed must be an integer in [0, 2^62] (got {seed!r})")
-    seed = int(seed)
+    seed = check_seed(seed)
     settings = dict(method=method, h=h, delta=delta, dtype=dtype, n_excursions=n_excursions, rtol=rtol,
                     max_work=max_work)
     full = [{**{k: FIG3[k] for k in PARAM_KEYS}, **pt} for pt in points]
