@@ -202,7 +202,7 @@ INF = math.inf
 RUNS = [  # (Gamma, tau, h/tau or None (default h), tau_L, gamma_bar/Delta, dtype, method, expected)
     (1e3, 1e-8, 1e6, INF, 0.0, "float32", "di", "finite"),  # white noise, h/tau = 1e6
     (1e3, 1e-8, None, INF, 0.5, "float64", "di", "finite"),
-    (5.0, 1e-300, None, 0.067, 0.0, "float32", "di", "finite"),  # tau' = 3e-300: float64 (r = 2e297)
+    (5.0, 1e-300, None, 0.067, 0.0, "float32", "di", "finite"),  # tau' = 3e-300, h/tau = 7e296: float64
     (1e-3, 1e-6, None, 1e-4, 0.0, "float64", "di", "finite"),  # tiny Gamma
     (1e-3, 1e-4, 1e-3, 1e-4, 0.0, "float32", "di", "finite"),
     (1e-1, 1e-2, 1e-3, 0.067, 0.99, "float32", "di", "finite"),  # |gamma_bar| near Delta
