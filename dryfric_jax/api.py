@@ -43,6 +43,8 @@ def small_n_note(n: int) -> str:
 #: seeds are integers in [0, MAX_SEED] (jax.random.key takes a signed 64-bit seed; the figures add
 #: offsets below 2^20 to theirs)
 MAX_SEED = 2**62
+#: the largest seed of the figures, which add offsets below 2^20 (the CLI takes the same range)
+MAX_FIGURE_SEED = MAX_SEED - 2**20
 
 
 def check_seed(seed, hi: int = MAX_SEED, hi_text: str = "2^62") -> int:

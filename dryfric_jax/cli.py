@@ -15,7 +15,7 @@ import os
 import sys
 import warnings
 
-from .api import MAX_SEED
+from .api import MAX_FIGURE_SEED
 from .outfiles import check_writable, check_writable_dir, dumps, loads, write_atomic
 from .params import FIG3, Params
 from .xla_flags import default_xla_flag
@@ -75,7 +75,7 @@ def _int_at_least(name, lo, hi=None, hi_text=None):
     return conv
 
 
-_seed = _int_at_least("seed", 0, MAX_SEED - 2**20, "2^62 - 2^20")  # the figures add offsets < 2^20
+_seed = _int_at_least("seed", 0, MAX_FIGURE_SEED, "2^62 - 2^20")
 
 
 def _model_options() -> argparse.ArgumentParser:

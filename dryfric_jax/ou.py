@@ -47,12 +47,12 @@ def _ghat(r):
     for c in reversed(_GHAT_COEFFS):  # Horner
         acc = acc * rs + c
     series = acc * rs
-    rb = jnp.where(small, 2.0, r)
-    direct = (2 * rb - 3 + 4 * jnp.exp(-rb) - jnp.exp(-2 * rb)) / rb**2
     # r > 1e8: the exponentials are exactly 0 and r^2 may overflow (white noise, tau' -> 0)
-    rh = jnp.where(r > _R_HUGE, r, 2.0)
-    huge = (2.0 - 3.0 / rh) / rh
-    return jnp.where(small, series, jnp.where(r > _R_HUGE, huge, direct))
+    huge = r > _R_HUGE
+    rb = jnp.where(small | huge, 2.0, r)
+    direct = (2 * rb - 3 + 4 * jnp.exp(-rb) - jnp.exp(-2 * rb)) / rb**2
+    rh = jnp.where(huge, r, 2.0)
+    return jnp.where(small, series, jnp.where(huge, (2.0 - 3.0 / rh) / rh, direct))
 
 
 def ou_moments(h, tau):

@@ -7,11 +7,18 @@ import math
 import os
 import tempfile
 
+import numpy as np
+
 
 _NONFINITE = {"inf": math.inf, "-inf": -math.inf, "nan": math.nan}
 
 
 def _to_strict(x):
+    """Plain JSON values: numpy arrays and scalars as Python ones, non-finite floats as strings."""
+    if isinstance(x, np.ndarray):
+        return _to_strict(x.tolist())
+    if isinstance(x, (np.floating, np.integer, np.bool_)):
+        x = x.item()
     if isinstance(x, float) and not math.isfinite(x):
         return "nan" if math.isnan(x) else ("inf" if x > 0 else "-inf")
     if isinstance(x, dict):
@@ -32,7 +39,8 @@ def _from_strict(x):
 
 
 def dumps(obj, **kw) -> str:
-    """``json.dumps`` as strict JSON: a non-finite float (tau_L = inf, a D with no CI) is written as
+    """``json.dumps`` as strict JSON (numpy values included): a non-finite float (tau_L = inf, a D
+    with no CI) is written as
     the string ``"inf"``, ``"-inf"`` or ``"nan"``; Python's ``Infinity`` / ``NaN`` are refused by
     jq, JavaScript and other strict readers.  :func:`loads` reads them back as floats."""
     return json.dumps(_to_strict(obj), allow_nan=False, **kw)

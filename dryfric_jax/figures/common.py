@@ -8,21 +8,8 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
 
 from ..outfiles import dumps  # noqa: E402
-
-
-def _plain(x):
-    if isinstance(x, dict):
-        return {k: _plain(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_plain(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _plain(x.tolist())
-    if isinstance(x, (np.floating, np.integer)):
-        return x.item()
-    return x
 
 
 def save(fig, out_dir: str, name: str, numbers: dict, t0: float) -> dict:
@@ -33,5 +20,5 @@ def save(fig, out_dir: str, name: str, numbers: dict, t0: float) -> dict:
     fig.savefig(os.path.join(out_dir, f"{name}.pdf"))
     plt.close(fig)
     with open(os.path.join(out_dir, f"{name}.json"), "w") as f:
-        f.write(dumps(_plain(numbers), indent=1))
+        f.write(dumps(numbers, indent=1))
     return numbers
