@@ -15,8 +15,8 @@ jax.config.update("jax_enable_x64", True)
 
 from . import theory  # noqa: E402
 from .api import (  # noqa: E402
-    BruteForceResult, DryfricWarning, EstimateResult, ProjectionWarning, bruteforce_diffusivity, default_h,
-    estimate_diffusivity,
+    BruteForceResult, DryfricWarning, EstimateResult, NoEstimateError, ProjectionWarning, bruteforce_diffusivity,
+    default_h, estimate_diffusivity,
 )
 from .chain_law import ChainLaw, white_chain_law  # noqa: E402
 from .combine import combine_estimates, gather_hosts  # noqa: E402
@@ -29,8 +29,8 @@ from .plan import Plan, plan_estimate  # noqa: E402
 __all__ = [
     "Params", "FIG3", "OUStep", "ou_step", "ou_moments", "DIModel", "make_di_model",
     "estimate_diffusivity", "bruteforce_diffusivity", "EstimateResult", "BruteForceResult",
-    "DryfricWarning", "ProjectionWarning", "default_h", "Plan", "plan_estimate", "delta_method", "psi_D",
-    "psi_M", "MIN_RELIABLE_N",
+    "DryfricWarning", "ProjectionWarning", "NoEstimateError", "default_h", "Plan", "plan_estimate",
+    "delta_method", "psi_D", "psi_M", "MIN_RELIABLE_N",
     "theory", "ChainLaw", "white_chain_law", "combine_estimates", "gather_hosts",
 ]
 __version__ = "0.1.0"

@@ -29,6 +29,12 @@ class DryfricWarning(UserWarning):
     """A result that should be read with care (too few excursions, truncated excursions)."""
 
 
+class NoEstimateError(RuntimeError):
+    """A run ended without an estimate: fewer than 2 complete excursions within its work bounds
+    (``max_work``, ``max_steps``, ``max_time``).  Without ``max_time`` it is deterministic: the same
+    seed and settings end the same way, so a sweep records the point as failed and does not rerun it."""
+
+
 class ProjectionWarning(DryfricWarning):
     """Said while a run is going (max_work is projected to end it early): not in the result,
     which says what did happen."""
@@ -340,7 +346,7 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
                      f"(max_steps = {plan.max_steps} {unit} per excursion) and are excluded: "
                      "the estimate is biased low")
     if sim.n_excursions < 2:
-        raise RuntimeError("fewer than 2 complete excursions within the work bounds (raise max_work / max_steps): "
+        raise NoEstimateError("fewer than 2 complete excursions within the work bounds (raise max_work / max_steps): "
                            + "; ".join(notes))
     if sim.n_excursions < MIN_RELIABLE_N:
         notes.append(small_n_note(sim.n_excursions))

@@ -4,6 +4,9 @@ Exit codes: 0 success; 2 a user mistake (one line on stderr naming the parameter
 range, no traceback, nothing simulated); 3 a result was printed (and written to ``--out``) but
 excursions hit the work bound, so it is biased (``--allow-truncated`` accepts it: exit 0);
 1 no result possible (fewer than 2 complete excursions within the work bounds); 130 Ctrl-C.
+``sweep`` runs every point it can: 1 if a point ended without a result, else 3 if a point's
+excursions were truncated (``--allow-truncated``), else 0; its refused and failed points are
+recorded in the results file with their reasons.
 """
 from __future__ import annotations
 
@@ -168,6 +171,13 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--n-excursions", type=_int_at_least("n-excursions", 2), default=20_000)
     sw.add_argument("--rtol", type=_number("rtol"), default=None)
     sw.add_argument("--max-work", type=_number("max-work"), default=None)
+    sw.add_argument("--skip-refused", action="store_true",
+                    help="record the points the planner refuses (predicted work over --max-work, no stationary "
+                         "state, ...) as 'refused' and run the others; without it such a grid is refused "
+                         "(exit 2) and the message names every refused point")
+    sw.add_argument("--allow-truncated", action="store_true",
+                    help="exit 0 even when points have truncated excursions (their results are biased low; "
+                         "exit 3 otherwise)")
     sw.add_argument("--json", action="store_true", help="print a JSON summary")
     cb = sub.add_parser("combine", help="pool the excursions of independent estimate runs (JSON files of "
                                         "'estimate --out' or '--json', different seeds, same model)")
@@ -378,27 +388,45 @@ def _run(a) -> int:
     raise _UserError(f"unknown command {a.cmd!r}")
 
 
+def _points(n: int) -> str:
+    return f"{n} point" + ("" if n == 1 else "s")
+
+
 def _sweep(a) -> int:
     from . import sweep
 
     axes = {k: getattr(a, k) for k in ("Gamma", "Delta", "tau", "tau_L", "gamma_bar") if getattr(a, k) is not None}
     kw = dict(seed=a.seed, method=a.method, h=a.h, delta=a.delta, dtype=a.dtype, n_excursions=a.n_excursions,
-              rtol=a.rtol, **_work_options(a))
+              rtol=a.rtol, skip_refused=a.skip_refused, **_work_options(a))
     try:
         with _warnings_kept_in_result():  # a point's ProjectionWarning on stderr at once
             out = sweep.run_sweep(sweep.grid(**axes), a.out, progress=sweep.progress_bar, **kw)
     except ValueError as e:
         if str(e).startswith("out must"):
             raise _UserError("--" + str(e)) from None
-        raise
+        raise _UserError(str(e).replace("skip_refused=True (CLI: --skip-refused)", "--skip-refused")) from None
     if a.json:
         print(dumps(out))
     else:
-        print(f"{out['computed']} points computed, {out['skipped']} already in {a.out}, {out['total']} in the grid")
+        extra = "".join(f", {out[k]} {k}" for k in ("refused", "failed", "truncated") if out[k])
+        print(f"{out['computed']} points computed, {out['skipped']} already in {a.out}, {out['total']} in the grid"
+              + extra)
     if out["interrupted"]:
         print(f"dryfric: interrupted: {out['computed']} new points were written to {a.out}; run the same command "
               "again to resume", file=sys.stderr)
         return 130
+    if out["refused"] or out["failed"]:
+        print(f"dryfric: note: {_points(out['refused'])} refused and {_points(out['failed'])} failed: no result; "
+              f"their reasons are in {a.out} (status, reason)", file=sys.stderr)
+    if out["failed"]:
+        print(f"dryfric: error: {_points(out['failed'])} ended without an estimate (fewer than 2 complete excursions "
+              "within the work bounds); a rerun with the same settings skips them (they would fail again); run those "
+              "points with a larger --max-work to retry them", file=sys.stderr)
+        return 1
+    if out["truncated"] and not a.allow_truncated:
+        print(f"dryfric: warning: {_points(out['truncated'])} with truncated excursions: their results are biased "
+              "low; exit 3 (--allow-truncated accepts them)", file=sys.stderr)
+        return 3
     return 0
 
 

@@ -34,6 +34,9 @@ _SAME = ("params", "method", "h", "delta", "L_X", "dtype")
 def _as_result(r) -> EstimateResult:
     if isinstance(r, EstimateResult):
         return r
+    if isinstance(r, dict) and r.get("status", "ok") != "ok" and "params" in r:  # a sweep's refused/failed point
+        raise ValueError(f"results must be estimate results: a sweep record of a {r['status']} point has none "
+                         f"({str(r.get('reason', ''))[:200]})")
     if isinstance(r, dict) and isinstance(r.get("result"), dict) and "params" in r:  # a sweep's record
         r = {**r["result"], "params": r["params"], "seed": r.get("seed")}
     if isinstance(r, dict):  # EstimateResult.to_dict() (the JSON of 'dryfric estimate --out')

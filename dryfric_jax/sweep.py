@@ -11,8 +11,17 @@ recomputed; new points are appended.  The seed of a point is derived from the sw
 point itself (not from its position in the grid), so adding points to a grid never changes the
 others, and a resumed sweep gives bit-identical records.
 
-Every point is planned first (:func:`~dryfric_jax.plan.plan_estimate`): a grid with an invalid
-or infeasible point is refused before anything is simulated.
+Every point is planned first (:func:`~dryfric_jax.plan.plan_estimate`).  A point with invalid
+parameters refuses the grid before anything is simulated.  A point the planner refuses (its
+predicted work exceeds ``max_work``, no stationary state, an inadmissible h or delta) refuses the
+grid too, and the message names every such point; with ``skip_refused`` they are recorded as
+``"refused"`` (with the reason) and the others run.  A point that runs but ends without an
+estimate (:class:`~dryfric_jax.api.NoEstimateError`: fewer than 2 complete excursions within the
+work bounds) is recorded as ``"failed"`` and the sweep goes on; with the same seed and settings it
+would fail again, so a resumed sweep does not rerun it (raise ``max_work``, which changes the
+settings, or delete its line).  Each record's ``status`` is ``"ok"`` (with ``result``),
+``"refused"`` or ``"failed"`` (with ``reason``); records written before statuses existed are
+``"ok"``.
 """
 from __future__ import annotations
 
@@ -25,7 +34,7 @@ import warnings
 import zlib
 
 from . import __version__
-from .api import DryfricWarning, ProjectionWarning, check_seed, estimate_diffusivity
+from .api import DryfricWarning, NoEstimateError, ProjectionWarning, check_seed, estimate_diffusivity
 from .limits import MAX_WORK
 from .outfiles import check_writable, read_records, write_records
 from .params import FIG3, Params
@@ -34,6 +43,8 @@ from .plan import plan_estimate
 PARAM_KEYS = ("Gamma", "Delta", "tau", "tau_L", "gamma_bar")
 #: settings that determine a point's result (with its parameters and seed)
 SETTING_KEYS = ("method", "h", "delta", "dtype", "n_excursions", "rtol", "max_work")
+#: the points of a refusal message named beyond the first
+MAX_NAMED = 5
 
 
 def grid(**axes) -> list[dict]:
@@ -82,6 +93,11 @@ def _check_points(points) -> list[dict]:
     return points
 
 
+def status(record: dict) -> str:
+    """A record's status: ``"ok"``, ``"refused"`` or ``"failed"`` (``"ok"`` for older records)."""
+    return record.get("status", "ok")
+
+
 def _at_point(show, pt):
     """``show`` (a ``warnings.showwarning``) with the sweep point appended to the message."""
     def at(message, category, *args, **kw):
@@ -89,9 +105,21 @@ def _at_point(show, pt):
     return at
 
 
+def _refusal_text(refused: list, total: int) -> str:
+    """One line: the first refused point's reason in full, then the others' points and first clauses."""
+    (pt, why), rest = refused[0], refused[1:]
+    text = f"{why} [at sweep point {json.dumps(pt)}]"
+    if rest:
+        named = "; ".join(f"{json.dumps(p)} ({w.split(':')[0]})" for p, w in rest[:MAX_NAMED])
+        more = f"; and {len(rest) - MAX_NAMED} more" if len(rest) > MAX_NAMED else ""
+        text = f"{len(refused)} of {total} sweep points are refused. {text}. Also refused: {named}{more}"
+    return (f"{text}.  Nothing was run; skip_refused=True (CLI: --skip-refused) records the refused points "
+            "and runs the others")
+
+
 def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di", h=None, delta=None,
               dtype: str = "float64", n_excursions: int = 20_000, rtol=None, max_work: float = MAX_WORK,
-              progress=None) -> dict:
+              skip_refused: bool = False, progress=None) -> dict:
     r"""Estimate D and M0 at every point, one JSON line per finished point in ``out``.
 
     Args:
@@ -100,15 +128,22 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
         seed: the sweep seed; point seeds come from :func:`point_seed`.
         method, h, delta, dtype, n_excursions, rtol, max_work: as in
             :func:`~dryfric_jax.api.estimate_diffusivity`, the same for every point.
+        skip_refused: record the points the planner refuses (status ``"refused"``) and run the
+            others, instead of refusing the grid (``ValueError`` naming every refused point).
         progress: optional ``progress(done, total, record)`` after each point (and once at start).
 
     The points' warnings are kept in their records, not shown; a
     :class:`~dryfric_jax.api.ProjectionWarning` (max_work will end a point early) is shown at
-    once, with the point.
+    once, with the point.  A point that ends without an estimate is recorded as ``"failed"``
+    (module docstring) and the sweep goes on.
 
     Returns:
-        ``dict(computed=k, skipped=s, total=n, interrupted=bool)``.  A Ctrl-C stops after the
-        points already written; the point in progress is not written.
+        ``dict(computed=k, skipped=s, total=n, interrupted=bool, refused=r, failed=f, truncated=t)``:
+        k points run now (``"ok"`` or ``"failed"``), s found in the file (``"ok"`` or
+        ``"failed"``, not rerun); r, f and t count the grid's distinct points now recorded as
+        refused, failed, or ``"ok"`` with truncated excursions
+        (a result biased low).  A Ctrl-C stops after the points already written; the point in
+        progress is not written.
     """
     check_writable(out)
     points = _check_points(points)
@@ -116,25 +151,46 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
     settings = dict(method=method, h=h, delta=delta, dtype=dtype, n_excursions=n_excursions, rtol=rtol,
                     max_work=max_work)
     full = [{**{k: FIG3[k] for k in PARAM_KEYS}, **pt} for pt in points]
-    for pt in full:  # plan every point first: bad or infeasible input is refused before any work
+    refused = {}  # ident -> (point, reason); every point is planned before any work
+    for pt in full:
         try:
-            plan_estimate(Params(**pt), method=method, h=h, delta=delta, dtype=dtype, n_excursions=n_excursions,
+            p = Params(**pt)
+        except ValueError as e:  # invalid parameters: the grid itself is wrong
+            raise ValueError(f"{e} [at sweep point {json.dumps(pt)}]") from None
+        try:
+            plan_estimate(p, method=method, h=h, delta=delta, dtype=dtype, n_excursions=n_excursions,
                           max_work=max_work)
         except ValueError as e:
-            raise ValueError(f"{e} [at sweep point {json.dumps(pt)}]") from None
+            refused.setdefault(_ident(seed, pt, settings), (pt, str(e)))
+    if refused and not skip_refused:
+        raise ValueError(_refusal_text(list(refused.values()), len(full)))
     records = read_results(out)
-    have = {_ident(r["sweep_seed"], r["params"], r["settings"]) for r in records}
-    todo = []
-    for pt in full:
-        ident = _ident(seed, pt, settings)
-        if ident not in have:
-            todo.append(pt)
-            have.add(ident)  # a point listed twice runs once
-    total, done = len(full), len(full) - len(todo)
+    grid_idents = [_ident(seed, pt, settings) for pt in full]
+    # a refused record of a grid point that the planner now accepts (another version) is dropped and run
+    stale = set(grid_idents) - set(refused)
+    kept = [r for r in records if status(r) != "refused"
+            or _ident(r["sweep_seed"], r["params"], r["settings"]) not in stale]
+    have = {_ident(r["sweep_seed"], r["params"], r["settings"]): r for r in kept}
+    new_refused = [(i, pt, why) for i, (pt, why) in refused.items() if i not in have]
+    for i, pt, why in new_refused:
+        rec = _record(seed, pt, settings, "refused", reason=why)
+        kept.append(rec)
+        have[i] = rec
+    if len(kept) != len(records) or new_refused:
+        write_records(out, kept)
+    records = kept
+    todo, seen = [], set(have)
+    for ident, pt in zip(grid_idents, full):
+        if ident not in seen:
+            todo.append((ident, pt))
+            seen.add(ident)  # a point listed twice runs once
+    total = len(full)
+    done = total - len(todo)
+    skipped = done - sum(i in have and status(have[i]) == "refused" for i in grid_idents)
     if progress:
         progress(done, total, None)
     computed, interrupted = 0, False
-    for pt in todo:
+    for ident, pt in todo:
         s = point_seed(seed, pt, settings)
         try:
             with warnings.catch_warnings():  # the warnings are kept in the record ...
@@ -146,21 +202,60 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
         except KeyboardInterrupt:
             interrupted = True
             break
-        if r.stopped_by == "interrupted":  # Ctrl-C inside the point: not a finished point
-            interrupted = True
-            break
-        res = r.to_dict()
-        for k in ("params", "seed"):
-            res.pop(k)
-        rec = dict(params=pt, settings=settings, sweep_seed=seed, seed=s, version=__version__,
-                   finished_at=time.strftime("%Y-%m-%dT%H:%M:%S"), result=res)
+        except NoEstimateError as e:  # deterministic: recorded, not rerun on resume
+            rec = _record(seed, pt, settings, "failed", reason=str(e))
+        else:
+            if r.stopped_by == "interrupted":  # Ctrl-C inside the point: not a finished point
+                interrupted = True
+                break
+            res = r.to_dict()
+            for k in ("params", "seed"):
+                res.pop(k)
+            rec = _record(seed, pt, settings, "ok", result=res)
         records.append(rec)
+        have[ident] = rec
         write_records(out, records)
         computed += 1
         done += 1
         if progress:
             progress(done, total, rec)
-    return dict(computed=computed, skipped=total - len(todo), total=total, interrupted=interrupted)
+    mine = [have[i] for i in dict.fromkeys(grid_idents) if i in have]  # the grid's distinct points
+    count = {k: sum(status(r) == k for r in mine) for k in ("refused", "failed")}
+    truncated = sum(status(r) == "ok" and r["result"].get("n_truncated", 0) > 0 for r in mine)
+    return dict(computed=computed, skipped=skipped, total=total, interrupted=interrupted,
+                refused=count["refused"], failed=count["failed"], truncated=truncated)
+
+
+def _record(seed: int, pt: dict, settings: dict, state: str, **what) -> dict:
+    return dict(params=pt, settings=settings, sweep_seed=seed, seed=point_seed(seed, pt, settings),
+                version=__version__, finished_at=time.strftime("%Y-%m-%dT%H:%M:%S"), status=state, **what)
+
+
+def failures(path: str) -> list[dict]:
+    """The refused and failed records of a sweep file (``status``, ``params``, ``reason``)."""
+    return [r for r in read_results(path) if status(r) != "ok"]
+
+
+ROW_KEYS = ("D", "D_ci", "M0", "M0_ci", "mean_duration", "n_excursions", "n_truncated", "method")
+
+
+def rows(path: str, seed: int | None = None, **settings) -> list[dict]:
+    """The records of a sweep file as flat dicts for tables and plots, sorted by the parameters:
+    the parameters, ``status``, the result's :data:`ROW_KEYS` (NaN for a point without a result)
+    and ``reason``.  ``seed`` (the sweep seed) and keyword settings keep only the matching records
+    (e.g. ``n_excursions=500``)."""
+    unknown = sorted(set(settings) - set(SETTING_KEYS))
+    if unknown:
+        raise ValueError(f"settings must be among {list(SETTING_KEYS)} (got {unknown})")
+    out = []
+    for r in read_results(path):
+        if (seed is not None and r["sweep_seed"] != seed) or any(r["settings"].get(k) != v
+                                                                 for k, v in settings.items()):
+            continue
+        res = r.get("result") or {}
+        out.append({**r["params"], "status": status(r), **{k: res.get(k, math.nan) for k in ROW_KEYS},
+                    "reason": r.get("reason", "")})
+    return sorted(out, key=lambda r: tuple(r[k] for k in PARAM_KEYS))
 
 
 def progress_bar(done: int, total: int, rec) -> None:
@@ -169,8 +264,12 @@ def progress_bar(done: int, total: int, rec) -> None:
     fill = int(width * done / max(total, 1))
     last = ""
     if rec is not None:
-        r, p = rec["result"], rec["params"]
-        last = f"  Gamma={p['Gamma']:.4g} tau={p['tau']:.4g}: D={r['D']:.4g}±{r['D_ci']:.2g}"
+        p = rec["params"]
+        last = f"  Gamma={p['Gamma']:.4g} tau={p['tau']:.4g}: "
+        if status(rec) == "ok":
+            last += f"D={rec['result']['D']:.4g}±{rec['result']['D_ci']:.2g}"
+        else:
+            last += f"{status(rec)} ({rec['reason'].split(':')[0]})"
     line = f"[{'#' * fill}{'.' * (width - fill)}] {done}/{total} points{last}"
     if sys.stderr.isatty():
         print("\r" + line[:150].ljust(150), end="" if done < total else "\n", file=sys.stderr, flush=True)

@@ -12,8 +12,9 @@ NOTEBOOKS = sorted((pathlib.Path(__file__).parent.parent / "notebooks").glob("*.
 
 
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.name for p in NOTEBOOKS])
-def test_notebook_runs(path, monkeypatch):
+def test_notebook_runs(path, monkeypatch, tmp_path):
     monkeypatch.setenv("DRYFRIC_QUICK", "1")
+    monkeypatch.chdir(tmp_path)  # the sweep notebook writes its results file to the working directory
     nb = json.loads(path.read_text())
     ns = {"__name__": "__main__"}
     for i, cell in enumerate(nb["cells"]):

@@ -1,5 +1,6 @@
 """Sweeps: atomic per-point records, resume without recomputing or duplicating, kill-safe."""
 import json
+import math
 import os
 import signal
 import subprocess
@@ -8,7 +9,7 @@ import time
 
 import pytest
 
-from dryfric_jax import sweep
+from dryfric_jax import ProjectionWarning, sweep
 from dryfric_jax.cli import main
 
 
@@ -21,7 +22,7 @@ def test_resume_skips_finished_points_and_adds_new_ones(tmp_path):
     out = str(tmp_path / "s.jsonl")
     kw = dict(n_excursions=200, seed=3)
     r1 = sweep.run_sweep(sweep.grid(Gamma=[2.0, 5.0]), out, **kw)
-    assert r1 == dict(computed=2, skipped=0, total=2, interrupted=False)
+    assert r1 == dict(computed=2, skipped=0, total=2, interrupted=False, refused=0, failed=0, truncated=0)
     first = _lines(out)
     r2 = sweep.run_sweep(sweep.grid(Gamma=[5.0, 2.0, 8.0, 8.0]), out, **kw)  # reordered, one new, one twice
     assert r2["computed"] == 1 and r2["skipped"] == 3
@@ -39,7 +40,9 @@ def test_a_point_that_max_work_ends_early_says_so_at_once(tmp_path, capsys):
     """The sweep keeps its points' warnings in the records, but a ProjectionWarning (max_work
     will end the point before N) is said at once, naming the point; the CLI prints it on stderr."""
     out = str(tmp_path / "s.jsonl")
-    assert main(["sweep", "--Gamma", "5", "--n-excursions", "3000", "--max-work", "2e7", "--out", out, "--json"]) == 0
+    # exit 3: the small max_work also bounds each excursion (max_steps = max_work / lanes), and the
+    # sweep now counts the point's truncated excursions (it exited 0 before)
+    assert main(["sweep", "--Gamma", "5", "--n-excursions", "3000", "--max-work", "2e7", "--out", out, "--json"]) == 3
     err = capsys.readouterr().err
     said = [ln for ln in err.splitlines() if "is projected to end the run" in ln]
     assert len(said) == 1 and said[0].startswith("dryfric: warning: max_work = 2e+07") and \
@@ -110,3 +113,86 @@ def test_bad_points_and_seeds_are_refused_by_name(tmp_path, points, kw, match):
     with pytest.raises(ValueError, match=match):
         sweep.run_sweep(points, str(out), n_excursions=100, **kw)
     assert not out.exists()
+
+
+def test_every_refused_point_is_named_and_nothing_runs(tmp_path):
+    """A grid with infeasible points is refused before any work, naming all of them (it named
+    only the first, so a 10 x 10 grid took one failed try per refused point)."""
+    out = tmp_path / "s.jsonl"
+    pts = [dict(Gamma=0.5, tau=2.0), dict(Gamma=5.0), dict(Gamma=0.6, tau=2.0)]
+    with pytest.raises(ValueError, match=r"^2 of 3 sweep points are refused\. max_work must be >= ") as e:
+        sweep.run_sweep(pts, str(out), n_excursions=100)
+    msg = str(e.value)
+    assert '"Gamma": 0.5' in msg and '"Gamma": 0.6' in msg and '"Gamma": 5.0' not in msg
+    assert "skip_refused=True" in msg and "\n" not in msg
+    assert not out.exists()
+    with pytest.raises(ValueError, match="^Gamma must be"):  # invalid parameters are never skipped
+        sweep.run_sweep([dict(Gamma=-1.0)], str(out), n_excursions=100, skip_refused=True)
+    assert not out.exists()
+
+
+def test_refused_and_failed_points_are_recorded_and_the_sweep_goes_on(tmp_path, capsys):
+    """skip_refused records the planner's refusals; a point that runs but ends without an estimate
+    (Gamma = 1e6: the work predictor is far too low there, README "Predicted work") is recorded
+    as failed instead of ending the sweep; a rerun recomputes neither (it would fail the same way)."""
+    from dryfric_jax import combine_estimates
+
+    out = str(tmp_path / "s.jsonl")
+    kw = dict(n_excursions=50, max_work=3e6, skip_refused=True)
+    pts = sweep.grid(Gamma=[0.5, 20.0, 1e6])
+    seen = []
+    with pytest.warns(ProjectionWarning, match=r"Gamma\": 1000000\.0"):  # said at once, with the point
+        r1 = sweep.run_sweep(pts, out, progress=lambda d, t, rec: (seen.append(rec), sweep.progress_bar(d, t, rec)),
+                             **kw)
+    assert r1 == dict(computed=2, skipped=0, total=3, interrupted=False, refused=1, failed=1, truncated=0)
+    recs = _lines(out)
+    assert [(r["params"]["Gamma"], r["status"]) for r in recs] == [(0.5, "refused"), (20.0, "ok"), (1e6, "failed")]
+    assert recs[0]["reason"].startswith("max_work must be >= ") and "result" not in recs[0]
+    assert recs[2]["reason"].startswith("fewer than 2 complete excursions") and "result" not in recs[2]
+    assert recs[1]["result"]["D"] > 0 and recs[1]["result"]["n_truncated"] == 0
+    assert [sweep.status(r) for r in seen[1:]] == ["ok", "failed"]
+    assert "failed (fewer than 2 complete excursions" in capsys.readouterr().err  # the progress line
+    assert [r["params"]["Gamma"] for r in sweep.failures(out)] == [0.5, 1e6]
+    table = sweep.rows(out, seed=0, n_excursions=50)
+    assert [(r["Gamma"], r["status"]) for r in table] == [(0.5, "refused"), (20.0, "ok"), (1e6, "failed")]
+    assert table[1]["D"] == recs[1]["result"]["D"] and math.isnan(table[2]["D"]) and table[2]["reason"]
+    assert sweep.rows(out, seed=1) == [] and sweep.rows(out, n_excursions=51) == []
+    with pytest.raises(ValueError, match=r"^settings must be among .* \(got \['n_excursion'\]\)"):
+        sweep.rows(out, n_excursion=50)
+    with pytest.raises(ValueError, match="sweep record of a failed point"):
+        combine_estimates([recs[2]])
+
+    # resumed: nothing rerun, the file unchanged; the CLI says why it exits 1
+    assert sweep.run_sweep(pts, out, **kw) == dict(computed=0, skipped=2, total=3, interrupted=False, refused=1,
+                                                   failed=1, truncated=0)
+    assert _lines(out) == recs
+    argv = ["sweep", "--Gamma", "0.5,20,1e6", "--n-excursions", "50", "--max-work", "3e6", "--out", out]
+    assert main(argv + ["--skip-refused"]) == 1
+    err = capsys.readouterr().err
+    assert "1 point refused and 1 point failed" in err and "1 point ended without an estimate" in err
+    assert main(argv) == 2  # without --skip-refused the grid is still refused, the file untouched
+    assert "Nothing was run; --skip-refused records" in capsys.readouterr().err
+    assert _lines(out) == recs
+
+    # a refused record of a point the planner now accepts (e.g. a newer version) is dropped and the point run
+    stale = dict(recs[1], params=dict(recs[1]["params"], Gamma=25.0), status="refused", reason="stale")
+    stale.pop("result")
+    with open(out, "a") as f:
+        f.write(json.dumps(stale) + "\n")
+    r3 = sweep.run_sweep(sweep.grid(Gamma=[25.0]), out, **kw)
+    assert r3["computed"] == 1 and r3["refused"] == 0
+    assert [(r["params"]["Gamma"], r["status"]) for r in _lines(out)][3:] == [(25.0, "ok")]
+
+
+def test_truncated_points_exit_3_unless_allowed(tmp_path, capsys):
+    """A point whose excursions hit the work bound (max_steps = max_work / lanes) has a result
+    biased low: the sweep counts it and exits 3 like 'estimate', or 0 with --allow-truncated."""
+    out = str(tmp_path / "s.jsonl")
+    argv = ["sweep", "--Gamma", "5", "--n-excursions", "200", "--max-work", "2e6", "--out", out, "--json"]
+    assert main(argv) == 3
+    cap = capsys.readouterr()
+    assert json.loads(cap.out)["truncated"] == 1 and "1 point with truncated excursions" in cap.err
+    (rec,) = _lines(out)
+    assert rec["status"] == "ok" and rec["result"]["n_truncated"] > 0
+    assert main(argv + ["--allow-truncated"]) == 0  # resumed, nothing rerun
+    assert _lines(out) == [rec]
