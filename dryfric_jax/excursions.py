@@ -494,21 +494,29 @@ class Lanes:
     final round has idle lanes (waiting for the slowest in-flight excursion).
 
     Lanes are sharded over all local devices (CPU devices from
-    ``--xla_force_host_platform_device_count``, or GPUs); the lane count is rounded up to a
-    multiple of the device count.  Round keys: ``split(key, lanes)`` per lane, and
-    ``fold_in(lane_key, block)`` per block.
+    ``--xla_force_host_platform_device_count``, or GPUs).  Round keys: ``split(key, lanes)`` per
+    lane, and ``fold_in(lane_key, block)`` per block.  Where the device count does not divide the
+    lane count, pad lanes fill the last device: each repeats a real lane's key (its chain is that
+    lane's, step for step) and is dropped from the statistics, so the estimate does not depend on
+    the device count (on 3 devices 512 lanes used to become 513 live ones, another sample).
+
+    ``paid`` is the work the run's bounds see (``max_work``): the slots of the paused rounds (every
+    real lane runs the same blocks) plus the real lanes' steps in the final rounds, whose idle
+    slots depend on how the lanes are split over the devices; ``slot_steps`` is what the devices
+    paid, pad lanes and idle slots included.
     """
 
     def __init__(self, chain, n_lanes: int, *, block: int = BLOCK, max_steps: int = 10**8, events: str | None = None,
                  compact: bool = True):
         self.devices = tuple(jax.local_devices())
         nd = len(self.devices)
-        self.n = -(-n_lanes // nd) * nd
+        self.n_real = n_lanes
+        self.n = -(-n_lanes // nd) * nd  # lanes in the layout, pad lanes included
         self.chain, self.block, self.max_steps = chain, block, max_steps
         self.events = _events_layout(self.devices, chain, events)
         # the final round's tail runs on n / COMPACT lanes (see _compact_tail)
         self.compact = compact and self.n // nd >= COMPACT_MIN_PER_DEVICE
-        self.slot_steps, self.last = 0, None
+        self.slot_steps, self.paid, self.last = 0, 0, None
         lane = init_lanes(chain, self.n)
         if nd > 1:
             self._f, self._sharding = _sharded_round(self.devices, block, self.events)
@@ -550,17 +558,22 @@ class Lanes:
 
     def _round(self, key, budget, finish) -> ExcursionStats:
         """A paused or final round (a final one compacts its tail, :meth:`_compact_tail`)."""
-        keys = jax.random.split(key, self.n)
+        keys = jax.random.split(key, self.n_real)
+        if self.n > self.n_real:  # pad lanes repeat real lanes' keys (dropped below)
+            keys = jnp.concatenate([keys, keys[np.arange(self.n - self.n_real) % self.n_real]])
         nd = len(self.devices)
         small = -(-(self.n // nd) // COMPACT) if finish and self.compact else 0  # per device, compacted
         lane, nb = self._call(self.lane, keys, np.zeros(self.n, np.int64), budget, finish, small, True)
         host = self._compact_tail(jax.device_get(lane), keys, nb, budget, small) if small else lane
         if host is not lane:
             lane = jax.device_put(host, self._sharding) if nd > 1 else jax.tree_util.tree_map(jnp.asarray, host)
-        stats, n_trunc, steps, done, phase = jax.device_get(
-            (host.stats, host.n_trunc, host.steps, host.done, host.phase))
-        stats, n_trunc, steps, done, phase = (np.stack(stats, axis=1), np.asarray(n_trunc), np.asarray(steps),
-                                              np.asarray(done), np.asarray(phase))
+        stats, n_trunc, steps, done, phase, work = jax.device_get(
+            (host.stats, host.n_trunc, host.steps, host.done, host.phase, host.work))
+        r = self.n_real  # the real lanes only: pad lanes are copies
+        stats, n_trunc, steps, done, phase, work = (np.stack(stats, axis=1)[:r], np.asarray(n_trunc)[:r],
+                                                    np.asarray(steps)[:r], np.asarray(done)[:r],
+                                                    np.asarray(phase)[:r], np.asarray(work)[:r])
+        self.paid += int(work.sum()) if finish else int(nb.max()) * self.block * r
         self.lane = lane  # only once the round has completed (Ctrl-C keeps the previous state)
         self.last = ExcursionStats(stats, int(n_trunc.sum()), int(steps.sum()), self.slot_steps,
                                    int((~done).sum()), int((phase != SEEK).sum()), steps)
@@ -712,7 +725,7 @@ def simulate_long_excursions(chain, key, n_excursions: int, *, lanes: int | None
                 if max_time is not None and time.perf_counter() - t_start >= max_time:
                     stopped = "max_time"
                     break
-                if max_work is not None and ln.slot_steps >= max_work:
+                if max_work is not None and ln.paid >= max_work:
                     stopped = "work_bound"
                     break
                 if done == 0:
@@ -723,10 +736,10 @@ def simulate_long_excursions(chain, key, n_excursions: int, *, lanes: int | None
                 else:
                     # in-flight excursions count as one each: an underestimate, so rounds never overshoot
                     per_exc = work_per_excursion(total.useful_steps, done, total.n_in_flight)
-                    budget = int(np.ceil((want - done - total.n_in_flight) * per_exc / ln.n))
-                    budget = max(4 * block, int(per_exc) // 4, min(budget, round_lane_steps // ln.n))
+                    budget = int(np.ceil((want - done - total.n_in_flight) * per_exc / ln.n_real))
+                    budget = max(4 * block, int(per_exc) // 4, min(budget, round_lane_steps // ln.n_real))
                 if max_work is not None:  # never plan past the work cap
-                    budget = max(block, min(budget, int((max_work - ln.slot_steps) // ln.n) + block))
+                    budget = max(block, min(budget, int((max_work - ln.paid) // ln.n_real) + block))
         except KeyboardInterrupt:
             stopped = "interrupted"
             if total is None:

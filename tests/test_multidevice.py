@@ -42,3 +42,38 @@ def test_two_devices_agree_with_one_and_do_not_recompile():
     assert one["n"] == two["n"]
     assert two["D"] == pytest.approx(one["D"], rel=1e-12) and two["M0"] == pytest.approx(one["M0"], rel=1e-12)
     assert two["compiled"] >= 1 and not two["recompiled"]  # the counted function is the one that ran
+
+
+SAME = textwrap.dedent("""
+    import json, warnings, jax
+    import dryfric_jax as dj
+    warnings.simplefilter("ignore")
+    p = dj.Params(**dj.FIG3)
+    # what a device split may change: the time, and the slots the devices paid (idle and pad lanes)
+    machine = {"wall_s", "lane_steps_per_s", "events_per_s", "work", "lane_utilization", "warnings"}
+    keep = lambda r: {k: v for k, v in r.to_dict().items() if k not in machine}
+    out = dict(devices=jax.device_count(),
+               di=keep(dj.estimate_diffusivity(p, 5, n_excursions=2000)),  # 512 lanes
+               pdmp=keep(dj.estimate_diffusivity(p, 6, method="pdmp", n_excursions=400, lanes=100)),
+               # rounds until a CI target, cut by max_work after final rounds
+               rtol=keep(dj.estimate_diffusivity(p, 7, n_excursions=300, lanes=64, rtol=0.01, max_work=3e7)))
+    print(json.dumps(out))
+""")
+
+
+def test_three_devices_give_the_one_device_estimate_bit_for_bit():
+    """A device count that does not divide the lanes (512 DI lanes and 100 PDMP lanes on 3 devices)
+    pads them with copies that are dropped: every number of the estimate is the one-device number.
+    Before, 512 lanes became 513 live ones on 3 devices: another sample, so a 6- or 12-core
+    machine gave other numbers for the same seed than a 2- or 4-core one.  (Brute force and the
+    path scenes pad and drop the same way, :func:`dryfric_jax.sharding.over_lanes`.)"""
+    def run(n):
+        env = dict(os.environ, XLA_FLAGS=f"--xla_force_host_platform_device_count={n}")
+        p = subprocess.run([sys.executable, "-c", SAME], env=env, capture_output=True, text=True, timeout=600)
+        assert p.returncode == 0, p.stderr[-2000:]
+        return json.loads(p.stdout.strip().splitlines()[-1])
+
+    one, three = run(1), run(3)
+    assert (one.pop("devices"), three.pop("devices")) == (1, 3)
+    assert one["rtol"]["stopped_by"] == "work_bound" and one["rtol"]["n_excursions"] > 300
+    assert one == three
