@@ -2,12 +2,14 @@
 
 Importing the package enables float64 in JAX (``jax_enable_x64``): the statistics are always
 accumulated in float64; the simulation dtype is chosen per call (``dtype="float32"``).  It also
-asks XLA for deterministic GPU reductions (:mod:`dryfric_jax.xla_flags`), so that the same seed
-gives bit-identical results on a GPU too.
+asks XLA for deterministic GPU reductions, so that the same seed gives bit-identical results on a
+GPU too, and for one host device per CPU core, so that the lanes use every core (the numbers do
+not depend on it; :mod:`dryfric_jax.xla_flags`).
 """
-from .xla_flags import request_deterministic_gpu_ops
+from .xla_flags import request_deterministic_gpu_ops, use_all_cpu_cores
 
 request_deterministic_gpu_ops()  # before JAX starts its backend
+use_all_cpu_cores()
 
 import jax  # noqa: E402
 

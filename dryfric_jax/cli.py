@@ -14,14 +14,13 @@ import argparse
 import contextlib
 import json
 import math
-import os
 import sys
 import warnings
 
 from .api import MAX_FIGURE_SEED
 from .outfiles import check_writable, check_writable_dir, dumps, loads, write_atomic
 from .params import FIG3, Params
-from .xla_flags import default_xla_flag
+from .xla_flags import use_all_cpu_cores
 
 
 class _Parser(argparse.ArgumentParser):
@@ -430,17 +429,8 @@ def _sweep(a) -> int:
     return 0
 
 
-def _use_all_cpu_cores():
-    """One XLA host device per core, so that lanes shard over the cores (the vmapped loop runs
-    on one core per device), and 512-bit vectors where the CPU has them (AVX-512: +5-20% lane
-    steps/s, same results; a hint that CPUs with narrower vectors ignore).  Must run before JAX
-    starts its backend; a flag the user's XLA_FLAGS already sets wins."""
-    default_xla_flag("xla_force_host_platform_device_count", os.cpu_count() or 1)
-    default_xla_flag("xla_cpu_prefer_vector_width", 512)
-
-
 def main(argv=None) -> int:
-    _use_all_cpu_cores()
+    use_all_cpu_cores(vector_width=True)  # one device per core (also at import) and 512-bit vectors
     try:
         a = build_parser().parse_args(argv)
         return _run(a)

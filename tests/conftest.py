@@ -1,10 +1,9 @@
-import os
+from dryfric_jax.xla_flags import use_all_cpu_cores
 
-from dryfric_jax.xla_flags import default_xla_flag
-
-# one XLA host device per core, as the `dryfric` command does: lanes shard over the cores (and the
-# sharded code path is what every test exercises).  Must be set before JAX starts its backend.
-default_xla_flag("xla_force_host_platform_device_count", os.cpu_count() or 1)
+# one XLA host device per core, as importing dryfric_jax and the `dryfric` command do: lanes shard
+# over the cores (and the sharded code path is what every test exercises).  Must be set before JAX
+# starts its backend.
+use_all_cpu_cores()
 
 import math  # noqa: E402
 

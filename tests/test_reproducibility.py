@@ -39,18 +39,27 @@ def _xla_flags_seen(flags):
     env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}
     if flags is not None:
         env["XLA_FLAGS"] = flags
-    code = "import os, dryfric_jax, jax; jax.numpy.ones(3).sum().block_until_ready(); print(os.environ['XLA_FLAGS'])"
+    code = ("import os, dryfric_jax, jax; jax.numpy.ones(3).sum().block_until_ready(); "
+            "print(os.environ['XLA_FLAGS'], len(jax.devices('cpu')))")
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=300)
     assert p.returncode == 0, p.stderr
-    return p.stdout.strip()
+    flags, n_cpu_devices = p.stdout.strip().rsplit(" ", 1)
+    return flags, int(n_cpu_devices)
 
 
-def test_import_asks_xla_for_deterministic_gpu_sums():
-    # on a GPU, sums by atomic adds changed D_ci's last bit in 1 of 5 runs (dryfric_jax.xla_flags)
-    assert _xla_flags_seen(None) == "--xla_gpu_deterministic_ops=true"
-    assert (_xla_flags_seen("--xla_force_host_platform_device_count=2")
-            == "--xla_force_host_platform_device_count=2 --xla_gpu_deterministic_ops=true")
-    assert _xla_flags_seen("--xla_gpu_deterministic_ops=false") == "--xla_gpu_deterministic_ops=false"  # user's wins
+def test_import_asks_xla_for_deterministic_gpu_sums_and_a_device_per_core():
+    # on a GPU, sums by atomic adds changed D_ci's last bit in 1 of 5 runs (dryfric_jax.xla_flags);
+    # on a CPU, one device per core: a notebook used one core where the CLI used all (the numbers
+    # do not depend on the device count, tests/test_multidevice.py)
+    from dryfric_jax.xla_flags import cpu_cores
+
+    n = cpu_cores()
+    assert _xla_flags_seen(None) == (
+        f"--xla_gpu_deterministic_ops=true --xla_force_host_platform_device_count={n}", n)
+    assert (_xla_flags_seen("--xla_force_host_platform_device_count=1")  # the user's flag wins
+            == ("--xla_force_host_platform_device_count=1 --xla_gpu_deterministic_ops=true", 1))
+    assert _xla_flags_seen("--xla_gpu_deterministic_ops=false") == (
+        f"--xla_gpu_deterministic_ops=false --xla_force_host_platform_device_count={n}", n)
 
 
 def test_other_seed_differs():
