@@ -346,8 +346,8 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
                      f"(max_steps = {plan.max_steps} {unit} per excursion) and are excluded: "
                      "the estimate is biased low")
     if sim.n_excursions < 2:
-        raise NoEstimateError("fewer than 2 complete excursions within the work bounds (raise max_work / max_steps): "
-                           + "; ".join(notes))
+        raise NoEstimateError("fewer than 2 complete excursions within the work bounds (raise max_work / "
+                              "max_steps): " + "; ".join(notes))
     if sim.n_excursions < MIN_RELIABLE_N:
         notes.append(small_n_note(sim.n_excursions))
     if params.tau_L_nd > WEAK_DAMPING_TAU_L:
