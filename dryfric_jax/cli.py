@@ -403,7 +403,7 @@ def _sweep(a) -> int:
     except ValueError as e:
         if str(e).startswith("out must"):
             raise _UserError("--" + str(e)) from None
-        raise _UserError(str(e).replace("skip_refused=True (CLI: --skip-refused)", "--skip-refused")) from None
+        raise
     if a.json:
         print(dumps(out))
     else:

@@ -105,16 +105,21 @@ def _at_point(show, pt):
     return at
 
 
+def _first_clause(reason: str) -> str:
+    """A refusal's or failure's reason up to its first colon (what was refused, not the numbers)."""
+    return reason.split(":")[0]
+
+
 def _refusal_text(refused: list, total: int) -> str:
     """One line: the first refused point's reason in full, then the others' points and first clauses."""
     (pt, why), rest = refused[0], refused[1:]
     text = f"{why} [at sweep point {json.dumps(pt)}]"
     if rest:
-        named = "; ".join(f"{json.dumps(p)} ({w.split(':')[0]})" for p, w in rest[:MAX_NAMED])
+        named = "; ".join(f"{json.dumps(p)} ({_first_clause(w)})" for p, w in rest[:MAX_NAMED])
         more = f"; and {len(rest) - MAX_NAMED} more" if len(rest) > MAX_NAMED else ""
         text = f"{len(refused)} of {total} sweep points are refused. {text}. Also refused: {named}{more}"
-    return (f"{text}.  Nothing was run; skip_refused=True (CLI: --skip-refused) records the refused points "
-            "and runs the others")
+    return (f"{text}.  Nothing was run; --skip-refused records the refused points and runs the others "
+            "(skip_refused=True from Python)")
 
 
 def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di", h=None, delta=None,
@@ -168,9 +173,9 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
     grid_idents = [_ident(seed, pt, settings) for pt in full]
     # a refused record of a grid point that the planner now accepts (another version) is dropped and run
     stale = set(grid_idents) - set(refused)
-    kept = [r for r in records if status(r) != "refused"
-            or _ident(r["sweep_seed"], r["params"], r["settings"]) not in stale]
-    have = {_ident(r["sweep_seed"], r["params"], r["settings"]): r for r in kept}
+    pairs = [(_ident(r["sweep_seed"], r["params"], r["settings"]), r) for r in records]
+    pairs = [(i, r) for i, r in pairs if status(r) != "refused" or i not in stale]
+    kept, have = [r for _, r in pairs], dict(pairs)
     new_refused = [(i, pt, why) for i, (pt, why) in refused.items() if i not in have]
     for i, pt, why in new_refused:
         rec = _record(seed, pt, settings, "refused", reason=why)
@@ -269,7 +274,7 @@ def progress_bar(done: int, total: int, rec) -> None:
         if status(rec) == "ok":
             last += f"D={rec['result']['D']:.4g}±{rec['result']['D_ci']:.2g}"
         else:
-            last += f"{status(rec)} ({rec['reason'].split(':')[0]})"
+            last += f"{status(rec)} ({_first_clause(rec['reason'])})"
     line = f"[{'#' * fill}{'.' * (width - fill)}] {done}/{total} points{last}"
     if sys.stderr.isatty():
         print("\r" + line[:150].ljust(150), end="" if done < total else "\n", file=sys.stderr, flush=True)
