@@ -226,8 +226,13 @@ def _check_out(path):
 
 
 def _write_out(path, obj):
+    """Write the result's JSON to ``--out``; a failure (the disk filled up during the run, ...) is
+    an error after the result has been printed, so nothing computed is lost."""
     if path is not None:
-        write_atomic(path, dumps(obj, indent=1))
+        try:
+            write_atomic(path, dumps(obj, indent=1))
+        except OSError as e:
+            raise RuntimeError(f"could not write --out {path!r} ({e}); the result is printed above") from None
 
 
 def _read_results(paths):
@@ -266,15 +271,17 @@ def _warnings_kept_in_result():
 
 
 def _report(a, r, print_text):
-    """A result's warnings on stderr, its JSON to ``--out`` (atomically) and, by ``--json``,
-    to stdout; otherwise ``print_text(r)``."""
+    """A result's warnings on stderr, its JSON by ``--json`` to stdout (otherwise
+    ``print_text(r)``), then to ``--out`` (atomically): printed first, so a failed write loses
+    nothing."""
     for w in r.warnings:
         print(f"dryfric: warning: {w}", file=sys.stderr)
-    _write_out(a.out, r.to_dict())
     if a.json:
-        print(dumps(r.to_dict()))
+        print(dumps(r.to_dict()), flush=True)
     else:
         print_text(r)
+        sys.stdout.flush()
+    _write_out(a.out, r.to_dict())
 
 
 def _print_bruteforce(r):
@@ -404,6 +411,9 @@ def _sweep(a) -> int:
         if str(e).startswith("out must"):
             raise _UserError("--" + str(e)) from None
         raise
+    except OSError as e:  # the file was checked writable before; the disk may fill up later
+        raise RuntimeError(f"could not write --out {a.out!r} ({e}); the points finished before are in it, and "
+                           "the same command resumes") from None
     if a.json:
         print(dumps(out))
     else:

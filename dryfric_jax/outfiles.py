@@ -52,21 +52,51 @@ def loads(text: str):
     return _from_strict(json.loads(text))
 
 
+def _can_create_in(d: str) -> bool:
+    """Whether a file can really be created in the directory ``d`` (a temporary one is made and
+    removed): ``os.access`` says yes for /proc, a read-only mount or a full quota."""
+    try:
+        fd, tmp = tempfile.mkstemp(dir=d, prefix=".dryfric-", suffix=".tmp")
+    except OSError:
+        return False
+    os.close(fd)
+    os.unlink(tmp)
+    return True
+
+
+def _path_text(path) -> str | None:
+    """``path`` as text, or None for anything that is not a non-empty path."""
+    if not isinstance(path, (str, os.PathLike)):
+        return None
+    path = os.fspath(path)
+    return path if isinstance(path, str) and path.strip() else None
+
+
 def check_writable(path: str, name: str = "out") -> None:
-    """Raise ``ValueError`` naming ``name`` unless ``path`` can be created or replaced as a file."""
-    d = os.path.dirname(os.path.abspath(path))
-    if os.path.isdir(path) or not os.path.isdir(d) or not os.access(d, os.W_OK):
-        raise ValueError(f"{name} must be a writable file path in an existing directory (got {path!r})")
+    """Raise ``ValueError`` naming ``name`` unless ``path`` can be created or replaced as a regular
+    file (a file is created and removed in its directory to be sure).  An existing path that is not a
+    regular file (a directory, a device such as /dev/null, a pipe) is refused: :func:`write_atomic`
+    renames a new file over ``path``, which would replace it."""
+    p = _path_text(path)
+    ok = p is not None
+    if ok:
+        d = os.path.dirname(os.path.abspath(p))
+        ok = (not os.path.lexists(p) or os.path.isfile(p)) and os.path.isdir(d) and _can_create_in(d)
+    if not ok:
+        raise ValueError(f"{name} must be a writable file path in an existing directory, not a directory or a "
+                         f"device (got {path!r})")
 
 
 def check_writable_dir(path: str, name: str = "out") -> None:
     """Raise ``ValueError`` naming ``name`` unless ``path`` is a writable directory or can be
     created as one (its parent exists and is writable)."""
-    if os.path.isdir(path):
-        ok = os.access(path, os.W_OK)
-    else:
-        parent = os.path.dirname(os.path.abspath(path))
-        ok = not os.path.exists(path) and os.path.isdir(parent) and os.access(parent, os.W_OK)
+    p = _path_text(path)
+    ok = p is not None
+    if ok and os.path.isdir(p):
+        ok = _can_create_in(p)
+    elif ok:
+        parent = os.path.dirname(os.path.abspath(p))
+        ok = not os.path.lexists(p) and os.path.isdir(parent) and _can_create_in(parent)
     if not ok:
         raise ValueError(f"{name} must be a writable directory, or a new one in an existing directory (got {path!r})")
 

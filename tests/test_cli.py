@@ -93,6 +93,12 @@ BAD += [
     (["figures", "--fig", "3", "--out", "/nonexistent-dir/deeper/figs"], "--out"),
     (["figures", "--fig", "99", "--out", "figs"], "--fig"),
     (["sweep", "--Gamma", "1,2", "--out", "/nonexistent-dir/s.jsonl"], "--out"),
+    (["estimate", "--out", ""], "--out"),  # an empty path (it used to fail after the run, losing the result)
+    (["bruteforce", "--t", "1", "--n-paths", "10", "--out", " "], "--out"),
+    (["figures", "--fig", "3", "--out", ""], "--out"),
+    (["sweep", "--Gamma", "1,2", "--out", ""], "--out"),
+    (["estimate", "--out", "/proc/dryfric-result.json"], "--out"),  # os.access says yes; no file can be made
+    (["estimate", "--out", "/dev/null"], "--out"),  # a device: the atomic rename would replace it
     (["estimate", "--tau", "30"], "max_work must"),  # slow weak noise: predicted work refused up front
     (["estimate", "--tau-L", "inf", "--gamma-bar", "3.84"], "gamma_bar"),  # runaway
     (["bruteforce", "--t", "1e6", "--n-paths", "1000"], "max_work must"),
@@ -123,6 +129,37 @@ def test_bad_input_exit_2_one_line(argv, word, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("dryfric: error:"), err
     assert word in err[0] or word.replace("-", "_") in err[0], err
+
+
+def test_out_refuses_a_pipe_and_leaves_it(tmp_path, capsys):
+    """An existing path that is not a regular file is refused before the run (write_atomic renames
+    a new file over the path: it would have replaced a device or a pipe by a regular file)."""
+    import os
+    import stat
+
+    fifo = tmp_path / "pipe"
+    os.mkfifo(fifo)
+    for argv in (["estimate"], ["combine", "a.json"], ["sweep", "--Gamma", "1"]):
+        assert main(argv + ["--out", str(fifo)]) == 2
+        assert "--out must be a writable file path" in capsys.readouterr().err
+    assert stat.S_ISFIFO(os.stat(fifo).st_mode)
+
+
+def test_a_failed_write_after_the_run_keeps_the_printed_result(tmp_path, capsys, monkeypatch):
+    """The result is printed before --out is written; if the write fails (say the disk filled up
+    during the run), the error says so and exits 1, and the result is on stdout."""
+    import dryfric_jax.cli as cli
+
+    def full_disk(path, text):
+        raise OSError(28, "No space left on device")
+    monkeypatch.setattr(cli, "write_atomic", full_disk)
+    out = tmp_path / "r.json"
+    assert main(["theory", "--json"]) == 0  # no --out: untouched
+    capsys.readouterr()
+    assert main(["bruteforce", "--t", "0.5", "--n-paths", "16", "--json", "--out", str(out)]) == 1
+    cap = capsys.readouterr()
+    assert json.loads(cap.out)["D_t"] > 0
+    assert "could not write --out" in cap.err and "No space left" in cap.err and not out.exists()
 
 
 def test_truncation_exits_3_unless_allowed_and_the_result_is_kept(tmp_path, capsys):

@@ -9,6 +9,7 @@ from __future__ import annotations
 import os
 
 from ..api import MAX_FIGURE_SEED, check_seed
+from ..outfiles import check_writable_dir
 from .covariance import fig4
 from .diffusivity import fig3, fig5, fig8
 from .excursion import fig1_2
@@ -23,6 +24,7 @@ def run_figures(which: str, out_dir: str, quick: bool = False, seed: int = 0) ->
     if which != "all" and which not in SCENES:
         raise ValueError(f"fig must be one of {['all', *SCENES]} (got {which!r})")
     seed = check_seed(seed, MAX_FIGURE_SEED, "2^62 - 2^20 (the scenes add offsets)")
+    check_writable_dir(out_dir)
     os.makedirs(out_dir, exist_ok=True)
     names = list(SCENES) if which == "all" else [which]
     return {n: SCENES[n](out_dir, quick, seed) for n in names}
