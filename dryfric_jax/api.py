@@ -19,7 +19,7 @@ from .di import make_di_model
 from .estimators import MIN_RELIABLE_N, WEAK_DAMPING_TAU_L, bruteforce_estimates, long_excursion_estimates
 from .excursions import BLOCK, simulate_long_excursions, work_per_excursion
 from .limits import MAX_WORK
-from .params import Params, check_positive
+from .params import Params, check_params, check_positive, real_or_none
 from .pdmp import make_pdmp_model, simulate_pdmp_bruteforce
 from .plan import (  # noqa: F401  (default_h, h_max, check_h, METHODS are part of the API)
     DTYPES, METHODS, Plan, check_count, check_h, check_layout, check_max_work, choose, default_h, h_max, plan_estimate,
@@ -279,10 +279,17 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
     Returns:
         :class:`EstimateResult`: D, M0 with 95% CI half-widths, mean excursion duration, counts.
     """
-    if rtol is not None and not (isinstance(rtol, (int, float)) and math.isfinite(rtol) and 0 < rtol < 1):
-        raise ValueError(f"rtol must be in (0, 1) (got {rtol!r})")
-    if max_time is not None and not (isinstance(max_time, (int, float)) and max_time > 0):
-        raise ValueError(f"max_time must be > 0 seconds (got {max_time!r})")
+    check_params(params)
+    if rtol is not None:
+        v = real_or_none(rtol)
+        if v is None or not 0 < v < 1:
+            raise ValueError(f"rtol must be in (0, 1) (got {rtol!r})")
+        rtol = v
+    if max_time is not None:
+        v = real_or_none(max_time)
+        if v is None or not v > 0:
+            raise ValueError(f"max_time must be > 0 seconds (got {max_time!r})")
+        max_time = v
     plan = plan_estimate(params, method=method, h=h, delta=delta, dtype=dtype, n_excursions=n_excursions,
                          max_work=max_work, max_steps=max_steps, lanes=lanes, chunk_lanes=chunk_lanes,
                          block=block)
@@ -384,6 +391,7 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
     ``n_unfinished`` and make the call fail rather than return a biased number.  A run that
     needs more than ``max_work`` steps (events) is refused before it starts.
     """
+    check_params(params)
     if method == "auto":
         raise ValueError("method must be 'di' or 'pdmp' for brute force (got 'auto')")
     check_count("n_paths", n_paths)
@@ -395,8 +403,10 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
     plan = choose(params, method, h, delta, dtype)
     notes, method, h, grid, dname = plan.notes, plan.method, plan.h, plan.grid, plan.dtype
     check_positive("t", t)
-    if not (isinstance(burn_in, (int, float)) and math.isfinite(burn_in) and burn_in >= 0):
+    t, b = float(t), real_or_none(burn_in)
+    if b is None or not (math.isfinite(b) and b >= 0):
         raise ValueError(f"burn_in must be a finite number >= 0 (got {burn_in!r})")
+    burn_in = b
     if h is not None and t < h:
         raise ValueError(f"t must be >= h = {h:.4g} s (got {t!r})")
     # the work is known in advance: n_paths (t + burn_in) / h steps, or the expected events

@@ -29,6 +29,8 @@ import math
 
 import numpy as np
 
+from .params import real_or_none
+
 COVER_SD = 8.0
 
 
@@ -49,7 +51,8 @@ def delta_max(tau: float, gamma_bar: float = 0.0) -> float:
 def check_delta(delta: float, tau: float, gamma_bar: float = 0.0, *, scale: float = 1.0) -> None:
     """ValueError naming delta and its admissible range (in units of ``scale``, e.g. physical)."""
     dm = delta_max(tau, gamma_bar)
-    ok = isinstance(delta, (int, float, np.floating)) and math.isfinite(delta) and 0 < delta / scale < dm
+    v = real_or_none(delta)
+    ok = v is not None and math.isfinite(v) and 0 < v / scale < dm
     if not ok:
         raise ValueError(
             f"delta must be in (0, {dm * scale:.4g}) for these parameters (got {delta!r}): the noise grid must "

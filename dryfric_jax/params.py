@@ -31,8 +31,49 @@ def _concrete(name: str, x):
         if a is not None and a.shape != ():
             raise ValueError(f"{name} must be a real number (got an array of shape {a.shape}): make one Params "
                              "per grid point (or run 'dryfric sweep')")
-        raise ValueError(f"{name} must be a real number (got {x!r})")
+        text = repr(x)
+        if len(text) > 60:  # an int of 400 digits: one readable line
+            text = f"{text[:24]}... ({len(text)} characters)"
+        raise ValueError(f"{name} must be a real number (got {text})")
     return float(a)
+
+
+def _as_float(x):
+    """A real scalar (a numpy float32 or float16, an int, a 0-d array) as a Python float, so that the
+    units and nondimensional numbers are computed in float64 whatever the caller passed (a float32
+    Delta = 1e-10 made D0 = inf); anything else unchanged, for :func:`_concrete` to refuse by name
+    (a tracer under jit is left alone)."""
+    if isinstance(x, (bool, np.bool_, str, bytes, jax.core.Tracer)):
+        return x
+    try:
+        a = np.asarray(x)
+    except Exception:  # noqa: BLE001 - refused by name in __check_init__
+        return x
+    if a.shape != () or a.dtype.kind not in "iuf":
+        return x
+    return float(a)
+
+
+def real_or_none(x) -> float | None:
+    """``x`` as a Python float if it is a concrete real scalar (an int, a float, a numpy scalar, a
+    0-d array, not a bool), else None: for the settings (h, rtol, max_time, ...), which take numpy
+    values as readily as Python ones."""
+    if isinstance(x, (bool, np.bool_, str, bytes, jax.core.Tracer)) or x is None:
+        return None
+    try:
+        a = np.asarray(x)
+    except Exception:  # noqa: BLE001
+        return None
+    return float(a) if a.shape == () and a.dtype.kind in "iuf" else None
+
+
+def check_params(params) -> None:
+    """``ValueError`` unless ``params`` is a :class:`Params` (a dict, say, failed later with an
+    AttributeError)."""
+    if not isinstance(params, Params):
+        raise ValueError(f"params must be a dryfric_jax.Params (got {type(params).__name__}): e.g. "
+                         "Params(Gamma=5.0, Delta=3.84, tau=0.5, tau_L=0.067, gamma_bar=0.342), or Params(**d) "
+                         "for a dict d")
 
 
 def check_positive(name: str, value, *, allow_inf: bool = False) -> None:
@@ -98,11 +139,11 @@ class Params(eqx.Module):
     The drift is :math:`b(v) = -v/\tau_L + \bar\gamma`; ``tau_L = inf`` is a proper case.
     """
 
-    Gamma: float
-    Delta: float
-    tau: float
-    tau_L: float = math.inf
-    gamma_bar: float = 0.0
+    Gamma: float = eqx.field(converter=_as_float)
+    Delta: float = eqx.field(converter=_as_float)
+    tau: float = eqx.field(converter=_as_float)
+    tau_L: float = eqx.field(default=math.inf, converter=_as_float)
+    gamma_bar: float = eqx.field(default=0.0, converter=_as_float)
 
     def __check_init__(self):
         check_positive("Gamma", self.Gamma)
@@ -165,7 +206,13 @@ class Params(eqx.Module):
         :math:`\Gamma, \Delta` (default 1, i.e. the nondimensional model itself)."""
         check_positive("Gamma", Gamma)
         check_positive("Delta", Delta)
+        tau, tau_L, gamma_bar = (_concrete(k, v) for k, v in (("tau", tau), ("tau_L", tau_L), ("gamma_bar", gamma_bar)))
+        Gamma, Delta = float(Gamma), float(Delta)
         tau0 = Gamma / (Delta * Delta)
+        for name, v, unit in (("tau", tau, tau0), ("tau_L", tau_L, tau0), ("gamma_bar", gamma_bar, Delta)):
+            if math.isfinite(v) and not math.isfinite(v * unit):  # 1e300 tau0 would read as tau_L = inf
+                raise ValueError(f"{name} must keep {name}' x its unit finite (got {name}' = {v!r} with unit "
+                                 f"{unit:.3g}): choose a smaller Gamma or Delta")
         return cls(Gamma=Gamma, Delta=Delta, tau=tau * tau0, tau_L=tau_L * tau0,
                    gamma_bar=gamma_bar * Delta)
 

@@ -28,7 +28,7 @@ import numpy as np
 from .cost import choose_method, default_delta
 from .excursions import MAX_LAYOUT, default_block, lanes_for
 from .limits import MAX_WORK, check_recurrent, check_work, float32_unsafe_reason, max_steps_per_excursion
-from .params import Params
+from .params import Params, check_params, real_or_none
 from .pdmp import pdmp_grid_info
 
 METHODS = ("di", "pdmp", "auto")
@@ -55,15 +55,15 @@ def check_h(params: Params, h: float) -> float:
     if h is None:
         return default_h(params)
     hm = h_max(params)
-    h_ok = isinstance(h, (int, float, np.floating)) and math.isfinite(h) and 0 < h <= hm
-    if not h_ok:
+    v = real_or_none(h)
+    if v is None or not (math.isfinite(v) and 0 < v <= hm):
         raise ValueError(f"h must be in (0, {hm:.4g}] s, i.e. at most 0.1*min(tau0, tau_L) (got {h!r})")
-    return float(h)
+    return v
 
 
 def dtype_name(dtype) -> str:
-    try:
-        name = dtype if isinstance(dtype, str) else jnp.dtype(dtype).name
+    try:  # jnp.dtype(None) is float64: None is refused, not taken for the default
+        name = dtype if isinstance(dtype, str) else None if dtype is None else jnp.dtype(dtype).name
     except TypeError:
         name = None
     if name not in DTYPES:
@@ -121,7 +121,8 @@ class Plan:
 
 def choose(params: Params, method: str, h, delta, dtype) -> Plan:
     """Steps 1-3 of the module docstring (no work bounds): method, h or delta, dtype."""
-    if method not in METHODS:
+    check_params(params)
+    if not isinstance(method, str) or method not in METHODS:
         raise ValueError(f"method must be one of {list(METHODS)} (got {method!r})")
     dtype = dtype_name(dtype)
     check_recurrent(params.tau_L_nd, params.gamma_bar_nd)

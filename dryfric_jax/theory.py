@@ -19,13 +19,14 @@ import numpy as np
 from scipy import integrate, special
 
 from .limits import check_recurrent
-from .params import Params, check_finite, check_positive
+from .params import Params, check_finite, check_params, check_positive
 
 
 # ---------------------------------------------------------------------------------------------
 # stationary density and exact D, M0 for b(v) = -v/tau_L + gamma_bar
 # ---------------------------------------------------------------------------------------------
 def _nd(params: Params):
+    check_params(params)
     nd = params.nondim()
     itl = 0.0 if math.isinf(nd.tau_L) else 1.0 / nd.tau_L
     check_recurrent(nd.tau_L, nd.gamma_bar)

@@ -95,3 +95,29 @@ def test_extreme_but_representable_units_are_exact():
     assert p.tau0 == 1.0 and p.v0 == 1e100
     assert p.u0 == pytest.approx(1e100, rel=1e-14) and p.D0 == pytest.approx(1e200, rel=1e-14)
     assert p.D0 == pytest.approx(p.u0 * p.u0 / p.tau0, rel=1e-14)
+
+
+def test_numpy_scalars_are_held_as_python_floats():
+    """A float32 or float16 value used to stay float32 in the units: Delta = float32(1e-10) made D0
+    = Gamma^3/Delta^4 overflow to inf (and D = inf), a float16 tau made tau' inf."""
+    d32 = np.float32(1e-10)
+    p = Params(1.0, d32, 1e20)
+    assert all(type(getattr(p, k)) is float for k in ("Gamma", "Delta", "tau", "tau_L", "gamma_bar"))
+    assert math.isfinite(p.D0) and p.D0 == Params(1.0, float(d32), 1e20).D0
+    assert Params(1.0, 1.0, np.float16(60000)).tau_nd == 60000.0
+
+
+def test_a_huge_integer_is_refused_in_one_short_line():
+    with pytest.raises(ValueError, match=r"^Gamma must be a real number \(got 1000.*\.\.\. \(401 characters\)\)$"):
+        Params(10**400, 1.0, 1.0)
+
+
+@pytest.mark.parametrize("kw,name", [
+    (dict(tau=True), "tau"), (dict(tau="1"), "tau"), (dict(tau=None), "tau"), (dict(tau=1.0, tau_L=[1.0]), "tau_L"),
+    (dict(tau=1.0, gamma_bar="0"), "gamma_bar"),
+    # tau_L' = 1e300 in a tau0 of 1e10 s overflowed to tau_L = inf, then refused as "|gamma_bar| >= Delta with tau_L = inf"
+    (dict(tau=1.0, tau_L=1e300, gamma_bar=2.0, Gamma=1e10), "tau_L"),
+])
+def test_from_nondim_refuses_by_name(kw, name):
+    with pytest.raises(ValueError, match=f"^{name} must"):
+        Params.from_nondim(**kw)
