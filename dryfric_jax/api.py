@@ -411,6 +411,11 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
         raise ValueError(f"t must be >= h = {h:.4g} s (got {t!r})")
     # the work is known in advance: n_paths (t + burn_in) / h steps, or the expected events
     work = n_paths * (t + burn_in) / params.tau0 * plan.per_tau0
+    per_path = (t + burn_in) / params.tau0 * plan.per_tau0 * (1 if h is not None else 10)  # PDMP: max_events
+    if not per_path <= 2.0**62:  # the step and event counters are int64
+        unit = "steps" if h is not None else "events (the bound max_events is 10x the expected count)"
+        raise ValueError(f"t must keep t + burn_in below 2^62 {unit} per path (got t = {t:.4g} s, burn_in = "
+                         f"{burn_in:.4g} s: {per_path:.3g})")
     if work > max_work:
         raise ValueError(f"max_work must be >= {work:.3g} {'steps' if h is not None else 'events (expected)'} for "
                          f"t = {t:.4g} s and n_paths = {n_paths} (got {max_work:.3g}); raise --max-work or lower t "

@@ -82,13 +82,18 @@ def white_chain_law(params: Params, h: float, *, nodes_per_sd: int = 8, width: f
     s = math.sqrt(2 * hn)
     dv = s / nodes_per_sd
     L = width * _scale(itl, g) + 10 * s
-    k = int(math.ceil(L / dv))
-    if 2 * k + 3 > MAX_NODES:
-        need = h * ((2 * k + 3) / MAX_NODES) ** 2
+    ratio = L / dv if dv > 0 else math.inf  # h near 5e-324: dv underflows
+    kf = math.ceil(ratio) if ratio < 1e300 else math.inf
+    if 2 * kf + 3 > MAX_NODES:
+        nodes = 2.0 * kf + 3  # a float: one readable number, not 150 digits
+        # nodes ~ 2 L / dv with dv^2 = 2 h' / nodes_per_sd^2: the h that fits, without h (which may underflow)
+        need = (h * (nodes / MAX_NODES) ** 2 if nodes < 1e150
+                else 2.0 * (L * nodes_per_sd / MAX_NODES) ** 2 * params.tau0)
         fix = (f"use h >= {need:.3g} s or fewer nodes_per_sd" if need <= h_max(params) else
                f"no admissible h (<= {h_max(params):.3g} s) is large enough: the law is too wide")
-        raise ValueError(f"h = {h:.4g} s: the dense chain law would need {2 * k + 3} grid nodes > {MAX_NODES} (the "
+        raise ValueError(f"h = {h:.4g} s: the dense chain law would need {nodes:.3g} grid nodes > {MAX_NODES} (the "
                          f"law spans +-{L:.3g} against a step noise sd of {s:.3g}, nondimensional); {fix}")
+    k = int(kf)
     half = np.arange(k + 1) * dv  # 0+ ... L
     hw = np.full(k + 1, dv)
     hw[0] = hw[-1] = dv / 2

@@ -14,6 +14,7 @@ import argparse
 import contextlib
 import json
 import math
+import re
 import sys
 import warnings
 
@@ -56,11 +57,43 @@ def _tau_L(s):
 
 def _list_of(conv, name):
     def parse(s):
-        items = [x for x in s.split(",") if x.strip()]
-        if not items:
-            raise argparse.ArgumentTypeError(f"--{name} must be a comma-separated list of values (got {s!r})")
-        return [conv(x.strip()) for x in items]
+        items = [x.strip() for x in s.split(",")]
+        if not all(items):  # "1,,2" or "1,": a value left out by mistake, not silently dropped
+            raise argparse.ArgumentTypeError(f"--{name} must be a comma-separated list of values, none empty "
+                                             f"(got {s!r})")
+        return [conv(x) for x in items]
     return parse
+
+
+class _Once(argparse.Action):
+    """An option given at most once: a repeated sweep axis (--Gamma 1 --Gamma 2) would silently keep
+    only the last list."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        if getattr(namespace, self.dest) is not None:
+            raise argparse.ArgumentError(self, f"{option_string} must be given once, as one comma-separated list")
+        setattr(namespace, self.dest, values)
+
+
+#: a value that starts with '-' but is a number or a list of numbers ("-1e-3", "-inf", "-0.5,0.5")
+_NEGATIVE_VALUE = re.compile(r"^-(\d|\.\d|inf)", re.IGNORECASE)
+
+
+def _join_negative_values(parser: argparse.ArgumentParser, argv: list[str]) -> list[str]:
+    """``--gamma-bar -1e-3`` as ``--gamma-bar=-1e-3``: argparse takes only plain negative decimals
+    ("-0.5") for an option's value, and "-1e-3", "-inf" or "-0.5,0.5" for an unknown option."""
+    subs = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+    takes_value = {opt for sub in subs for sp in sub.choices.values() for a in sp._actions
+                   if a.nargs != 0 for opt in a.option_strings}
+    out, i = [], 0
+    while i < len(argv):
+        if argv[i] in takes_value and i + 1 < len(argv) and _NEGATIVE_VALUE.match(argv[i + 1]):
+            out.append(f"{argv[i]}={argv[i + 1]}")
+            i += 2
+        else:
+            out.append(argv[i])
+            i += 1
+    return out
 
 
 def _int_at_least(name, lo, hi=None, hi_text=None):
@@ -160,7 +193,7 @@ def build_parser() -> argparse.ArgumentParser:
     g = sw.add_argument_group("axes: comma-separated lists (SI units); omitted ones stay at the Fig. 3 point")
     for name, conv in (("Gamma", _number("Gamma")), ("Delta", _number("Delta")), ("tau", _number("tau")),
                        ("tau-L", _tau_L), ("gamma-bar", _number("gamma-bar"))):
-        g.add_argument(f"--{name}", type=_list_of(conv, name), default=None)
+        g.add_argument(f"--{name}", type=_list_of(conv, name), default=None, action=_Once)
     sw.add_argument("--out", required=True, help="results file (JSON Lines); an existing one is resumed")
     sw.add_argument("--method", default="di", help="di, pdmp or auto")
     sw.add_argument("--h", type=_number("h"), default=None)
@@ -442,7 +475,8 @@ def _sweep(a) -> int:
 def main(argv=None) -> int:
     use_all_cpu_cores(vector_width=True)  # one device per core (also at import) and 512-bit vectors
     try:
-        a = build_parser().parse_args(argv)
+        parser = build_parser()
+        a = parser.parse_args(_join_negative_values(parser, list(sys.argv[1:] if argv is None else argv)))
         return _run(a)
     except (_UserError, ValueError) as exc:
         print(f"dryfric: error: {exc}", file=sys.stderr)

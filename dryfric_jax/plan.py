@@ -77,6 +77,8 @@ def check_count(name, n, lo=2):
 
 
 MAX_LANES, MAX_BLOCK = 1 << 22, 1024
+#: largest per-excursion bound (the engine's step counters are int64)
+MAX_STEPS = 1 << 62
 
 
 def check_layout(lanes, block):
@@ -178,5 +180,7 @@ def plan_estimate(params: Params, *, method: str = "di", h: float | None = None,
         plan.max_steps = max_steps_per_excursion(*nd, plan.per_tau0, cap=max(max_work / plan.lanes, 64))
     else:
         check_count("max_steps", max_steps, 1)
+        if max_steps > MAX_STEPS:  # the step counters are int64
+            raise ValueError(f"max_steps must be an integer in [1, 2^62] (got {max_steps!r})")
         plan.max_steps = int(max_steps)
     return plan

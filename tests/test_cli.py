@@ -33,7 +33,7 @@ BAD = [  # (argv, word the one-line message must contain)
     (["estimate", "--gamma-bar", "nan"], "gamma_bar"),
     (["estimate", "--h", "0"], "h must"),
     (["estimate", "--h=-1e-4"], "h must"),
-    (["estimate", "--h", "-1e-4"], "--h"),  # argparse reads -1e-4 as an option: still one line, exit 2
+    (["estimate", "--h", "-1e-4"], "h must be in"),  # argparse took -1e-4 for an option ("expected one argument")
     (["estimate", "--h", "1.0"], "h must"),  # not small against tau0
     (["estimate", "--n-excursions", "1"], "--n-excursions"),
     (["estimate", "--n-excursions", "2.5"], "--n-excursions"),
@@ -99,6 +99,15 @@ BAD += [
     (["sweep", "--Gamma", "1,2", "--out", ""], "--out"),
     (["estimate", "--out", "/proc/dryfric-result.json"], "--out"),  # os.access says yes; no file can be made
     (["estimate", "--out", "/dev/null"], "--out"),  # a device: the atomic rename would replace it
+    (["sweep", "--Gamma", "1,,2", "--out", "s.jsonl"], "--Gamma"),  # was read as [1, 2]
+    (["sweep", "--Gamma", "1,", "--out", "s.jsonl"], "--Gamma"),
+    (["sweep", "--Gamma", "1", "--Gamma", "2", "--out", "s.jsonl"], "--Gamma must be given once"),  # kept only 2
+    (["estimate", "--Gamma", "-1e3"], "Gamma must be"),  # was "expected one argument"
+    (["theory", "--gamma-bar", "-inf"], "gamma_bar must be"),
+    (["estimate", "--max-steps", str(2**63)], "max_steps"),  # was an OverflowError traceback
+    (["bruteforce", "--t", "1e300", "--n-paths", "10", "--max-work", "1e308"], "t must keep"),  # the same
+    (["bruteforce", "--method", "pdmp", "--t", "1e300", "--n-paths", "10", "--max-work", "1e308"], "t must keep"),
+    (["theory", "--h", "5e-324"], "grid nodes"),  # was an OverflowError; 1e-300 named a 150-digit count
     (["estimate", "--tau", "30"], "max_work must"),  # slow weak noise: predicted work refused up front
     (["estimate", "--tau-L", "inf", "--gamma-bar", "3.84"], "gamma_bar"),  # runaway
     (["bruteforce", "--t", "1e6", "--n-paths", "1000"], "max_work must"),
@@ -129,6 +138,25 @@ def test_bad_input_exit_2_one_line(argv, word, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("dryfric: error:"), err
     assert word in err[0] or word.replace("-", "_") in err[0], err
+
+
+@pytest.mark.parametrize("value", ["-1e-3", "-0.5", "-.25"])
+def test_negative_values_need_no_equals_sign(value, capsys):
+    """argparse took "-1e-3" for an option, so only --gamma-bar=-1e-3 worked (and a sweep list
+    "-0.5,0.5" never did)."""
+    assert main(["theory", "--gamma-bar", value, "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["params"]["gamma_bar"] == float(value)
+    from dryfric_jax import theory
+    assert out["M0"] == theory.exact_M0(Params(**{**FIG3, "gamma_bar": float(value)})) < 0
+
+
+def test_a_negative_sweep_list_is_read(tmp_path, capsys):
+    """Read, planned and refused as a whole (a tiny max_work): the message names both points."""
+    out = tmp_path / "s.jsonl"
+    assert main(["sweep", "--gamma-bar", "-0.5,0.25", "--out", str(out), "--max-work", "1e3"]) == 2
+    err = capsys.readouterr().err
+    assert '"gamma_bar": -0.5' in err and '"gamma_bar": 0.25' in err and not out.exists()
 
 
 def test_out_refuses_a_pipe_and_leaves_it(tmp_path, capsys):

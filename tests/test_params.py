@@ -115,7 +115,8 @@ def test_a_huge_integer_is_refused_in_one_short_line():
 @pytest.mark.parametrize("kw,name", [
     (dict(tau=True), "tau"), (dict(tau="1"), "tau"), (dict(tau=None), "tau"), (dict(tau=1.0, tau_L=[1.0]), "tau_L"),
     (dict(tau=1.0, gamma_bar="0"), "gamma_bar"),
-    # tau_L' = 1e300 in a tau0 of 1e10 s overflowed to tau_L = inf, then refused as "|gamma_bar| >= Delta with tau_L = inf"
+    # tau_L' = 1e300 in a tau0 of 1e10 s overflowed to tau_L = inf, then was refused as
+    # "|gamma_bar| >= Delta with tau_L = inf"
     (dict(tau=1.0, tau_L=1e300, gamma_bar=2.0, Gamma=1e10), "tau_L"),
 ])
 def test_from_nondim_refuses_by_name(kw, name):
