@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import json
 import math
 import re
 import sys
@@ -272,9 +271,9 @@ def _read_results(paths):
     out = []
     for path in paths:
         try:
-            with open(path) as f:
+            with open(path, encoding="utf-8") as f:
                 out.append(loads(f.read()))
-        except (OSError, json.JSONDecodeError) as e:
+        except (OSError, ValueError) as e:  # ValueError: not JSON, or not UTF-8
             raise _UserError(f"files: cannot read an estimate result from {path!r} ({e})") from None
         if not isinstance(out[-1], dict):
             raise _UserError(f"files: {path!r} holds no estimate result (a JSON object)")
@@ -370,7 +369,7 @@ def _run(a) -> int:
 
         _check_out(a.out)
         with _warnings_kept_in_result():
-            r = combine_estimates(_read_results(a.files))
+            r = combine_estimates(_read_results(a.files), labels=a.files)
         _report(a, r, _print_estimate)
         return 0
     params = _params(a)

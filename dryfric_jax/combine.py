@@ -51,7 +51,56 @@ def _as_result(r) -> EstimateResult:
     raise ValueError(f"results must be EstimateResult objects or their to_dict() (got {type(r).__name__})")
 
 
-def combine_estimates(results: Sequence) -> EstimateResult:
+def _real(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+
+
+def _count(x) -> bool:
+    return isinstance(x, int) and not isinstance(x, bool) and x >= 0
+
+
+#: the fields combine reads, what they must be, and how to say it
+_FIELDS = (
+    ("wall_s", lambda x: _real(x) and x >= 0, "a number >= 0"),
+    ("lane_steps_per_s", lambda x: _real(x) and x >= 0, "a number >= 0"),
+    ("lane_utilization", lambda x: _real(x) and 0 <= x <= 1 + 1e-9, "a number in [0, 1]"),
+    ("work", lambda x: _real(x) and x >= 0, "a number >= 0"),
+    ("predicted_work", lambda x: _real(x) and x >= 0, "a number >= 0"),
+    ("n_truncated", _count, "an integer >= 0"),
+    ("ci_level", lambda x: _real(x) and 0 < x < 1, "a number in (0, 1)"),
+    ("seed", lambda x: x is None or _count(x), "an integer >= 0 or null"),
+    ("combined_from", lambda x: isinstance(x, list) and all(s is None or _count(s) for s in x),
+     "a list of seeds"),
+    ("warnings", lambda x: isinstance(x, list) and all(isinstance(w, str) for w in x), "a list of strings"),
+    ("lanes", _count, "an integer >= 0"),
+    ("block", _count, "an integer >= 0"),
+)
+#: sums that are sums of squares (or of positive times) and must be >= 0; n and t must be > 0
+_NONNEGATIVE_SUMS = ("U2", "U4", "t2", "t3", "t4", "U2t", "U2t2", "t_half")
+
+
+def _check_fields(r: EstimateResult, label: str) -> None:
+    """``ValueError`` naming ``label`` and the field unless every field that combining reads has
+    its type and range (a hand-edited or foreign file failed with a TypeError, or gave D = nan)."""
+    try:
+        Params(**r.params)
+    except (TypeError, ValueError) as e:
+        raise ValueError(f"{label} must have params of a model (got {str(r.params)[:80]}: {e})") from None
+    for name, ok, what in _FIELDS:
+        v = getattr(r, name)
+        if not ok(v):
+            raise ValueError(f"{label} must have {name} {what} (got {str(v)[:60]})")
+    if not isinstance(r.sums, dict) or set(r.sums) != set(STAT_NAMES):
+        return  # no sums: refused below, with the advice to rerun
+    bad = [k for k in STAT_NAMES if not _real(r.sums[k])]
+    bad += [k for k in ("n", "t") if k not in bad and not r.sums[k] > 0]
+    bad += [k for k in _NONNEGATIVE_SUMS if k not in bad and not r.sums[k] >= 0]
+    if bad:
+        raise ValueError(f"{label} must have finite excursion sums, n and t > 0 and the sums of squares >= 0 "
+                         f"(got {', '.join(f'{k} = {str(r.sums[k])[:24]}' for k in bad[:4])})")
+
+
+def combine_estimates(results: Sequence, *, labels: Sequence[str] | None = None) -> EstimateResult:
     """One estimate from the pooled excursions of independent runs of the same model.
 
     Args:
@@ -68,17 +117,23 @@ def combine_estimates(results: Sequence) -> EstimateResult:
     independent).  Results made from a ``jax.random`` key carry no seed: their independence is
     the caller's to ensure, and a :class:`DryfricWarning` says so.
     """
+    if isinstance(results, (str, bytes, dict, EstimateResult)) or not hasattr(results, "__iter__"):
+        raise ValueError(f"results must be a list of EstimateResult objects (got {type(results).__name__})")
     rs = [_as_result(r) for r in results]
     if not rs:
         raise ValueError("results must hold at least one EstimateResult (got none)")
+    labels = [f"results[{i}]" for i in range(len(rs))] if labels is None else list(labels)
+    for r, label in zip(rs, labels):
+        _check_fields(r, label)
     first = rs[0]
     for i, r in enumerate(rs):
-        if set(r.sums) != set(STAT_NAMES):
-            raise ValueError(f"results[{i}] has no excursion sums (sums = {sorted(r.sums)!r}): rerun it with this version")
+        if not isinstance(r.sums, dict) or set(r.sums) != set(STAT_NAMES):
+            raise ValueError(f"{labels[i]} has no excursion sums (sums = {str(r.sums)[:60]}): rerun it with this "
+                             "version")
         for name in _SAME:
             a, b = getattr(first, name), getattr(r, name)
             if a != b and not (isinstance(a, float) and isinstance(b, float) and math.isclose(a, b, rel_tol=1e-12)):
-                raise ValueError(f"results must share {name}: results[0] has {a!r}, results[{i}] has {b!r}")
+                raise ValueError(f"results must share {name}: {labels[0]} has {a!r}, {labels[i]} has {b!r}")
     seeds = [s for r in rs for s in (r.combined_from or [r.seed])]
     known = [s for s in seeds if s is not None]
     if len(set(known)) < len(known):
@@ -89,7 +144,11 @@ def combine_estimates(results: Sequence) -> EstimateResult:
         warnings.warn("some results were made from a jax.random key, not a seed: their streams are assumed "
                       "independent", DryfricWarning, stacklevel=2)
     total = {k: float(sum(r.sums[k] for r in rs)) for k in STAT_NAMES}
-    return _result(first, rs, total, seeds)
+    out = _result(first, rs, total, seeds)
+    if not all(map(math.isfinite, (out.D, out.D_ci, out.M0, out.M0_ci))) or out.D < 0:
+        raise ValueError(f"results must hold consistent excursion sums: they give D = {out.D:.3g} +- {out.D_ci:.3g}, "
+                         f"M0 = {out.M0:.3g} (a hand-edited file?)")
+    return out
 
 
 def _result(first: EstimateResult, rs, total: dict, seeds) -> EstimateResult:

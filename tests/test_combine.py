@@ -59,6 +59,31 @@ def test_refusals_name_what_differs(runs):
         combine_estimates([])
 
 
+@pytest.mark.parametrize("edit,field", [
+    (dict(wall_s="x"), "wall_s"), (dict(seed=[1]), "seed"), (dict(warnings=5), "warnings"),
+    (dict(combined_from=5), "combined_from"), (dict(n_truncated=-1), "n_truncated"), (dict(ci_level=2.0), "ci_level"),
+    (dict(params={"Gamma": 5.0}), "params"), (dict(params=[1, 2]), "params"),
+    (dict(sums={"t": 0.0}), "finite excursion sums"), (dict(sums={"n": math.nan}), "finite excursion sums"),
+    (dict(sums={"U2": -5.0}), "finite excursion sums"),
+    (dict(sums={"t": "x"}), "finite excursion sums"),
+])
+def test_a_malformed_result_is_refused_by_name(runs, edit, field):
+    """A hand-edited or foreign file: a TypeError or OverflowError before, or D = nan (t = 0) and
+    a negative D (U2 < 0) with exit 0."""
+    d = runs[1].to_dict()
+    d.update({k: ({**d["sums"], **v} if k == "sums" else v) for k, v in edit.items()})
+    with pytest.raises(ValueError, match=f"^run-b.json must have {field}"):
+        combine_estimates([runs[0].to_dict(), d], labels=["run-a.json", "run-b.json"])
+    with pytest.raises(ValueError, match=rf"^results\[1\] must have {field}"):
+        combine_estimates([runs[0], d])
+
+
+@pytest.mark.parametrize("bad", [None, 5, "r.json", {}])
+def test_results_must_be_a_list(bad):
+    with pytest.raises(ValueError, match="^results must"):
+        combine_estimates(bad)
+
+
 def test_gather_hosts_in_one_process_is_the_run_itself(runs):
     g = gather_hosts(runs[0])
     assert (g.D, g.D_ci, g.n_excursions, g.combined_from) == (runs[0].D, runs[0].D_ci, runs[0].n_excursions, [41])
