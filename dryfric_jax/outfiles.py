@@ -121,24 +121,29 @@ def write_atomic(path: str, text: str) -> None:
         raise
 
 
-def read_records(path: str, keys: tuple, refusal: str) -> list[dict]:
+def read_records(path: str, keys: tuple, refusal: str, check=None) -> list[dict]:
     """The records of a JSON Lines results file (empty if it does not exist), each a JSON object
-    with ``keys``; any other line raises ``ValueError(refusal.format(path=path, line=i))``, so a
-    foreign file is refused rather than overwritten."""
-    if not os.path.exists(path):
+    with ``keys`` (and passing ``check(record)``, which raises on a malformed one); any other
+    line, or a file that is not UTF-8 text, raises ``ValueError(refusal.format(path=path,
+    line=i))``, so a foreign file is refused rather than overwritten or half-read."""
+    if not os.path.lexists(path):
         return []
-    out = []
-    with open(path) as f:
-        for i, line in enumerate(f, 1):
-            if not line.strip():
-                continue
-            try:
+    if not os.path.isfile(path):
+        raise ValueError(refusal.format(path=path, line=0).split(";")[0] + f" (got {path!r}, not a file)")
+    out, i = [], 0
+    try:
+        with open(path, encoding="utf-8") as f:
+            for i, line in enumerate(f, 1):
+                if not line.strip():
+                    continue
                 rec = loads(line)
                 for k in keys:
                     rec[k]
-            except (ValueError, KeyError, TypeError):
-                raise ValueError(refusal.format(path=path, line=i)) from None
-            out.append(rec)
+                if check is not None:
+                    check(rec)
+                out.append(rec)
+    except (ValueError, KeyError, TypeError, AttributeError):  # UnicodeDecodeError is a ValueError
+        raise ValueError(refusal.format(path=path, line=i + (i == 0))) from None
     return out
 
 

@@ -33,12 +33,14 @@ import time
 import warnings
 import zlib
 
+import numpy as np
+
 from . import __version__
 from .api import DryfricWarning, NoEstimateError, ProjectionWarning, check_seed, estimate_diffusivity
 from .limits import MAX_WORK
 from .outfiles import check_writable, read_records, write_records
-from .params import FIG3, Params
-from .plan import plan_estimate
+from .params import FIG3, Params, real_or_none
+from .plan import dtype_name, plan_estimate
 
 PARAM_KEYS = ("Gamma", "Delta", "tau", "tau_L", "gamma_bar")
 #: settings that determine a point's result (with its parameters and seed)
@@ -53,7 +55,13 @@ def grid(**axes) -> list[dict]:
     unknown = set(axes) - set(PARAM_KEYS)
     if unknown:
         raise ValueError(f"sweep axes must be among {list(PARAM_KEYS)} (got {sorted(unknown)})")
-    return [dict(zip(names, vals)) for vals in itertools.product(*(axes[k] for k in names))]
+    values = {}
+    for k in names:
+        v = axes[k]
+        if isinstance(v, (str, bytes, dict)):  # "5,6" was read as the points '5', ',' and '6'
+            raise ValueError(f"sweep axis {k} must be a list of numbers (got {v!r})")
+        values[k] = [v] if real_or_none(v) is not None else list(np.ravel(v)) if isinstance(v, np.ndarray) else list(v)
+    return [dict(zip(names, vals)) for vals in itertools.product(*(values[k] for k in names))]
 
 
 def _canon(x):
@@ -71,10 +79,31 @@ def point_seed(seed: int, params: dict, settings: dict) -> int:
     return zlib.crc32(_ident(seed, params, settings).encode()) & 0x7FFFFFFF
 
 
+def _is_real(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool)
+
+
+def _check_record(rec: dict) -> None:
+    """Raise (TypeError) unless ``rec`` has the shape of a sweep record: what resuming, counting and
+    :func:`rows` read.  A hand-edited line used to fail with a KeyError after new points had run."""
+    ok = (isinstance(rec["params"], dict) and all(_is_real(rec["params"].get(k)) for k in PARAM_KEYS)
+          and isinstance(rec["settings"], dict) and isinstance(rec["sweep_seed"], int)
+          and not isinstance(rec["sweep_seed"], bool) and status(rec) in ("ok", "refused", "failed"))
+    if ok and status(rec) == "ok":
+        res = rec.get("result")
+        ok = isinstance(res, dict) and all(_is_real(res.get(k)) for k in ("D", "D_ci", "M0", "M0_ci", "n_truncated"))
+    elif ok:
+        ok = isinstance(rec.get("reason"), str)
+    if not ok:
+        raise TypeError("not a sweep record")
+
+
 def read_results(path: str) -> list[dict]:
-    """The records of a sweep file (empty if it does not exist); refuses a file that is not one."""
+    """The records of a sweep file (empty if it does not exist); refuses a file that is not one,
+    naming the first line that is not a sweep record."""
     return read_records(path, ("params", "settings", "sweep_seed"),
-                        "out must be a dryfric sweep file (JSON Lines); {path!r} line {line} is not a sweep record")
+                        "out must be a dryfric sweep file (JSON Lines); {path!r} line {line} is not a sweep record",
+                        check=_check_record)
 
 
 def _check_points(points) -> list[dict]:
@@ -90,7 +119,27 @@ def _check_points(points) -> list[dict]:
         unknown = sorted(set(pt) - set(PARAM_KEYS))
         if unknown:
             raise ValueError(f"points[{i}] has unknown parameters {unknown} (known: {list(PARAM_KEYS)})")
-    return points
+    return [{k: _plain(v) for k, v in pt.items()} for pt in points]
+
+
+def _plain(v):
+    """A numpy scalar or 0-d array as a Python float (records are JSON); anything else as it is,
+    for Params or the planner to refuse by name."""
+    f = real_or_none(v)
+    return v if f is None else f
+
+
+def _plain_settings(method, h, delta, dtype, n_excursions, rtol, max_work) -> dict:
+    """The settings as JSON values: numpy numbers as Python ones, a numpy dtype as its name."""
+    if not isinstance(dtype, str):
+        try:
+            dtype = dtype_name(dtype)
+        except ValueError:
+            pass  # refused by name by the planner
+    if isinstance(n_excursions, np.integer):
+        n_excursions = int(n_excursions)
+    return dict(method=method, h=_plain(h), delta=_plain(delta), dtype=dtype, n_excursions=n_excursions,
+                rtol=_plain(rtol), max_work=_plain(max_work))
 
 
 def status(record: dict) -> str:
@@ -153,8 +202,8 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
     check_writable(out)
     points = _check_points(points)
     seed = check_seed(seed)
-    settings = dict(method=method, h=h, delta=delta, dtype=dtype, n_excursions=n_excursions, rtol=rtol,
-                    max_work=max_work)
+    settings = _plain_settings(method, h, delta, dtype, n_excursions, rtol, max_work)
+    method, h, delta, dtype, n_excursions, rtol, max_work = (settings[k] for k in SETTING_KEYS)
     full = [{**{k: FIG3[k] for k in PARAM_KEYS}, **pt} for pt in points]
     refused = {}  # ident -> (point, reason); every point is planned before any work
     for pt in full:

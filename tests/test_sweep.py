@@ -196,3 +196,62 @@ def test_truncated_points_exit_3_unless_allowed(tmp_path, capsys):
     assert rec["status"] == "ok" and rec["result"]["n_truncated"] > 0
     assert main(argv + ["--allow-truncated"]) == 0  # resumed, nothing rerun
     assert _lines(out) == [rec]
+
+
+def test_numpy_points_and_settings_are_the_python_ones(tmp_path):
+    """sweep.grid(Gamma=np.arange(...)) gave np.int64 points, which failed to serialise (TypeError)
+    after the planning; numpy settings likewise.  Now they are the same points as Python numbers:
+    a rerun with Python values finds them done."""
+    import numpy as np
+
+    out = str(tmp_path / "s.jsonl")
+    kw = dict(n_excursions=50, max_work=1e6, seed=3)
+    r = sweep.run_sweep(sweep.grid(Gamma=np.arange(5, 6)), out, **{**kw, "n_excursions": np.int64(50),
+                                                                     "max_work": np.int64(10**6)})
+    assert r["computed"] == 1
+    again = sweep.run_sweep(sweep.grid(Gamma=[5.0]), out, **kw)
+    assert again["computed"] == 0 and again["skipped"] == 1
+    assert _lines(out)[0]["params"]["Gamma"] == 5.0
+
+
+def test_grid_axes_are_lists_of_numbers():
+    with pytest.raises(ValueError, match="^sweep axis Gamma must be a list of numbers"):
+        sweep.grid(Gamma="5,6")  # was the points '5', ',' and '6'
+    assert sweep.grid(Gamma=5.0, tau=(0.5, 1.0)) == [dict(Gamma=5.0, tau=0.5), dict(Gamma=5.0, tau=1.0)]
+
+
+_GOOD = dict(params={"Gamma": 5.0, "Delta": 3.84, "tau": 0.5, "tau_L": 0.067, "gamma_bar": 0.342},
+             settings={"method": "di", "n_excursions": 50}, sweep_seed=0, status="ok",
+             result={"D": 1.0, "D_ci": 0.1, "M0": 0.0, "M0_ci": 0.1, "n_truncated": 0})
+
+
+@pytest.mark.parametrize("edit", [
+    dict(status="ok", result=None),  # a KeyError after the new points had run
+    dict(params=[]), dict(params={}), dict(params={**_GOOD["params"], "Gamma": None}), dict(settings=5),
+    dict(sweep_seed=[0]), dict(status="done"), dict(status="refused"),  # a refusal without its reason
+    dict(result={**_GOOD["result"], "n_truncated": "x"}),
+])
+def test_a_malformed_record_refuses_the_file_before_any_work(tmp_path, edit, capsys):
+    out = tmp_path / "s.jsonl"
+    assert sweep.read_results(_write(out, _GOOD))[0]["result"]["D"] == 1.0  # the well-formed one reads
+    text = json.dumps({**_GOOD, **edit}) + "\n"
+    out.write_text(text)
+    assert main(["sweep", "--Gamma", "6", "--n-excursions", "50", "--out", str(out)]) == 2
+    assert "--out must be a dryfric sweep file (JSON Lines)" in capsys.readouterr().err
+    assert out.read_text() == text
+    with pytest.raises(ValueError, match="line 1 is not a sweep record"):
+        sweep.rows(str(out))
+
+
+def _write(path, rec):
+    path.write_text(json.dumps(rec) + "\n")
+    return str(path)
+
+
+def test_a_file_that_is_not_text_or_not_a_file_is_refused(tmp_path):
+    out = tmp_path / "s.jsonl"
+    out.write_bytes(b"\xff\xfe\x00")
+    with pytest.raises(ValueError, match="^out must be a dryfric sweep file"):  # was a UnicodeDecodeError
+        sweep.rows(str(out))
+    with pytest.raises(ValueError, match="^out must be a dryfric sweep file"):  # was an IsADirectoryError
+        sweep.rows(str(tmp_path))

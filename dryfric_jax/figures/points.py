@@ -46,6 +46,12 @@ def _ident(kind: str, params, seed: int, kw: dict) -> str:
     return json.dumps([kind, _canon(params.as_dict()), int(seed), _canon(kw), __version__], sort_keys=True)
 
 
+def _check_record(rec: dict) -> None:
+    """Raise (TypeError) unless ``rec`` has a finished run's shape (an ident list made a TypeError)."""
+    if not (isinstance(rec["ident"], str) and rec["kind"] in _KINDS and isinstance(rec["result"], dict)):
+        raise TypeError("not a finished-run record")
+
+
 def points_path(out_dir: str, scene: str) -> str:
     return os.path.join(out_dir, f"{scene}.points.jsonl")
 
@@ -62,7 +68,7 @@ class Points:
         self.reused, self.computed, self.runs_wall_s = 0, 0, 0.0
         self.records = read_records(self.path, ("ident", "kind", "result"),
                                     "out must be a directory of dryfric figure outputs; {path!r} line {line} is "
-                                    "not a finished-run record (move the file away)")
+                                    "not a finished-run record (move the file away)", check=_check_record)
         self._done = {rec["ident"]: rec for rec in self.records}
 
     def estimate(self, params, seed: int, **kw) -> EstimateResult:
