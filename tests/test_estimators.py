@@ -29,15 +29,26 @@ def _cycles(rng, n, mu):
 def test_estimator_consistent_and_ci_covers(mu):
     rng = np.random.default_rng(1)
     cover_D = cover_M = 0
-    reps = 400
+    reps, n = 400, 2000
+    D, D_ci, M_ci = [], [], []
     for _ in range(reps):
-        U, t = _cycles(rng, 2000, mu)
+        U, t = _cycles(rng, n, mu)
         e = long_excursion_estimates(sums_from_samples(U, t))
         cover_D += abs(e["D"] - 2.25) <= e["D_ci"]
         cover_M += abs(e["M0"] - mu) <= e["M0_ci"]
+        D.append(e["D"]), D_ci.append(e["D_ci"]), M_ci.append(e["M0_ci"])
     # 95% nominal; binomial sd over 400 replicates is 0.011: accept 0.95 +- 4 sd
     assert 0.905 <= cover_D / reps <= 0.995
     assert 0.905 <= cover_M / reps <= 0.995
+    # coverage alone passes a 99% interval (1.31x too wide): the width against the exact asymptotic
+    # SEs. Influence of D: ((U - M0 t)^2 - D t)/E t = t s^2 (Z^2 - 1)/E t, so Var = 2 s^4 E[t^2]/E[t]^2
+    # = 2 * 2.25^2 * 6 / 4; of M0: sqrt(t) s Z / E t, Var = s^2 E[t] / E[t]^2 = 2.25 / 2.
+    se_D, se_M = np.sqrt(2 * 2.25**2 * 6 / 4 / n), np.sqrt(2.25 / 2 / n)
+    # the mean half-width over 400 replicates is known to ~0.3% (its own spread), plus O(1/N)
+    np.testing.assert_allclose(np.mean(D_ci) / 1.96, se_D, rtol=0.02)
+    np.testing.assert_allclose(np.mean(M_ci) / 1.96, se_M, rtol=0.02)
+    # and the estimates spread as the SE says (the sd of 400 replicates is known to ~3.5%)
+    np.testing.assert_allclose(np.std(D, ddof=1), se_D, rtol=0.15)
 
 
 def test_paper_formula_is_biased_with_drift():
@@ -49,7 +60,7 @@ def test_paper_formula_is_biased_with_drift():
     D_paper, ci_paper, _ = delta_method(psi_D_paper, S[:3], C[:3, :3], U.size)
     assert abs(D - 2.25) <= ci
     # here Var(U) = E[t] s^2 + mu^2 Var(t): the paper's value is 2.25 + 0.64 * 2 / 2 = 2.89
-    assert abs(D_paper - 2.89) <= 3 * ci_paper and abs(D_paper - 2.25) > 10 * ci_paper
+    assert abs(D_paper - 2.89) <= 3 / 1.96 * ci_paper and abs(D_paper - 2.25) > 10 * ci_paper  # 3 SE
 
 
 def test_psi_M_and_units():
