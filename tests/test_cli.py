@@ -286,7 +286,7 @@ def test_bench_json_has_the_side_by_side_numbers(capsys):
 
 def test_bench_layout_sweep(capsys):
     """``bench --lanes --block``: one row per layout, the best is the fastest, and the layouts'
-    estimates agree (other random streams, same law)."""
+    estimates agree (each (lanes, K) its own seed: other random streams, same law)."""
     assert main(["bench", "--lanes", "32,64", "--block", "64", "--n-excursions", "200", "--dtype", "float64",
                  "--repeat", "2", "--json"]) == 0
     b = json.loads(capsys.readouterr().out)
