@@ -259,8 +259,8 @@ def tune_layout(lanes_list, blocks, dtype: str = "float32", n_excursions: int = 
     random streams but not the law, so the D of all layouts must agree within their CIs:
     ``max_z`` is the largest |D_i - pooled others| / SE of the difference, each row against the
     inverse-variance pool of the other rows (a check, not a speed number).  At the best layout,
-    on the same device: the RNG bound and the chain floor (``bound_n`` lane-steps each), and on the host CPU the numba 2-thread DI loop
-    (``numba_excursions`` = 0 skips it).
+    on the same device: the RNG bound and the chain floor (``bound_n`` lane-steps each), and on
+    the host CPU the numba 2-thread DI loop (``numba_excursions`` = 0 skips it).
 
     For a lent accelerator's few minutes (``scripts/device_check.py``): ``unrolls`` also sweeps
     the wait loop's unroll (:data:`~dryfric_jax.excursions.QUIET_UNROLL`, traced into the loop,

@@ -129,3 +129,28 @@ def test_di_recorders_take_keys_of_another_generator():
     np.testing.assert_array_equal(V, di_transient(m, key, 5, (10, 300)))
     Vs, Us = di_stationary(m, key, 3, 4, 150, burn_steps=20)
     assert np.all(np.isfinite(V)) and np.all(np.isfinite(Us)) and np.all(np.abs(V) < 10) and len(set(V[:, 1])) == 5
+
+
+def test_autocorrelation_standard_error_matches_the_spread_over_replicates():
+    """Fig. 4's h(rho)/h(0): its SE over paths (delta method for the ratio) against the actual
+    spread of r(k) over 300 independent replicates of 32 AR(1) paths (exact r(k) = 0.95^k).
+    The old SE, se(c(k))/c(0), was 5-20x too large at these lags (c(k) and c(0) move together)."""
+    from dryfric_jax.paths import autocorrelation
+
+    rng = np.random.default_rng(7)
+    phi, n, paths, reps, lags = 0.95, 2000, 32, 300, np.array([1, 5, 20])
+    r_all, se_all = [], []
+    for _ in range(reps):
+        x = np.empty((paths, n))
+        x[:, 0] = rng.standard_normal(paths) / np.sqrt(1 - phi**2)  # stationary start
+        e = rng.standard_normal((paths, n))
+        for t in range(1, n):
+            x[:, t] = phi * x[:, t - 1] + e[:, t]
+        r, se = autocorrelation(x, 20)
+        r_all.append(r[lags])
+        se_all.append(se[lags])
+    r_all, se_all = np.array(r_all), np.array(se_all)
+    sd = r_all.std(0, ddof=1)
+    # the sd of an sd over 300 replicates is ~4%: 5 of them, plus an O(1/paths) bias of the SE
+    np.testing.assert_allclose(se_all.mean(0), sd, rtol=0.2)
+    assert np.all(np.abs(r_all.mean(0) - phi**lags) < 4 * sd / np.sqrt(reps) + 3 / n)  # r itself, up to O(1/n)

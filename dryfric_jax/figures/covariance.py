@@ -5,7 +5,8 @@ r"""Fig. 4 (paper section 7.1): normalised stationary velocity covariance :math:
 Long stationary runs: each path starts at s_+ (PDMP) or (x_Delta-ish stationary X, V = 0) (DI)
 and is discarded for a burn-in of ``BURN_TAU0`` tau0 (several excursion durations, Fig. 3), then
 V is recorded every ``DT_REC`` tau0; the covariance is the FFT autocorrelation per path around
-the grand mean, averaged over paths (bands: 2 SE over paths).
+the grand mean, averaged over paths, and normalised by its lag-0 value; the SE of that ratio
+comes from the paths by the delta method (:func:`~dryfric_jax.paths.autocorrelation`).
 """
 from __future__ import annotations
 
@@ -16,7 +17,7 @@ import numpy as np
 
 from ..di import make_di_model
 from ..params import FIG3, Params
-from ..paths import autocovariance, di_stationary, pdmp_stationary
+from ..paths import autocorrelation, di_stationary, pdmp_stationary
 from ..pdmp import make_pdmp_model
 from ..plan import default_h
 from .common import plt, save
@@ -45,10 +46,9 @@ def fig4(out_dir, quick, seed):
         rho = np.arange(lags + 1) * DT_REC * p.tau0
         cur = {}
         for name, V, style in (("pdmp", Vp, "-"), ("di", Vd, ":")):
-            c, se = autocovariance(V, lags, center=True)
-            ax.semilogy(rho, np.maximum(c / c[0], 1e-4), style, color=f"C{j}",
-                        label=f"tau = {tau:g} s ({name})")
-            cur[name] = dict(rho=rho, h_over_h0=c / c[0], se=se / c[0])
+            r, se = autocorrelation(V, lags, center=True)
+            ax.semilogy(rho, np.maximum(r, 1e-4), style, color=f"C{j}", label=f"tau = {tau:g} s ({name})")
+            cur[name] = dict(rho=rho, h_over_h0=r, se=se)
         diff = np.abs(cur["pdmp"]["h_over_h0"] - cur["di"]["h_over_h0"])
         se = np.hypot(cur["pdmp"]["se"], cur["di"]["se"])
         cur["max_diff_in_se"] = float(np.max(diff[1:] / se[1:]))  # lag 0 is 1 by construction
