@@ -179,21 +179,43 @@ def _exact_D_nd(itl, g):
     return 2.0 * sum(_quad(integrand, a, b, s, 1e-10) for a, b in _pieces(0.0, m, *_mode_points(itl, g)))
 
 
+def _closed_form_args(Gamma, Delta=None, **kw):
+    """Validate a closed form's arguments by name (``ValueError``, as Params does): they were
+    taken as they came, so a NaN gave NaN and a zero a ZeroDivisionError."""
+    check_positive("Gamma", Gamma)
+    if Delta is not None:
+        check_positive("Delta", Delta)
+    for name, v in kw.items():
+        (check_finite if name == "gamma_bar" else check_positive)(name, v)
+
+
+def _finite(name, value):
+    if not math.isfinite(value):
+        raise ValueError(f"{name} overflows for these parameters (Gamma, Delta out of floating-point range); "
+                         "use other units")
+    return value
+
+
 def D_pure_dry(Gamma, Delta) -> float:
     r""":math:`b = 0`: :math:`D = 10\Gamma^3/\Delta^4` (:math:`= 5\Gamma_w^3/(4\Delta^4)`)."""
-    return 10.0 * Gamma**3 / Delta**4
+    _closed_form_args(Gamma, Delta)
+    G, d = float(Gamma), float(Delta)
+    return _finite("D", 10.0 * (G / d) ** 3 / d if G / d < 1e100 else math.inf)
 
 
 def D_constant_bias(Gamma, Delta, gamma_bar) -> float:
     r""":math:`b = \bar\gamma`, :math:`|\bar\gamma| < \Delta`:
     :math:`D = 2\Gamma^3(5\Delta^4 + 22\Delta^2\bar\gamma^2 + 5\bar\gamma^4)/(\Delta^2 - \bar\gamma^2)^4`."""
+    _closed_form_args(Gamma, Delta, gamma_bar=gamma_bar)
     _check_bias(Delta, gamma_bar)
-    d2, g2 = Delta**2, gamma_bar**2
-    return 2 * Gamma**3 * (5 * d2 * d2 + 22 * d2 * g2 + 5 * g2 * g2) / (d2 - g2) ** 4
+    d2, g2 = Delta * Delta, gamma_bar * gamma_bar  # products: a float's ** raises on overflow
+    gap2 = (d2 - g2) * (d2 - g2)
+    return _finite("D", 2 * Gamma * Gamma * Gamma * (5 * d2 * d2 + 22 * d2 * g2 + 5 * g2 * g2) / (gap2 * gap2))
 
 
 def M0_constant_bias(Gamma, Delta, gamma_bar) -> float:
     r""":math:`b = \bar\gamma`: :math:`M_0 = 2\Gamma\bar\gamma/(\Delta^2 - \bar\gamma^2)`."""
+    _closed_form_args(Gamma, Delta, gamma_bar=gamma_bar)
     _check_bias(Delta, gamma_bar)
     return 2 * Gamma * gamma_bar / (Delta**2 - gamma_bar**2)
 
@@ -201,7 +223,8 @@ def M0_constant_bias(Gamma, Delta, gamma_bar) -> float:
 def D_viscous_only(Gamma, tau_L) -> float:
     r"""Limit :math:`\Delta \to 0`: :math:`D = 2\tau_L^2\Gamma` (the paper's :math:`\tau_L^2\Gamma` is the
     :math:`\Gamma_w = \Gamma` form)."""
-    return 2.0 * tau_L**2 * Gamma
+    _closed_form_args(Gamma, tau_L=tau_L)
+    return _finite("D", 2.0 * tau_L * tau_L * Gamma)
 
 
 def _check_bias(Delta, gamma_bar):

@@ -58,6 +58,9 @@ def test_fig5_stationary_velocity(figs):
 
 
 def test_fig3_pdmp_and_di_agree(figs):
+    """A smoke check of the scene at quick settings (N = 1000: 3 SE is about +-25% of D, so it
+    catches a wrong scene, not a grid bias of a few %). The sharp PDMP-DI agreement is
+    test_pdmp.py's (N = 2e4 at the Fig. 3 point); the full settings' numbers are in the README."""
     f = figs["fig3"]
     for tau, z in f["agree"].items():  # |D_pdmp - D_di| / hypot(CIs); 3 SE = 1.53
         assert max(z) <= 3 / 1.96, (tau, z)
@@ -121,6 +124,8 @@ def test_figure_points_of_another_version_are_recomputed(tmp_path, monkeypatch):
 
 def test_fig8_bruteforce_and_long_excursions_agree_and_exponent_is_reported(figs):
     """Brute force at t = 10 s is biased by O(tau_c / t) (section 5.3): compared where t >= 100 tau0.
+    At quick settings (100 paths) the brute-force CI is ~30% of D: a smoke check of the scene; the
+    sharp long-excursion vs brute-force agreement is test_stopping_rule.py's.
     Long excursions against the exact white-noise D at tau = 1e-5 s with viscous damping (without
     it the CI under-covers at this N, README)."""
     compared = 0

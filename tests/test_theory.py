@@ -146,3 +146,20 @@ def test_touchette_formulas_at_their_edges():
     assert np.array_equal(theory.correlation([-2.0, 2.0]), theory.correlation([2.0, 2.0]))
     p = Params(5.0, 3.84, 1e-6, 0.067, 0.342)
     assert np.array_equal(theory.stationary_density([-np.inf, np.inf], p), [0.0, 0.0])
+
+
+@pytest.mark.parametrize("call,name", [
+    (lambda: theory.D_pure_dry(5.0, math.nan), "Delta"),  # was nan
+    (lambda: theory.D_pure_dry(5.0, 0), "Delta"),  # was a ZeroDivisionError
+    (lambda: theory.D_pure_dry("5", 3.84), "Gamma"),  # was a TypeError
+    (lambda: theory.D_pure_dry(1e300, 1e-300), "D"),  # was an OverflowError
+    (lambda: theory.D_constant_bias(1e200, 1.0, 0.5), "D"),
+    (lambda: theory.D_constant_bias(5.0, 3.84, None), "gamma_bar"),
+    (lambda: theory.M0_constant_bias(5.0, math.inf, 0.0), "Delta"),
+    (lambda: theory.D_viscous_only(5.0, math.nan), "tau_L"),
+    (lambda: theory.D_viscous_only(5.0, math.inf), "tau_L"),  # was inf
+    (lambda: theory.D_viscous_only(5.0, 0), "tau_L"),  # was 0.0
+])
+def test_closed_forms_refuse_bad_arguments_by_name(call, name):
+    with pytest.raises(ValueError, match=f"^{name} (must|overflows)"):
+        call()
