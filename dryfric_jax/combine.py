@@ -108,12 +108,15 @@ def combine_estimates(results: Sequence, *, labels: Sequence[str] | None = None)
             records of a sweep's results file) of
             :func:`~dryfric_jax.api.estimate_diffusivity` with the same parameters, method,
             step (``h`` or ``delta``) and dtype, and different seeds.
+        labels: names of the results for the messages (``dryfric combine`` passes the file
+            names); default ``results[i]``.
 
     Returns an :class:`EstimateResult` whose D, M0, CIs and mean duration are those of all the
     runs' complete excursions together; counts, work and wall time are sums (``wall_s`` is the
     compute spent, not the elapsed time of runs made side by side), ``combined_from`` lists the
-    seeds.  Raises ``ValueError`` naming what differs, for results without sums (made before
-    they were recorded) and for a seed used twice (the same random stream twice is not
+    seeds.  Raises ``ValueError`` naming what differs, for a field of the wrong type or range
+    (a hand-edited file: every field combining reads is checked), for results without sums (made
+    before they were recorded) and for a seed used twice (the same random stream twice is not
     independent).  Results made from a ``jax.random`` key carry no seed: their independence is
     the caller's to ensure, and a :class:`DryfricWarning` says so.
     """
