@@ -8,6 +8,8 @@ import pytest
 
 from dryfric_jax.cli import main
 from dryfric_jax.figures import SCENES
+from dryfric_jax.params import FIG3, Params
+from dryfric_jax.plan import default_h
 
 
 @pytest.fixture(scope="module")
@@ -177,3 +179,26 @@ def test_run_figures_refuses_bad_input_by_name(tmp_path, which, seed, match):
     with pytest.raises(ValueError, match=match):
         run_figures(which, str(tmp_path / "figs"), True, seed)
     assert not (tmp_path / "figs").exists()
+
+
+def test_the_scenes_simulate_the_times_they_compare():
+    """A rounded step count simulated another time than the one compared or plotted: Table 1's
+    quick t' = 0.125 at h' = 2e-3 ran to 0.124, Fig. 4's DI was recorded every 0.0494 tau0 and
+    plotted every 0.05 tau0 (8.6 SE from the PDMP at the first lag at full settings)."""
+    from dryfric_jax.figures.common import exact_steps
+
+    assert exact_steps(0.125, 1.25e-3) == 100 and exact_steps(2.5, 2e-4) == 12_500
+    with pytest.raises(ValueError, match="whole number of steps"):
+        exact_steps(0.125, 2e-3)
+    with pytest.raises(ValueError, match="whole number of steps"):
+        exact_steps(1e-4, 2e-3)  # not even one step
+
+
+def test_fig4_records_the_di_at_the_pdmp_lags(figs):
+    import dryfric_jax.figures.covariance as cov
+
+    for tau, c in figs["fig4"]["curves"].items():
+        assert c["pdmp"]["rho"] == c["di"]["rho"]
+        p = Params(FIG3["Gamma"], FIG3["Delta"], float(tau), FIG3["tau_L"], FIG3["gamma_bar"])
+        every = cov.DT_REC / (c["di_h"] / p.tau0)  # steps between records: a whole number
+        assert abs(every - round(every)) < 1e-9 and c["di_h"] <= default_h(p)

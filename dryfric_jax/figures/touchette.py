@@ -23,7 +23,7 @@ from .. import theory
 from ..di import make_di_model
 from ..params import Params
 from ..paths import autocovariance, di_stationary, di_transient
-from .common import plt, save
+from .common import exact_steps, plt, save
 
 T_TABLE = (0.05, 0.125, 0.25, 0.5, 1.0, 2.5)
 PAPER_ROW = (0.950, 0.875, 0.757, 0.568, 0.336, 0.090)  # printed: unit-intensity noise (MODEL_NOTES 2)
@@ -38,8 +38,8 @@ def _model(tau_nd, h_nd):
 
 def table1(out_dir, quick, seed):
     t0 = time.perf_counter()
-    n, h, tau = (40_000, 2e-3, 0.5e-5) if quick else (1_000_000, 2e-4, 0.5e-5)
-    V = di_transient(_model(tau, h), jax.random.key(seed), n, [round(t / h) for t in T_TABLE])
+    n, h, tau = (40_000, 1.25e-3, 0.5e-5) if quick else (1_000_000, 2e-4, 0.5e-5)  # t' = 0.125: 100 steps
+    V = di_transient(_model(tau, h), jax.random.key(seed), n, [exact_steps(t, h) for t in T_TABLE])
     mc, se = V.mean(0), V.std(0, ddof=1) / np.sqrt(n)
     exact = [theory.first_moment(t, 1.0) for t in T_TABLE]
     unit = [theory.first_moment_unit_intensity(t, 1.0) for t in T_TABLE]
@@ -65,7 +65,7 @@ def fig6(out_dir, quick, seed):
     nums = dict(tau_nd=TAUS, t=T_DENSITY, h_nd=h, n_paths=n, max_dev_in_se={})
     for j, (tau, ax) in enumerate(zip(TAUS, axs)):
         V = di_transient(_model(tau, h), jax.random.fold_in(jax.random.key(seed), j), n,
-                         [round(t / h) for t in T_DENSITY])
+                         [exact_steps(t, h) for t in T_DENSITY])
         devs = []
         for i, t in enumerate(T_DENSITY):
             cnt, _ = np.histogram(V[:, i], edges)
@@ -86,7 +86,7 @@ def fig7(out_dir, quick, seed):
     t0 = time.perf_counter()
     paths, length, h = (256, 100.0, 2e-3) if quick else (4096, 400.0, 5e-4)
     dt_rec = 0.05
-    every = round(dt_rec / h)
+    every = exact_steps(dt_rec, h)
     lags = np.arange(0, round(10 / dt_rec) + 1)
     fig, ax = plt.subplots(figsize=(6, 4))
     tl = lags * dt_rec
