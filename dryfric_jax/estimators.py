@@ -159,10 +159,15 @@ def bruteforce_estimates(U, t: float, level: float = 0.95) -> dict:
     n = U.size
     if n < 2:
         raise ValueError(f"n_paths must be >= 2 (got {n})")
-    Y = np.stack([U / np.sqrt(t), U**2 / t])
+    # centred first (D^t does not change under a shift of U, nor does its delta-method variance): y2 - y1^2
+    # and the gradient (-2 y1, 1) cancelled catastrophically when |mean U| >> sd U (a strong bias, a long t;
+    # mean 1e6, sd 1e-3 gave D = 2.4e-4 for 1.0e-6), and D went below 0 by rounding (-1.5e-54 at t = 1e-12 s)
+    Uc = U - U.mean()
+    Y = np.stack([Uc / np.sqrt(t), Uc**2 / t])
     R = Y.mean(1)
     G = np.cov(Y, bias=True)
     D, D_ci, _ = delta_method(phi_bf, R, G, n, level)
+    D = max(D, 0.0)  # y2 >= y1^2 up to the rounding of y1 ~ 1e-16 sd
     z = z_quantile(level)
     return dict(D_t=D, D_t_ci=D_ci, M0_t=float(U.mean() / t), M0_t_ci=z * float(U.std() / t / np.sqrt(n)),
                 n_paths=n, t=t)

@@ -96,3 +96,14 @@ def test_too_few_samples_refused():
         long_excursion_estimates(sums_from_samples([1.0], [1.0]))
     with pytest.raises(ValueError, match="n_paths"):
         bruteforce_estimates([1.0], 1.0)
+
+
+def test_bruteforce_estimate_does_not_depend_on_a_shift_of_U():
+    """D^t is a variance: U + 1e6 (a strong bias over a long horizon) must give the D and CI of U.
+    The raw y2 - y1^2 cancelled: sd 1e-3 about a mean of 1e6 gave D = 2.4e-4 for 1.0e-6."""
+    rng = np.random.default_rng(4)
+    U = rng.normal(0.0, 1e-3, 100_000)
+    a, b = bruteforce_estimates(U, 2.0), bruteforce_estimates(U + 1e6, 2.0)
+    # adding 1e6 rounds each U by <= 6e-11, 6e-8 of its sd
+    assert b["D_t"] == pytest.approx(a["D_t"], rel=1e-6) and b["D_t_ci"] == pytest.approx(a["D_t_ci"], rel=1e-6)
+    assert bruteforce_estimates(np.full(8, 1e-27), 1e-12)["D_t"] == 0.0  # never below 0
