@@ -19,7 +19,7 @@ from .di import make_di_model
 from .estimators import MIN_RELIABLE_N, WEAK_DAMPING_TAU_L, bruteforce_estimates, long_excursion_estimates
 from .excursions import BLOCK, simulate_long_excursions, work_per_excursion
 from .limits import MAX_WORK
-from .params import Params, check_params, check_positive, real_or_none
+from .params import Params, check_positive, real_or_none
 from .pdmp import make_pdmp_model, simulate_pdmp_bruteforce
 from .plan import (  # noqa: F401  (default_h, h_max, check_h, METHODS are part of the API)
     DTYPES, METHODS, Plan, check_count, check_h, check_layout, check_max_work, choose, default_h, h_max, plan_estimate,
@@ -279,7 +279,6 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
     Returns:
         :class:`EstimateResult`: D, M0 with 95% CI half-widths, mean excursion duration, counts.
     """
-    check_params(params)
     if rtol is not None:
         v = real_or_none(rtol)
         if v is None or not 0 < v < 1:
@@ -391,7 +390,6 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
     ``n_unfinished`` and make the call fail rather than return a biased number.  A run that
     needs more than ``max_work`` steps (events) is refused before it starts.
     """
-    check_params(params)
     if method == "auto":
         raise ValueError("method must be 'di' or 'pdmp' for brute force (got 'auto')")
     check_count("n_paths", n_paths)
@@ -409,13 +407,14 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
     burn_in = b
     if h is not None and t < h:
         raise ValueError(f"t must be >= h = {h:.4g} s (got {t!r})")
-    # the work is known in advance: n_paths (t + burn_in) / h steps, or the expected events
-    work = n_paths * (t + burn_in) / params.tau0 * plan.per_tau0
-    per_path = (t + burn_in) / params.tau0 * plan.per_tau0 * (1 if h is not None else 10)  # PDMP: max_events
-    if not per_path <= 2.0**62:  # the step and event counters are int64
+    # the work is known in advance: (t + burn_in) / h steps per path, or the expected events
+    per_path = (t + burn_in) / params.tau0 * plan.per_tau0
+    work = n_paths * per_path
+    bound = per_path if h is not None else 10 * per_path  # the PDMP's default max_events is 10x the expected
+    if not bound <= 2.0**62:  # the step and event counters are int64
         unit = "steps" if h is not None else "events (the bound max_events is 10x the expected count)"
         raise ValueError(f"t must keep t + burn_in below 2^62 {unit} per path (got t = {t:.4g} s, burn_in = "
-                         f"{burn_in:.4g} s: {per_path:.3g})")
+                         f"{burn_in:.4g} s: {bound:.3g})")
     if work > max_work:
         raise ValueError(f"max_work must be >= {work:.3g} {'steps' if h is not None else 'events (expected)'} for "
                          f"t = {t:.4g} s and n_paths = {n_paths} (got {max_work:.3g}); raise --max-work or lower t "

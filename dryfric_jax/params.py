@@ -38,22 +38,6 @@ def _concrete(name: str, x):
     return float(a)
 
 
-def _as_float(x):
-    """A real scalar (a numpy float32 or float16, an int, a 0-d array) as a Python float, so that the
-    units and nondimensional numbers are computed in float64 whatever the caller passed (a float32
-    Delta = 1e-10 made D0 = inf); anything else unchanged, for :func:`_concrete` to refuse by name
-    (a tracer under jit is left alone)."""
-    if isinstance(x, (bool, np.bool_, str, bytes, jax.core.Tracer)):
-        return x
-    try:
-        a = np.asarray(x)
-    except Exception:  # noqa: BLE001 - refused by name in __check_init__
-        return x
-    if a.shape != () or a.dtype.kind not in "iuf":
-        return x
-    return float(a)
-
-
 def real_or_none(x) -> float | None:
     """``x`` as a Python float if it is a concrete real scalar (an int, a float, a numpy scalar, a
     0-d array, not a bool), else None: for the settings (h, rtol, max_time, ...), which take numpy
@@ -65,6 +49,15 @@ def real_or_none(x) -> float | None:
     except Exception:  # noqa: BLE001
         return None
     return float(a) if a.shape == () and a.dtype.kind in "iuf" else None
+
+
+def plain_number(x):
+    """A real scalar (a numpy float32 or float16, an int, a 0-d array) as a Python float; anything
+    else unchanged, for a check to refuse by name (a tracer under jit is left alone).  Params
+    stores its fields so (a float32 Delta = 1e-10 made D0 = inf), and sweep records their points
+    and settings so (JSON)."""
+    f = real_or_none(x)
+    return x if f is None else f
 
 
 def check_params(params) -> None:
@@ -139,11 +132,11 @@ class Params(eqx.Module):
     The drift is :math:`b(v) = -v/\tau_L + \bar\gamma`; ``tau_L = inf`` is a proper case.
     """
 
-    Gamma: float = eqx.field(converter=_as_float)
-    Delta: float = eqx.field(converter=_as_float)
-    tau: float = eqx.field(converter=_as_float)
-    tau_L: float = eqx.field(default=math.inf, converter=_as_float)
-    gamma_bar: float = eqx.field(default=0.0, converter=_as_float)
+    Gamma: float = eqx.field(converter=plain_number)
+    Delta: float = eqx.field(converter=plain_number)
+    tau: float = eqx.field(converter=plain_number)
+    tau_L: float = eqx.field(default=math.inf, converter=plain_number)
+    gamma_bar: float = eqx.field(default=0.0, converter=plain_number)
 
     def __check_init__(self):
         check_positive("Gamma", self.Gamma)

@@ -138,11 +138,11 @@ def _per_path_acf(V, max_lag, center):
 
 
 def autocorrelation(V: np.ndarray, max_lag: int, center: bool = True) -> tuple[np.ndarray, np.ndarray]:
-    r"""Normalised autocovariance :math:`r(k) = ar c(k)/ar c(0)` (the paper's :math:`h(ho)/h(0)`,
+    r"""Normalised autocovariance :math:`r(k) = \bar c(k)/\bar c(0)` (the paper's :math:`h(\rho)/h(0)`,
     Fig. 4) and its standard error, a ratio estimator over paths:
 
     .. math::
-        \mathrm{SE}\,r(k) = rac{\operatorname{sd}_iig(c_i(k) - r(k)\,c_i(0)ig)}{\sqrt{n}\;ar c(0)},
+        \mathrm{SE}\,r(k) = \frac{\operatorname{sd}_i\big(c_i(k) - r(k)\,c_i(0)\big)}{\sqrt{n}\;\bar c(0)},
 
     :math:`c_i` the FFT autocovariance of path i (delta method).  ``se(c(k))/c(0)`` ignores that
     :math:`c_i(k)` and :math:`c_i(0)` move together from path to path: it overstated the SE by up

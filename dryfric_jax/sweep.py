@@ -39,7 +39,7 @@ from . import __version__
 from .api import DryfricWarning, NoEstimateError, ProjectionWarning, check_seed, estimate_diffusivity
 from .limits import MAX_WORK
 from .outfiles import check_writable, read_records, write_records
-from .params import FIG3, Params, real_or_none
+from .params import FIG3, Params, plain_number, real_or_none
 from .plan import dtype_name, plan_estimate
 
 PARAM_KEYS = ("Gamma", "Delta", "tau", "tau_L", "gamma_bar")
@@ -119,14 +119,7 @@ def _check_points(points) -> list[dict]:
         unknown = sorted(set(pt) - set(PARAM_KEYS))
         if unknown:
             raise ValueError(f"points[{i}] has unknown parameters {unknown} (known: {list(PARAM_KEYS)})")
-    return [{k: _plain(v) for k, v in pt.items()} for pt in points]
-
-
-def _plain(v):
-    """A numpy scalar or 0-d array as a Python float (records are JSON); anything else as it is,
-    for Params or the planner to refuse by name."""
-    f = real_or_none(v)
-    return v if f is None else f
+    return [{k: plain_number(v) for k, v in pt.items()} for pt in points]
 
 
 def _plain_settings(method, h, delta, dtype, n_excursions, rtol, max_work) -> dict:
@@ -138,8 +131,8 @@ def _plain_settings(method, h, delta, dtype, n_excursions, rtol, max_work) -> di
             pass  # refused by name by the planner
     if isinstance(n_excursions, np.integer):
         n_excursions = int(n_excursions)
-    return dict(method=method, h=_plain(h), delta=_plain(delta), dtype=dtype, n_excursions=n_excursions,
-                rtol=_plain(rtol), max_work=_plain(max_work))
+    return dict(method=method, h=plain_number(h), delta=plain_number(delta), dtype=dtype,
+                n_excursions=n_excursions, rtol=plain_number(rtol), max_work=plain_number(max_work))
 
 
 def status(record: dict) -> str:
