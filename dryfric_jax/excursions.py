@@ -310,7 +310,8 @@ def _block(chain, budget, max_steps, finish, block, events, lane: _Lane, keys, b
     (lane i's block index is ``b[i]``).  Events (a regeneration or a coin to flip, a budget
     stop, the work bound: :func:`_has_event`) are rare, a few per excursion of 1e3-1e5 steps,
     and only they need the full bookkeeping (:func:`_book`).  Two layouts (``events``; the
-    default is the chain's ``cpu_events`` on a CPU, ``"wait"`` on a GPU):
+    default is the chain's ``cpu_events`` on a CPU; on an NVIDIA GPU ``"fused"`` for the DI, else
+    ``"wait"``: :func:`_events_layout`):
 
     * ``"wait"``: a lane runs quiet steps until its first step with an event and then waits
       (:func:`_quiet_steps`); its pending step runs after the loop with the full bookkeeping,
@@ -321,8 +322,9 @@ def _block(chain, budget, max_steps, finish, block, events, lane: _Lane, keys, b
       and a step index, not the lane's sums, and has no branch (a GPU would read a branch's
       predicate back every step).  The DI's layout on a CPU too.
     * ``"fused"``: ``"wait"`` with the quiet loop as one Pallas kernel, a lane's steps in
-      registers (:mod:`dryfric_jax.fused`; the DI only, asked for, never a default): the same
-      arithmetic, bit for bit on a CPU (where Pallas interprets it), for a GPU.
+      registers (:mod:`dryfric_jax.fused`; the DI only; the default on an NVIDIA GPU): the same
+      arithmetic, bit for bit on a CPU (where Pallas interprets it) and on an H100 (five layouts,
+      both dtypes).
     * ``"branch"``: a step runs the bookkeeping only if some lane of the batch has an event,
       through a real branch (``lax.cond`` outside the ``vmap``), otherwise the cheap
       :func:`_quiet` update.  For a chain without a splitting coin the quiet update is computed
@@ -432,20 +434,31 @@ def _sharded_round(devices: tuple, block: int, events: str):
 
 
 EVENTS = (None, "branch", "wait", "fused")
-DEFAULT_EVENTS = None  # None: by chain and platform; the tests set "wait" to run the GPU layout on a CPU
+DEFAULT_EVENTS = None  # None: by chain and platform (_events_layout); the tests set "wait" to run it on a CPU
+
+
+def _is_cuda(device) -> bool:
+    """An NVIDIA GPU (``str(device)`` is ``"cuda:0"`` there): where the ``"fused"`` kernel's
+    Triton lowering was compiled and measured."""
+    return device.platform == "gpu" and str(device).lower().startswith("cuda")
 
 
 def _events_layout(devices, chain, events: str | None) -> str:
-    """How a block handles events (:func:`_block`): on a GPU ``"wait"``; on a CPU the chain's
-    ``cpu_events`` (the DI ``"wait"``, the PDMP ``"branch"``, measured: README).  ``"fused"``
-    (:mod:`dryfric_jax.fused`) is asked for, never a default, and only the DI has it."""
+    """How a block handles events (:func:`_block`).  The default: on a CPU the chain's
+    ``cpu_events`` (the DI ``"wait"``, the PDMP ``"branch"``, measured: README); on an NVIDIA GPU
+    ``"fused"`` for the DI (:mod:`dryfric_jax.fused`: the same numbers as ``"wait"``, bit for bit,
+    and 1.6-3.0x faster in float32 on an H100, README "On a GPU"), ``"wait"`` for the PDMP and on
+    other accelerators.  ``DEFAULT_EVENTS`` (or ``events``) overrides it; only the DI has
+    ``"fused"``."""
     events = DEFAULT_EVENTS if events is None else events
     if events not in EVENTS:
         raise ValueError(f"events must be one of 'branch', 'wait', 'fused' or None (got {events!r})")
     if events == "fused" and not getattr(chain, "fused_quiet", False):
         raise ValueError(f"events 'fused' is only for the DI (got a {type(chain).__name__})")
     if events is None:
-        return chain.cpu_events if devices[0].platform == "cpu" else "wait"
+        if devices[0].platform == "cpu":
+            return chain.cpu_events
+        return "fused" if getattr(chain, "fused_quiet", False) and _is_cuda(devices[0]) else "wait"
     return events
 
 

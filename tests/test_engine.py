@@ -137,6 +137,29 @@ def test_fused_layout_is_only_for_the_di():
         Lanes(make_pdmp_model(p, 0.3), 8, events="fused")
 
 
+def test_default_event_layout_by_device_and_chain():
+    """The default layout: the chain's own on a CPU (DI "wait", PDMP "branch"); on an NVIDIA GPU
+    "fused" for the DI (its numbers are "wait"'s, bit for bit) and "wait" for the PDMP; "wait"
+    on another accelerator.  An explicit layout wins everywhere."""
+    from dryfric_jax.excursions import _events_layout
+
+    class Dev:
+        def __init__(self, platform, name):
+            self.platform, self.name = platform, name
+
+        def __str__(self):
+            return self.name
+
+    p = dj.Params.from_nondim(0.5, 1.0, 0.2)
+    di, pdmp = make_di_model(p, 0.02), make_pdmp_model(p, 0.3)
+    cpu, cuda, rocm = Dev("cpu", "TFRT_CPU_0"), Dev("gpu", "cuda:0"), Dev("gpu", "rocm:0")
+    got = {(d.name, type(c).__name__): _events_layout((d,), c, None) for d in (cpu, cuda, rocm) for c in (di, pdmp)}
+    assert got == {("TFRT_CPU_0", "DIModel"): "wait", ("TFRT_CPU_0", "PDMPModel"): "branch",
+                   ("cuda:0", "DIModel"): "fused", ("cuda:0", "PDMPModel"): "wait",
+                   ("rocm:0", "DIModel"): "wait", ("rocm:0", "PDMPModel"): "wait"}
+    assert _events_layout((cuda,), di, "wait") == "wait" and _events_layout((cpu,), di, "fused") == "fused"
+
+
 @pytest.mark.parametrize("events", ["branch", "wait"])
 @pytest.mark.parametrize("method", ["di", "pdmp"])
 def test_final_round_compaction_runs_the_same_chains(method, events):
