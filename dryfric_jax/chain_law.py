@@ -38,7 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import linalg, special
 
-from .params import Params
+from .params import Params, check_params
 from .plan import check_h, h_max
 from .theory import _nd, _scale
 
@@ -76,6 +76,7 @@ def white_chain_law(params: Params, h: float, *, nodes_per_sd: int = 8, width: f
     law, :math:`|\bar\gamma| \to \Delta` with :math:`\tau_L = \infty`), for an ``h`` outside
     :func:`~dryfric_jax.plan.check_h`'s range and for a law that is not recurrent.
     """
+    check_params(params)
     h = check_h(params, h)
     itl, g = _nd(params)
     hn = h / params.tau0

@@ -240,10 +240,22 @@ def _log_erfc(z):
     return math.log(2.0) + special.log_ndtr(-np.asarray(z, np.float64) * math.sqrt(2.0))
 
 
+def _real_array(t):
+    """``t`` as a float64 array; ``ValueError`` naming ``t`` unless it is a real number or an array
+    of them (a string, a bool, None or a list of them was read as a number, or said "got nan")."""
+    try:
+        a = None if isinstance(t, (str, bytes)) else np.asarray(t)
+    except Exception:  # noqa: BLE001  (a ragged list, say)
+        a = None
+    if a is None or a.dtype.kind not in "iuf":
+        raise ValueError(f"t must be a real number or an array of real numbers (got {t!r:.80})")
+    return a.astype(np.float64)
+
+
 def _times(t, *, zero_ok: bool):
     """``t`` as a float64 array; ``ValueError`` naming ``t`` unless every entry is finite and > 0
     (``>= 0`` with ``zero_ok``)."""
-    t = np.asarray(t, np.float64)
+    t = _real_array(t)
     bad = ~np.isfinite(t) | ((t < 0) if zero_ok else (t <= 0))
     if np.any(bad):
         raise ValueError(f"t must be finite and {'>= 0' if zero_ok else '> 0'} (got {float(t[bad].flat[0])!r})")
@@ -308,7 +320,7 @@ def correlation(t):
     large t, so the common factor :math:`e^{-t/4}` is taken out through ``erfcx`` and, beyond
     t = 300, the cancelled asymptotic series is used.
     """
-    t = _times(np.abs(np.asarray(t, np.float64)), zero_ok=True)  # C(-t) = C(t)
+    t = _times(np.abs(_real_array(t)), zero_ok=True)  # C(-t) = C(t)
     small = t <= 300.0
     ts = np.where(small, t, 1.0)
     x = np.sqrt(ts) / 2
@@ -326,4 +338,5 @@ def first_moment_unit_intensity(t, v0):
     r"""The paper's printed Table 1 convention (:math:`\Gamma_w = \Gamma`, i.e. this model with
     :math:`\Gamma` halved), in the paper's units: the halved model has :math:`\tau_0/2` and
     :math:`v_0/2`, so the value is :math:`\tfrac12\langle v\rangle(2t;\ 2v_0)`."""
-    return 0.5 * first_moment(2.0 * np.asarray(t, np.float64), 2.0 * v0)
+    check_finite("v0", v0)
+    return 0.5 * first_moment(2.0 * _real_array(t), 2.0 * v0)

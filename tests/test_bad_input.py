@@ -7,6 +7,7 @@ import pytest
 
 import dryfric_jax as dj
 from dryfric_jax import theory
+from dryfric_jax.chain_law import white_chain_law
 
 P = dj.Params(**dj.FIG3)
 
@@ -17,10 +18,28 @@ P = dj.Params(**dj.FIG3)
     lambda p: dj.bruteforce_diffusivity(p, 0, t=1.0, n_paths=4),
     lambda p: dj.plan_estimate(p),
     theory.exact_D, theory.exact_M0, theory.exact_mean_square_velocity,
+    lambda p: white_chain_law(p, 1e-3),
 ])
 def test_params_that_are_not_Params_are_refused_by_name(call, bad):
     with pytest.raises(ValueError, match="^params must be a dryfric_jax.Params"):
         call(bad)
+
+
+@pytest.mark.parametrize("bad", ["1", None, True, [1.0, "a"], [[1.0, 2.0], [3.0]], b"1"])
+@pytest.mark.parametrize("call", [
+    lambda t: theory.first_moment(t, 1.0), theory.correlation,
+    lambda t: theory.first_moment_unit_intensity(t, 1.0),
+])
+def test_closed_form_times_that_are_not_numbers_are_refused(call, bad):
+    """A numeric string was read as a number, None was refused as "got nan"."""
+    with pytest.raises(ValueError, match="^t must be a real number or an array of real numbers"):
+        call(bad)
+
+
+def test_closed_form_times_take_numpy_numbers_and_arrays():
+    assert theory.correlation(np.float32(0.0)) == 2.0 and theory.correlation(np.int64(0)) == 2.0
+    assert np.array_equal(theory.correlation(np.array([-1.0, 1.0])), theory.correlation([1, 1]))
+    assert theory.first_moment(np.float32(0.0), 1.0) == 1.0
 
 
 @pytest.mark.parametrize("kw,name", [
