@@ -28,8 +28,14 @@ def test_pooled_runs_match_the_exact_white_noise_values(runs):
     assert c.n_excursions == sum(r.n_excursions for r in runs)
     assert c.combined_from == [41, 42, 43] and c.seed is None and c.stopped_by == "combined"
     assert c.sums["n"] == c.n_excursions
-    # three runs: the CI shrinks like N^-1/2 (within the CIs' own sampling error)
-    assert 0.45 < c.D_ci / math.sqrt(sum(r.D_ci**2 for r in runs) / 3) < 0.7
+    # the CI shrinks like N^-1/2: pooling the sums averages the runs' variance estimates, up to
+    # O(1/n) terms (the runs' means differ), so the pooled CI is the runs' CIs scaled by n_i / N,
+    # combined in quadrature.  Measured over 10 triples of seeds 41..70 at this point: D 1.0006 +-
+    # 0.0010 (sd; largest 0.29% off), M0 1.0001 +- 0.0001.  1% is > 3x the largest
+    N = sum(r.n_excursions for r in runs)
+    for ci in ("D_ci", "M0_ci"):
+        scaled = math.sqrt(sum((getattr(r, ci) * r.n_excursions) ** 2 for r in runs)) / N
+        assert getattr(c, ci) == pytest.approx(scaled, rel=0.01), ci
     assert abs(c.D - dj.theory.exact_D(P)) <= Z / 1.96 * c.D_ci, (c.D, c.D_ci)
     assert abs(c.M0 - dj.theory.exact_M0(P)) <= Z / 1.96 * c.M0_ci, (c.M0, c.M0_ci)
     # the pooled estimate lies within the runs' range, weighted by their excursions
