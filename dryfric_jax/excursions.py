@@ -447,7 +447,7 @@ def _events_layout(devices, chain, events: str | None) -> str:
     """How a block handles events (:func:`_block`).  The default: on a CPU the chain's
     ``cpu_events`` (the DI ``"wait"``, the PDMP ``"branch"``, measured: README); on an NVIDIA GPU
     ``"fused"`` for the DI (:mod:`dryfric_jax.fused`: the same numbers as ``"wait"``, bit for bit,
-    and 1.6-3.0x faster in float32 on an H100, README "On a GPU"), ``"wait"`` for the PDMP and on
+    and 1.6-3.0x faster in float32 on an H100, README "On an H100"), ``"wait"`` for the PDMP and on
     other accelerators.  ``DEFAULT_EVENTS`` (or ``events``) overrides it; only the DI has
     ``"fused"``."""
     events = DEFAULT_EVENTS if events is None else events

@@ -18,7 +18,7 @@ interpreter).  Only the DI has it (a chain with ``fused_quiet = True``).
 
 On a CPU the kernel runs in Pallas's interpreter (slow: for the tests only), and ``"fused"`` is
 the DI's default only on an NVIDIA GPU (:func:`dryfric_jax.excursions._events_layout`).  On an
-H100 (jax 0.11.2, Fig. 3 point, 2026-11-27; README "On a GPU") its estimates equalled the
+H100 (jax 0.11.2, Fig. 3 point, 2026-11-27; README "On an H100") its estimates equalled the
 ``"wait"`` layout's bit for bit at all five layouts run (2^16 and 2^18 lanes, K = 256 and 1024,
 float32 and float64), and it ran 3.0x (2^16 lanes, K = 256), 1.6x (2^18, 256) and 1.9x (2^18,
 1024) faster in float32, up to 8.8e9 useful lane-steps/s; in float64 it ran as fast as ``"wait"``.

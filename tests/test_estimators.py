@@ -76,11 +76,11 @@ def test_bruteforce_estimates_on_gaussian_displacements():
 
     The half-widths' own small-n bias and spread are derived, not fitted.  D's is
     :math:`z\sqrt{X/n}/t` with :math:`X = m_4 - m_2^2` (sample central moments, divisor n): for a
-    normal law :math:`E[X] = 2\sigma^4 (n-1)(n-2)/n^2 pprox 2\sigma^4(1 - 3/n)` and
-    :math:`\mathrm{Var}\,X pprox 56\sigma^8/n` (the variance of :math:`U^2` estimated from n draws;
-    :math:`\chi^2_1` has central moments 2 and 60), so :math:`E\sqrt X pprox \sqrt{2}\sigma^2(1 - 3.25/n)`
-    (Jensen) with relative sd :math:`	frac12\sqrt{14/n}`.  M0's uses the sample sd with divisor n:
-    :math:`E pprox \sigma(1 - 0.75/n)`, relative sd :math:`1/\sqrt{2n}`.  Each mean over the
+    normal law :math:`E[X] = 2\sigma^4 (n-1)(n-2)/n^2 \approx 2\sigma^4(1 - 3/n)` and
+    :math:`\mathrm{Var}\,X \approx 56\sigma^8/n` (the variance of :math:`U^2` estimated from n draws;
+    :math:`\chi^2_1` has central moments 2 and 60), so :math:`E\sqrt X \approx \sqrt{2}\sigma^2(1 - 3.25/n)`
+    (Jensen) with relative sd :math:`\tfrac12\sqrt{14/n}`.  M0's uses the sample sd with divisor n:
+    :math:`E \approx \sigma(1 - 0.75/n)`, relative sd :math:`1/\sqrt{2n}`.  Each mean over the
     replicates must lie within 4 of its SEs (0.68% and 0.26% here) of the biased value.
     Measured at three seeds: D -0.22/-0.33/-0.26% against -0.11% (SE 0.17%), M0 -0.05/-0.12/-0.02%
     against -0.025% (SE 0.06%); the replicates' sd, 3.4% and 1.3%, as derived."""
