@@ -263,6 +263,100 @@ def test_every_lane_finishes_in_flight_and_work_is_bounded(events):
         assert r.slot_steps <= 64 * (budget + max_steps + 1) * block
 
 
+@pytest.mark.parametrize("events", ["branch", "wait"])
+def test_di_durations_are_the_lanes_counted_steps(events):
+    r"""A DI lane's summed durations are its counted steps times h, to the step: for every lane,
+    ``lane_steps - stats_t / h`` is exactly 1 if the lane opened an excursion and 0 if it never did.
+
+    From ``_book`` (DI: ``regen_after_step`` False, t = n h with h the chain's ``fixed_dt``): the
+    regenerating step that opens an excursion is counted in ``steps`` and is the excursion's first
+    step (n = 1 after it); every later step is counted in both, and a closing step that refills is
+    the next excursion's first step.  Seek steps are counted in neither.  Once the budget is
+    spent, the closing step opens nothing: it is counted in ``steps`` (phase MINUS) but in no
+    excursion, and the lane stops there (``_budget_stop``), so it happens once per lane.  A
+    truncated excursion would be counted in ``steps`` only: none here (``n_truncated == 0``).
+    The comparison is exact up to the float64 rounding of t: a sum of k products n h, so
+    :math:`|t/h - \sum n| \le (k + 2)\,\epsilon\, t/h` (< 1e-11 here).  A closed excursion's t
+    counting one extra step gives 1 - k (k >= 2 excursions per lane here)."""
+    from dryfric_jax.excursions import STAT_NAMES
+
+    m = make_di_model(dj.Params.from_nondim(0.5, 1.0, 0.2), 0.02)
+    h = float(m.fixed_dt)
+    r = run_round(m, jax.random.key(3), 64, 3000, block=8, events=events)
+    assert r.n_truncated == 0 and r.n_unfinished == 0 and r.n_excursions > 100
+    s = dict(zip(STAT_NAMES, r.stats.T))
+    steps = np.asarray(r.lane_steps)
+    assert steps.sum() == r.useful_steps
+    t_steps = s["t"] / h
+    rounding = (s["n"] + 2) * np.finfo(float).eps * t_steps
+    assert np.all(np.abs(t_steps - np.rint(t_steps)) <= rounding)
+    # the exact admissible difference (docstring): 1 for a lane that ran an excursion, 0 otherwise
+    np.testing.assert_array_equal(steps - np.rint(t_steps).astype(np.int64), (steps > 0).astype(np.int64))
+
+
+def test_half_durations_are_half_the_durations_at_zero_bias():
+    r"""At :math:`\bar\gamma' = 0` the mean duration of the +HLE, ``t_half`` (the duration at which
+    the -HLE began), is exactly half the long excursion's: z of :math:`\sum (t_{1/2} - t/2)` within
+    3.5.
+
+    Why exact: with b(v) = -v/tau_L' odd, the DI is symmetric under (X, V) -> (-X, -V) (the
+    proximal step is odd, the OU step's law even, :math:`C_- = -C_+` with the mirrored coin and
+    release direction), so the +HLE (from the regeneration on :math:`C_+` to the one on
+    :math:`C_-`) and the -HLE (the rest, :math:`t - t_{1/2}`) have one law:
+    :math:`E[t_{1/2} - t/2] = 0`.  Per lane, :math:`d_l = \sum (t_{1/2} - t/2)` over its
+    excursions; the number of excursions a lane starts is a stopping time, so (Wald)
+    :math:`E d_l = E N_l \cdot 0 = 0` exactly, and the lanes are i.i.d.  So the lanes are the
+    blocks: :math:`z = \sum_l d_l / \sqrt{L s_d^2}` with :math:`s_d` the sample sd of the L = 1024
+    lane totals (it includes the fluctuation of :math:`N_l`; no ratio is needed since the mean is 0).
+    |z| <= 3.5: a two-sided normal tail of 4.7e-4 (the CLT over 1024 i.i.d. lanes of ~11
+    excursions, light-tailed with viscous damping).  Over 40 other seeds z had mean -0.004, sd
+    0.92, max |z| 2.3.  A ``t_half`` recorded at half its value shifts the mean of d by -E t/4
+    per excursion, z ~ -130 (~1.1e4 excursions of ~172 steps)."""
+    from dryfric_jax.excursions import STAT_NAMES
+
+    m = make_di_model(dj.Params.from_nondim(1e-5, 1.0, 0.0), 0.02)
+    r = run_round(m, jax.random.key(0), 1024, 1800)
+    assert r.n_truncated == 0 and r.n_excursions > 10_000
+    s = dict(zip(STAT_NAMES, r.stats.T))
+    d = s["t_half"] - s["t"] / 2
+    z = d.sum() / math.sqrt(d.size * d.var(ddof=1))
+    assert abs(z) <= 3.5, z
+
+
+def test_close_adds_every_product_by_name():
+    """``_close`` adds, to each of the 16 sums of ``STAT_NAMES``, the product its name says, for the
+    lanes whose excursion is complete.  Two closes on 6 lanes with chosen U (both signs, |U| != 1),
+    t (!= 1) and t_half; the expected sums are U^a t^b computed in numpy from an exponent table
+    written here, independently of the engine (``estimators.sums_from_samples`` is not used: it is a
+    second implementation of the same table).  Every term has the lane's sign in both closes, so the
+    sums do not cancel and each agrees within a few roundings: rel 1e-14."""
+    import equinox as eqx
+
+    from dryfric_jax.excursions import STAT_NAMES, _close
+
+    powers = dict(n=(0, 0), U=(1, 0), U2=(2, 0), U3=(3, 0), U4=(4, 0), t=(0, 1), t2=(0, 2), t3=(0, 3),
+                  t4=(0, 4), Ut=(1, 1), U2t=(2, 1), U3t=(3, 1), Ut2=(1, 2), U2t2=(2, 2), Ut3=(1, 3))
+    assert sorted(STAT_NAMES) == sorted([*powers, "t_half"]) and len(STAT_NAMES) == 16
+    lane = init_lanes(make_di_model(dj.Params.from_nondim(0.5, 1.0, 0.2), 0.02), 6)
+    sign = np.array([-1.0, 1.0, 1.0, -1.0, 1.0, -1.0])
+    closes = [(sign * [1.7, 0.3, 2.9, 0.45, 1.3, 3.1], [0.7, 2.3, 1.9, 4.1, 0.35, 3.3],
+               [0.2, 1.1, 0.8, 2.5, 0.1, 1.4], [True] * 6),
+              (sign * [0.6, 2.2, 1.45, 3.7, 0.8, 0.25], [1.6, 0.55, 2.7, 0.9, 5.2, 1.3],
+               [0.9, 0.3, 1.2, 0.4, 2.6, 0.5], [True, False, True, True, False, True])]
+    want = {k: np.zeros(6) for k in STAT_NAMES}
+    for U, t, th, complete in closes:
+        U, t, th, complete = (np.asarray(a) for a in (U, t, th, complete))
+        lane = eqx.tree_at(lambda ln: ln.t_half, lane, jnp.asarray(th))
+        lane = _close(lane, jnp.asarray(U), jnp.asarray(t), jnp.asarray(complete))
+        for k, (a, b) in powers.items():
+            want[k] += np.where(complete, U**a * t**b, 0.0)
+        want["t_half"] += np.where(complete, th, 0.0)
+    got = dict(zip(STAT_NAMES, (np.asarray(s) for s in lane.stats)))
+    for k in STAT_NAMES:
+        assert got[k].dtype == np.float64, k
+        np.testing.assert_allclose(got[k], want[k], rtol=1e-14, atol=0, err_msg=k)
+
+
 def test_truncation_is_counted_and_reported():
     p = dj.Params.from_nondim(1.0)
     with pytest.warns(dj.DryfricWarning, match="work bound"):

@@ -27,16 +27,35 @@ def _cycles(rng, n, mu):
 
 @pytest.mark.parametrize("mu", [0.0, 0.8])
 def test_estimator_consistent_and_ci_covers(mu):
+    r"""D, M0 and the mean duration E t = 2 over 400 replicates of n = 2000 synthetic cycles: coverage
+    of the exact values within 4 binomial SE of 95%, and the mean half-widths against the exact
+    asymptotic SEs (a CI too wide, which covers more, fails as well as one too narrow).
+
+    Mean duration: its half-width is :math:`z\sqrt{m_2/n}` with :math:`m_2` the sample variance of t
+    (divisor n).  For :math:`t \sim \Gamma(2, 1)` the central moments are exactly :math:`\mu_2 = 2`,
+    :math:`\mu_4 = 3k^2 + 6k = 24` (k = 2), so :math:`E m_2 = \mu_2(1 - 1/n)` and
+    :math:`\mathrm{Var}\, m_2 \approx (\mu_4 - \mu_2^2)/n = 20/n`; then (Jensen)
+    :math:`E\sqrt{m_2} \approx \sqrt{\mu_2}\,(1 - 1/(2n) - 20/(32 n)) = \sqrt2\,(1 - 1.125/n)`, with
+    relative sd :math:`\tfrac12\sqrt{20/n}/\mu_2` = 2.5% per replicate, 0.125% for the mean of 400.
+    The mean over the replicates of half-width / z must lie within 4 of those SE (0.5%) of
+    :math:`\sqrt{2/n}\,(1 - 1.125/n)`: a half-width without its z (1.96x too narrow) fails by 49%."""
     rng = np.random.default_rng(1)
-    cover_D = cover_M = 0
+    cover_D = cover_M = cover_t = 0
     reps, n = 400, 2000
-    D, D_ci, M_ci = [], [], []
+    D, D_ci, M_ci, t_ci = [], [], [], []
     for _ in range(reps):
         U, t = _cycles(rng, n, mu)
         e = long_excursion_estimates(sums_from_samples(U, t))
         cover_D += abs(e["D"] - 2.25) <= e["D_ci"]
         cover_M += abs(e["M0"] - mu) <= e["M0_ci"]
-        D.append(e["D"]), D_ci.append(e["D_ci"]), M_ci.append(e["M0_ci"])
+        cover_t += abs(e["mean_duration"] - 2.0) <= e["mean_duration_ci"]  # E t = 2 for Gamma(2, 1)
+        D.append(e["D"]), D_ci.append(e["D_ci"]), M_ci.append(e["M0_ci"]), t_ci.append(e["mean_duration_ci"])
+    # the two-sided 95% normal quantile, written out (not taken from the code under test)
+    z = 1.959963984540054
+    # mean duration (docstring): coverage within 4 binomial SE (0.011 each) of 0.95, [0.906, 0.994]
+    assert abs(cover_t / reps - 0.95) <= 4 * np.sqrt(0.95 * 0.05 / reps), cover_t / reps
+    rel_t = np.mean(t_ci) / z / (np.sqrt(2.0 / n) * (1 - 1.125 / n)) - 1
+    assert abs(rel_t) <= 4 * 0.5 * np.sqrt(20 / n) / 2 / np.sqrt(reps), rel_t
     # 95% nominal; binomial sd over 400 replicates is 0.011: accept 0.95 +- 4 sd
     assert 0.905 <= cover_D / reps <= 0.995
     assert 0.905 <= cover_M / reps <= 0.995
