@@ -14,7 +14,8 @@ from dryfric_jax.di import DIModel, make_di_model
 from dryfric_jax.estimators import long_excursion_estimates
 from dryfric_jax.pdmp import PDMPModel, make_pdmp_model
 from dryfric_jax.excursions import (
-    Lanes, _run_round, compiled_round, init_lanes, run_round, simulate_long_excursions, steps_per_excursion,
+    STAT_NAMES, Lanes, _close, _run_round, compiled_round, init_lanes, run_round, simulate_long_excursions,
+    steps_per_excursion,
 )
 
 
@@ -278,8 +279,6 @@ def test_di_durations_are_the_lanes_counted_steps(events):
     The comparison is exact up to the float64 rounding of t: a sum of k products n h, so
     :math:`|t/h - \sum n| \le (k + 2)\,\epsilon\, t/h` (< 1e-11 here).  A closed excursion's t
     counting one extra step gives 1 - k (k >= 2 excursions per lane here)."""
-    from dryfric_jax.excursions import STAT_NAMES
-
     m = make_di_model(dj.Params.from_nondim(0.5, 1.0, 0.2), 0.02)
     h = float(m.fixed_dt)
     r = run_round(m, jax.random.key(3), 64, 3000, block=8, events=events)
@@ -312,8 +311,6 @@ def test_half_durations_are_half_the_durations_at_zero_bias():
     excursions, light-tailed with viscous damping).  Over 40 other seeds z had mean -0.004, sd
     0.92, max |z| 2.3.  A ``t_half`` recorded at half its value shifts the mean of d by -E t/4
     per excursion, z ~ -130 (~1.1e4 excursions of ~172 steps)."""
-    from dryfric_jax.excursions import STAT_NAMES
-
     m = make_di_model(dj.Params.from_nondim(1e-5, 1.0, 0.0), 0.02)
     r = run_round(m, jax.random.key(0), 1024, 1800)
     assert r.n_truncated == 0 and r.n_excursions > 10_000
@@ -331,8 +328,6 @@ def test_close_adds_every_product_by_name():
     second implementation of the same table).  Every term has the lane's sign in both closes, so the
     sums do not cancel and each agrees within a few roundings: rel 1e-14."""
     import equinox as eqx
-
-    from dryfric_jax.excursions import STAT_NAMES, _close
 
     powers = dict(n=(0, 0), U=(1, 0), U2=(2, 0), U3=(3, 0), U4=(4, 0), t=(0, 1), t2=(0, 2), t3=(0, 3),
                   t4=(0, 4), Ut=(1, 1), U2t=(2, 1), U3t=(3, 1), Ut2=(1, 2), U2t2=(2, 2), Ut3=(1, 3))
@@ -463,8 +458,6 @@ def _paired_difference(sa, sb, groups: int = 64):
     the point estimate :math:`\Psi_D` of the mean moments (``long_excursion_estimates``' D,
     without its CI's gradient, which would cost a trace per group)."""
     from dryfric_jax.estimators import moments_from_sums, psi_D
-    from dryfric_jax.excursions import STAT_NAMES
-
     D = lambda s: float(psi_D(moments_from_sums(dict(zip(STAT_NAMES, s.sum(0))))[0]))
     g = np.arange(len(sa)) % groups
     jk = np.array([D(sa[g != k]) - D(sb[g != k]) for k in range(groups)])
