@@ -22,7 +22,8 @@ from .limits import MAX_WORK
 from .params import Params, check_positive, real_or_none
 from .pdmp import make_pdmp_model, simulate_pdmp_bruteforce
 from .plan import (  # noqa: F401  (default_h, h_max, check_h, METHODS are part of the API)
-    DTYPES, METHODS, Plan, check_count, check_h, check_layout, check_max_work, choose, default_h, h_max, plan_estimate,
+    DTYPES, MAX_COUNT, METHODS, Plan, check_count, check_h, check_layout, check_max_time, check_max_work, check_rtol,
+    choose, default_h, h_max, plan_estimate, scalar, shown,
 )
 
 class DryfricWarning(UserWarning):
@@ -54,15 +55,25 @@ MAX_FIGURE_SEED = MAX_SEED - 2**20
 
 
 def check_seed(seed, hi: int = MAX_SEED, hi_text: str = "2^62") -> int:
-    """``seed`` as an int; ``ValueError`` naming it unless it is an integer in [0, ``hi``]."""
+    """``seed`` as an int (a numpy integer or a 0-d array too); ``ValueError`` naming it unless it
+    is an integer in [0, ``hi``]."""
+    seed = scalar(seed)
     if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, numbers.Integral) or not 0 <= seed <= hi:
-        raise ValueError(f"seed must be an integer in [0, {hi_text}] (got {seed!r})")
+        raise ValueError(f"seed must be an integer in [0, {hi_text}] (got {shown(seed)})")
     return int(seed)
+
+
+def check_progress(progress) -> None:
+    """``ValueError`` unless ``progress`` is a callable or None (checked before the first round, not
+    called there)."""
+    if progress is not None and not callable(progress):
+        raise ValueError(f"progress must be a callable or None (got {shown(progress)})")
 
 
 def _key(key):
     """``(key, seed)`` from a seed in [0, :data:`MAX_SEED`] (None: 0) or a ``jax.random`` key
     (``seed`` None); ``ValueError`` naming ``key`` for anything else."""
+    key = scalar(key)  # a 0-d numpy array: its seed
     if isinstance(key, numbers.Integral) and not isinstance(key, (bool, np.bool_)):
         seed = check_seed(key)
         return jax.random.key(seed), seed
@@ -117,13 +128,20 @@ def time_left(elapsed: float, work: float, closed: int, in_flight: int, target: 
     if rtol is not None:
         if rel is None or not math.isfinite(rel):
             return None, None
-        need, to = max(need, closed * (rel / rtol) ** 2), "target"
+        need, to = max(need, min(closed * _ratio(rel, rtol) ** 2, float(MAX_COUNT))), "target"
     left = max(need - closed - in_flight, 0.0) * per_exc / rate
     if max_work is not None and (max_work - work) / rate < left:
         left, to = max(max_work - work, 0.0) / rate, "max_work"
     if max_time is not None and max_time - elapsed < left:
         left, to = max(max_time - elapsed, 0.0), "max_time"
     return left, to
+
+
+def _ratio(rel: float, rtol: float) -> float:
+    """``rel / rtol``, at most 2^32: the excursions a precision target asks for, N (rel/rtol)^2, are
+    capped at :data:`~dryfric_jax.plan.MAX_COUNT` (``rtol`` = 1e-160 overflowed: the work bound
+    or ``max_time`` ends such a run, and its result says so)."""
+    return rel / rtol if rel / rtol < 2.0**32 else 2.0**32  # also for inf and nan
 
 
 def _with_warnings(text, ws):
@@ -267,7 +285,8 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
             (:func:`~dryfric_jax.limits.check_work`), and the rounds stop once it is spent
             (``stopped_by = "work_bound"``).
         rtol: precision target: after the first ``n_excursions``, keep running rounds until
-            the 95% half-width of D is at most ``rtol * |D|``.
+            the 95% half-width of D is at most ``rtol * |D|`` (a target out of reach, say 1e-160,
+            runs until ``max_work`` or ``max_time`` ends it, and the result says so).
         max_time: stop after the round that passes this many seconds (``stopped_by`` says so).
         progress: optional callback ``progress(dict)`` after every round: N, D, D_ci so far, the
             target, ``elapsed_s``, and the projection ``left_s`` (seconds, None until known) to the
@@ -279,19 +298,12 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
     Returns:
         :class:`EstimateResult`: D, M0 with 95% CI half-widths, mean excursion duration, counts.
     """
-    if rtol is not None:
-        v = real_or_none(rtol)
-        if v is None or not 0 < v < 1:
-            raise ValueError(f"rtol must be in (0, 1) (got {rtol!r})")
-        rtol = v
-    if max_time is not None:
-        v = real_or_none(max_time)
-        if v is None or not v > 0:
-            raise ValueError(f"max_time must be > 0 seconds (got {max_time!r})")
-        max_time = v
+    rtol, max_time = check_rtol(rtol), check_max_time(max_time)
+    check_progress(progress)
     plan = plan_estimate(params, method=method, h=h, delta=delta, dtype=dtype, n_excursions=n_excursions,
                          max_work=max_work, max_steps=max_steps, lanes=lanes, chunk_lanes=chunk_lanes,
                          block=block)
+    n_excursions, max_work = int(scalar(n_excursions)), plan.max_work  # validated: as Python numbers
     key, seed = _key(key)
     model, notes, h, grid, unit = _build(params, plan), list(plan.notes), plan.h, plan.grid, plan.unit
 
@@ -305,7 +317,8 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
         if e is None:
             return st.n_excursions + 2
         rel = e["D_ci"] / max(abs(e["D"]), 1e-300)
-        return 0 if rel <= rtol else int(math.ceil(e["n_excursions"] * ((rel / rtol) ** 2 * 1.1 - 1)))
+        return 0 if rel <= rtol else int(min(math.ceil(e["n_excursions"] * (_ratio(rel, rtol) ** 2 * 1.1 - 1)),
+                                             MAX_COUNT))
 
     warned = []
 
@@ -331,7 +344,7 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
                           elapsed_s=el, left_s=left, left_to=to))
 
     t0 = time.perf_counter()
-    sim, stopped = simulate_long_excursions(model, key, int(n_excursions), lanes=plan.lanes, block=plan.block,
+    sim, stopped = simulate_long_excursions(model, key, n_excursions, lanes=plan.lanes, block=plan.block,
                                             max_steps=plan.max_steps, more=more if rtol else None,
                                             max_time=max_time, max_work=max_work, progress=report)
     wall = time.perf_counter() - t0
@@ -392,12 +405,12 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
     """
     if method == "auto":
         raise ValueError("method must be 'di' or 'pdmp' for brute force (got 'auto')")
-    check_count("n_paths", n_paths)
-    check_max_work(max_work)
-    check_layout(None, block)
-    check_count("chunk_lanes", chunk_lanes, 1)
+    n_paths = check_count("n_paths", n_paths, hi=MAX_COUNT)
+    max_work = check_max_work(max_work)
+    block = check_layout(None, block)[1]
+    chunk_lanes = check_count("chunk_lanes", chunk_lanes, 1)
     if max_events is not None:
-        check_count("max_events", max_events, 1)
+        max_events = check_count("max_events", max_events, 1)
     plan = choose(params, method, h, delta, dtype)
     notes, method, h, grid, dname = plan.notes, plan.method, plan.h, plan.grid, plan.dtype
     check_positive("t", t)

@@ -38,11 +38,20 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import linalg, special
 
-from .params import Params, check_params
+from .params import Params, check_params, real_or_none
 from .plan import check_h, h_max
 from .theory import _nd, _scale
 
 MAX_NODES = 6001  # dense Nystrom: O(n^3) solves; at 6001 nodes 0.29 GB per n x n array, ~2 GB peak, ~15 s
+#: fewest grid nodes per step-noise sd: the O(dv^2) grid error of D and E[V^2] is 5e-4 relative at 4
+#: (measured at Fig. 5's point and b = 0, h' = 0.1, against 24), 1e-4 at the default 8, 8e-3 at 1
+MIN_NODES_PER_SD = 4
+#: the grid spans at least 10 step-noise sds on each side of 0, so more than this always exceeds MAX_NODES
+MAX_NODES_PER_SD = (MAX_NODES - 3) // 20
+#: narrowest grid, in widths of the continuum law on each side of 0: the tails beyond 15 widths
+#: (exponential at worst, b = 0) change D by 7e-6 and E[V^2] by 8e-7 relative (measured, h' = 0.1),
+#: a tenth of the default grid's error; beyond the default 30, by < 1e-11
+MIN_WIDTH = 15.0
 
 
 @dataclass(frozen=True)
@@ -69,8 +78,10 @@ def white_chain_law(params: Params, h: float, *, nodes_per_sd: int = 8, width: f
     r"""Stationary :math:`E[V]`, :math:`E[V^2]`, :math:`P(V = 0)` and the diffusivity of the
     white-noise DI chain at step ``h`` (s), by Nystrom's method (module docstring).
 
-    ``nodes_per_sd`` grid nodes per standard deviation :math:`\sqrt{2h'}` of one step's noise,
-    the grid reaching ``width`` widths of the continuum law past the origin on each side.
+    ``nodes_per_sd`` grid nodes per standard deviation :math:`\sqrt{2h'}` of one step's noise (an
+    integer in [:data:`MIN_NODES_PER_SD`, :data:`MAX_NODES_PER_SD`]), the grid reaching ``width``
+    widths of the continuum law past the origin on each side (a finite number >= :data:`MIN_WIDTH`):
+    fewer would cost the result its accuracy (a width of -1 gave D 25 times too small).
     ``tau`` is not used: this is the :math:`\tau/h \to 0` limit.  Raises ``ValueError`` where
     the grid would exceed ``MAX_NODES`` (``h`` small against the law's width: small h, or a wide
     law, :math:`|\bar\gamma| \to \Delta` with :math:`\tau_L = \infty`), for an ``h`` outside
@@ -78,6 +89,19 @@ def white_chain_law(params: Params, h: float, *, nodes_per_sd: int = 8, width: f
     """
     check_params(params)
     h = check_h(params, h)
+    if isinstance(nodes_per_sd, np.ndarray) and nodes_per_sd.shape == ():
+        nodes_per_sd = nodes_per_sd.item()  # a 0-d array: its number
+    if isinstance(nodes_per_sd, (bool, np.bool_)) or not isinstance(nodes_per_sd, (int, np.integer)) \
+            or not MIN_NODES_PER_SD <= nodes_per_sd <= MAX_NODES_PER_SD:
+        raise ValueError(f"nodes_per_sd must be an integer in [{MIN_NODES_PER_SD}, {MAX_NODES_PER_SD}] (grid nodes per "
+                         f"step-noise sd: the grid error is 5e-4 relative at {MIN_NODES_PER_SD}, 8e-3 at 1; more than "
+                         f"{MAX_NODES_PER_SD} always exceed MAX_NODES = {MAX_NODES}) (got {nodes_per_sd!r:.60})")
+    w = real_or_none(width)
+    if w is None or not (math.isfinite(w) and w >= MIN_WIDTH):
+        raise ValueError(f"width must be a finite number >= {MIN_WIDTH:g} (widths of the law on each side of 0: "
+                         f"the tails beyond {MIN_WIDTH:g} change D by < 1e-5 relative, a tenth of the default grid's "
+                         f"error) (got {width!r:.60})")
+    nodes_per_sd, width = int(nodes_per_sd), w
     itl, g = _nd(params)
     hn = h / params.tau0
     s = math.sqrt(2 * hn)

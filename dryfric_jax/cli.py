@@ -112,6 +112,11 @@ def _int_at_least(name, lo, hi=None, hi_text=None):
 _seed = _int_at_least("seed", 0, MAX_FIGURE_SEED, "2^62 - 2^20")
 
 
+def _count_option(name):
+    """An excursion (path) count: in [2, 2^62], the engine's counters are int64."""
+    return _int_at_least(name, 2, 2**62, "2^62")
+
+
 def _model_options() -> argparse.ArgumentParser:
     m = argparse.ArgumentParser(add_help=False)
     g = m.add_argument_group("model (defaults: the paper's Fig. 3 point, SI units)")
@@ -158,7 +163,7 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--out", default=None, help="also write the JSON result to this file (atomically)")
 
     e = sub.add_parser("estimate", parents=[model, sim], help="long-excursion estimate of D and M0")
-    e.add_argument("--n-excursions", type=_int_at_least("n-excursions", 2), default=20_000,
+    e.add_argument("--n-excursions", type=_count_option("n-excursions"), default=20_000,
                    help="at least this many excursions (the first round when --rtol is given)")
     e.add_argument("--rtol", type=_number("rtol"), default=None,
                    help="run rounds until the 95%% CI half-width of D is <= RTOL*|D|")
@@ -175,7 +180,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="exit 0 even when excursions hit the work bound (the result is biased low; exit 3 otherwise)")
     b = sub.add_parser("bruteforce", parents=[model, sim], help="fixed-horizon (brute force) D^t")
     b.add_argument("--t", type=_number("t"), required=True, help="horizon, s")
-    b.add_argument("--n-paths", type=_int_at_least("n-paths", 2), required=True)
+    b.add_argument("--n-paths", type=_count_option("n-paths"), required=True)
     b.add_argument("--burn-in", type=_number("burn-in"), default=0.0, help="uncounted warm-up, s")
     th = sub.add_parser("theory", parents=[model], help="exact white-noise D and M0")
     th.add_argument("--h", type=_number("h"), default=None,
@@ -199,7 +204,7 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--delta", type=_number("delta"), default=None)
     sw.add_argument("--dtype", default="float64")
     sw.add_argument("--seed", type=_seed, default=0)
-    sw.add_argument("--n-excursions", type=_int_at_least("n-excursions", 2), default=20_000)
+    sw.add_argument("--n-excursions", type=_count_option("n-excursions"), default=20_000)
     sw.add_argument("--rtol", type=_number("rtol"), default=None)
     sw.add_argument("--max-work", type=_number("max-work"), default=None)
     sw.add_argument("--skip-refused", action="store_true",
@@ -217,7 +222,7 @@ def build_parser() -> argparse.ArgumentParser:
     cb.add_argument("--json", action="store_true", help="print the pooled result as one JSON object")
     bn = sub.add_parser("bench", help="throughput: DI engine vs RNG bound vs compiled baseline")
     bn.add_argument("--json", action="store_true", help="print one JSON object")
-    bn.add_argument("--n-excursions", type=_int_at_least("n-excursions", 2), default=10_000,
+    bn.add_argument("--n-excursions", type=_count_option("n-excursions"), default=10_000,
                     help="excursions per DI/PDMP run (default 10000); a smaller N also shortens the RNG, chain-floor "
                          "and numba timings")
     bn.add_argument("--repeat", type=_int_at_least("repeat", 1), default=1,

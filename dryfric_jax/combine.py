@@ -22,13 +22,15 @@ from typing import Sequence
 
 import numpy as np
 
-from .api import DryfricWarning, EstimateResult, small_n_note
+from .api import MAX_SEED, DryfricWarning, EstimateResult, small_n_note
 from .estimators import MIN_RELIABLE_N, long_excursion_estimates
 from .excursions import STAT_NAMES
 from .params import Params
+from .plan import DTYPES, MAX_COUNT
 
-# what must agree for two runs to sample the same law (the engine layout does not matter)
-_SAME = ("params", "method", "h", "delta", "L_X", "dtype")
+# what must agree for two runs to sample the same law (the engine layout does not matter), and to
+# pool their CIs (the level)
+_SAME = ("params", "method", "h", "delta", "L_X", "dtype", "ci_level")
 
 
 def _as_result(r) -> EstimateResult:
@@ -52,11 +54,22 @@ def _as_result(r) -> EstimateResult:
 
 
 def _real(x) -> bool:
-    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+    try:
+        return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+    except OverflowError:  # an int beyond float range
+        return False
 
 
 def _count(x) -> bool:
     return isinstance(x, int) and not isinstance(x, bool) and x >= 0
+
+
+def _seed(x) -> bool:
+    return x is None or (_count(x) and x <= MAX_SEED)
+
+
+def _step(x) -> bool:
+    return x is None or (_real(x) and x > 0)
 
 
 #: the fields combine reads, what they must be, and how to say it
@@ -68,9 +81,14 @@ _FIELDS = (
     ("predicted_work", lambda x: _real(x) and x >= 0, "a number >= 0"),
     ("n_truncated", _count, "an integer >= 0"),
     ("ci_level", lambda x: _real(x) and 0 < x < 1, "a number in (0, 1)"),
-    ("seed", lambda x: x is None or _count(x), "an integer >= 0 or null"),
-    ("combined_from", lambda x: isinstance(x, list) and all(s is None or _count(s) for s in x),
-     "a list of seeds"),
+    ("seed", _seed, "an integer in [0, 2^62] or null"),
+    ("combined_from", lambda x: isinstance(x, list) and all(map(_seed, x)), "a list of seeds in [0, 2^62]"),
+    ("method", lambda x: x in ("di", "pdmp"), "'di' or 'pdmp'"),
+    ("dtype", lambda x: isinstance(x, str) and x in DTYPES, f"one of {sorted(DTYPES)}"),
+    ("h", _step, "a number > 0 (s) or null"),
+    ("delta", _step, "a number > 0 (s^-1/2) or null"),
+    ("L_X", _step, "a number > 0 (s^-1/2) or null"),
+    ("events_per_s", lambda x: x is None or (_real(x) and x >= 0), "a number >= 0 or null"),
     ("warnings", lambda x: isinstance(x, list) and all(isinstance(w, str) for w in x), "a list of strings"),
     ("lanes", _count, "an integer >= 0"),
     ("block", _count, "an integer >= 0"),
@@ -93,11 +111,12 @@ def _check_fields(r: EstimateResult, label: str) -> None:
     if not isinstance(r.sums, dict) or set(r.sums) != set(STAT_NAMES):
         return  # no sums: refused below, with the advice to rerun
     bad = [k for k in STAT_NAMES if not _real(r.sums[k])]
-    bad += [k for k in ("n", "t") if k not in bad and not r.sums[k] > 0]
+    bad += [k for k in ("t",) if k not in bad and not r.sums[k] > 0]
+    bad += [k for k in ("n",) if k not in bad and not (r.sums[k] == int(r.sums[k]) and 1 <= r.sums[k] <= MAX_COUNT)]
     bad += [k for k in _NONNEGATIVE_SUMS if k not in bad and not r.sums[k] >= 0]
     if bad:
-        raise ValueError(f"{label} must have finite excursion sums, n and t > 0 and the sums of squares >= 0 "
-                         f"(got {', '.join(f'{k} = {str(r.sums[k])[:24]}' for k in bad[:4])})")
+        raise ValueError(f"{label} must have finite excursion sums, n a whole number in [1, 2^62], t > 0 and the "
+                         f"sums of squares >= 0 (got {', '.join(f'{k} = {str(r.sums[k])[:24]}' for k in bad[:4])})")
 
 
 def combine_estimates(results: Sequence, *, labels: Sequence[str] | None = None) -> EstimateResult:
@@ -125,7 +144,13 @@ def combine_estimates(results: Sequence, *, labels: Sequence[str] | None = None)
     rs = [_as_result(r) for r in results]
     if not rs:
         raise ValueError("results must hold at least one EstimateResult (got none)")
-    labels = [f"results[{i}]" for i in range(len(rs))] if labels is None else list(labels)
+    if labels is None:
+        labels = [f"results[{i}]" for i in range(len(rs))]
+    else:  # zip cut a short list, and an int failed with a TypeError
+        ok = not isinstance(labels, (str, bytes)) and hasattr(labels, "__iter__")
+        labels = list(labels) if ok else labels
+        if not (ok and len(labels) == len(rs) and all(isinstance(x, str) for x in labels)):
+            raise ValueError(f"labels must be a list of {len(rs)} strings, one per result (got {str(labels)[:60]})")
     for r, label in zip(rs, labels):
         _check_fields(r, label)
     first = rs[0]
@@ -147,6 +172,8 @@ def combine_estimates(results: Sequence, *, labels: Sequence[str] | None = None)
         warnings.warn("some results were made from a jax.random key, not a seed: their streams are assumed "
                       "independent", DryfricWarning, stacklevel=2)
     total = {k: float(sum(r.sums[k] for r in rs)) for k in STAT_NAMES}
+    if total["n"] > MAX_COUNT:
+        raise ValueError(f"results must hold at most 2^62 excursions together (got {total['n']:.3g})")
     out = _result(first, rs, total, seeds)
     if not all(map(math.isfinite, (out.D, out.D_ci, out.M0, out.M0_ci))) or out.D < 0:
         raise ValueError(f"results must hold consistent excursion sums: they give D = {out.D:.3g} +- {out.D_ci:.3g}, "

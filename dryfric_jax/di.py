@@ -123,7 +123,19 @@ class DIModel(eqx.Module):
 
 
 def make_di_model(params: Params, h: float, dtype=jnp.float64) -> DIModel:
-    """Build the nondimensional DI chain for physical ``params`` and physical step ``h`` (s)."""
+    """Build the nondimensional DI chain for physical ``params`` and physical step ``h`` (s).
+
+    The arguments are checked as the planner checks them (:mod:`dryfric_jax.plan`), ``ValueError``
+    naming the one that is wrong: ``params`` a :class:`~dryfric_jax.Params`, ``h`` in
+    (0, 0.1*min(tau0, tau_L)] s (None: the default step, :func:`~dryfric_jax.plan.default_h`),
+    ``dtype`` float32 or float64 (a name or a dtype).  Unlike a planned run, float32 is used as asked
+    where it is not safe (:func:`~dryfric_jax.limits.float32_unsafe_reason`)."""
+    from .params import check_params  # the planner's own checks (imported here: plan is a layer above)
+    from .plan import DTYPES, check_h, dtype_name
+
+    check_params(params)
+    h = check_h(params, h)
+    dtype = DTYPES[dtype_name(dtype)]
     nd = params.nondim()
     h_nd = h / params.tau0
     ou64 = ou_step(h_nd, nd.tau, jnp.float64)

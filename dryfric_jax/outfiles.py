@@ -72,19 +72,35 @@ def _path_text(path) -> str | None:
     return path if isinstance(path, str) and path.strip() else None
 
 
+def _can_create(p: str) -> str | None:
+    """Why a new file ``p`` cannot be created under its own name (None if it can: it is made and
+    removed).  The name's length and characters are the file system's to judge (a name over 255
+    bytes, a trailing '/', passed the check of the directory and failed after the run)."""
+    try:
+        os.close(os.open(p, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600))
+    except OSError as e:
+        return e.strerror
+    os.unlink(p)
+    return None
+
+
 def check_writable(path: str, name: str = "out") -> None:
     """Raise ``ValueError`` naming ``name`` unless ``path`` can be created or replaced as a regular
-    file (a file is created and removed in its directory to be sure).  An existing path that is not a
-    regular file (a directory, a device such as /dev/null, a pipe) is refused: :func:`write_atomic`
-    renames a new file over ``path``, which would replace it."""
+    file (a file is created and removed in its directory, and a new ``path`` itself, to be sure).
+    An existing path that is not a regular file (a directory, a device such as /dev/null, a pipe) is
+    refused: :func:`write_atomic` renames a new file over ``path``, which would replace it."""
     p = _path_text(path)
-    ok = p is not None
+    ok, why = p is not None and "\0" not in p and not p.endswith(("/", os.sep)), None
     if ok:
         d = os.path.dirname(os.path.abspath(p))
         ok = (not os.path.lexists(p) or os.path.isfile(p)) and os.path.isdir(d) and _can_create_in(d)
+        if ok and not os.path.lexists(p):
+            why = _can_create(p)
+            ok = why is None
     if not ok:
+        text = repr(path) if len(repr(path)) <= 80 else f"{repr(path)[:40]}... ({len(repr(path))} characters)"
         raise ValueError(f"{name} must be a writable file path in an existing directory, not a directory or a "
-                         f"device (got {path!r})")
+                         f"device (got {text}" + (f": {why})" if why else ")"))
 
 
 def check_writable_dir(path: str, name: str = "out") -> None:

@@ -21,10 +21,47 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import rng
+from .api import _key
 from .di import DIModel
 from .excursions import BLOCK, block_keys
+from .params import check_finite
 from .pdmp import flow
 from .sharding import over_lanes
+
+
+def _shown(x) -> str:
+    text = repr(x)
+    return text if len(text) <= 60 else f"{text[:24]}... ({len(text)} characters)"
+
+
+def _count(name: str, n, lo: int, hi: int | None = None, why: str = "") -> int:
+    """``n`` as an int; ``ValueError`` naming ``name`` unless it is an integer >= ``lo`` (and <= ``hi``;
+    a numpy integer or a 0-d array too; not a bool, not a float)."""
+    n = n.item() if isinstance(n, np.ndarray) and n.shape == () else n
+    if isinstance(n, (bool, np.bool_)) or not isinstance(n, (int, np.integer)) or n < lo or (hi is not None and n > hi):
+        rng = f">= {lo}" if hi is None else f"in [{lo}, {hi}]"
+        raise ValueError(f"{name} must be an integer {rng}{why} (got {_shown(n)})")
+    return int(n)
+
+
+def _check_model(model) -> None:
+    if not isinstance(model, DIModel):
+        raise ValueError(f"model must be a DIModel, from dryfric_jax.make_di_model(params, h) "
+                         f"(got {type(model).__name__})")
+
+
+def _record_steps(record_steps) -> list:
+    """``record_steps`` as a list of ints; ``ValueError`` naming it unless it is a non-empty sequence
+    of non-negative integers in non-decreasing order."""
+    try:
+        steps = list(record_steps)
+    except TypeError:
+        steps = None
+    if not steps or any(isinstance(s, (bool, np.bool_)) or not isinstance(s, (int, np.integer)) for s in steps) \
+            or any(s < 0 for s in steps) or any(b < a for a, b in zip(steps, steps[1:])):
+        raise ValueError("record_steps must be a non-empty sequence of non-negative integers in non-decreasing "
+                         f"order (step counts at which V is recorded) (got {_shown(record_steps)})")
+    return [int(s) for s in steps]
 
 
 def _segment(model: DIModel, carry, keys, n_steps: int, block: int = BLOCK):
@@ -75,10 +112,15 @@ def di_transient(model: DIModel, key, n_paths: int, record_steps, v0: float = 1.
     :math:`(X_0, V_0) = (\\mathcal N(0, 1/\\tau'), v_0)`.  Returns ``(n_paths, len(record_steps))``.
 
     Path p of chunk c has key ``split(fold_in(key, c)[1])[p]``; its segment i (up to
-    ``record_steps[i]``) uses ``jax.random.normal(fold_in(path_key, i), (steps, 2))``."""
-    steps = [int(s) for s in record_steps]
-    if any(b < a for a, b in zip(steps, steps[1:])) or steps[0] < 0:
-        raise ValueError(f"record_steps must be non-negative and increasing (got {record_steps})")
+    ``record_steps[i]``) uses ``jax.random.normal(fold_in(path_key, i), (steps, 2))``.  ``key`` is
+    a ``jax.random`` key or an integer seed in [0, 2^62] (as :func:`~dryfric_jax.estimate_diffusivity`
+    takes it); ``n_paths`` and ``chunk`` are integers >= 1.  ``ValueError`` naming the argument."""
+    _check_model(model)
+    key = _key(key)[0]
+    n_paths, chunk = _count("n_paths", n_paths, 1), _count("chunk", chunk, 1)
+    steps = _record_steps(record_steps)
+    check_finite("v0", v0)
+    v0 = float(v0)
     segments = tuple(np.diff([0] + steps).tolist())
     sd = _stationary_sd(model)
     out = []
@@ -86,8 +128,8 @@ def di_transient(model: DIModel, key, n_paths: int, record_steps, v0: float = 1.
         m = min(chunk, n_paths - c * chunk)
         kx, kp = jax.random.split(jax.random.fold_in(key, c))
         x0 = sd * jax.random.normal(kx, (m,), model.h.dtype)
-        out.append(np.asarray(over_lanes(_transient, (model, jax.random.split(kp, m), x0, jnp.asarray(v0, model.h.dtype)),
-                                         (False, True, True, False), segments=segments)))
+        args = (model, jax.random.split(kp, m), x0, jnp.asarray(v0, model.h.dtype))
+        out.append(np.asarray(over_lanes(_transient, args, (False, True, True, False), segments=segments)))
     return np.concatenate(out)
 
 
@@ -112,9 +154,15 @@ def di_stationary(model: DIModel, key, n_paths: int, n_records: int, every: int 
     arrays.  The noise starts stationary; ``burn_steps`` lets the velocity relax too.
 
     Path p has key ``split(key)[p]``; its burn-in uses ``jax.random.normal(fold_in(path_key,
-    n_records), (burn_steps, 2))``, record i the numbers of ``fold_in(path_key, i)``."""
+    n_records), (burn_steps, 2))``, record i the numbers of ``fold_in(path_key, i)``.  ``key`` is a
+    ``jax.random`` key or an integer seed in [0, 2^62]; ``n_paths``, ``n_records`` and ``every`` are
+    integers >= 1, ``burn_steps`` >= 0.  ``ValueError`` naming the argument."""
+    _check_model(model)
+    key = _key(key)[0]
+    n_paths, n_records = _count("n_paths", n_paths, 1), _count("n_records", n_records, 1)
+    every, burn_steps = _count("every", every, 1), _count("burn_steps", burn_steps, 0)
     V, U = over_lanes(_stationary, (model, jax.random.split(key, n_paths)), (False, True),
-                      n_records=int(n_records), every=int(every), burn=int(burn_steps))
+                      n_records=n_records, every=every, burn=burn_steps)
     return np.asarray(V), np.asarray(U)
 
 
@@ -123,10 +171,36 @@ def autocovariance(V: np.ndarray, max_lag: int, center: bool = False) -> tuple[n
     paths, by FFT per path.  ``center=True`` subtracts the grand mean first (Cov, the paper's
     :math:`h(\rho)`); the pure dry friction case has mean 0 and uses the raw moment.
 
-    ``V`` is ``(paths, samples)``; returns two arrays of length ``max_lag + 1``.
+    ``V`` is ``(paths, samples)``, finite, with at least 2 paths (the standard error is their
+    spread); returns two arrays of length ``max_lag + 1``, ``max_lag`` an integer in
+    [0, samples - 1].
     """
+    V, max_lag = _acf_args(V, max_lag, center)
     acf = _per_path_acf(V, max_lag, center)
     return acf.mean(0), acf.std(0, ddof=1) / np.sqrt(V.shape[0])
+
+
+def _acf_args(V, max_lag, center):
+    """``(V as a float64 array, max_lag as an int)``; ``ValueError`` naming the argument that is wrong
+    (a max_lag beyond the series gave numpy's broadcast error, -1 an IndexError, one path an
+    all-NaN standard error)."""
+    try:
+        a = None if isinstance(V, (str, bytes)) else np.asarray(V)
+    except Exception:  # noqa: BLE001  (a ragged list, say)
+        a = None
+    if a is None or a.dtype.kind not in "iuf" or a.ndim != 2 or a.shape[0] < 2 or a.shape[1] < 1:
+        what = f"an array of shape {a.shape} and dtype {a.dtype}" if a is not None else _shown(V)
+        raise ValueError(f"V must be a real array of shape (paths, samples) with at least 2 paths (the standard "
+                         f"error is their spread) and 1 sample (got {what})")
+    if not np.all(np.isfinite(a)):
+        raise ValueError("V must be finite (got a NaN or an inf)")
+    n = a.shape[1]
+    lag = max_lag.item() if isinstance(max_lag, np.ndarray) and max_lag.shape == () else max_lag
+    if isinstance(lag, (bool, np.bool_)) or not isinstance(lag, (int, np.integer)) or not 0 <= lag <= n - 1:
+        raise ValueError(f"max_lag must be an integer in [0, {n - 1}] (samples - 1 of V) (got {_shown(max_lag)})")
+    if not isinstance(center, (bool, np.bool_)):
+        raise ValueError(f"center must be True or False (got {_shown(center)})")
+    return a.astype(np.float64), int(lag)
 
 
 def _per_path_acf(V, max_lag, center):
@@ -146,10 +220,14 @@ def autocorrelation(V: np.ndarray, max_lag: int, center: bool = True) -> tuple[n
 
     :math:`c_i` the FFT autocovariance of path i (delta method).  ``se(c(k))/c(0)`` ignores that
     :math:`c_i(k)` and :math:`c_i(0)` move together from path to path: it overstated the SE by up
-    to ~20x at short lags, where r is close to 1.
+    to ~20x at short lags, where r is close to 1.  Arguments as :func:`autocovariance`'s; the
+    series must not be constant (r is c(k)/c(0)).
     """
+    V, max_lag = _acf_args(V, max_lag, center)
     acf = _per_path_acf(V, max_lag, center)
     a, b = acf.mean(0), acf[:, 0].mean()
+    if not b > 0:
+        raise ValueError("V must vary: its mean autocovariance at lag 0 is 0, and r(k) = c(k)/c(0) is undefined")
     r = a / b
     resid = acf - r[None, :] * acf[:, :1]
     return r, resid.std(0, ddof=1) / (np.sqrt(V.shape[0]) * b)
@@ -191,15 +269,23 @@ def _excursion(model: DIModel, key, *, max_steps: int):
     return n, phase, n_half, b
 
 
+#: largest ``max_steps`` of :func:`di_excursion` (three buffers of max_steps + 1 states)
+MAX_EXCURSION_STEPS = 2**31 - 1
+
+
 def di_excursion(model: DIModel, key, max_steps: int = 200_000) -> dict:
     """One long excursion of the DI (regeneration on C_+, through C_-, back to C_+) step by step.
 
     Returns nondimensional numpy arrays ``t, x, v, U`` (index 0 is the state before the first
     step of the excursion), ``i_half`` (the step at which the -HLE begins) and ``complete``
     (False if ``max_steps`` stopped it first).  The seek before the first regeneration is bounded
-    by 50 ``max_steps`` steps.
+    by 50 ``max_steps`` steps.  ``key`` is a ``jax.random`` key or an integer seed in [0, 2^62];
+    ``max_steps`` an integer in [1, 2^31 - 1] (its buffers hold max_steps + 1 states).
     """
-    n, phase, n_half, b = jax.device_get(_excursion(model, key, max_steps=int(max_steps)))
+    _check_model(model)
+    key = _key(key)[0]
+    max_steps = _count("max_steps", max_steps, 1, MAX_EXCURSION_STEPS, " (its buffers hold max_steps + 1 states)")
+    n, phase, n_half, b = jax.device_get(_excursion(model, key, max_steps=max_steps))
     n = int(n)
     out = {k: np.asarray(v)[: n + 1].astype(np.float64) for k, v in b.items()}
     out = dict(t=np.arange(n + 1) * float(model.h), x=out["X"], v=out["V"], U=out["U"], i_half=int(n_half),

@@ -51,13 +51,37 @@ def h_max(params: Params) -> float:
     return H_MAX_REL * min(params.tau0, params.tau_L)
 
 
+def shown(x) -> str:
+    """``repr(x)`` in one readable line: an int of 400 digits as its first digits and its length
+    (as :class:`~dryfric_jax.params.Params` shows a field)."""
+    text = repr(x)
+    return text if len(text) <= 60 else f"{text[:24]}... ({len(text)} characters)"
+
+
+def scalar(x):
+    """A 0-d numpy array as its Python scalar (README: taken like a Python number); anything else as is."""
+    return x.item() if isinstance(x, np.ndarray) and x.shape == () else x
+
+
+def real(x) -> float | None:
+    """``x`` as a float if it is a real number (:func:`~dryfric_jax.params.real_or_none`; an int
+    beyond float range as +-inf, for the range checks to refuse), else None."""
+    x = scalar(x)
+    if isinstance(x, int) and not isinstance(x, bool):
+        try:
+            return float(x)
+        except OverflowError:
+            return math.inf if x > 0 else -math.inf
+    return real_or_none(x)
+
+
 def check_h(params: Params, h: float) -> float:
     if h is None:
         return default_h(params)
     hm = h_max(params)
-    v = real_or_none(h)
+    v = real(h)
     if v is None or not (math.isfinite(v) and 0 < v <= hm):
-        raise ValueError(f"h must be in (0, {hm:.4g}] s, i.e. at most 0.1*min(tau0, tau_L) (got {h!r})")
+        raise ValueError(f"h must be in (0, {hm:.4g}] s, i.e. at most 0.1*min(tau0, tau_L) (got {shown(h)})")
     return v
 
 
@@ -71,34 +95,92 @@ def dtype_name(dtype) -> str:
     return name
 
 
-def check_count(name, n, lo=2):
-    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < lo:
-        raise ValueError(f"{name} must be an integer >= {lo} (got {n!r})")
+#: largest count of excursions (paths) of a run, and of steps of one excursion: the engine's
+#: counters are int64
+MAX_COUNT = MAX_STEPS = 1 << 62
+
+
+def check_count(name, n, lo=2, hi=None) -> int:
+    """``n`` as an int (a numpy integer or a 0-d array too); ``ValueError`` naming ``name`` unless it
+    is an integer >= ``lo`` (and <= ``hi``)."""
+    n = scalar(n)
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < lo or (hi is not None and n > hi):
+        rng = f">= {lo}" if hi is None else f"in [{lo}, {'2^62' if hi == MAX_COUNT else hi}]"
+        raise ValueError(f"{name} must be an integer {rng} (got {shown(n)})")
+    return int(n)
 
 
 MAX_LANES, MAX_BLOCK = 1 << 22, 1024
-#: largest per-excursion bound (the engine's step counters are int64)
-MAX_STEPS = 1 << 62
 
 
 def check_layout(lanes, block):
     """The engine's layout: ``lanes`` (None: :func:`~dryfric_jax.excursions.lanes_for`) and the
     block size K, integers in [1, 2^22] and [1, 1024] with lanes * K <= 2^28 (a block's normals
-    are drawn at once, 2 per lane-step: 2 GiB in float32)."""
+    are drawn at once, 2 per lane-step: 2 GiB in float32).  Returns them as ints (None kept)."""
+    lanes, block = scalar(lanes), scalar(block)
     for name, v, hi in (("lanes", lanes, MAX_LANES), ("block", block, MAX_BLOCK)):
         if v is None and name == "lanes":
             continue
         if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not 1 <= v <= hi:
-            raise ValueError(f"{name} must be an integer in [1, {hi}] (got {v!r})")
+            raise ValueError(f"{name} must be an integer in [1, {hi}] (got {shown(v)})")
     if lanes is not None and lanes * block > MAX_LAYOUT:
         raise ValueError(f"lanes * block must be <= 2^28 (a block's normals are drawn at once) "
                          f"(got lanes = {lanes}, block = {block})")
+    return None if lanes is None else int(lanes), int(block)
 
 
-def check_max_work(max_work):
-    ok = isinstance(max_work, (int, float, np.integer, np.floating)) and not isinstance(max_work, bool)
-    if not (ok and math.isfinite(max_work) and max_work >= 1e3):
-        raise ValueError(f"max_work must be a finite number >= 1e3 (got {max_work!r})")
+def check_max_work(max_work) -> float:
+    """``max_work`` as a float; ``ValueError`` unless it is a finite number >= 1e3."""
+    v = real(max_work)
+    if v is None or not (math.isfinite(v) and v >= 1e3):
+        raise ValueError(f"max_work must be a finite number >= 1e3 (got {shown(max_work)})")
+    return v
+
+
+def check_rtol(rtol) -> float | None:
+    """The precision target as a float (None: none); ``ValueError`` unless it is in (0, 1)."""
+    v = None if rtol is None else real(rtol)
+    if rtol is not None and (v is None or not 0 < v < 1):
+        raise ValueError(f"rtol must be in (0, 1) (got {shown(rtol)})")
+    return v
+
+
+def check_max_time(max_time) -> float | None:
+    """The time limit in seconds as a float (None: none); ``ValueError`` unless it is > 0 (inf: none)."""
+    v = None if max_time is None else real(max_time)
+    if max_time is not None and (v is None or not v > 0):
+        raise ValueError(f"max_time must be > 0 seconds (got {shown(max_time)})")
+    return v
+
+
+def check_method(method, h=None, delta=None) -> None:
+    """``ValueError`` unless ``method`` is one of :data:`METHODS` and takes the step given (h or delta)."""
+    if not isinstance(method, str) or method not in METHODS:
+        raise ValueError(f"method must be one of {list(METHODS)} (got {shown(method)})")
+    if method == "di" and delta is not None:
+        raise ValueError("delta must not be given with method 'di': it is the PDMP noise grid step "
+                         "(method 'pdmp' or 'auto')")
+    if method == "pdmp" and h is not None:
+        raise ValueError("h must not be given with method 'pdmp': it is the DI step (method 'di' or 'auto')")
+
+
+def check_settings(*, method="di", h=None, delta=None, dtype="float64", n_excursions=20_000, rtol=None,
+                   max_work=MAX_WORK) -> dict:
+    """The settings of :func:`plan_estimate` (and ``rtol``) that no parameter point changes, as plain
+    values: ``ValueError`` naming the first one that is wrong.  A sweep checks them once, before its
+    grid: a wrong setting is no point's refusal.  h and delta are checked only against the bounds
+    that hold at every point (h <= 0.1*min(tau0, tau_L) and delta's bound depend on the point)."""
+    check_method(method, h, delta)
+    steps = {}
+    for name, v, rng in (("h", h, "(0, 0.1*min(tau0, tau_L)] s"),
+                         ("delta", delta, "(0, delta_max) s^-1/2, delta_max depending on tau and gamma_bar")):
+        x = None if v is None else real(v)
+        if v is not None and (x is None or not (math.isfinite(x) and x > 0)):
+            raise ValueError(f"{name} must be in {rng} (got {shown(v)})")
+        steps[name] = x
+    return dict(method=method, **steps, dtype=dtype_name(dtype),
+                n_excursions=check_count("n_excursions", n_excursions, hi=MAX_COUNT), rtol=check_rtol(rtol),
+                max_work=check_max_work(max_work))
 
 
 @dataclass
@@ -124,15 +206,11 @@ class Plan:
 def choose(params: Params, method: str, h, delta, dtype) -> Plan:
     """Steps 1-3 of the module docstring (no work bounds): method, h or delta, dtype."""
     check_params(params)
-    if not isinstance(method, str) or method not in METHODS:
-        raise ValueError(f"method must be one of {list(METHODS)} (got {method!r})")
+    check_method(method, h, delta)
     dtype = dtype_name(dtype)
     check_recurrent(params.tau_L_nd, params.gamma_bar_nd)
-    if method == "di" and delta is not None:
-        raise ValueError("delta must not be given with method 'di': it is the PDMP noise grid step "
-                         "(method 'pdmp' or 'auto')")
-    if method == "pdmp" and h is not None:
-        raise ValueError("h must not be given with method 'pdmp': it is the DI step (method 'di' or 'auto')")
+    if real(delta) is not None:  # as a float: an int of 400 digits is refused as inf, not printed in full
+        delta = real(delta)
     reason = f"method {method!r} requested"
     if method == "auto":
         h_c = check_h(params, h)
@@ -164,23 +242,20 @@ def plan_estimate(params: Params, *, method: str = "di", h: float | None = None,
     the parameter and its range) for anything it would refuse, including a run predicted to need
     more than ``max_work`` lane-steps (events).
     """
-    check_count("n_excursions", n_excursions)
-    check_max_work(max_work)
-    check_layout(lanes, 1 if block is None else block)  # a default K is fitted to the lanes below
+    n_excursions = check_count("n_excursions", n_excursions, hi=MAX_COUNT)  # the engine's counters are int64
+    max_work = check_max_work(max_work)
+    lanes, block1 = check_layout(lanes, 1 if block is None else block)  # a default K is fitted to the lanes below
     if chunk_lanes is not None:
-        check_count("chunk_lanes", chunk_lanes, 1)
+        chunk_lanes = check_count("chunk_lanes", chunk_lanes, 1)
     plan = choose(params, method, h, delta, dtype)
     nd = (params.tau_nd, params.tau_L_nd, params.gamma_bar_nd)
-    plan.predicted_work = check_work(*nd, plan.per_tau0, int(n_excursions), max_work, plan.unit)
-    plan.lanes = int(lanes or lanes_for(int(n_excursions), chunk_lanes))
-    plan.block = int(default_block(plan.method, plan.lanes) if block is None else block)
+    plan.predicted_work = check_work(*nd, plan.per_tau0, n_excursions, max_work, plan.unit)
+    plan.lanes = int(lanes or lanes_for(n_excursions, chunk_lanes))
+    plan.block = int(default_block(plan.method, plan.lanes) if block is None else block1)
     check_layout(plan.lanes, plan.block)
-    plan.max_work = float(max_work)
+    plan.max_work = max_work
     if max_steps is None:
         plan.max_steps = max_steps_per_excursion(*nd, plan.per_tau0, cap=max(max_work / plan.lanes, 64))
-    else:
-        check_count("max_steps", max_steps, 1)
-        if max_steps > MAX_STEPS:  # the step counters are int64
-            raise ValueError(f"max_steps must be an integer in [1, 2^62] (got {max_steps!r})")
-        plan.max_steps = int(max_steps)
+    else:  # the step counters are int64
+        plan.max_steps = check_count("max_steps", max_steps, 1, hi=MAX_STEPS)
     return plan

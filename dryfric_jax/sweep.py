@@ -11,7 +11,9 @@ recomputed; new points are appended.  The seed of a point is derived from the sw
 point itself (not from its position in the grid), so adding points to a grid never changes the
 others, and a resumed sweep gives bit-identical records.
 
-Every point is planned first (:func:`~dryfric_jax.plan.plan_estimate`).  A point with invalid
+The settings (method, h, delta, dtype, n_excursions, rtol, max_work) are checked once, before the
+grid (:func:`~dryfric_jax.plan.check_settings`): a wrong setting is a user's mistake, never a point's
+refusal.  Every point is then planned (:func:`~dryfric_jax.plan.plan_estimate`).  A point with invalid
 parameters refuses the grid before anything is simulated.  A point the planner refuses (its
 predicted work exceeds ``max_work``, no stationary state, an inadmissible h or delta) refuses the
 grid too, and the message names every such point; with ``skip_refused`` they are recorded as
@@ -36,11 +38,11 @@ import zlib
 import numpy as np
 
 from . import __version__
-from .api import DryfricWarning, NoEstimateError, ProjectionWarning, check_seed, estimate_diffusivity
+from .api import DryfricWarning, NoEstimateError, ProjectionWarning, check_progress, check_seed, estimate_diffusivity
 from .limits import MAX_WORK
 from .outfiles import check_writable, read_records, write_records
 from .params import FIG3, Params, plain_number, real_or_none
-from .plan import dtype_name, plan_estimate
+from .plan import check_settings, plan_estimate
 
 PARAM_KEYS = ("Gamma", "Delta", "tau", "tau_L", "gamma_bar")
 #: settings that determine a point's result (with its parameters and seed)
@@ -58,8 +60,9 @@ def grid(**axes) -> list[dict]:
     values = {}
     for k in names:
         v = axes[k]
-        if isinstance(v, (str, bytes, dict)):  # "5,6" was read as the points '5', ',' and '6'
-            raise ValueError(f"sweep axis {k} must be a list of numbers (got {v!r})")
+        # "5,6" was read as the points '5', ',' and '6'; None, True or 1+2j failed with a TypeError
+        if isinstance(v, (str, bytes, dict)) or (real_or_none(v) is None and not hasattr(v, "__iter__")):
+            raise ValueError(f"sweep axis {k} must be a list of numbers (got {repr(v)[:60]})")
         values[k] = [v] if real_or_none(v) is not None else list(np.ravel(v)) if isinstance(v, np.ndarray) else list(v)
     return [dict(zip(names, vals)) for vals in itertools.product(*(values[k] for k in names))]
 
@@ -122,19 +125,6 @@ def _check_points(points) -> list[dict]:
     return [{k: plain_number(v) for k, v in pt.items()} for pt in points]
 
 
-def _plain_settings(method, h, delta, dtype, n_excursions, rtol, max_work) -> dict:
-    """The settings as JSON values: numpy numbers as Python ones, a numpy dtype as its name."""
-    if not isinstance(dtype, str):
-        try:
-            dtype = dtype_name(dtype)
-        except ValueError:
-            pass  # refused by name by the planner
-    if isinstance(n_excursions, np.integer):
-        n_excursions = int(n_excursions)
-    return dict(method=method, h=plain_number(h), delta=plain_number(delta), dtype=dtype,
-                n_excursions=n_excursions, rtol=plain_number(rtol), max_work=plain_number(max_work))
-
-
 def status(record: dict) -> str:
     """A record's status: ``"ok"``, ``"refused"`` or ``"failed"`` (``"ok"`` for older records)."""
     return record.get("status", "ok")
@@ -195,7 +185,11 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
     check_writable(out)
     points = _check_points(points)
     seed = check_seed(seed)
-    settings = _plain_settings(method, h, delta, dtype, n_excursions, rtol, max_work)
+    check_progress(progress)
+    # as JSON values (numpy numbers as Python ones, a numpy dtype as its name), checked once: a wrong
+    # setting refuses the grid (dtype float16 was recorded as every point's refusal)
+    settings = check_settings(method=method, h=h, delta=delta, dtype=dtype, n_excursions=n_excursions, rtol=rtol,
+                              max_work=max_work)
     method, h, delta, dtype, n_excursions, rtol, max_work = (settings[k] for k in SETTING_KEYS)
     full = [{**{k: FIG3[k] for k in PARAM_KEYS}, **pt} for pt in points]
     refused = {}  # ident -> (point, reason); every point is planned before any work

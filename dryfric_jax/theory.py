@@ -8,11 +8,14 @@ form (its stationary density, its Hayakawa formula and Table 1): those are the v
 model with :math:`\Gamma` halved, not of the model as written.
 
 Everything is computed in nondimensional units (:math:`\Gamma = \Delta = 1`) and scaled back:
-:math:`D = D'\,\Gamma^3/\Delta^4`, :math:`M_0 = M_0'\,\Gamma/\Delta`.
+:math:`D = D'\,\Gamma^3/\Delta^4`, :math:`M_0 = M_0'\,\Gamma/\Delta`; the closed forms (used for
+:math:`\tau_L = \infty`) in physical units, with no intermediate overflow or underflow.  A result
+outside float64's range is refused by name (``ValueError``), never returned as inf or 0.
 """
 from __future__ import annotations
 
 import math
+import sys
 import warnings
 
 import numpy as np
@@ -34,9 +37,11 @@ def _nd(params: Params):
 
 
 def _log_p_unnorm(v, itl, g):
-    r""":math:`\psi(v) = -v^2/(2\tau_L') - |v| + \bar\gamma' v` (nondimensional)."""
+    r""":math:`\psi(v) = -v^2/(2\tau_L') - |v| + \bar\gamma' v` (nondimensional), its linear part as
+    :math:`(\bar\gamma' \mp 1) v`: the sum of the two large terms lost :math:`\epsilon |v|` (1e-8 at
+    :math:`|v| \sim 10^8`, a wide law, :math:`|\bar\gamma'| \to 1`), noise that stalled the quadratures."""
     v = np.asarray(v, np.float64)
-    return -0.5 * itl * v * v - np.abs(v) + g * v
+    return -0.5 * itl * v * v + np.where(v > 0, g - 1.0, g + 1.0) * v
 
 
 def _log_half_line_mass(beta, itl):
@@ -46,9 +51,11 @@ def _log_half_line_mass(beta, itl):
     if itl == 0.0:
         return -math.log(beta)  # beta > 0: check_recurrent refuses |gamma_bar'| >= 1 here
     s = math.sqrt(itl)
-    x = beta / (s * math.sqrt(2))
-    log_erfcx = math.log(special.erfcx(x)) if x >= 0 else x * x + math.log(special.erfc(x))
-    return 0.5 * math.log(math.pi / 2) - math.log(s) + log_erfcx
+    return 0.5 * math.log(math.pi / 2) - math.log(s) + _log_erfcx(beta / (s * math.sqrt(2)))
+
+
+def _log_erfcx(x):
+    return math.log(special.erfcx(x)) if x >= 0 else x * x + math.log(special.erfc(x))
 
 
 def _log_norm(itl, g):
@@ -65,22 +72,39 @@ def stationary_density(v, params: Params):
     (MODEL_NOTES section 2; the paper prints the :math:`\Gamma_w = \Gamma` form without the 2s).
     """
     itl, g = _nd(params)
-    vn = np.asarray(v, np.float64) / params.v0
+    vn = _velocities(v) / params.v0
     inf = np.isinf(vn)  # p(+-inf) = 0 (the exponent would be inf - inf there)
     p = np.where(inf, 0.0, np.exp(_log_p_unnorm(np.where(inf, 0.0, vn), itl, g) - _log_norm(itl, g)) / params.v0)
     return p[()]  # a scalar for a scalar v
 
 
 def _scale(itl, g):
-    """Width of p in nondimensional velocity: quadratures run in v/scale so that no piece of
-    mass is missed however narrow (tau_L' -> 0) or wide (|gamma_bar'| -> 1) p is."""
+    """Width of p in nondimensional velocity (the wider of its two sides, :func:`_tail_scales`):
+    the extent of the law (:mod:`dryfric_jax.chain_law` sizes its grid with it)."""
     return 1.0 / max(math.sqrt(itl), min(abs(1.0 - g), abs(1.0 + g)))
 
 
-def _quad(f, a, b, s, epsrel):
-    """∫_a^b f(v) dv computed as s ∫ f(s w) dw."""
+def _tail_scales(itl, g):
+    r"""Decay lengths ``(left, right)`` of p's two tails (nondimensional): on the side where the
+    friction wins, :math:`1/\max(\sqrt{\mathrm{itl}}, 1 \pm \bar\gamma')`; on a side where the bias
+    beats it, the bump's width :math:`\sqrt{\tau_L'}` (:func:`_mode_points`).  The infinite pieces
+    of the quadratures run on their own tail's scale: with the wider side's scale for both
+    (:func:`_scale`), the narrow side of a lopsided law (:math:`|\bar\gamma'| \to 1`: widths
+    :math:`1/(1 - |\bar\gamma'|)` and 1/2) was a spike, missed by 2.5e-7 of D at
+    :math:`\bar\gamma' = 1 - 10^{-6}` (and, with the cancellation :func:`_log_p_unnorm` now avoids,
+    the nested quadrature of :func:`exact_D` took 78 s at :math:`\tau_L' = 10^8, \bar\gamma' = 1 - 10^{-4}`)."""
+    side = lambda rate: 1.0 / max(math.sqrt(itl), rate) if rate > 0 else 1.0 / math.sqrt(itl)  # noqa: E731
+    return side(1.0 + g), side(1.0 - g)
+
+
+def _quad(f, a, b, tails, epsrel):
+    """∫_a^b f(v) dv; an infinite piece computed as s ∫ f(s w) dw with s its tail's decay length
+    (``tails``, :func:`_tail_scales`), so that no piece of mass is missed however narrow
+    (tau_L' -> 0) or wide (|gamma_bar'| -> 1) that tail is.  (A finite piece needs no scale:
+    quad's nodes are affine in [a, b].)"""
     if a >= b:
         return 0.0
+    s = tails[0] if a == -math.inf else tails[1] if b == math.inf else 1.0
     return s * integrate.quad(lambda w: f(s * w), a / s, b / s, epsabs=0, epsrel=epsrel, limit=200)[0]
 
 
@@ -120,36 +144,74 @@ def _velocity_moment_nd(itl, g, k=1):
     if lin is not None and k in (1, 2):
         mean, var = lin
         return mean if k == 1 else mean * mean + var
+    if k == 1 and itl >= 1.0:
+        return _mean_strong_damping(itl, g)
     return _moment_quad(itl, g, k)
+
+
+def _mean_strong_damping(itl, g):
+    r"""The mean for :math:`\tau_L' \le 1` from :math:`\int \psi'(v)\,p(v)\,dv = 0`:
+    :math:`m = \tau_L'(\bar\gamma' - E[\mathrm{sgn}\,V])`, with :math:`P(V<0) - P(V>0) =
+    \tanh((\log J(1 + \bar\gamma') - \log J(1 - \bar\gamma'))/2)` from the half-line masses
+    :math:`J` (:func:`_log_half_line_mass`; their common terms cancel exactly and are left out).
+    The quadrature of :math:`\int v\,p` cancels there: a mean :math:`\approx \tau_L'\bar\gamma'`
+    against a width :math:`\sqrt{\tau_L'}` (it returned 0.0 at :math:`\tau_L' = 10^{-100}` and was
+    100 times off at :math:`10^{-24}`)."""
+    x = 1.0 / math.sqrt(2.0 * itl)
+    d = _log_erfcx((1.0 + g) * x) - _log_erfcx((1.0 - g) * x)
+    return (g + math.tanh(0.5 * d)) / itl
 
 
 def _moment_quad(itl, g, k):
     logZ = _log_norm(itl, g)
-    s = _scale(itl, g)
+    tails = _tail_scales(itl, g)
     f = lambda v: v**k * math.exp(_log_p_unnorm(v, itl, g) - logZ)
-    return sum(_quad(f, a, b, s, 1e-13) for a, b in _pieces(0.0, *_mode_points(itl, g)))
+    return sum(_quad(f, a, b, tails, 1e-13) for a, b in _pieces(0.0, *_mode_points(itl, g)))
 
 
-def _G(v, m, itl, g, s):
+def _G(v, m, itl, g, tails):
     r""":math:`G(v) = F(v)/p(v)` taken from the nearer tail, so that :math:`F^2/p = p\,G^2` is stable."""
     psi_v = float(_log_p_unnorm(v, itl, g))
     f = lambda u: (u - m) * math.exp(float(_log_p_unnorm(u, itl, g)) - psi_v)
     pieces = _pieces(0.0, *_mode_points(itl, g))
     if v > m:
-        return -sum(_quad(f, max(a, v), b, s, 1e-12) for a, b in pieces if b > v)
-    return sum(_quad(f, a, min(b, v), s, 1e-12) for a, b in pieces if a < v)
+        return -sum(_quad(f, max(a, v), b, tails, 1e-12) for a, b in pieces if b > v)
+    return sum(_quad(f, a, min(b, v), tails, 1e-12) for a, b in pieces if a < v)
+
+
+def _phys_args(params: Params) -> dict:
+    return {k: getattr(params, k) for k in ("Gamma", "Delta", "tau_L", "gamma_bar")}
+
+
+def _in_units(name, value_nd, unit, params: Params, *, positive: bool):
+    r"""A quadrature's nondimensional ``value_nd`` times its unit :math:`\Gamma^{a}\Delta^{b}`
+    (``unit = (a, b)``), refused by name (:func:`_product`) where it leaves float64's range: an
+    overflow was returned as inf, and a ``positive`` quantity (D, E[V^2]) that underflowed as 0."""
+    if value_nd == 0.0 and not positive:
+        return 0.0
+    if not math.isfinite(value_nd) or value_nd == 0.0:
+        _refuse_range(name, _phys_args(params), over=value_nd != 0.0)
+    return _product(name, _phys_args(params), [(abs(value_nd), 1), (float(params.Gamma), unit[0]),
+                                               (float(params.Delta), unit[1])], sign=value_nd)
 
 
 def exact_M0(params: Params) -> float:
-    r"""White-noise mobility :math:`M_0 = \int v\,p(v)\,dv` (physical units)."""
+    r"""White-noise mobility :math:`M_0 = \int v\,p(v)\,dv` (physical units); the closed form
+    :func:`M0_constant_bias` for :math:`\tau_L = \infty`."""
     itl, g = _nd(params)
-    return _velocity_moment_nd(itl, g, 1) * params.v0
+    if itl == 0.0:
+        return M0_constant_bias(params.Gamma, params.Delta, params.gamma_bar)
+    return _in_units("M0", _velocity_moment_nd(itl, g, 1), (1, -1), params, positive=False)
 
 
 def exact_mean_square_velocity(params: Params) -> float:
-    r"""White-noise :math:`E[V^2] = \int v^2 p(v)\,dv` (physical units, m^2/s^2)."""
+    r"""White-noise :math:`E[V^2] = \int v^2 p(v)\,dv` (physical units, m^2/s^2); for
+    :math:`\tau_L = \infty` the closed form of the asymmetric Laplace law,
+    :math:`2\Gamma^2(\Delta^2 + 3\bar\gamma^2)/(\Delta^2 - \bar\gamma^2)^2`."""
     itl, g = _nd(params)
-    return _velocity_moment_nd(itl, g, 2) * params.v0 * params.v0
+    if itl == 0.0:
+        return _mean_square_constant_bias(params.Gamma, params.Delta, params.gamma_bar)
+    return _in_units("E[V^2]", _velocity_moment_nd(itl, g, 2), (2, -2), params, positive=True)
 
 
 def exact_D(params: Params) -> float:
@@ -160,12 +222,17 @@ def exact_D(params: Params) -> float:
         F(v) = \int_{-\infty}^{v} (u - m)\,p(u)\,du, \quad m = \int u\,p(u)\,du,
 
     exact for a 1-D velocity diffusion with Fokker-Planck diffusion coefficient :math:`\Gamma`
-    (MODEL_NOTES section 2).  F is integrated from the nearer tail.
+    (MODEL_NOTES section 2).  F is integrated from the nearer tail.  For :math:`\tau_L = \infty`
+    the closed form :func:`D_constant_bias` (the quadrature agrees with it to 1e-14, but it is
+    exact and instantaneous however close :math:`|\bar\gamma|` is to :math:`\Delta`).
+    ``ValueError`` naming D where it leaves float64's range.
     """
     itl, g = _nd(params)
+    if itl == 0.0:
+        return D_constant_bias(params.Gamma, params.Delta, params.gamma_bar)
     with warnings.catch_warnings():  # inner quads near the kink report harmless round-off
         warnings.simplefilter("ignore", integrate.IntegrationWarning)
-        return _exact_D_nd(itl, g) * params.D0
+        return _in_units("D", _exact_D_nd(itl, g), (3, -4), params, positive=True)
 
 
 def _exact_D_nd(itl, g):
@@ -174,57 +241,114 @@ def _exact_D_nd(itl, g):
         return 2.0 * lin[1] * lin[1]
     m = _velocity_moment_nd(itl, g, 1)
     logZ = _log_norm(itl, g)
-    s = _scale(itl, g)
-    integrand = lambda v: math.exp(float(_log_p_unnorm(v, itl, g)) - logZ) * _G(v, m, itl, g, s) ** 2
-    return 2.0 * sum(_quad(integrand, a, b, s, 1e-10) for a, b in _pieces(0.0, m, *_mode_points(itl, g)))
+    tails = _tail_scales(itl, g)
+    integrand = lambda v: math.exp(float(_log_p_unnorm(v, itl, g)) - logZ) * _G(v, m, itl, g, tails) ** 2
+    return 2.0 * sum(_quad(integrand, a, b, tails, 1e-10) for a, b in _pieces(0.0, m, *_mode_points(itl, g)))
 
 
-def _closed_form_args(Gamma, Delta=None, **kw):
+# ---------------------------------------------------------------------------------------------
+# closed forms (MODEL_NOTES section 2), physical units
+# ---------------------------------------------------------------------------------------------
+def _closed_form_args(Gamma, Delta=None, **kw) -> dict:
     """Validate a closed form's arguments by name (``ValueError``, as Params does): they were
-    taken as they came, so a NaN gave NaN and a zero a ZeroDivisionError."""
+    taken as they came, so a NaN gave NaN and a zero a ZeroDivisionError.  Returns them by name
+    as Python floats: a numpy float32 argument made the formula compute in float32 (D = 2e60
+    refused as an overflow, an M0 of 1e-40 returned as 0.0)."""
     check_positive("Gamma", Gamma)
     if Delta is not None:
         check_positive("Delta", Delta)
     for name, v in kw.items():
         (check_finite if name == "gamma_bar" else check_positive)(name, v)
+    args = {"Gamma": Gamma, "Delta": Delta, **kw}
+    return {k: float(v) for k, v in args.items() if v is not None}
 
 
-def _finite(name, value):
-    if not math.isfinite(value):
-        raise ValueError(f"{name} overflows for these parameters (Gamma, Delta out of floating-point range); "
-                         "use other units")
-    return value
+#: binary exponents (``math.frexp``) of float64's normal numbers: 2.2e-308 ... 1.8e308
+_MIN_EXP, _MAX_EXP = sys.float_info.min_exp, sys.float_info.max_exp
+
+
+def _refuse_range(name, args: dict, *, over: bool, exp2=None):
+    size = "" if exp2 is None else f", |{name}| ~ 1e{exp2 * math.log10(2.0):.0f}"
+    given = ", ".join(f"{k} = {v!r}" for k, v in args.items())
+    raise ValueError(f"{name} {'overflows' if over else 'underflows'} float64 for {given} (it holds "
+                     f"{sys.float_info.min:.3g} to {sys.float_info.max:.3g}{size}): "
+                     "express the parameters in other units")
+
+
+def _product(name, args: dict, factors, sign=1.0) -> float:
+    r""":math:`\pm\prod_i x_i^{k_i}` for positive finite ``x_i`` (floats, or ``(m, e)`` pairs meaning
+    :math:`m\,2^e`) and small integer powers, with mantissas and binary exponents kept apart
+    (one rounding per factor): no intermediate product overflows or underflows (``Delta**2`` of
+    1e200 raised OverflowError, ``2 * Gamma`` of 1e308 gave inf, ``Delta**2`` of 1e-200 gave 0).
+    ``ValueError`` naming ``name`` and ``args`` if the result itself leaves float64's normal
+    range, instead of inf or a 0 (or a subnormal without its digits)."""
+    m, e = 1.0, 0
+    for x, k in factors:
+        x, ex = x if isinstance(x, tuple) else (x, 0)
+        fm, fe = math.frexp(x)  # fm in [0.5, 1): fm**k cannot leave the range for |k| <= 4
+        m, me = math.frexp(m * fm**k)
+        e += me + k * (fe + ex)
+    if not _MIN_EXP <= e <= _MAX_EXP:
+        _refuse_range(name, args, over=e > _MAX_EXP, exp2=e)
+    return math.copysign(math.ldexp(m, e), sign)
+
+
+def _gaps(Delta, gamma_bar):
+    r""":math:`\Delta - \bar\gamma` and :math:`\Delta + \bar\gamma` as ``(m, e)`` pairs (:func:`_product`),
+    both scaled exactly by Delta's power of 2: neither overflows (Delta near 1.8e308), and
+    :math:`\Delta^2 - \bar\gamma^2 = (\Delta - \bar\gamma)(\Delta + \bar\gamma)` loses nothing to
+    cancellation as :math:`|\bar\gamma| \to \Delta`."""
+    e = math.frexp(Delta)[1]
+    d, g = math.ldexp(Delta, -e), math.ldexp(gamma_bar, -e)  # exact (g may lose digits below d's ulp)
+    return (d - g, e), (d + g, e)
 
 
 def D_pure_dry(Gamma, Delta) -> float:
     r""":math:`b = 0`: :math:`D = 10\Gamma^3/\Delta^4` (:math:`= 5\Gamma_w^3/(4\Delta^4)`)."""
-    _closed_form_args(Gamma, Delta)
-    G, d = float(Gamma), float(Delta)
-    return _finite("D", 10.0 * (G / d) ** 3 / d if G / d < 1e100 else math.inf)
+    a = _closed_form_args(Gamma, Delta)
+    return _product("D", a, [(10.0, 1), (a["Gamma"], 3), (a["Delta"], -4)])
 
 
 def D_constant_bias(Gamma, Delta, gamma_bar) -> float:
     r""":math:`b = \bar\gamma`, :math:`|\bar\gamma| < \Delta`:
-    :math:`D = 2\Gamma^3(5\Delta^4 + 22\Delta^2\bar\gamma^2 + 5\bar\gamma^4)/(\Delta^2 - \bar\gamma^2)^4`."""
-    _closed_form_args(Gamma, Delta, gamma_bar=gamma_bar)
-    _check_bias(Delta, gamma_bar)
-    d2, g2 = Delta * Delta, gamma_bar * gamma_bar  # products: a float's ** raises on overflow
-    gap2 = (d2 - g2) * (d2 - g2)
-    return _finite("D", 2 * Gamma * Gamma * Gamma * (5 * d2 * d2 + 22 * d2 * g2 + 5 * g2 * g2) / (gap2 * gap2))
+    :math:`D = 2\Gamma^3(5\Delta^4 + 22\Delta^2\bar\gamma^2 + 5\bar\gamma^4)/(\Delta^2 - \bar\gamma^2)^4`,
+    computed as :math:`2\Gamma^3\Delta^4(5 + 22 r^2 + 5 r^4)/((\Delta - \bar\gamma)(\Delta + \bar\gamma))^4`,
+    :math:`r = \bar\gamma/\Delta`."""
+    a = _closed_form_args(Gamma, Delta, gamma_bar=gamma_bar)
+    G, d, gb = a["Gamma"], a["Delta"], a["gamma_bar"]
+    _check_bias(d, gb)
+    r2 = (gb / d) ** 2
+    minus, plus = _gaps(d, gb)
+    return _product("D", a, [(2.0, 1), (G, 3), (d, 4), (5.0 + 22.0 * r2 + 5.0 * r2 * r2, 1), (minus, -4), (plus, -4)])
 
 
 def M0_constant_bias(Gamma, Delta, gamma_bar) -> float:
-    r""":math:`b = \bar\gamma`: :math:`M_0 = 2\Gamma\bar\gamma/(\Delta^2 - \bar\gamma^2)`."""
-    _closed_form_args(Gamma, Delta, gamma_bar=gamma_bar)
-    _check_bias(Delta, gamma_bar)
-    return 2 * Gamma * gamma_bar / (Delta**2 - gamma_bar**2)
+    r""":math:`b = \bar\gamma`: :math:`M_0 = 2\Gamma\bar\gamma/(\Delta^2 - \bar\gamma^2)`, computed with
+    :math:`\Delta^2 - \bar\gamma^2 = (\Delta - \bar\gamma)(\Delta + \bar\gamma)`."""
+    a = _closed_form_args(Gamma, Delta, gamma_bar=gamma_bar)
+    G, d, gb = a["Gamma"], a["Delta"], a["gamma_bar"]
+    _check_bias(d, gb)
+    if gb == 0.0:
+        return 0.0
+    minus, plus = _gaps(d, gb)
+    return _product("M0", a, [(2.0, 1), (G, 1), (abs(gb), 1), (minus, -1), (plus, -1)], sign=gb)
+
+
+def _mean_square_constant_bias(Gamma, Delta, gamma_bar) -> float:
+    r""":math:`b = \bar\gamma`: :math:`E[V^2] = 2\Gamma^2(\Delta^2 + 3\bar\gamma^2)/(\Delta^2 - \bar\gamma^2)^2`
+    (asymmetric Laplace law with scales :math:`\Gamma/(\Delta \mp \bar\gamma)`)."""
+    a = _closed_form_args(Gamma, Delta, gamma_bar=gamma_bar)
+    G, d, gb = a["Gamma"], a["Delta"], a["gamma_bar"]
+    _check_bias(d, gb)
+    minus, plus = _gaps(d, gb)
+    return _product("E[V^2]", a, [(2.0, 1), (G, 2), (d, 2), (1.0 + 3.0 * (gb / d) ** 2, 1), (minus, -2), (plus, -2)])
 
 
 def D_viscous_only(Gamma, tau_L) -> float:
     r"""Limit :math:`\Delta \to 0`: :math:`D = 2\tau_L^2\Gamma` (the paper's :math:`\tau_L^2\Gamma` is the
     :math:`\Gamma_w = \Gamma` form)."""
-    _closed_form_args(Gamma, tau_L=tau_L)
-    return _finite("D", 2.0 * tau_L * tau_L * Gamma)
+    a = _closed_form_args(Gamma, tau_L=tau_L)
+    return _product("D", a, [(2.0, 1), (a["tau_L"], 2), (a["Gamma"], 1)])
 
 
 def _check_bias(Delta, gamma_bar):
@@ -240,16 +364,25 @@ def _log_erfc(z):
     return math.log(2.0) + special.log_ndtr(-np.asarray(z, np.float64) * math.sqrt(2.0))
 
 
-def _real_array(t):
-    """``t`` as a float64 array; ``ValueError`` naming ``t`` unless it is a real number or an array
-    of them (a string, a bool, None or a list of them was read as a number, or said "got nan")."""
+def _real_array(t, name: str = "t"):
+    """``t`` as a float64 array; ``ValueError`` naming ``name`` unless it is a real number or an
+    array of them (a string, a bool, None or a list of them was read as a number, or said "got nan")."""
     try:
         a = None if isinstance(t, (str, bytes)) else np.asarray(t)
     except Exception:  # noqa: BLE001  (a ragged list, say)
         a = None
     if a is None or a.dtype.kind not in "iuf":
-        raise ValueError(f"t must be a real number or an array of real numbers (got {t!r:.80})")
+        raise ValueError(f"{name} must be a real number or an array of real numbers (got {t!r:.80})")
     return a.astype(np.float64)
+
+
+def _velocities(v):
+    """``v`` as a float64 array (:func:`_real_array`); ``ValueError`` naming ``v`` for a NaN (+-inf
+    is a velocity whose density is 0)."""
+    v = _real_array(v, "v")
+    if np.any(np.isnan(v)):
+        raise ValueError("v must be real numbers or +-inf, not NaN (got nan)")
+    return v
 
 
 def _times(t, *, zero_ok: bool):
@@ -272,7 +405,8 @@ def propagator(v, t, v0):
     """
     check_positive("t", t)
     check_finite("v0", v0)
-    v = np.asarray(v, np.float64)
+    v = _velocities(v)
+    t, v0 = float(t), float(v0)
     a, av = abs(v0), np.abs(v)
     st = math.sqrt(t)
     g = np.exp(-t / 4 - (av - a) / 2 - (v - v0) ** 2 / (4 * t)) / (2 * math.sqrt(math.pi) * st)
@@ -286,17 +420,24 @@ def first_moment(t, v0):
         \frac{\mathrm{sgn}(v_0)}2\Big[(a-t)\operatorname{erfc}\frac{t-a}{2\sqrt t}
         + e^{a}(a+t)\operatorname{erfc}\frac{a+t}{2\sqrt t}\Big],
 
-    with :math:`e^{a}\operatorname{erfc}(\cdot)` evaluated in logs (it overflows otherwise);
-    :math:`v_0` itself at t = 0.
+    evaluated with :math:`w = (t-a)/(2\sqrt t)`, :math:`z = (t+a)/(2\sqrt t)` and :math:`a - z^2 = -w^2`
+    as :math:`\frac{\mathrm{sgn}(v_0)}2[(a-t)\operatorname{erfc}(w) + (a+t)\,e^{-w^2}\operatorname{erfcx}(z)]`:
+    :math:`e^{a}\operatorname{erfc}(z)` overflows as written, and in logs (``log_ndtr``) the sum
+    :math:`a + \log\operatorname{erfc}(z)` lost :math:`\epsilon a` to cancellation.  Each half is taken before
+    the sums, so that no intermediate overflows (``(a - t) erfc`` near 2e308 gave inf at
+    :math:`v_0 = 10^{308}`, ``a + t`` nan): valid for every finite :math:`v_0` and :math:`t \ge 0`
+    (:math:`|\langle v\rangle| \le |v_0| + \sqrt{t/\pi}`); :math:`v_0` itself at t = 0.
     """
     check_finite("v0", v0)
     t = _times(t, zero_ok=True)
-    a = abs(v0)
+    a = abs(float(v0))
     tp = np.where(t > 0, t, 1.0)
-    st = np.sqrt(tp)
-    term1 = (a - tp) * special.erfc((tp - a) / (2 * st))
-    term2 = (a + tp) * np.exp(a + _log_erfc((a + tp) / (2 * st)))
-    return np.where(t > 0, 0.5 * math.copysign(1.0, v0) * (term1 + term2), float(v0))[()]  # a scalar for a scalar t
+    st2 = 2.0 * np.sqrt(tp)
+    with np.errstate(over="ignore"):  # w, z, w^2 -> inf as t -> 0 or a -> 1e308: erfc, erfcx, exp take it
+        w, z = (tp - a) / st2, tp / st2 + a / st2  # z not as (t + a)/(2 sqrt t): t + a may overflow
+        half1 = (a - tp) * (0.5 * special.erfc(w))
+        half2 = (0.5 * a + 0.5 * tp) * (np.exp(-w * w) * special.erfcx(z))
+    return np.where(t > 0, math.copysign(1.0, v0) * (half1 + half2), float(v0))[()]  # a scalar for a scalar t
 
 
 def _corr_asymptotic(t, n_terms=14):

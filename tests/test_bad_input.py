@@ -71,3 +71,105 @@ def test_numpy_settings_plan_like_python_ones(kw):
     py = {k: (float(v) if k in ("h", "delta") else "float32") for k, v in kw.items() if k != "method"}
     want = dj.plan_estimate(P, n_excursions=50, method=kw.get("method", "di"), **py)
     assert (plan.method, plan.h, plan.delta, plan.dtype) == (want.method, want.h, want.delta, want.dtype)
+
+
+@pytest.mark.parametrize("call", [
+    lambda: dj.plan_estimate(P, n_excursions=2**70, max_work=1e308),  # a TypeError from lanes_for (np.log2)
+    lambda: dj.estimate_diffusivity(P, 0, n_excursions=np.array(2**62 + 1, dtype=object), max_work=1e308),
+    lambda: dj.bruteforce_diffusivity(P, 0, t=1.0, n_paths=2**70, max_work=1e308),  # ran 2^70 paths
+], ids=["plan", "estimate", "bruteforce"])
+def test_counts_beyond_int64_are_refused_by_name(call):
+    with pytest.raises(ValueError, match=r"^n_(excursions|paths) must be an integer in \[2, 2\^62\]"):
+        call()
+
+
+@pytest.mark.parametrize("rtol", [1e-160, 5e-324])
+def test_time_left_for_a_tiny_rtol_does_not_overflow(rtol):
+    """(rel/rtol)^2 overflowed (OverflowError): the excursions a target asks for are capped at
+    2^62, and max_work still ends the projection."""
+    from dryfric_jax.api import time_left
+
+    assert time_left(10.0, 1e6, 100, 10, 200, rtol=rtol, rel=0.1, max_work=1e9) == (9990.0, "max_work")
+    left, to = time_left(10.0, 1e6, 100, 10, 200, rtol=rtol, rel=0.1)
+    assert to == "target" and left == pytest.approx((2**62 - 110) * 1e6 / 110 / 1e5)
+
+
+_HUGE = 10**400
+
+
+@pytest.mark.parametrize("call,name", [
+    (lambda: dj.plan_estimate(P, max_work=_HUGE), "max_work"),  # an OverflowError
+    (lambda: dj.estimate_diffusivity(P, 0, n_excursions=50, max_work=_HUGE), "max_work"),
+    (lambda: dj.bruteforce_diffusivity(P, 0, t=1.0, n_paths=4, max_work=_HUGE), "max_work"),
+    (lambda: dj.estimate_diffusivity(P, 0, n_excursions=50, rtol=_HUGE), "rtol"),
+    (lambda: dj.estimate_diffusivity(P, 0, n_excursions=50, max_time=-_HUGE), "max_time"),
+    (lambda: dj.plan_estimate(P, h=_HUGE), "h"),
+    (lambda: dj.plan_estimate(P, method="pdmp", delta=_HUGE), "delta"),
+])
+def test_huge_ints_are_refused_in_one_short_line(call, name):
+    """A 400-digit int was printed in full (or raised an OverflowError for max_work)."""
+    with pytest.raises(ValueError, match=f"^{name} must") as e:
+        call()
+    assert len(str(e.value)) < 400 and "0" * 30 not in str(e.value)
+
+
+def test_progress_that_is_not_callable_is_refused_before_any_work(tmp_path):
+    """It raised a TypeError after the first round (estimate) or after writing refusals (sweep)."""
+    from dryfric_jax import sweep
+
+    with pytest.raises(ValueError, match="^progress must be a callable or None"):
+        dj.estimate_diffusivity(P, 0, n_excursions=50, progress=5)
+    with pytest.raises(ValueError, match="^progress must be a callable or None"):
+        sweep.run_sweep([{}], str(tmp_path / "s.jsonl"), n_excursions=50, progress=5)
+    assert not (tmp_path / "s.jsonl").exists()
+
+
+def test_0d_arrays_are_taken_like_python_numbers():
+    """README: numpy scalars and 0-d arrays are taken like Python numbers; max_work, n_excursions,
+    lanes and seed refused 0-d arrays."""
+    from dryfric_jax.api import _key, check_seed
+
+    plan = dj.plan_estimate(P, n_excursions=np.array(50), max_work=np.array(1e9), lanes=np.array(16),
+                            block=np.array(64))
+    want = dj.plan_estimate(P, n_excursions=50, max_work=1e9, lanes=16, block=64)
+    assert plan == want and type(plan.lanes) is int and type(plan.max_work) is float
+    assert check_seed(np.array(3)) == 3 and _key(np.array(3))[1] == 3
+    assert dj.plan_estimate(P, n_excursions=np.int64(50), max_steps=np.array(1000)).max_steps == 1000
+
+
+def _estimate_dict(run_seed, sums=(), **edit):
+    """An estimate result's to_dict() (``sums`` updates its sums): the refusals below come before
+    its sums are pooled."""
+    from dryfric_jax.excursions import STAT_NAMES
+
+    d = dict(D=1.0, D_ci=0.1, M0=0.0, M0_ci=0.1, mean_duration=1.0, n_excursions=200, n_truncated=0, method="di",
+             h=6.7e-4, dtype="float64", seed=run_seed, wall_s=1.0, lane_steps_per_s=1e6, params=P.as_dict(),
+             sums={**dict.fromkeys(STAT_NAMES, 1.0), **dict(sums)})
+    return {**d, **edit}
+
+
+@pytest.mark.parametrize("edit,match", [
+    (dict(sums={"n": 1e20}), "finite excursion sums, n a whole number"),  # a TypeError (no callable sqrt method)
+    (dict(sums={"n": 2.5}), "finite excursion sums, n a whole number"),
+    (dict(h="0.00067"), "h a number > 0"), (dict(dtype="float16"), "dtype one of"), (dict(method="rk4"), "method"),
+    (dict(seed=2**80), "seed an integer in"), (dict(delta="x"), "delta"), (dict(L_X=-1.0), "L_X"),
+    (dict(ci_level=0.9), None),
+])
+def test_combine_refuses_a_malformed_field_by_name(edit, match):
+    """Accepted before (or a TypeError / 'Unknown format code' naming no field); two levels were
+    pooled at the first's."""
+    bad = _estimate_dict(2, **edit)
+    msg = f"^b.json must have {match}" if match else "^results must share ci_level: a.json has 0.95, b.json has 0.9"
+    with pytest.raises(ValueError, match=msg):
+        dj.combine_estimates([_estimate_dict(1), bad], labels=["a.json", "b.json"])
+
+
+@pytest.mark.parametrize("labels", [["a"], 5, "ab", ["a", 2], ["a", "b", "c"]])
+def test_combine_labels_must_be_one_string_per_result(labels):
+    """Fewer labels than results: a TypeError (zip cut the checks short), or an IndexError where
+    the results differ in h; labels=5: a TypeError."""
+    rs = [_estimate_dict(1), _estimate_dict(2, h=1e-3)]
+    with pytest.raises(ValueError, match=r"^labels must be a list of 2 strings"):
+        dj.combine_estimates(rs, labels=labels)
+    with pytest.raises(ValueError, match="^results must share h"):
+        dj.combine_estimates(rs, labels=["a", "b"])

@@ -67,6 +67,36 @@ def test_chain_law_refuses_a_step_too_small_or_too_large():
         white_chain_law(p, 0.5 * p.tau0)
 
 
+@pytest.mark.parametrize("kw,match", [
+    (dict(nodes_per_sd=0), r"^nodes_per_sd must be an integer in \[4, 299\]"),  # was a ZeroDivisionError
+    (dict(nodes_per_sd=2), "^nodes_per_sd must"),  # grid error 2e-3
+    (dict(nodes_per_sd=True), "^nodes_per_sd must"),  # was taken for 1
+    (dict(nodes_per_sd=1.5), "^nodes_per_sd must"),  # was taken as it came
+    (dict(nodes_per_sd=10**400), "^nodes_per_sd must"),
+    (dict(width=-1.0), "^width must be a finite number >= 15"),  # was D = 9.0e-4 instead of 0.0228
+    (dict(width=1e-300), "^width must be a finite number >= 15"),  # was D = 0.0121
+    (dict(width=10.0), "^width must"),
+    (dict(width=math.inf), "^width must"),
+    (dict(width=math.nan), "^width must"),
+    (dict(width="30"), "^width must"),
+    (dict(width=None), "^width must"),
+])
+def test_chain_law_refuses_a_grid_that_would_cost_its_accuracy(kw, match):
+    with pytest.raises(ValueError, match=match):
+        white_chain_law(dj.Params(**dj.FIG3), 1e-3, **kw)
+
+
+def test_chain_law_at_its_coarsest_grid_keeps_its_accuracy():
+    """The bounds are where the result still holds: 4 nodes per sd and 15 widths change D and
+    E[V^2] by < 1e-3 against a grid-converged law (12 nodes per sd, 30 widths); numpy numbers pass."""
+    p = _params("b0")  # exponential tails: the slowest to converge in the width
+    h = _coarse_h(p)
+    ref = white_chain_law(p, h, nodes_per_sd=12)
+    for law in (white_chain_law(p, h, nodes_per_sd=np.int64(4), width=np.float32(15.0)),
+                white_chain_law(p, h, width=15)):
+        assert abs(law.D / ref.D - 1) < 1e-3 and abs(law.mean_v2 / ref.mean_v2 - 1) < 1e-3
+
+
 @pytest.mark.parametrize("Gamma,Delta", [(1e-6, 1e-3), (1e4, 1e2)])
 def test_chain_law_is_unit_free_for_tiny_and_huge_gamma(Gamma, Delta):
     """Physical units only scale the nondimensional law: the same relative step bias, no NaN."""

@@ -129,6 +129,11 @@ BAD += [
     (["estimate", "--Gamma", "1e-300"], "Gamma and Delta"),  # tau0 underflows
     (["estimate", "--tau", "1e300"], "tau must keep"),
     (["estimate", "--Gamma", "1e-30"], "max_work must be >= 10^("),  # a 1e30-digit work bound, in brief
+    # beyond int64: a TypeError traceback from lanes_for (np.log2 of a Python int)
+    (["estimate", "--n-excursions", str(2**70), "--max-work", "1e308", "--max-time", "5"],
+     "--n-excursions must be an integer in [2, 2^62]"),
+    (["sweep", "--n-excursions", str(10**31), "--max-work", "1e308", "--out", "s.jsonl"], "--n-excursions must be"),
+    (["bruteforce", "--t", "1", "--n-paths", str(2**70), "--max-work", "1e308"], "--n-paths must be"),
 ]
 
 
@@ -171,6 +176,18 @@ def test_out_refuses_a_pipe_and_leaves_it(tmp_path, capsys):
         assert main(argv + ["--out", str(fifo)]) == 2
         assert "--out must be a writable file path" in capsys.readouterr().err
     assert stat.S_ISFIFO(os.stat(fifo).st_mode)
+
+
+@pytest.mark.parametrize("name", ["newdir/", "r" * 300 + ".json", "a\0b.json"])
+@pytest.mark.parametrize("cmd", [["estimate", "--n-excursions", "50"],
+                                 ["sweep", "--Gamma", "5", "--n-excursions", "50"]])
+def test_out_that_cannot_be_created_is_refused_before_the_run(tmp_path, cmd, name, capsys):
+    """A trailing '/', a name over 255 bytes or a NUL passed the directory's check: the run happened,
+    then 'could not write' (exit 1; the sweep said its finished points were in the file)."""
+    assert main(cmd + ["--out", f"{tmp_path}/{name}"]) == 2  # pathlib drops a trailing "/"
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("dryfric: error: --out must be a writable file path"), err
+    assert len(err[0]) < 300 and list(tmp_path.iterdir()) == []
 
 
 def test_a_failed_write_after_the_run_keeps_the_printed_result(tmp_path, capsys, monkeypatch):
@@ -381,6 +398,40 @@ def test_combine_pools_estimate_files_and_refuses_a_seed_twice(tmp_path, capsys)
     assert main(["combine", files[0], files[0]]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "seeds must differ" in err[0]
+
+
+@pytest.mark.parametrize("edit,field", [
+    (dict(h="0.00067"), "h"),  # "Unknown format code 'g' for object of type 'str'", no field named
+    (dict(sums={"n": 1e20}), "finite excursion sums, n a whole number"),  # TypeError: no callable sqrt method
+])
+def test_combine_names_the_file_and_the_field_of_a_malformed_result(tmp_path, edit, field, capsys):
+    from dryfric_jax.excursions import STAT_NAMES
+
+    files = []
+    for seed in (1, 2):
+        d = dict(D=1.0, D_ci=0.1, M0=0.0, M0_ci=0.1, mean_duration=1.0, n_excursions=200, n_truncated=0,
+                 method="di", h=6.7e-4, dtype="float64", seed=seed, wall_s=1.0, lane_steps_per_s=1e6,
+                 params=Params(**FIG3).as_dict(), sums=dict.fromkeys(STAT_NAMES, 1.0))
+        if seed == 2:
+            d.update({k: {**d["sums"], **v} if k == "sums" else v for k, v in edit.items()})
+        files.append(tmp_path / f"r{seed}.json")
+        files[-1].write_text(json.dumps(d))
+    assert main(["combine", *map(str, files)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"dryfric: error: {files[1]} must have {field}"), err
+
+
+@pytest.mark.parametrize("rtol", ["1e-160", "5e-324"])
+def test_a_tiny_rtol_runs_until_the_work_bound_and_says_so(rtol, capsys):
+    """int(ceil(N (rel/rtol)^2)) overflowed ("cannot convert float infinity to integer") after the
+    first round: the excursions asked for are capped, and max_work ends the run."""
+    assert main(["estimate", "--nondim", "--tau", "1e-3", "--tau-L", "inf", "--gamma-bar", "0", "--n-excursions", "200",
+                 "--rtol", rtol, "--max-work", "2e6", "--allow-truncated", "--json"]) == 0
+    cap = capsys.readouterr()
+    res = json.loads(cap.out)
+    assert res["stopped_by"] == "work_bound" and res["n_excursions"] >= 200 and math.isfinite(res["D_ci"])
+    assert f"work bound reached (max_work = 2e+06 steps, predicted >= 2e+04) before the target rtol = {float(rtol)}" \
+        in cap.err
 
 
 def test_text_output_is_the_results_summary(capsys):

@@ -1,11 +1,15 @@
-"""The PDMP path recorder (Fig. 4) against a plain event loop over the same random stream."""
+"""The PDMP path recorder (Fig. 4) against a plain event loop over the same random stream; the DI
+recorders against the per-path definition of their numbers; bad arguments refused by name."""
+import math
+
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
 from dryfric_jax.params import FIG3, Params
-from dryfric_jax.paths import pdmp_stationary
+from dryfric_jax.paths import (autocorrelation, autocovariance, di_excursion, di_stationary, di_transient,
+                               pdmp_stationary)
 from dryfric_jax.pdmp import flow, make_pdmp_model
 
 
@@ -154,3 +158,91 @@ def test_autocorrelation_standard_error_matches_the_spread_over_replicates():
     # the sd of an sd over 300 replicates is ~4%: 5 of them, plus an O(1/paths) bias of the SE
     np.testing.assert_allclose(se_all.mean(0), sd, rtol=0.2)
     assert np.all(np.abs(r_all.mean(0) - phi**lags) < 4 * sd / np.sqrt(reps) + 3 / n)  # r itself, up to O(1/n)
+
+
+# --- bad arguments: ValueError naming the argument and its range ---
+
+@pytest.fixture(scope="module")
+def di_model():
+    from dryfric_jax.di import make_di_model
+
+    return make_di_model(Params.from_nondim(0.05), 2e-3)
+
+
+_V = np.random.default_rng(0).standard_normal((4, 50))  # 4 paths, 50 samples
+_V_NAN = np.where(np.arange(50) == 3, np.nan, _V)
+
+
+@pytest.mark.parametrize("call,match", [
+    (lambda m: di_transient(m, 0, 0, [10]), "^n_paths must be an integer >= 1"),  # was "need at least one array"
+    (lambda m: di_transient(m, 0, 3, []), "^record_steps must be a non-empty sequence"),  # was an IndexError
+    (lambda m: di_transient(m, 0, 3, [10, 5]), "^record_steps must"),
+    (lambda m: di_transient(m, 0, 3, [10.5]), "^record_steps must"),  # was taken as 10
+    (lambda m: di_transient(m, 0, 3, 10), "^record_steps must"),
+    (lambda m: di_transient(m, 0, 3, [10], chunk=0), "^chunk must be an integer >= 1"),  # was a ZeroDivisionError
+    (lambda m: di_transient(m, 0, 3, [10], v0=math.nan), "^v0 must be a finite number"),
+    (lambda m: di_transient(m, "x", 3, [10]), "^key must be a seed"),
+    (lambda m: di_transient(dict(FIG3), 0, 3, [10]), "^model must be a DIModel"),
+    (lambda m: di_stationary(m, 0, 0, 4), "^n_paths must be an integer >= 1"),  # was an IndexError
+    (lambda m: di_stationary(m, 0, 2, 0), "^n_records must be an integer >= 1"),
+    (lambda m: di_stationary(m, 0, 2, 4, every=0), "^every must be an integer >= 1"),  # was accepted
+    (lambda m: di_stationary(m, 0, 2, 4, every=-1), "^every must be an integer >= 1"),  # was accepted
+    (lambda m: di_stationary(m, 0, 2, 4, every=True), "^every must be an integer >= 1"),
+    (lambda m: di_stationary(m, 0, 2, 4, burn_steps=-5), "^burn_steps must be an integer >= 0"),  # was accepted
+    (lambda m: autocorrelation(_V, 60), r"^max_lag must be an integer in \[0, 49\]"),  # was a broadcast error
+    (lambda m: autocorrelation(_V, -1), r"^max_lag must be an integer in \[0, 49\]"),  # was an IndexError
+    (lambda m: autocorrelation(_V, 2.0), r"^max_lag must be an integer in \[0, 49\]"),
+    (lambda m: autocovariance(_V, 50), r"^max_lag must be an integer in \[0, 49\]"),
+    (lambda m: autocorrelation(_V[:1], 5), "^V must be a real array .* at least 2 paths"),  # was an all-NaN SE
+    (lambda m: autocovariance(_V[:1], 5), "^V must be a real array .* at least 2 paths"),
+    (lambda m: autocorrelation(_V[0], 5), "^V must be a real array of shape"),
+    (lambda m: autocorrelation(_V_NAN, 5), "^V must be finite"),
+    (lambda m: autocorrelation(np.ones((3, 10)), 2), "^V must vary"),  # r = 0/0
+    (lambda m: autocorrelation(_V, 5, center="yes"), "^center must be True or False"),
+    (lambda m: di_excursion(m, 0, -1), r"^max_steps must be an integer in \[1, "),  # was an IndexError
+    (lambda m: di_excursion(m, 0, 0), r"^max_steps must be an integer in \[1, "),
+    (lambda m: di_excursion(m, 0, 2**40), r"^max_steps must be an integer in \[1, "),
+])
+def test_path_recorders_refuse_bad_arguments_by_name(di_model, call, match):
+    with pytest.raises(ValueError, match=match):
+        call(di_model)
+
+
+def test_path_recorders_take_an_int_seed_as_the_api_does(di_model):
+    """An integer seed means jax.random.key(seed), as in estimate_diffusivity (it was a JAX
+    TypeError); numpy integers and 0-d arrays are counts like Python ints."""
+    k = jax.random.key(5)
+    V = di_transient(di_model, 5, 3, np.array([0, 10]))
+    np.testing.assert_array_equal(V, di_transient(di_model, k, 3, [0, 10]))
+    a = di_stationary(di_model, np.int64(5), np.int64(2), np.array(3), 2, 1)
+    for x, y in zip(a, di_stationary(di_model, k, 2, 3, 2, 1)):
+        np.testing.assert_array_equal(x, y)
+    np.testing.assert_array_equal(di_excursion(di_model, 5, 2000)["v"], di_excursion(di_model, k, 2000)["v"])
+    r, se = autocorrelation(_V, np.int64(49))
+    assert r.shape == se.shape == (50,) and r[0] == 1.0 and np.all(np.isfinite(se))
+
+
+@pytest.mark.parametrize("args,match", [
+    ((dict(FIG3), 6.7e-4), "^params must be a dryfric_jax.Params"),  # was an AttributeError
+    ((Params(**FIG3), 1.0), r"^h must be in \(0, 0.0067\] s"),  # above 0.1*min(tau0, tau_L): was accepted
+    ((Params(**FIG3), -1e-3), r"^h must be in \(0, "),
+    ((Params(**FIG3), math.nan), r"^h must be in \(0, "),
+    ((Params(**FIG3), "1e-3"), r"^h must be in \(0, "),
+    ((Params(**FIG3), 6.7e-4, jnp.float16), "^dtype must be one of"),  # was accepted
+    ((Params(**FIG3), 6.7e-4, None), "^dtype must be one of"),
+])
+def test_make_di_model_checks_its_arguments_as_the_planner_does(args, match):
+    from dryfric_jax.di import make_di_model
+
+    with pytest.raises(ValueError, match=match):
+        make_di_model(*args)
+
+
+def test_make_di_model_default_step_and_dtype_names():
+    """h = None is the planner's default step (it was a TypeError); a dtype may be named."""
+    from dryfric_jax.di import make_di_model
+    from dryfric_jax.plan import default_h
+
+    p = Params(**FIG3)
+    assert float(make_di_model(p, None).h) == pytest.approx(default_h(p) / p.tau0, rel=1e-15)
+    assert make_di_model(p, np.float32(1e-3), "float32").h.dtype == jnp.float32

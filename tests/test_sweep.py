@@ -115,6 +115,35 @@ def test_bad_points_and_seeds_are_refused_by_name(tmp_path, points, kw, match):
     assert not out.exists()
 
 
+@pytest.mark.parametrize("argv,word", [
+    (["--dtype", "float16"], "dtype must be one of"), (["--method", "rk4"], "method must be one of"),
+    (["--max-work", "0"], "max_work must be a finite number >= 1e3"), (["--method", "di", "--delta", "0.1"], "delta"),
+    (["--method", "pdmp", "--h", "0.001"], "h must not be given"), (["--h=-0.001"], "h must be in (0, "),
+    (["--rtol", "2"], "rtol must be in (0, 1)"), (["--method", "pdmp", "--delta", "0"], "delta must be in (0, "),
+])
+def test_wrong_settings_refuse_the_grid_even_with_skip_refused(tmp_path, argv, word, capsys):
+    """A wrong setting was recorded as every point's refusal (exit 0, status "refused"): it is a
+    user's mistake, refused once before the grid; --skip-refused covers only the points' own refusals."""
+    out = tmp_path / "s.jsonl"
+    assert main(["sweep", "--Gamma", "5,6", "--n-excursions", "50", "--skip-refused", "--out", str(out)] + argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("dryfric: error: ") and word in err[0], err
+    assert "sweep point" not in err[0] and not out.exists()
+
+
+def test_a_setting_is_refused_once_and_a_point_that_refuses_h_is_named(tmp_path, capsys):
+    """n_excursions = 200.0 was every point's refusal; an h admissible at some points only
+    (h <= 0.1 tau0 = 0.1 Gamma/Delta^2) stays those points' refusal, which --skip-refused covers."""
+    out = tmp_path / "s.jsonl"
+    with pytest.raises(ValueError, match=r"^n_excursions must be an integer in \[2, 2\^62\] \(got 200.0\)"):
+        sweep.run_sweep([{}], str(out), n_excursions=200.0, skip_refused=True)
+    assert not out.exists()
+    assert main(["sweep", "--Gamma", "0.05,5", "--n-excursions", "50", "--h", "0.001", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("dryfric: error: h must be in (0, 0.0003391] s") and '[at sweep point {"Gamma": 0.05' in err
+    assert "--skip-refused records the refused points" in err and not out.exists()
+
+
 def test_every_refused_point_is_named_and_nothing_runs(tmp_path):
     """A grid with infeasible points is refused before any work, naming all of them (it named
     only the first, so a 10 x 10 grid took one failed try per refused point)."""
@@ -217,6 +246,9 @@ def test_numpy_points_and_settings_are_the_python_ones(tmp_path):
 def test_grid_axes_are_lists_of_numbers():
     with pytest.raises(ValueError, match="^sweep axis Gamma must be a list of numbers"):
         sweep.grid(Gamma="5,6")  # was the points '5', ',' and '6'
+    for bad in (None, True, 1 + 2j):  # TypeError: 'NoneType' object is not iterable
+        with pytest.raises(ValueError, match=r"^sweep axis Gamma must be a list of numbers \(got "):
+            sweep.grid(Gamma=bad)
     assert sweep.grid(Gamma=5.0, tau=(0.5, 1.0)) == [dict(Gamma=5.0, tau=0.5), dict(Gamma=5.0, tau=1.0)]
 
 

@@ -3,35 +3,147 @@
 Expected numbers come from MODEL_NOTES section 2 (closed forms, Table 1 values), not from this code.
 """
 import math
+import time
+import warnings
 
 import numpy as np
 import pytest
-from scipy import integrate
+from scipy import integrate, special
 
 from dryfric_jax import Params, theory
 
 
+def _quadrature_nd(gbar_nd):
+    """The quadratures themselves (nondimensional, no viscous term): exact_D, exact_M0 and
+    exact_mean_square_velocity use the closed forms for tau_L = inf."""
+    return (theory._exact_D_nd(0.0, gbar_nd), theory._velocity_moment_nd(0.0, gbar_nd, 1),
+            theory._velocity_moment_nd(0.0, gbar_nd, 2))
+
+
 def test_quadrature_pure_dry_friction():
+    D_nd, M_nd, _ = _quadrature_nd(0.0)
+    assert D_nd == pytest.approx(10.0, rel=1e-12) and abs(M_nd) < 1e-12
     for G, D in [(1.0, 1.0), (5.0, 3.84), (1e-3, 3.84), (1e3, 3.84)]:
         p = Params(G, D, 1e-6)
         assert theory.exact_D(p) == pytest.approx(10 * G**3 / D**4, rel=1e-8)
         assert abs(theory.exact_M0(p)) < 1e-12 * G / D
 
 
-@pytest.mark.parametrize("gbar_rel", [-0.7, 0.05, 0.3, 0.5, 0.9, 0.99])
+@pytest.mark.parametrize("gbar_rel", [-0.7, 0.05, 0.3, 0.5, 0.9, 0.99, 1 - 1e-6, -(1 - 1e-12)])
 def test_quadrature_constant_bias(gbar_rel):
+    """The quadrature against MODEL_NOTES's closed forms, also for a wide, lopsided law
+    (|gamma_bar| -> Delta: widths Gamma/(Delta -+ gamma_bar)), where it used to take 5-60 s and lose
+    digits (one quadrature scale for both tails; -|v| + g v cancelling at large v)."""
     G, Dl = 5.0, 3.84
     g = gbar_rel * Dl
     p = Params(G, Dl, 1e-6, math.inf, g)
-    exact_D = 2 * G**3 * (5 * Dl**4 + 22 * Dl**2 * g**2 + 5 * g**4) / (Dl**2 - g**2) ** 4
-    exact_M = 2 * G * g / (Dl**2 - g**2)
-    assert theory.D_constant_bias(G, Dl, g) == pytest.approx(exact_D, rel=1e-14)
-    assert theory.exact_D(p) == pytest.approx(exact_D, rel=1e-7)
-    assert theory.exact_M0(p) == pytest.approx(exact_M, rel=1e-9)
+    gap = (Dl - g) * (Dl + g)  # Delta^2 - g^2 without cancellation
+    exact_D = 2 * G**3 * (5 * Dl**4 + 22 * Dl**2 * g**2 + 5 * g**4) / gap**4
+    exact_M = 2 * G * g / gap
     # asymmetric Laplace p(v) ~ exp(-(Delta |v| - g v)/Gamma), scales A, B on the two sides:
     # E[V^2] = 2 (A^3 + B^3) / (A + B)
     A, B = G / (Dl - g), G / (Dl + g)
-    assert theory.exact_mean_square_velocity(p) == pytest.approx(2 * (A**3 + B**3) / (A + B), rel=1e-9)
+    exact_m2 = 2 * (A**3 + B**3) / (A + B)
+    assert theory.D_constant_bias(G, Dl, g) == pytest.approx(exact_D, rel=1e-14)
+    t0 = time.perf_counter()
+    gn = g / Dl  # the quadrature's g': against the same formulas in units tau0, u0 (1 - |g'| is rounded)
+    D_nd, M_nd, m2_nd = _quadrature_nd(gn)
+    assert time.perf_counter() - t0 < 20.0  # ~1 s
+    gap_nd = (1 - gn) * (1 + gn)
+    assert D_nd == pytest.approx(2 * (5 + 22 * gn**2 + 5 * gn**4) / gap_nd**4, rel=1e-9)
+    assert M_nd == pytest.approx(2 * gn / gap_nd, rel=1e-9)
+    assert m2_nd == pytest.approx(2 * (1 + 3 * gn**2) / gap_nd**2, rel=1e-9)
+    assert theory.exact_D(p) == pytest.approx(exact_D, rel=1e-12)
+    assert theory.exact_M0(p) == pytest.approx(exact_M, rel=1e-12)
+    assert theory.exact_mean_square_velocity(p) == pytest.approx(exact_m2, rel=1e-12)
+
+
+@pytest.mark.parametrize("gbar_nd", [0.3, -0.9, 0.999999, 0.99999999999999, 1 - 2.0**-53, -(1 - 2.0**-53)])
+def test_no_viscous_term_uses_the_closed_forms_fast(gbar_nd):
+    """tau_L = inf: exact_D, exact_M0, E[V^2] are MODEL_NOTES's closed forms, computed without
+    cancellation (Delta^2 - g^2 = (Delta - g)(Delta + g)), at once and silently however close |g|
+    is to Delta.  Before: 49 s at g' = 1 - 1e-12 (`dryfric theory` hung at 1 - 1e-14), M0 = 4.87e15
+    instead of 9.007e15 at 1 - 1.1e-16, an IntegrationWarning at 0.999999."""
+    p = Params.from_nondim(1e-3, math.inf, gbar_nd, Gamma=5.0, Delta=3.84)
+    G, Dl, g = p.Gamma, p.Delta, p.gamma_bar
+    gap = (Dl - g) * (Dl + g)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        t0 = time.perf_counter()
+        got = theory.exact_D(p), theory.exact_M0(p), theory.exact_mean_square_velocity(p)
+        assert time.perf_counter() - t0 < 2.0  # ~1 ms
+    assert got[0] == pytest.approx(2 * G**3 * (5 * Dl**4 + 22 * Dl**2 * g**2 + 5 * g**4) / gap**4, rel=1e-12)
+    assert got[1] == pytest.approx(2 * G * g / gap, rel=1e-12)
+    assert got[2] == pytest.approx(2 * G**2 * (Dl**2 + 3 * g**2) / gap**2, rel=1e-12)
+    assert got[0] == theory.D_constant_bias(G, Dl, g) and got[1] == theory.M0_constant_bias(G, Dl, g)
+    if gbar_nd == 1 - 2.0**-53:  # nondimensional: the issue's numbers
+        assert theory.exact_M0(Params.from_nondim(1e-3, math.inf, gbar_nd)) == pytest.approx(9.007199254740991e15)
+
+
+@pytest.mark.parametrize("G,Dl,g", [(1.0, 1.0, 0.0), (5.0, 3.84, 0.0), (5.0, 3.84, 0.342), (5.0, 3.84, -3.0),
+                                    (1e-3, 2.0, 1.5), (1e3, 0.5, -0.1)])
+def test_closed_forms_equal_the_quadrature_and_model_notes(G, Dl, g):
+    """Each closed form against the quadrature (independent code: p(v) and F(v)^2/p(v)) and the
+    literal formula of MODEL_NOTES section 2.  Before, changing the 10 of D_pure_dry to 10.1 or
+    scaling M0_constant_bias by 1.01 passed every test."""
+    D_nd, M_nd, _ = _quadrature_nd(g / Dl)
+    D0, v0 = G**3 / Dl**4, G / Dl
+    gap = (Dl - g) * (Dl + g)
+    assert theory.D_constant_bias(G, Dl, g) == pytest.approx(D_nd * D0, rel=1e-8, abs=0)
+    assert theory.D_constant_bias(G, Dl, g) == pytest.approx(
+        2 * G**3 * (5 * Dl**4 + 22 * Dl**2 * g**2 + 5 * g**4) / gap**4, rel=1e-13, abs=0)
+    assert theory.M0_constant_bias(G, Dl, g) == pytest.approx(M_nd * v0, rel=1e-8, abs=1e-14 * v0)
+    assert theory.M0_constant_bias(G, Dl, g) == pytest.approx(2 * G * g / gap, rel=1e-13, abs=0)
+    if g == 0.0:
+        assert theory.D_pure_dry(G, Dl) == pytest.approx(D_nd * D0, rel=1e-8, abs=0)
+        assert theory.D_pure_dry(G, Dl) == pytest.approx(10 * G**3 / Dl**4, rel=1e-13, abs=0)
+
+
+@pytest.mark.parametrize("G,tL", [(1.0, 1.0), (5.0, 0.067), (1e-3, 40.0)])
+def test_viscous_only_closed_form_is_the_ou_limit_of_the_quadrature(G, tL):
+    """D_viscous_only = 2 tau_L^2 Gamma (MODEL_NOTES section 2), and the quadrature reaches it when
+    the bias holds the velocity away from 0 (a pure OU process: test_strong_bias_... below)."""
+    assert theory.D_viscous_only(G, tL) == pytest.approx(2 * tL**2 * G, rel=1e-14, abs=0)
+    Dl = 1.0
+    tl_nd = tL / (G / Dl**2)
+    g_rel = 1.0 + math.sqrt(2 * 60.0 / tl_nd)  # barrier (g' - 1)^2 tau_L'/2 = 60: quadrature, not the OU shortcut
+    p = Params(G, Dl, 1e-3, tL, g_rel * Dl)
+    assert theory.exact_D(p) == pytest.approx(theory.D_viscous_only(G, tL), rel=1e-9, abs=0)
+
+
+@pytest.mark.parametrize("gbar_nd", [0.3, -0.9, 2.0, 1e-6])
+@pytest.mark.parametrize("tl_nd", [1e-20, 1e-100])
+def test_mean_under_strong_damping(tl_nd, gbar_nd):
+    """tau_L' -> 0: M0' = tau_L' gbar' (1 - sqrt(2 tau_L'/pi)) + O(tau_L'^2) (expand p around the
+    Gaussian of width sqrt(tau_L')).  The quadrature of int v p cancels there (a mean tau_L' gbar'
+    against a width sqrt(tau_L')): it returned 0.0 at tau_L' = 1e-100 and 100x the mean at 1e-24.
+    (What is left: eps/|g'| relative, from P(V<0) - P(V>0) = -g' sqrt(2 tau_L'/pi) next to g'.)"""
+    p = Params.from_nondim(1e-3, tl_nd, gbar_nd)
+    want = tl_nd * gbar_nd * (1 - math.sqrt(2 * tl_nd / math.pi))
+    assert theory.exact_M0(p) == pytest.approx(want, rel=max(1e-12, 1e-15 / abs(gbar_nd)), abs=0)
+
+
+@pytest.mark.parametrize("tl_nd,gbar_nd,closed", [(1e24, 1 - 1e-6, True), (1e8, 1 - 1e-4, False),
+                                                 (1e12, -(1 - 1e-6), False)])
+def test_quadrature_fast_for_a_wide_lopsided_law_with_damping(tl_nd, gbar_nd, closed):
+    """Finite tau_L, |gamma_bar'| -> 1: the law is 1/(1 - |g'|) wide on one side, 1/2 on the
+    other.  exact_D took 78 s at tau_L' = 1e8, g' = 1 - 1e-4 and was 9e-7 off at 1e12, 1 - 1e-6
+    (each tail now has its own quadrature scale, and -|v| + g v no longer cancels).  Where the
+    viscous term is negligible over the law (tau_L' (1 - |g'|)^2 = 1e12) D is the closed form up to
+    ~15/(tau_L' (1 - |g'|)^2); the others are checked against E[V^2] >= M0^2 and the ordering in tau_L."""
+    p = Params.from_nondim(1e-3, tl_nd, gbar_nd)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        t0 = time.perf_counter()
+        D, M, m2 = theory.exact_D(p), theory.exact_M0(p), theory.exact_mean_square_velocity(p)
+        assert time.perf_counter() - t0 < 20.0  # ~1 s
+    free = Params.from_nondim(1e-3, math.inf, gbar_nd)
+    if closed:
+        assert D == pytest.approx(theory.exact_D(free), rel=1e-9)
+        assert M == pytest.approx(theory.exact_M0(free), rel=1e-9)
+    else:  # damping narrows the law: all three below the undamped values, and finite
+        assert 0 < D < theory.exact_D(free) and abs(M) < abs(theory.exact_M0(free)) and M * gbar_nd > 0
+        assert M * M < m2 < theory.exact_mean_square_velocity(free)
 
 
 def test_quadrature_viscous_limit():
@@ -104,6 +216,29 @@ def test_first_moment_stable_for_large_v0():
     assert np.all(np.isfinite(vals)) and vals[0] == pytest.approx(800.0 - 0.01, rel=1e-9)
 
 
+@pytest.mark.parametrize("a", [1e12, 1e16, 1e300])
+def test_first_moment_for_any_finite_v0_and_t(a):
+    """<v(t)> is defined for every finite v0 and t >= 0 (|<v>| <= |v0| + sqrt(t/pi)).  Before,
+    first_moment(1, 1e308) was inf, first_moment(1e308, 1e308) nan, and near t = |v0| = 1e16 the
+    log form lost all digits (a + log erfc(z) cancels).  For large a the velocity runs down like
+    a - t + sqrt(2) W until it nears 0, so <v> -> E[max(a - t + sqrt(2t) N, 0)] =
+    sqrt(t) (e^{-x^2}/sqrt(pi) - x erfc(x)), x = (t - a)/(2 sqrt t), up to O(1/sqrt(a))."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for x in (-2.0, -0.5, 0.0, 0.7, 3.0):
+            t = a + 2 * x * math.sqrt(a)
+            for _ in range(5):  # t = a + 2 x sqrt(t)
+                t = a + 2 * x * math.sqrt(t)
+            xx = (t - a) / (2 * math.sqrt(t))
+            want = math.sqrt(t) * (math.exp(-xx * xx) / math.sqrt(math.pi) - xx * special.erfc(xx))
+            assert theory.first_moment(t, a) == pytest.approx(want, rel=max(1e-14, 30 / math.sqrt(a)))
+            assert theory.first_moment(t, -a) == pytest.approx(-want, rel=max(1e-14, 30 / math.sqrt(a)))
+        assert theory.first_moment(1.0, 1e308) == pytest.approx(1e308 - 1.0, rel=1e-15)
+        assert theory.first_moment(1.0, -1e308) == pytest.approx(-1e308, rel=1e-15)
+        assert theory.first_moment(1e308, 1e308) == pytest.approx(math.sqrt(1e308 / math.pi), rel=1e-12)
+        assert theory.first_moment(1e-300, 1e308) == 1e308 and theory.first_moment(1e308, 1.0) == 0.0
+
+
 def test_correlation_identities():
     assert float(theory.correlation(0.0)) == pytest.approx(2.0, rel=1e-14)
     total = integrate.quad(theory.correlation, 0, np.inf, epsabs=0, epsrel=1e-12, limit=200)[0]
@@ -126,6 +261,9 @@ def test_correlation_no_cancellation_in_the_tail():
     assert np.allclose(c[4:] / lead, 1 - 24 / t[4:], atol=1e-3)
 
 
+P_FIG3 = Params(5.0, 3.84, 1e-6, 0.067, 0.342)
+
+
 @pytest.mark.parametrize("call,match", [
     (lambda: theory.propagator(0.5, 0.0, 1.0), "^t must be finite and > 0"),  # was a divide-by-zero
     (lambda: theory.propagator(0.5, -1.0, 1.0), "^t must be finite and > 0"),  # was a math domain error
@@ -133,6 +271,18 @@ def test_correlation_no_cancellation_in_the_tail():
     (lambda: theory.first_moment([1.0, -1.0], 1.0), "^t must be finite and >= 0"),  # was NaN
     (lambda: theory.first_moment(1.0, math.inf), "^v0 must be a finite number"),
     (lambda: theory.correlation([0.5, math.nan]), "^t must be finite"),
+    # v was not checked: None and NaN gave nan, "1" read as 1.0, a complex number a TypeError,
+    # a ragged list numpy's ValueError
+    (lambda: theory.propagator(None, 1.0, 0.0), "^v must be a real number"),
+    (lambda: theory.propagator(math.nan, 1.0, 0.0), "^v must be real numbers or [+]-inf, not NaN"),
+    (lambda: theory.propagator(1 + 2j, 1.0, 0.0), "^v must be a real number"),
+    (lambda: theory.propagator([[0.5, 1.0], [2.0]], 1.0, 0.0), "^v must be a real number"),
+    (lambda: theory.propagator(0.5, 1.0, "0"), "^v0 must be a real number"),
+    (lambda: theory.stationary_density(np.nan, P_FIG3), "^v must be real numbers or [+]-inf, not NaN"),
+    (lambda: theory.stationary_density([0.1, np.nan], P_FIG3), "^v must be real numbers or [+]-inf, not NaN"),
+    (lambda: theory.stationary_density("1", P_FIG3), "^v must be a real number"),
+    (lambda: theory.stationary_density(True, P_FIG3), "^v must be a real number"),
+    (lambda: theory.stationary_density([[0.5, 1.0], [2.0]], P_FIG3), "^v must be a real number"),
 ])
 def test_touchette_formulas_refuse_bad_times_by_name(call, match):
     with pytest.raises(ValueError, match=match):
@@ -159,7 +309,33 @@ def test_touchette_formulas_at_their_edges():
     (lambda: theory.D_viscous_only(5.0, math.nan), "tau_L"),
     (lambda: theory.D_viscous_only(5.0, math.inf), "tau_L"),  # was inf
     (lambda: theory.D_viscous_only(5.0, 0), "tau_L"),  # was 0.0
+    # results out of float64's range, refused by name rather than OverflowError, ZeroDivisionError, inf or 0
+    (lambda: theory.M0_constant_bias(1.0, 1e200, 0.5), "M0"),  # was an OverflowError (Delta**2)
+    (lambda: theory.D_constant_bias(1.0, 1e-200, 0.0), "D"),  # was a ZeroDivisionError
+    (lambda: theory.D_pure_dry(1e-200, 1.0), "D"),  # was 0.0
+    (lambda: theory.D_viscous_only(1e200, 1e100), "D"),
+    (lambda: theory.exact_D(Params.from_nondim(1e-3, math.inf, 1 - 1e-12, Gamma=1e90, Delta=1e-5)), "D"),
+    (lambda: theory.exact_D(Params.from_nondim(1.0, 1e300, 1e300)), "D"),  # was inf
+    (lambda: theory.exact_M0(Params.from_nondim(1.0, 1e300, 1e300)), "M0"),  # was inf
+    (lambda: theory.exact_mean_square_velocity(Params.from_nondim(1.0, 1e300, 1e300)), r"E\[V\^2\]"),
+    (lambda: theory.exact_D(Params.from_nondim(1.0, 1e-200, 0.3)), "D"),  # was 0.0
 ])
 def test_closed_forms_refuse_bad_arguments_by_name(call, name):
-    with pytest.raises(ValueError, match=f"^{name} (must|overflows)"):
+    with pytest.raises(ValueError, match=f"^{name} (must|overflows|underflows)"):
         call()
+
+
+def test_closed_forms_without_spurious_overflow_or_underflow():
+    """Only the result must fit float64: M0_constant_bias(1e308, 1, 0.5) was inf, a zero bias with a
+    tiny Delta a ZeroDivisionError, and numpy float32 arguments computed in float32 (D = 2e60
+    refused as an overflow, M0 = 5e-40 returned as 0.0)."""
+    assert theory.M0_constant_bias(1e308, 1.0, 0.5) == pytest.approx(1e308 / 0.75, rel=1e-15)
+    assert theory.M0_constant_bias(1.0, 1e-200, 0.0) == 0.0
+    assert theory.D_constant_bias(1.0, 1e-50, 0.5e-50) == pytest.approx(2 * 10.8125 / 0.75**4 * 1e200, rel=1e-14)
+    f = lambda x: float(np.float32(x))  # noqa: E731  (the float32 value, in float64)
+    assert theory.D_viscous_only(np.float32(1e20), np.float32(1e20)) == pytest.approx(2 * f(1e20) ** 3, rel=1e-15)
+    assert theory.M0_constant_bias(np.float32(5), np.float32(1e20), np.float32(0.5)) == pytest.approx(
+        2 * 5 * 0.5 / f(1e20) ** 2, rel=1e-14, abs=0)
+    assert theory.D_pure_dry(1e-100, 1e-70) == pytest.approx(10 * 1e-300 / 1e-280, rel=1e-14, abs=0)
+    g = 1 - 2.0**-53
+    assert theory.M0_constant_bias(1.0, 1.0, g) == pytest.approx(2 * g / (2.0**-53 * (2 - 2.0**-53)), rel=1e-15)
