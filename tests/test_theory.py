@@ -116,11 +116,25 @@ def test_viscous_only_closed_form_is_the_ou_limit_of_the_quadrature(G, tL):
 def test_mean_under_strong_damping(tl_nd, gbar_nd):
     """tau_L' -> 0: M0' = tau_L' gbar' (1 - sqrt(2 tau_L'/pi)) + O(tau_L'^2) (expand p around the
     Gaussian of width sqrt(tau_L')).  The quadrature of int v p cancels there (a mean tau_L' gbar'
-    against a width sqrt(tau_L')): it returned 0.0 at tau_L' = 1e-100 and 100x the mean at 1e-24.
-    (What is left: eps/|g'| relative, from P(V<0) - P(V>0) = -g' sqrt(2 tau_L'/pi) next to g'.)"""
+    against a width sqrt(tau_L')): it returned 0.0 at tau_L' = 1e-100 and 100x the mean at 1e-24."""
     p = Params.from_nondim(1e-3, tl_nd, gbar_nd)
     want = tl_nd * gbar_nd * (1 - math.sqrt(2 * tl_nd / math.pi))
-    assert theory.exact_M0(p) == pytest.approx(want, rel=max(1e-12, 1e-15 / abs(gbar_nd)), abs=0)
+    assert theory.exact_M0(p) / p.v0 == pytest.approx(want, rel=1e-12, abs=0)
+
+
+@pytest.mark.parametrize("tl_nd", [1.0, 0.1, 1e-6])
+def test_mean_under_strong_damping_for_a_tiny_bias(tl_nd):
+    """tau_L' <= 1, |g'| -> 0: M0 is odd in g', so M0/g' = M0'(0) + O(g'^2), the same at g' = 1e-12,
+    1e-9 and 1e-6 to 1e-12 relative.  The difference of two logs of erfcx lost eps/|g'| (1.6e-4 at
+    1e-12, 2.5e-7 at 1e-9).  The value at g' = 1e-3 is checked against the quadrature of int v p,
+    an independent method that does not cancel at tau_L' ~ 1."""
+    m = {g: theory.exact_M0(p) / p.v0 / g for g in (1e-12, 1e-9, 1e-6)
+         for p in [Params.from_nondim(1e-3, tl_nd, g)]}
+    assert m[1e-12] == pytest.approx(m[1e-6], rel=1e-12, abs=0)
+    assert m[1e-9] == pytest.approx(m[1e-6], rel=1e-12, abs=0)
+    if tl_nd >= 0.1:
+        p = Params.from_nondim(1e-3, tl_nd, 1e-3)
+        assert theory.exact_M0(p) / p.v0 == pytest.approx(theory._moment_quad(1 / tl_nd, 1e-3, 1), rel=1e-9, abs=0)
 
 
 @pytest.mark.parametrize("tl_nd,gbar_nd,closed", [(1e24, 1 - 1e-6, True), (1e8, 1 - 1e-4, False),
