@@ -410,7 +410,7 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
     block = check_layout(None, block)[1]
     chunk_lanes = check_count("chunk_lanes", chunk_lanes, 1)
     if max_events is not None:
-        max_events = check_count("max_events", max_events, 1)
+        max_events = check_count("max_events", max_events, 1, hi=MAX_COUNT)  # int64 counters
     plan = choose(params, method, h, delta, dtype)
     notes, method, h, grid, dname = plan.notes, plan.method, plan.h, plan.grid, plan.dtype
     check_positive("t", t)

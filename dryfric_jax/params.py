@@ -20,6 +20,12 @@ import jax
 import numpy as np
 
 
+def shown(x) -> str:
+    """``repr(x)`` in one readable line: an int of 400 digits as its first digits and its length."""
+    text = repr(x)
+    return text if len(text) <= 60 else f"{text[:24]}... ({len(text)} characters)"
+
+
 def _concrete(name: str, x):
     """``x`` as a Python float; None for a tracer (under jit/vmap: validated on the concrete call).
     ``ValueError`` naming ``name`` for anything but a real scalar (a string, None, a bool, a
@@ -31,10 +37,7 @@ def _concrete(name: str, x):
         if a is not None and a.shape != ():
             raise ValueError(f"{name} must be a real number (got an array of shape {a.shape}): make one Params "
                              "per grid point (or run 'dryfric sweep')")
-        text = repr(x)
-        if len(text) > 60:  # an int of 400 digits: one readable line
-            text = f"{text[:24]}... ({len(text)} characters)"
-        raise ValueError(f"{name} must be a real number (got {text})")
+        raise ValueError(f"{name} must be a real number (got {shown(x)})")
     return float(a)
 
 

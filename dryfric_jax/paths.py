@@ -24,14 +24,9 @@ from . import rng
 from .api import _key
 from .di import DIModel
 from .excursions import BLOCK, block_keys
-from .params import check_finite
+from .params import check_finite, shown
 from .pdmp import flow
 from .sharding import over_lanes
-
-
-def _shown(x) -> str:
-    text = repr(x)
-    return text if len(text) <= 60 else f"{text[:24]}... ({len(text)} characters)"
 
 
 def _count(name: str, n, lo: int, hi: int | None = None, why: str = "") -> int:
@@ -40,7 +35,7 @@ def _count(name: str, n, lo: int, hi: int | None = None, why: str = "") -> int:
     n = n.item() if isinstance(n, np.ndarray) and n.shape == () else n
     if isinstance(n, (bool, np.bool_)) or not isinstance(n, (int, np.integer)) or n < lo or (hi is not None and n > hi):
         rng = f">= {lo}" if hi is None else f"in [{lo}, {hi}]"
-        raise ValueError(f"{name} must be an integer {rng}{why} (got {_shown(n)})")
+        raise ValueError(f"{name} must be an integer {rng}{why} (got {shown(n)})")
     return int(n)
 
 
@@ -60,7 +55,7 @@ def _record_steps(record_steps) -> list:
     if not steps or any(isinstance(s, (bool, np.bool_)) or not isinstance(s, (int, np.integer)) for s in steps) \
             or any(s < 0 for s in steps) or any(b < a for a, b in zip(steps, steps[1:])):
         raise ValueError("record_steps must be a non-empty sequence of non-negative integers in non-decreasing "
-                         f"order (step counts at which V is recorded) (got {_shown(record_steps)})")
+                         f"order (step counts at which V is recorded) (got {shown(record_steps)})")
     return [int(s) for s in steps]
 
 
@@ -189,7 +184,7 @@ def _acf_args(V, max_lag, center):
     except Exception:  # noqa: BLE001  (a ragged list, say)
         a = None
     if a is None or a.dtype.kind not in "iuf" or a.ndim != 2 or a.shape[0] < 2 or a.shape[1] < 1:
-        what = f"an array of shape {a.shape} and dtype {a.dtype}" if a is not None else _shown(V)
+        what = f"an array of shape {a.shape} and dtype {a.dtype}" if a is not None else shown(V)
         raise ValueError(f"V must be a real array of shape (paths, samples) with at least 2 paths (the standard "
                          f"error is their spread) and 1 sample (got {what})")
     if not np.all(np.isfinite(a)):
@@ -197,9 +192,9 @@ def _acf_args(V, max_lag, center):
     n = a.shape[1]
     lag = max_lag.item() if isinstance(max_lag, np.ndarray) and max_lag.shape == () else max_lag
     if isinstance(lag, (bool, np.bool_)) or not isinstance(lag, (int, np.integer)) or not 0 <= lag <= n - 1:
-        raise ValueError(f"max_lag must be an integer in [0, {n - 1}] (samples - 1 of V) (got {_shown(max_lag)})")
+        raise ValueError(f"max_lag must be an integer in [0, {n - 1}] (samples - 1 of V) (got {shown(max_lag)})")
     if not isinstance(center, (bool, np.bool_)):
-        raise ValueError(f"center must be True or False (got {_shown(center)})")
+        raise ValueError(f"center must be True or False (got {shown(center)})")
     return a.astype(np.float64), int(lag)
 
 

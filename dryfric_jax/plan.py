@@ -28,7 +28,7 @@ import numpy as np
 from .cost import choose_method, default_delta
 from .excursions import MAX_LAYOUT, default_block, lanes_for
 from .limits import MAX_WORK, check_recurrent, check_work, float32_unsafe_reason, max_steps_per_excursion
-from .params import Params, check_params, real_or_none
+from .params import Params, check_params, real_or_none, shown
 from .pdmp import pdmp_grid_info
 
 METHODS = ("di", "pdmp", "auto")
@@ -49,13 +49,6 @@ def default_h(params: Params) -> float:
 
 def h_max(params: Params) -> float:
     return H_MAX_REL * min(params.tau0, params.tau_L)
-
-
-def shown(x) -> str:
-    """``repr(x)`` in one readable line: an int of 400 digits as its first digits and its length
-    (as :class:`~dryfric_jax.params.Params` shows a field)."""
-    text = repr(x)
-    return text if len(text) <= 60 else f"{text[:24]}... ({len(text)} characters)"
 
 
 def scalar(x):
@@ -209,8 +202,8 @@ def choose(params: Params, method: str, h, delta, dtype) -> Plan:
     check_method(method, h, delta)
     dtype = dtype_name(dtype)
     check_recurrent(params.tau_L_nd, params.gamma_bar_nd)
-    if real(delta) is not None:  # as a float: an int of 400 digits is refused as inf, not printed in full
-        delta = real(delta)
+    if real(delta) is not None and math.isfinite(real(delta)):  # as a float (an int of 400 digits stays
+        delta = real(delta)                                      # itself, for check_delta to show it)
     reason = f"method {method!r} requested"
     if method == "auto":
         h_c = check_h(params, h)

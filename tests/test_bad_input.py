@@ -2,6 +2,8 @@
 from deep inside, and numpy scalars accepted wherever Python numbers are (the CLI's bad input
 is in test_cli.py, the parameters' own checks in test_params.py).  Nothing here simulates: every
 case is refused, or planned only."""
+import re
+
 import numpy as np
 import pytest
 
@@ -107,10 +109,12 @@ _HUGE = 10**400
     (lambda: dj.plan_estimate(P, method="pdmp", delta=_HUGE), "delta"),
 ])
 def test_huge_ints_are_refused_in_one_short_line(call, name):
-    """A 400-digit int was printed in full (or raised an OverflowError for max_work)."""
+    """A 400-digit int was printed in full (or raised an OverflowError for max_work), and delta's
+    was shown as "got inf"; now as its first digits and its length."""
     with pytest.raises(ValueError, match=f"^{name} must") as e:
         call()
     assert len(str(e.value)) < 400 and "0" * 30 not in str(e.value)
+    assert re.search(r"\(40[12] characters\)", str(e.value))  # -10**400 has 402
 
 
 def test_progress_that_is_not_callable_is_refused_before_any_work(tmp_path):

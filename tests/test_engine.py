@@ -568,9 +568,10 @@ def test_api_bad_input(kw, match):
 @pytest.mark.parametrize("kw,match", [
     (dict(block=0), "^block must"), (dict(chunk_lanes=0), "^chunk_lanes must"),
     (dict(method="pdmp", max_events=0), "^max_events must"), (dict(t="1"), "^t must be a real number"),
+    (dict(method="pdmp", max_events=2**63), r"^max_events must be an integer in \[1, 2\^62\]"),
 ])
 def test_bruteforce_bad_input(kw, match):
     """Before: an IndexError (block 0), a ZeroDivisionError (chunk_lanes 0), a run that failed
-    after simulating (max_events 0), a TypeError (t = "1")."""
+    after simulating (max_events 0), a TypeError (t = "1"), an OverflowError past int64 (max_events 2^63)."""
     with pytest.raises(ValueError, match=match):
         dj.bruteforce_diffusivity(dj.Params(**dj.FIG3), 0, **(dict(t=1.0, n_paths=10) | kw))
