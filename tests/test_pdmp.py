@@ -184,3 +184,28 @@ def test_stiff_viscous_limit_mobility_is_exact(events, monkeypatch):
     exact = tau_L * (pi * np.sign(f) * np.maximum(np.abs(f) - 1.0, 0.0)).sum()
     assert r.n_truncated == 0 and math.isfinite(r.D) and r.D > 0
     assert r.M0_ci < 0.1 * exact and abs(r.M0 - exact) <= r.M0_ci, (r.M0, r.M0_ci, exact)
+
+
+def test_pdmp_bruteforce_counts_exactly_the_window_after_the_burn_in(key):
+    """With the same key a PDMP path is the same whatever its horizon (its events draw from
+    fold_in(key, block)), so U over [a, a + t] is U(a + t) - U(a), to rounding, for an a and a t
+    that end inside a sliding segment.  And the API passes its burn-in on: its D^t and M0^t are
+    those of the window's U (an ignored burn-in was caught only by a slow test, at 1.4x its
+    tolerance)."""
+    from dryfric_jax.estimators import bruteforce_estimates
+    from dryfric_jax.pdmp import simulate_pdmp_bruteforce
+
+    p = dj.Params(**dj.FIG3)
+    m = make_pdmp_model(p, 0.15)
+    a, t = 3.3, 7.7  # tau0
+    run = lambda burn, span: simulate_pdmp_bruteforce(m, key, 8, span, burn_in=burn, block=16)
+    (U_at, ev_at, u1), (U_a, _, u2), (U_t, ev_t, u3) = run(0.0, a + t), run(0.0, a), run(a, t)
+    assert u1 == u2 == u3 == 0 and ev_t == ev_at  # the same events: [0, a + t] either way
+    assert np.all(np.abs(U_t - (U_at - U_a)) <= 1e-9 * np.abs(U_at).max())
+    assert not np.allclose(U_t, run(0.0, t)[0], rtol=1e-6)  # the burn-in does shift the window
+    bf = dj.bruteforce_diffusivity(p, 7, method="pdmp", delta=0.15, t=t * p.tau0, n_paths=8, burn_in=a * p.tau0,
+                                   block=16)
+    U, _, _ = simulate_pdmp_bruteforce(m, jax.random.key(7), 8, t, burn_in=a, block=16)
+    e = bruteforce_estimates(U, t)
+    assert bf.D_t == pytest.approx(float(e["D_t"]) * p.D0, rel=1e-12)
+    assert bf.M0_t == pytest.approx(float(e["M0_t"]) * p.v0, rel=1e-12)

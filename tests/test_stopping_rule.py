@@ -6,6 +6,7 @@ velocity correlation time, so that its O(1/t) bias is far below its CI.
 """
 import math
 
+import jax
 import pytest
 
 import dryfric_jax as dj
@@ -51,3 +52,11 @@ def test_bruteforce_counts_exactly_the_requested_steps(key):
     p = dj.Params(**dj.FIG3)
     bf = dj.bruteforce_diffusivity(p, 3, t=2.0, n_paths=8)
     assert bf.t == pytest.approx(round(2.0 / bf.h) * bf.h, rel=1e-12)  # 1.99995 s, not 2.058 s (24 blocks)
+    # and passes its burn-in on: D^t and M0^t are those of the window after round(burn_in / h) steps
+    from dryfric_jax.estimators import bruteforce_estimates
+
+    bf = dj.bruteforce_diffusivity(p, 3, h=6.7e-4, t=0.2, n_paths=8, burn_in=0.03, block=block)
+    U, t_nd = simulate_bruteforce(model, jax.random.key(3), 8, round(0.2 / 6.7e-4), burn_in_steps=round(0.03 / 6.7e-4),
+                                  block=block)
+    e = bruteforce_estimates(U, t_nd)
+    assert (bf.D_t, bf.M0_t) == pytest.approx((float(e["D_t"]) * p.D0, float(e["M0_t"]) * p.v0), rel=1e-12)
