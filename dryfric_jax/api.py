@@ -17,7 +17,7 @@ import numpy as np
 from .bruteforce import simulate_bruteforce
 from .di import make_di_model
 from .estimators import MIN_RELIABLE_N, WEAK_DAMPING_TAU_L, bruteforce_estimates, long_excursion_estimates
-from .excursions import BLOCK, simulate_long_excursions, work_per_excursion
+from .excursions import BLOCK, FINAL_DEADLINE, simulate_long_excursions, work_per_excursion
 from .limits import MAX_WORK
 from .params import Params, check_positive, real_or_none
 from .pdmp import make_pdmp_model, simulate_pdmp_bruteforce
@@ -287,7 +287,9 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
         rtol: precision target: after the first ``n_excursions``, keep running rounds until
             the 95% half-width of D is at most ``rtol * |D|`` (a target out of reach, say 1e-160,
             runs until ``max_work`` or ``max_time`` ends it, and the result says so).
-        max_time: stop after the round that passes this many seconds (``stopped_by`` says so).
+        max_time: stop after the round that passes this many seconds (``stopped_by`` says so); the
+            final round, which finishes the excursions in flight, is cut at twice ``max_time``,
+            and the excursions it cut are counted as truncated (excluded, warned).
         progress: optional callback ``progress(dict)`` after every round: N, D, D_ci so far, the
             target, ``elapsed_s``, and the projection ``left_s`` (seconds, None until known) to the
             limit ``left_to`` that ends the run first (:func:`time_left`).
@@ -348,11 +350,13 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
                                             max_steps=plan.max_steps, more=more if rtol else None,
                                             max_time=max_time, max_work=max_work, progress=report)
     wall = time.perf_counter() - t0
-    # a lane the block bound stopped (never expected) lost its in-flight excursion: count it too
+    # a lane the final round's deadline (max_time) or its block bound (never expected) stopped lost
+    # its in-flight excursion: count it too
     n_truncated = sim.n_truncated + sim.n_unfinished
+    cut = max_time is not None and sim.n_unfinished > 0  # the final round's deadline (the block bound never binds)
     if stopped == "interrupted":
         notes.append(f"interrupted: result of the {sim.n_excursions} excursions completed before Ctrl-C")
-    if sim.n_in_flight:
+    if sim.n_in_flight and not cut:
         notes.append(f"{sim.n_in_flight} in-flight excursions dropped (second Ctrl-C): D is biased low by "
                      f"O(lanes/N) = O({sim.n_in_flight / max(sim.n_excursions, 1):.2g})")
     elif stopped in ("max_time", "work_bound"):
@@ -360,10 +364,14 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
             f"work bound reached (max_work = {max_work:.3g} {unit}, predicted >= {plan.predicted_work:.3g})"
         notes.append(f"{what} before the " + (f"target rtol = {rtol}" if rtol else f"{n_excursions} excursions")
                      + f": result of {sim.n_excursions} excursions")
-    if n_truncated:
-        notes.append(f"{n_truncated} of {n_truncated + sim.n_excursions} excursions hit the work bound "
-                     f"(max_steps = {plan.max_steps} {unit} per excursion) and are excluded: "
-                     "the estimate is biased low")
+    if cut:
+        notes.append(f"the final round, which finishes the excursions in flight, was cut at {FINAL_DEADLINE:g} x "
+                     f"max_time: {sim.n_unfinished} excursions still running are excluded and counted as truncated: "
+                     "the estimate is biased low (the excursions are far longer than planned; raise max_time)")
+    if n_truncated - (sim.n_unfinished if cut else 0):
+        notes.append(f"{n_truncated - (sim.n_unfinished if cut else 0)} of {n_truncated + sim.n_excursions} "
+                     f"excursions hit the work bound (max_steps = {plan.max_steps} {unit} per excursion) and are "
+                     "excluded: the estimate is biased low")
     if sim.n_excursions < 2:
         raise NoEstimateError("fewer than 2 complete excursions within the work bounds (raise max_work / "
                               "max_steps): " + "; ".join(notes))

@@ -63,6 +63,13 @@ COMPACT = 8
 COMPACT_MIN_PER_DEVICE = 64
 # lane-steps (idle lanes included) of one call of a final round (Lanes._call): ~4 s on 2 CPU cores
 FINAL_CALL_LANE_STEPS = 2**27
+#: with ``max_time``, the final round is cut at this multiple of it (:func:`simulate_long_excursions`)
+FINAL_DEADLINE = 2.0
+
+
+def _now() -> float:
+    """The clock of ``max_time`` and the final round's deadline (a test replaces it)."""
+    return time.perf_counter()
 # steps per iteration of the block's loop: best of 5 runs against 1, DI +1-7%, PDMP +10-14% on 2 CPU
 # cores; 8 was no better
 UNROLL = 4
@@ -536,7 +543,7 @@ class Lanes:
             lane = jax.device_put(lane, self._sharding)
         self.lane = lane
 
-    def _call(self, lane, keys, b0, budget, finish, min_active, fresh):
+    def _call(self, lane, keys, b0, budget, finish, min_active, fresh, deadline=None):
         """The jitted round on ``lane`` (any multiple of the device count); returns the lanes and
         the blocks each device ran.
 
@@ -544,7 +551,9 @@ class Lanes:
         ``FINAL_CALL_LANE_STEPS`` lane-steps each (a few seconds on a CPU), each continuing the
         last, so that a Ctrl-C acts between calls: the in-flight excursions of a heavy-tailed
         case can take minutes to finish, and one call would not return before they have (seen:
-        > 6 min at Fig. 3's tau = 1 s, Gamma = 1).  The result is the same as one call (tested)."""
+        > 6 min at Fig. 3's tau = 1 s, Gamma = 1).  The result is the same as one call (tested).
+        Past ``deadline`` (:func:`_now`) no further call starts: the lanes still running
+        stay unfinished (``n_unfinished``, reported as truncated)."""
         nd = len(self.devices)
         per_dev = keys.shape[0] // nd
         cap = max(1, FINAL_CALL_LANE_STEPS // (keys.shape[0] * self.block)) if finish else np.iinfo(np.int64).max
@@ -556,6 +565,8 @@ class Lanes:
             self.slot_steps += int(nb.sum()) * self.block * per_dev
             total, b0, fresh = total + nb, b0 + np.repeat(nb, per_dev), False
             if not (nb >= cap).any():  # every device stopped on its own condition
+                return lane, total
+            if deadline is not None and _now() >= deadline:
                 return lane, total
 
     def _call_once(self, lane, keys, b0, args):
@@ -569,15 +580,15 @@ class Lanes:
             lane, nb = self._f(self.chain, put(lane), put(keys), put(b0), *args)
         return lane, np.asarray(jax.device_get(nb))
 
-    def _round(self, key, budget, finish) -> ExcursionStats:
+    def _round(self, key, budget, finish, deadline=None) -> ExcursionStats:
         """A paused or final round (a final one compacts its tail, :meth:`_compact_tail`)."""
         keys = jax.random.split(key, self.n_real)
         if self.n > self.n_real:  # pad lanes repeat real lanes' keys (dropped below)
             keys = jnp.concatenate([keys, keys[np.arange(self.n - self.n_real) % self.n_real]])
         nd = len(self.devices)
         small = -(-(self.n // nd) // COMPACT) if finish and self.compact else 0  # per device, compacted
-        lane, nb = self._call(self.lane, keys, np.zeros(self.n, np.int64), budget, finish, small, True)
-        host = self._compact_tail(jax.device_get(lane), keys, nb, budget, small) if small else lane
+        lane, nb = self._call(self.lane, keys, np.zeros(self.n, np.int64), budget, finish, small, True, deadline)
+        host = self._compact_tail(jax.device_get(lane), keys, nb, budget, small, deadline) if small else lane
         if host is not lane:
             lane = jax.device_put(host, self._sharding) if nd > 1 else jax.tree_util.tree_map(jnp.asarray, host)
         stats, n_trunc, steps, done, phase, work = jax.device_get(
@@ -592,7 +603,7 @@ class Lanes:
                                    int((~done).sum()), int((phase != SEEK).sum()), steps)
         return self.last
 
-    def _compact_tail(self, host: _Lane, keys, nb, budget, small: int) -> _Lane:
+    def _compact_tail(self, host: _Lane, keys, nb, budget, small: int, deadline=None) -> _Lane:
         """The final round's tail on a compacted batch.  The first part of the round stopped once
         at most ``small`` lanes of each device were still finishing their in-flight excursion
         (``host``, on the host); those lanes, padded with finished ones, continue as a batch of
@@ -608,7 +619,7 @@ class Lanes:
         sel = np.concatenate([active, np.flatnonzero(done)[: m - active.size]])
         b0 = nb[sel // (self.n // len(self.devices))]  # the blocks lane sel[j] has run in this round
         sub, _ = self._call(jax.tree_util.tree_map(lambda a: np.asarray(a)[sel], host), keys[sel], b0, budget,
-                            True, 0, False)
+                            True, 0, False, deadline)
 
         def put_back(full, part):
             full = np.array(full)
@@ -620,8 +631,10 @@ class Lanes:
     def advance(self, key, budget: int) -> ExcursionStats:
         return self._round(key, budget, False)
 
-    def finish(self, key, budget: int = 0) -> ExcursionStats:
-        return self._round(key, budget, True)
+    def finish(self, key, budget: int = 0, deadline: float | None = None) -> ExcursionStats:
+        """The final round; past ``deadline`` (:func:`_now`) it stops between calls, and
+        the excursions still in flight are left unfinished (``n_unfinished``)."""
+        return self._round(key, budget, True, deadline)
 
 
 def run_round(chain, key, lanes: int, budget: int, *, block: int = BLOCK, max_steps: int = 10**8,
@@ -707,6 +720,10 @@ def simulate_long_excursions(chain, key, n_excursions: int, *, lanes: int | None
         more: optional ``more(stats) -> int``: further excursions wanted once ``n_excursions``
             are reached (0 to stop); used for precision targets.
         max_time: stop (after finishing the in-flight excursions) once this many seconds passed.
+            The final round that finishes them is cut once ``FINAL_DEADLINE * max_time`` seconds
+            have passed (between calls of a few seconds): the excursions still in flight are
+            then left unfinished (``n_unfinished``, reported as truncated), so the run takes
+            at most about twice ``max_time``.
         max_work: stop the same way once the lanes have paid for this many lane-steps.
         progress: optional ``progress(stats)`` called after every round.
 
@@ -721,7 +738,9 @@ def simulate_long_excursions(chain, key, n_excursions: int, *, lanes: int | None
     ln = Lanes(chain, lanes, block=block, max_steps=max_steps)
     closed = lambda st: st.n_excursions + st.n_truncated  # truncated count too: work stays bounded
     total, budget, r, want, stopped = None, pilot_budget, 0, n_excursions, "n_excursions"
-    t_start = time.perf_counter()
+    t_start = _now()
+    # the final round finishes the excursions in flight; past 2 max_time it is cut between calls
+    deadline = None if max_time is None else t_start + FINAL_DEADLINE * max_time
     while True:  # paused rounds, then a final round; again if the target moved (precision targets)
         try:
             while True:
@@ -735,15 +754,17 @@ def simulate_long_excursions(chain, key, n_excursions: int, *, lanes: int | None
                     want = done + extra if extra > 0 else want
                 if done + total.n_in_flight >= want:
                     break
-                if max_time is not None and time.perf_counter() - t_start >= max_time:
+                if max_time is not None and _now() - t_start >= max_time:
                     stopped = "max_time"
                     break
                 if max_work is not None and ln.paid >= max_work:
                     stopped = "work_bound"
                     break
                 if done == 0:
-                    budget *= 4  # nothing closed yet: longer pilot
-                    if budget > 64 * max_steps:
+                    # nothing closed yet: a longer pilot, within a round's lane-steps (an excursion far
+                    # longer than planned made one pilot round run for minutes past max_time)
+                    budget = min(budget * 4, max(round_lane_steps // ln.n_real, 4 * block))
+                    if ln.paid > 64 * max_steps * ln.n_real:
                         stopped = "work_bound"
                         break
                 else:
@@ -758,8 +779,10 @@ def simulate_long_excursions(chain, key, n_excursions: int, *, lanes: int | None
             if total is None:
                 raise
         try:
-            total = ln.finish(jax.random.fold_in(key, r))
+            total = ln.finish(jax.random.fold_in(key, r), deadline=deadline)
             r += 1
+            if total.n_unfinished and deadline is not None and stopped != "interrupted" and _now() >= deadline:
+                stopped = "max_time"  # the deadline cut the final round (whatever ended the rounds)
         except KeyboardInterrupt:  # second Ctrl-C: keep the closed excursions, in-flight ones dropped
             stopped = "interrupted"
         if stopped != "n_excursions" or more is None:

@@ -243,6 +243,52 @@ def test_ctrl_c_acts_between_the_calls_of_a_final_round(monkeypatch):
     assert len(calls) == 3 and ln.lane is before
 
 
+def test_max_time_cuts_the_final_round_and_counts_what_it_cut(monkeypatch):
+    """max_time bounds the run at about FINAL_DEADLINE x max_time: the rounds stop once max_time has
+    passed, and the final round, which finishes the excursions in flight, stops between its calls
+    once the deadline has; the lanes it cut are counted (n_unfinished, reported as truncated).
+    Before, the final round finished every in-flight excursion whatever max_time said: at
+    Gamma = 1e30 (excursions ~1e17 times longer than planned) a 30-s run had not ended after 2
+    minutes.  A fake clock, one second per reading, makes this independent of the machine."""
+    from dryfric_jax import excursions
+
+    chain = make_di_model(dj.Params.from_nondim(0.5, 1.0, 0.2), 0.005)  # excursions of ~10^3 steps
+    clock = iter(range(10**6))
+    monkeypatch.setattr(excursions, "_now", lambda: float(next(clock)))
+    monkeypatch.setattr(excursions, "FINAL_CALL_LANE_STEPS", 1)  # one block per call of the final round
+    calls, real = [], Lanes._call_once
+    monkeypatch.setattr(Lanes, "_call_once", lambda *a: calls.append(1) or real(*a))
+    st, stopped = simulate_long_excursions(chain, jax.random.key(3), 10**6, lanes=64, block=8, pilot_budget=64,
+                                           max_time=5.0)
+    assert stopped == "max_time" and 0 < st.n_unfinished <= 64
+    # t_start reads 0, each paused round 1 (stopping at 5), each call of the final round 1 (cut at 10)
+    assert len(calls) == 5 + 5
+    # the API reports it: the cut excursions count as truncated (the CLI exits 3), and it says why
+    p = dj.Params.from_nondim(0.5, 1.0, 0.2)
+    with pytest.warns(dj.DryfricWarning, match="was cut at 2 x max_time"):
+        r = dj.estimate_diffusivity(p, 3, h=0.005 * p.tau0, n_excursions=10**6, lanes=64, block=8, max_time=2.0)
+    assert r.stopped_by == "max_time" and r.n_truncated > 0 and not any("Ctrl-C" in w for w in r.warnings)
+
+
+def test_pilot_rounds_stay_within_a_rounds_lane_steps(monkeypatch):
+    """Before any excursion closes, the pilot budget grows 4x per round but no further than
+    round_lane_steps per round, as later rounds: it grew without bound (one pilot round of a case
+    whose excursions were far longer than planned ran for minutes, deaf to max_time and Ctrl-C)."""
+    chain = make_di_model(dj.Params.from_nondim(0.5, 1.0, 0.2), 0.005)  # excursions of ~10^3 steps
+    seen, real = [], Lanes.advance
+
+    def advance(self, key, budget):
+        st = real(self, key, budget)
+        seen.append((budget, st.n_excursions + st.n_truncated))
+        return st
+
+    monkeypatch.setattr(Lanes, "advance", advance)
+    simulate_long_excursions(chain, jax.random.key(3), 40, lanes=16, block=8, pilot_budget=16,
+                             round_lane_steps=16 * 64)
+    pilot = [b for (b, _), closed_before in zip(seen, [0] + [c for _, c in seen]) if closed_before == 0]
+    assert len(pilot) >= 3 and max(pilot) == 64, pilot  # 16, 64, 64, ...; it was 16, 64, 256, ...
+
+
 @pytest.mark.parametrize("events", ["branch", "wait"])
 def test_every_lane_finishes_in_flight_and_work_is_bounded(events):
     m = make_di_model(dj.Params.from_nondim(0.1), 0.02)
