@@ -368,8 +368,9 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
         notes.append(f"the final round, which finishes the excursions in flight, was cut at {FINAL_DEADLINE:g} x "
                      f"max_time: {sim.n_unfinished} excursions still running are excluded and counted as truncated: "
                      "the estimate is biased low (the excursions are far longer than planned; raise max_time)")
-    if n_truncated - (sim.n_unfinished if cut else 0):
-        notes.append(f"{n_truncated - (sim.n_unfinished if cut else 0)} of {n_truncated + sim.n_excursions} "
+    hit_bound = n_truncated - (sim.n_unfinished if cut else 0)
+    if hit_bound:
+        notes.append(f"{hit_bound} of {n_truncated + sim.n_excursions} "
                      f"excursions hit the work bound (max_steps = {plan.max_steps} {unit} per excursion) and are "
                      "excluded: the estimate is biased low")
     if sim.n_excursions < 2:

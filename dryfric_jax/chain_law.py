@@ -38,8 +38,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import linalg, special
 
-from .params import Params, check_params, real_or_none
-from .plan import check_h, h_max
+from .params import Params, check_params, real_or_none, shown
+from .plan import check_count, check_h, h_max
 from .theory import _nd, _scale
 
 MAX_NODES = 6001  # dense Nystrom: O(n^3) solves; at 6001 nodes 0.29 GB per n x n array, ~2 GB peak, ~15 s
@@ -89,19 +89,16 @@ def white_chain_law(params: Params, h: float, *, nodes_per_sd: int = 8, width: f
     """
     check_params(params)
     h = check_h(params, h)
-    if isinstance(nodes_per_sd, np.ndarray) and nodes_per_sd.shape == ():
-        nodes_per_sd = nodes_per_sd.item()  # a 0-d array: its number
-    if isinstance(nodes_per_sd, (bool, np.bool_)) or not isinstance(nodes_per_sd, (int, np.integer)) \
-            or not MIN_NODES_PER_SD <= nodes_per_sd <= MAX_NODES_PER_SD:
-        raise ValueError(f"nodes_per_sd must be an integer in [{MIN_NODES_PER_SD}, {MAX_NODES_PER_SD}] (grid nodes per "
-                         f"step-noise sd: the grid error is 5e-4 relative at {MIN_NODES_PER_SD}, 8e-3 at 1; more than "
-                         f"{MAX_NODES_PER_SD} always exceed MAX_NODES = {MAX_NODES}) (got {nodes_per_sd!r:.60})")
+    nodes_per_sd = check_count("nodes_per_sd", nodes_per_sd, MIN_NODES_PER_SD, MAX_NODES_PER_SD,
+                               f" (grid nodes per step-noise sd: the grid error is 5e-4 relative at "
+                               f"{MIN_NODES_PER_SD}, 8e-3 at 1; more than {MAX_NODES_PER_SD} always exceed "
+                               f"MAX_NODES = {MAX_NODES})")
     w = real_or_none(width)
     if w is None or not (math.isfinite(w) and w >= MIN_WIDTH):
         raise ValueError(f"width must be a finite number >= {MIN_WIDTH:g} (widths of the law on each side of 0: "
                          f"the tails beyond {MIN_WIDTH:g} change D by < 1e-5 relative, a tenth of the default grid's "
-                         f"error) (got {width!r:.60})")
-    nodes_per_sd, width = int(nodes_per_sd), w
+                         f"error) (got {shown(width)})")
+    width = w
     itl, g = _nd(params)
     hn = h / params.tau0
     s = math.sqrt(2 * hn)

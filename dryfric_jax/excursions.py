@@ -65,11 +65,6 @@ COMPACT_MIN_PER_DEVICE = 64
 FINAL_CALL_LANE_STEPS = 2**27
 #: with ``max_time``, the final round is cut at this multiple of it (:func:`simulate_long_excursions`)
 FINAL_DEADLINE = 2.0
-
-
-def _now() -> float:
-    """The clock of ``max_time`` and the final round's deadline (a test replaces it)."""
-    return time.perf_counter()
 # steps per iteration of the block's loop: best of 5 runs against 1, DI +1-7%, PDMP +10-14% on 2 CPU
 # cores; 8 was no better
 UNROLL = 4
@@ -503,6 +498,11 @@ class ExcursionStats:
         return dict(zip(STAT_NAMES, self.stats.sum(0)))
 
 
+def _now() -> float:
+    """The clock of ``max_time`` and the final round's deadline (a test replaces it)."""
+    return time.perf_counter()
+
+
 class Lanes:
     """Persistent lanes of one chain: rounds continue the lanes' chains where they paused.
 
@@ -564,9 +564,8 @@ class Lanes:
             lane, nb = self._call_once(lane, keys, b0, args + (jnp.asarray(fresh), jnp.asarray(cap, jnp.int64)))
             self.slot_steps += int(nb.sum()) * self.block * per_dev
             total, b0, fresh = total + nb, b0 + np.repeat(nb, per_dev), False
-            if not (nb >= cap).any():  # every device stopped on its own condition
-                return lane, total
-            if deadline is not None and _now() >= deadline:
+            # every device stopped on its own condition, or the deadline has passed
+            if not (nb >= cap).any() or (deadline is not None and _now() >= deadline):
                 return lane, total
 
     def _call_once(self, lane, keys, b0, args):

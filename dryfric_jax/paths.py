@@ -25,18 +25,9 @@ from .api import _key
 from .di import DIModel
 from .excursions import BLOCK, block_keys
 from .params import check_finite, shown
+from .plan import check_count
 from .pdmp import flow
 from .sharding import over_lanes
-
-
-def _count(name: str, n, lo: int, hi: int | None = None, why: str = "") -> int:
-    """``n`` as an int; ``ValueError`` naming ``name`` unless it is an integer >= ``lo`` (and <= ``hi``;
-    a numpy integer or a 0-d array too; not a bool, not a float)."""
-    n = n.item() if isinstance(n, np.ndarray) and n.shape == () else n
-    if isinstance(n, (bool, np.bool_)) or not isinstance(n, (int, np.integer)) or n < lo or (hi is not None and n > hi):
-        rng = f">= {lo}" if hi is None else f"in [{lo}, {hi}]"
-        raise ValueError(f"{name} must be an integer {rng}{why} (got {shown(n)})")
-    return int(n)
 
 
 def _check_model(model) -> None:
@@ -112,7 +103,7 @@ def di_transient(model: DIModel, key, n_paths: int, record_steps, v0: float = 1.
     takes it); ``n_paths`` and ``chunk`` are integers >= 1.  ``ValueError`` naming the argument."""
     _check_model(model)
     key = _key(key)[0]
-    n_paths, chunk = _count("n_paths", n_paths, 1), _count("chunk", chunk, 1)
+    n_paths, chunk = check_count("n_paths", n_paths, 1), check_count("chunk", chunk, 1)
     steps = _record_steps(record_steps)
     check_finite("v0", v0)
     v0 = float(v0)
@@ -154,8 +145,8 @@ def di_stationary(model: DIModel, key, n_paths: int, n_records: int, every: int 
     integers >= 1, ``burn_steps`` >= 0.  ``ValueError`` naming the argument."""
     _check_model(model)
     key = _key(key)[0]
-    n_paths, n_records = _count("n_paths", n_paths, 1), _count("n_records", n_records, 1)
-    every, burn_steps = _count("every", every, 1), _count("burn_steps", burn_steps, 0)
+    n_paths, n_records = check_count("n_paths", n_paths, 1), check_count("n_records", n_records, 1)
+    every, burn_steps = check_count("every", every, 1), check_count("burn_steps", burn_steps, 0)
     V, U = over_lanes(_stationary, (model, jax.random.split(key, n_paths)), (False, True),
                       n_records=n_records, every=every, burn=burn_steps)
     return np.asarray(V), np.asarray(U)
@@ -189,13 +180,10 @@ def _acf_args(V, max_lag, center):
                          f"error is their spread) and 1 sample (got {what})")
     if not np.all(np.isfinite(a)):
         raise ValueError("V must be finite (got a NaN or an inf)")
-    n = a.shape[1]
-    lag = max_lag.item() if isinstance(max_lag, np.ndarray) and max_lag.shape == () else max_lag
-    if isinstance(lag, (bool, np.bool_)) or not isinstance(lag, (int, np.integer)) or not 0 <= lag <= n - 1:
-        raise ValueError(f"max_lag must be an integer in [0, {n - 1}] (samples - 1 of V) (got {shown(max_lag)})")
+    lag = check_count("max_lag", max_lag, 0, a.shape[1] - 1, " (samples - 1 of V)")
     if not isinstance(center, (bool, np.bool_)):
         raise ValueError(f"center must be True or False (got {shown(center)})")
-    return a.astype(np.float64), int(lag)
+    return a.astype(np.float64), lag
 
 
 def _per_path_acf(V, max_lag, center):
@@ -279,7 +267,7 @@ def di_excursion(model: DIModel, key, max_steps: int = 200_000) -> dict:
     """
     _check_model(model)
     key = _key(key)[0]
-    max_steps = _count("max_steps", max_steps, 1, MAX_EXCURSION_STEPS, " (its buffers hold max_steps + 1 states)")
+    max_steps = check_count("max_steps", max_steps, 1, MAX_EXCURSION_STEPS, " (its buffers hold max_steps + 1 states)")
     n, phase, n_half, b = jax.device_get(_excursion(model, key, max_steps=max_steps))
     n = int(n)
     out = {k: np.asarray(v)[: n + 1].astype(np.float64) for k, v in b.items()}

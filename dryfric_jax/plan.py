@@ -93,13 +93,13 @@ def dtype_name(dtype) -> str:
 MAX_COUNT = MAX_STEPS = 1 << 62
 
 
-def check_count(name, n, lo=2, hi=None) -> int:
+def check_count(name, n, lo=2, hi=None, why: str = "") -> int:
     """``n`` as an int (a numpy integer or a 0-d array too); ``ValueError`` naming ``name`` unless it
-    is an integer >= ``lo`` (and <= ``hi``)."""
+    is an integer >= ``lo`` (and <= ``hi``); ``why``, if given, follows the range in the message."""
     n = scalar(n)
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < lo or (hi is not None and n > hi):
         rng = f">= {lo}" if hi is None else f"in [{lo}, {'2^62' if hi == MAX_COUNT else hi}]"
-        raise ValueError(f"{name} must be an integer {rng} (got {shown(n)})")
+        raise ValueError(f"{name} must be an integer {rng}{why} (got {shown(n)})")
     return int(n)
 
 
@@ -202,8 +202,9 @@ def choose(params: Params, method: str, h, delta, dtype) -> Plan:
     check_method(method, h, delta)
     dtype = dtype_name(dtype)
     check_recurrent(params.tau_L_nd, params.gamma_bar_nd)
-    if real(delta) is not None and math.isfinite(real(delta)):  # as a float (an int of 400 digits stays
-        delta = real(delta)                                      # itself, for check_delta to show it)
+    d = real(delta)
+    if d is not None and math.isfinite(d):  # as a float (an int of 400 digits stays itself, for check_delta to show)
+        delta = d
     reason = f"method {method!r} requested"
     if method == "auto":
         h_c = check_h(params, h)
