@@ -33,7 +33,12 @@ class DryfricWarning(UserWarning):
 class NoEstimateError(RuntimeError):
     """A run ended without an estimate: fewer than 2 complete excursions within its work bounds
     (``max_work``, ``max_steps``, ``max_time``).  Without ``max_time`` it is deterministic: the same
-    seed and settings end the same way, so a sweep records the point as failed and does not rerun it."""
+    seed and settings end the same way, so a sweep records the point as failed and does not rerun it.
+    ``stopped_by`` says what ended the rounds (``"max_time"``: a longer time limit may succeed)."""
+
+    def __init__(self, message: str, stopped_by: str = "work_bound"):
+        super().__init__(message)
+        self.stopped_by = stopped_by
 
 
 class ProjectionWarning(DryfricWarning):
@@ -374,8 +379,9 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
                      f"excursions hit the work bound (max_steps = {plan.max_steps} {unit} per excursion) and are "
                      "excluded: the estimate is biased low")
     if sim.n_excursions < 2:
-        raise NoEstimateError("fewer than 2 complete excursions within the work bounds (raise max_work / "
-                              "max_steps): " + "; ".join(notes))
+        raise NoEstimateError("fewer than 2 complete excursions within the work bounds (raise "
+                              + ("max_time" if stopped == "max_time" else "max_work / max_steps") + "): "
+                              + "; ".join(notes), stopped_by=stopped)
     if sim.n_excursions < MIN_RELIABLE_N:
         notes.append(small_n_note(sim.n_excursions))
     if params.tau_L_nd > WEAK_DAMPING_TAU_L:

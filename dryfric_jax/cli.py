@@ -209,6 +209,9 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--n-excursions", type=_count_option("n-excursions"), default=20_000)
     sw.add_argument("--rtol", type=_number("rtol"), default=None)
     sw.add_argument("--max-work", type=_number("max-work"), default=None)
+    sw.add_argument("--max-time", type=_number("max-time"), default=None,
+                    help="time limit of each point, s (as for 'estimate'); a point it stopped is rerun by the same "
+                         "command with a larger --max-time (or none), and its record kept until then")
     sw.add_argument("--skip-refused", action="store_true",
                     help="record the points the planner refuses (predicted work over --max-work, no stationary "
                          "state, ...) as 'refused' and run the others; without it such a grid is refused "
@@ -442,7 +445,7 @@ def _sweep(a) -> int:
 
     axes = {k: getattr(a, k) for k in ("Gamma", "Delta", "tau", "tau_L", "gamma_bar") if getattr(a, k) is not None}
     kw = dict(seed=a.seed, method=a.method, h=a.h, delta=a.delta, dtype=a.dtype, n_excursions=a.n_excursions,
-              rtol=a.rtol, skip_refused=a.skip_refused, **_work_options(a))
+              rtol=a.rtol, max_time=a.max_time, skip_refused=a.skip_refused, **_work_options(a))
     try:
         with _warnings_kept_in_result():  # a point's ProjectionWarning on stderr at once
             out = sweep.run_sweep(sweep.grid(**axes), a.out, progress=sweep.progress_bar, **kw)
@@ -456,20 +459,25 @@ def _sweep(a) -> int:
     if a.json:
         print(dumps(out))
     else:
-        extra = "".join(f", {out[k]} {k}" for k in ("refused", "failed", "truncated") if out[k])
+        extra = "".join(f", {out[k]} {k}" for k in ("refused", "failed", "truncated") if out[k]) + (
+            f", {out['time_limited']} stopped by --max-time" if out["time_limited"] else "")
         print(f"{out['computed']} points computed, {out['skipped']} already in {a.out}, {out['total']} in the grid"
               + extra)
     if out["interrupted"]:
         print(f"dryfric: interrupted: {out['computed']} new points were written to {a.out}; run the same command "
               "again to resume", file=sys.stderr)
         return 130
+    if out["time_limited"]:
+        print(f"dryfric: note: --max-time stopped {_points(out['time_limited'])} (fewer excursions than asked, or "
+              "none); the same command with a larger --max-time (or none) reruns them", file=sys.stderr)
     if out["refused"] or out["failed"]:
         print(f"dryfric: note: {_points(out['refused'])} refused and {_points(out['failed'])} failed: no result; "
               f"their reasons are in {a.out} (status, reason)", file=sys.stderr)
     if out["failed"]:
         print(f"dryfric: error: {_points(out['failed'])} ended without an estimate (fewer than 2 complete excursions "
               "within the work bounds); a rerun with the same settings skips them (they would fail again); run those "
-              "points with a larger --max-work to retry them", file=sys.stderr)
+              "points with a larger --max-work to retry them (or a larger --max-time, for those it stopped)",
+              file=sys.stderr)
         return 1
     if out["truncated"] and not a.allow_truncated:
         print(f"dryfric: warning: {_points(out['truncated'])} with truncated excursions: their results are biased "

@@ -24,6 +24,14 @@ would fail again, so a resumed sweep does not rerun it (raise ``max_work``, whic
 settings, or delete its line).  Each record's ``status`` is ``"ok"`` (with ``result``),
 ``"refused"`` or ``"failed"`` (with ``reason``); records written before statuses existed are
 ``"ok"``.
+
+``max_time`` bounds each point's wall time (as in :func:`~dryfric_jax.api.estimate_diffusivity`:
+the rounds stop after it, the final round is cut at twice it).  It is a limit, not a setting: it
+does not enter a point's seed or identity, and a point that finished within it gets the same record
+as without it.  A point that it stopped (``"ok"`` with ``stopped_by = "max_time"``, or ``"failed"``
+with ``stopped_by = "max_time"``) keeps its record, with the ``max_time`` it had; a resumed sweep
+reruns it when given more time (a larger ``max_time``, or none), and the new record replaces the old
+one only once the point has finished.  Its rounds are those of the first run (same seed), continued.
 """
 from __future__ import annotations
 
@@ -42,7 +50,7 @@ from .api import DryfricWarning, NoEstimateError, ProjectionWarning, check_progr
 from .limits import MAX_WORK
 from .outfiles import check_writable, read_records, write_records
 from .params import FIG3, Params, plain_number, real_or_none
-from .plan import check_settings, plan_estimate
+from .plan import check_max_time, check_settings, plan_estimate
 
 PARAM_KEYS = ("Gamma", "Delta", "tau", "tau_L", "gamma_bar")
 #: settings that determine a point's result (with its parameters and seed)
@@ -130,6 +138,22 @@ def status(record: dict) -> str:
     return record.get("status", "ok")
 
 
+def stopped_by(record: dict) -> str | None:
+    """What ended a point's run (``"max_time"``, ``"target"``, ...); None for a refused point or an
+    older record that does not say."""
+    return (record.get("result") or {}).get("stopped_by") if status(record) == "ok" else record.get("stopped_by")
+
+
+def _time_limited(record: dict) -> bool:
+    return stopped_by(record) == "max_time"
+
+
+def _more_time(record: dict, max_time) -> bool:
+    """True when a point that its ``max_time`` stopped gets more time now (None: no limit)."""
+    old = record.get("max_time")
+    return _time_limited(record) and (max_time is None or (_is_real(old) and max_time > old))
+
+
 def _at_point(show, pt):
     """``show`` (a ``warnings.showwarning``) with the sweep point appended to the message."""
     def at(message, category, *args, **kw):
@@ -156,7 +180,7 @@ def _refusal_text(refused: list, total: int) -> str:
 
 def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di", h=None, delta=None,
               dtype: str = "float64", n_excursions: int = 20_000, rtol=None, max_work: float = MAX_WORK,
-              skip_refused: bool = False, progress=None) -> dict:
+              max_time=None, skip_refused: bool = False, progress=None) -> dict:
     r"""Estimate D and M0 at every point, one JSON line per finished point in ``out``.
 
     Args:
@@ -165,6 +189,8 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
         seed: the sweep seed; point seeds come from :func:`point_seed`.
         method, h, delta, dtype, n_excursions, rtol, max_work: as in
             :func:`~dryfric_jax.api.estimate_diffusivity`, the same for every point.
+        max_time: optional time limit of each point, seconds (module docstring: a point it stopped is
+            rerun by a resumed sweep that gives more time).
         skip_refused: record the points the planner refuses (status ``"refused"``) and run the
             others, instead of refusing the grid (``ValueError`` naming every refused point).
         progress: optional ``progress(done, total, record)`` after each point (and once at start).
@@ -175,16 +201,18 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
     (module docstring) and the sweep goes on.
 
     Returns:
-        ``dict(computed=k, skipped=s, total=n, interrupted=bool, refused=r, failed=f, truncated=t)``:
-        k points run now (``"ok"`` or ``"failed"``), s found in the file (``"ok"`` or
-        ``"failed"``, not rerun); r, f and t count the grid's distinct points now recorded as
-        refused, failed, or ``"ok"`` with truncated excursions
-        (a result biased low).  A Ctrl-C stops after the points already written; the point in
-        progress is not written.
+        ``dict(computed=k, skipped=s, total=n, interrupted=bool, refused=r, failed=f, truncated=t,
+        time_limited=m)``: k points run now (``"ok"`` or ``"failed"``), s found in the file (``"ok"``
+        or ``"failed"``, not rerun); r, f, t and m count the grid's distinct points now recorded as
+        refused, failed, ``"ok"`` with truncated excursions (a result biased low), or stopped by
+        ``max_time`` (``"ok"`` short of N or rtol, or ``"failed"``).  A Ctrl-C stops after the
+        points already written; the point in progress is not written.
     """
     check_writable(out)
     points = _check_points(points)
     seed = check_seed(seed)
+    max_time = check_max_time(max_time)
+    max_time = None if max_time == math.inf else max_time  # no limit, as recorded
     check_progress(progress)
     # as JSON values (numpy numbers as Python ones, a numpy dtype as its name), checked once: a wrong
     # setting refuses the grid (dtype float16 was recorded as every point's refusal)
@@ -220,7 +248,9 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
     if len(kept) != len(records) or new_refused:
         write_records(out, kept)
     records = kept
-    todo, seen = [], set(have)
+    # a point that max_time stopped is rerun when given more time; its record stays until replaced
+    rerun = {i for i in grid_idents if i in have and _more_time(have[i], max_time)}
+    todo, seen = [], set(have) - rerun
     for ident, pt in zip(grid_idents, full):
         if ident not in seen:
             todo.append((ident, pt))
@@ -239,12 +269,12 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
                 warnings.simplefilter("always", ProjectionWarning)  # ... except this one, said at once
                 warnings.showwarning = _at_point(warnings.showwarning, pt)
                 r = estimate_diffusivity(Params(**pt), s, method=method, h=h, delta=delta, dtype=dtype,
-                                         n_excursions=n_excursions, rtol=rtol, max_work=max_work)
+                                         n_excursions=n_excursions, rtol=rtol, max_work=max_work, max_time=max_time)
         except KeyboardInterrupt:
             interrupted = True
             break
-        except NoEstimateError as e:  # deterministic: recorded, not rerun on resume
-            rec = _record(seed, pt, settings, "failed", reason=str(e))
+        except NoEstimateError as e:  # deterministic (unless max_time stopped it): recorded, not rerun on resume
+            rec = _record(seed, pt, settings, "failed", max_time, reason=str(e), stopped_by=e.stopped_by)
         else:
             if r.stopped_by == "interrupted":  # Ctrl-C inside the point: not a finished point
                 interrupted = True
@@ -252,8 +282,11 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
             res = r.to_dict()
             for k in ("params", "seed"):
                 res.pop(k)
-            rec = _record(seed, pt, settings, "ok", result=res)
-        records.append(rec)
+            rec = _record(seed, pt, settings, "ok", max_time, result=res)
+        if ident in have:  # a rerun with more time: the new record takes the old one's place
+            records[next(k for k, old in enumerate(records) if old is have[ident])] = rec
+        else:
+            records.append(rec)
         have[ident] = rec
         write_records(out, records)
         computed += 1
@@ -264,12 +297,14 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
     count = {k: sum(status(r) == k for r in mine) for k in ("refused", "failed")}
     truncated = sum(status(r) == "ok" and r["result"].get("n_truncated", 0) > 0 for r in mine)
     return dict(computed=computed, skipped=skipped, total=total, interrupted=interrupted,
-                refused=count["refused"], failed=count["failed"], truncated=truncated)
+                refused=count["refused"], failed=count["failed"], truncated=truncated,
+                time_limited=sum(map(_time_limited, mine)))
 
 
-def _record(seed: int, pt: dict, settings: dict, state: str, **what) -> dict:
+def _record(seed: int, pt: dict, settings: dict, state: str, max_time=None, **what) -> dict:
     return dict(params=pt, settings=settings, sweep_seed=seed, seed=point_seed(seed, pt, settings),
-                version=__version__, finished_at=time.strftime("%Y-%m-%dT%H:%M:%S"), status=state, **what)
+                version=__version__, finished_at=time.strftime("%Y-%m-%dT%H:%M:%S"), status=state,
+                **({} if max_time is None else dict(max_time=max_time)), **what)
 
 
 def failures(path: str) -> list[dict]:
@@ -311,6 +346,8 @@ def progress_bar(done: int, total: int, rec) -> None:
             last += f"D={rec['result']['D']:.4g}±{rec['result']['D_ci']:.2g}"
         else:
             last += f"{status(rec)} ({_first_clause(rec['reason'])})"
+        if _time_limited(rec):
+            last += " [stopped by max_time]"
     line = f"[{'#' * fill}{'.' * (width - fill)}] {done}/{total} points{last}"
     if sys.stderr.isatty():
         print("\r" + line[:150].ljust(150), end="" if done < total else "\n", file=sys.stderr, flush=True)

@@ -22,7 +22,8 @@ def test_resume_skips_finished_points_and_adds_new_ones(tmp_path):
     out = str(tmp_path / "s.jsonl")
     kw = dict(n_excursions=200, seed=3)
     r1 = sweep.run_sweep(sweep.grid(Gamma=[2.0, 5.0]), out, **kw)
-    assert r1 == dict(computed=2, skipped=0, total=2, interrupted=False, refused=0, failed=0, truncated=0)
+    assert r1 == dict(computed=2, skipped=0, total=2, interrupted=False, refused=0, failed=0, truncated=0,
+                      time_limited=0)
     first = _lines(out)
     r2 = sweep.run_sweep(sweep.grid(Gamma=[5.0, 2.0, 8.0, 8.0]), out, **kw)  # reordered, one new, one twice
     assert r2["computed"] == 1 and r2["skipped"] == 3
@@ -173,7 +174,8 @@ def test_refused_and_failed_points_are_recorded_and_the_sweep_goes_on(tmp_path, 
     with pytest.warns(ProjectionWarning, match=r"Gamma\": 1000000\.0"):  # said at once, with the point
         r1 = sweep.run_sweep(pts, out, progress=lambda d, t, rec: (seen.append(rec), sweep.progress_bar(d, t, rec)),
                              **kw)
-    assert r1 == dict(computed=2, skipped=0, total=3, interrupted=False, refused=1, failed=1, truncated=0)
+    assert r1 == dict(computed=2, skipped=0, total=3, interrupted=False, refused=1, failed=1, truncated=0,
+                      time_limited=0)
     recs = _lines(out)
     assert [(r["params"]["Gamma"], r["status"]) for r in recs] == [(0.5, "refused"), (20.0, "ok"), (1e6, "failed")]
     assert recs[0]["reason"].startswith("max_work must be >= ") and "result" not in recs[0]
@@ -193,7 +195,7 @@ def test_refused_and_failed_points_are_recorded_and_the_sweep_goes_on(tmp_path, 
 
     # resumed: nothing rerun, the file unchanged; the CLI says why it exits 1
     assert sweep.run_sweep(pts, out, **kw) == dict(computed=0, skipped=2, total=3, interrupted=False, refused=1,
-                                                   failed=1, truncated=0)
+                                                   failed=1, truncated=0, time_limited=0)
     assert _lines(out) == recs
     argv = ["sweep", "--Gamma", "0.5,20,1e6", "--n-excursions", "50", "--max-work", "3e6", "--out", out]
     assert main(argv + ["--skip-refused"]) == 1
@@ -287,3 +289,54 @@ def test_a_file_that_is_not_text_or_not_a_file_is_refused(tmp_path):
         sweep.rows(str(out))
     with pytest.raises(ValueError, match="^out must be a dryfric sweep file"):  # was an IsADirectoryError
         sweep.rows(str(tmp_path))
+
+
+def test_max_time_bounds_each_point_and_a_resumed_sweep_with_more_time_reruns_it(tmp_path, monkeypatch, capsys):
+    """--max-time is each point's limit (the sweep had none: at Gamma = 1e30 it ran ~70 min to the
+    work bound).  A point it stopped is recorded with its max_time and stopped_by; a resumed sweep
+    with the same or less time skips it, one with more time (or none) reruns it, and the new record
+    replaces the old one in place, only once the point has finished.  A fake clock (one second per
+    reading) makes the limit independent of the machine."""
+    from dryfric_jax import excursions
+
+    clock = iter(range(10**6))
+    monkeypatch.setattr(excursions, "_now", lambda: float(next(clock)))
+    out = str(tmp_path / "s.jsonl")
+    pts = sweep.grid(Gamma=[2.0, 5.0])
+    r1 = sweep.run_sweep(pts, out, max_time=1.0, n_excursions=3000)
+    assert r1 == dict(computed=2, skipped=0, total=2, interrupted=False, refused=0, failed=0, truncated=0,
+                      time_limited=2)
+    first = _lines(out)
+    assert [(r["status"], sweep.stopped_by(r), r["max_time"]) for r in first] == [("ok", "max_time", 1.0)] * 2
+    assert all(0 < r["result"]["n_excursions"] < 3000 for r in first)
+    # the same or less time: nothing rerun, the file unchanged
+    for t in (1.0, 0.5):
+        assert sweep.run_sweep(pts, out, max_time=t, n_excursions=3000)["computed"] == 0
+    assert _lines(out) == first
+    # more time, interrupted: the old records stay
+    with monkeypatch.context() as m:
+        m.setattr(sweep, "estimate_diffusivity", lambda *a, **k: (_ for _ in ()).throw(KeyboardInterrupt))
+        assert sweep.run_sweep(pts, out, n_excursions=3000)["interrupted"]
+    assert _lines(out) == first
+    # no limit, from the CLI: rerun in place, same seeds, now to N
+    assert main(["sweep", "--Gamma", "5,2", "--n-excursions", "3000", "--out", out, "--json"]) == 0
+    again = _lines(out)
+    assert [r["params"]["Gamma"] for r in again] == [2.0, 5.0] and [r["seed"] for r in again] == \
+        [r["seed"] for r in first]
+    assert [(r["status"], sweep.stopped_by(r), "max_time" in r) for r in again] == [("ok", "n_excursions", False)] * 2
+    assert all(r["result"]["n_excursions"] >= 3000 for r in again)
+    assert json.loads(capsys.readouterr().out)["time_limited"] == 0
+
+    # a point that max_time leaves without an estimate is "failed" with stopped_by, and rerun with more time
+    # (Gamma = 1e6: the work predictor is far too low there, as in the test above; now it fails on the work bound)
+    argv = ["sweep", "--Gamma", "1e6", "--n-excursions", "50", "--max-work", "3e6", "--out", str(tmp_path / "f.jsonl")]
+    assert main(argv + ["--max-time", "1"]) == 1
+    err = capsys.readouterr().err
+    assert "--max-time stopped 1 point" in err and "[stopped by max_time]" in err and "or a larger --max-time" in err
+    (rec,) = _lines(tmp_path / "f.jsonl")
+    assert (rec["status"], rec["stopped_by"], rec["max_time"]) == ("failed", "max_time", 1.0)
+    assert "(raise max_time)" in rec["reason"]
+    assert main(argv) == 1
+    (rec,) = _lines(tmp_path / "f.jsonl")
+    assert (rec["status"], rec["stopped_by"], "max_time" in rec) == ("failed", "work_bound", False)
+    assert "(raise max_work / max_steps)" in rec["reason"]
