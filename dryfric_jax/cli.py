@@ -338,7 +338,7 @@ def _work_options(a):
 
 
 def _run(a) -> int:
-    from . import api, theory
+    from . import api
 
     if a.cmd == "bench":
         from .bench import format_table, run_bench
@@ -384,24 +384,7 @@ def _run(a) -> int:
         return 0
     params = _params(a)
     if a.cmd == "theory":
-        out = dict(D=theory.exact_D(params), M0=theory.exact_M0(params), params=params.as_dict(),
-                   convention="model (Gamma_w = 2 Gamma)")
-        if a.h is not None:
-            from .chain_law import white_chain_law
-
-            law = white_chain_law(params, a.h)
-            out.update(h=a.h, chain_D=law.D, chain_M0=law.M0, chain_mean_v2=law.mean_v2,
-                       mean_v2=theory.exact_mean_square_velocity(params))
-        if a.json:
-            print(dumps(out))
-        else:
-            print(f"white-noise D  = {out['D']:.6g} m^2/s\nwhite-noise M0 = {out['M0']:.6g} m/s")
-            if a.h is not None:
-                rel = lambda x, y: f"{100 * (x / y - 1):+.2f}%" if y else "exactly 0"
-                print(f"DI chain at h = {a.h:.4g} s (white noise, exact): D = {law.D:.6g} ({rel(law.D, out['D'])}), "
-                      f"M0 = {law.M0:.6g} ({rel(law.M0, out['M0'])}), E[V^2] = {law.mean_v2:.6g} "
-                      f"({rel(law.mean_v2, out['mean_v2'])})")
-        return 0
+        return _theory(a, params)
     _check_out(getattr(a, "out", None))
     if a.cmd == "estimate":
         show = not a.json and sys.stderr.isatty()
@@ -434,6 +417,47 @@ def _run(a) -> int:
         _report(a, r, _print_bruteforce)
         return 0
     raise _UserError(f"unknown command {a.cmd!r}")
+
+
+def _theory(a, params) -> int:
+    """``dryfric theory``: the exact white-noise D and M0 (and the DI chain's at ``--h``).  A value
+    beyond float64 (D ~ 2 tau_L^2 Gamma underflows at tau_L = 1e-300 s) is refused by name, exit 2,
+    but the other is still printed: the whole output was refused for D alone."""
+    from . import theory
+
+    out, refused = {}, {}
+    for name, f in (("D", theory.exact_D), ("M0", theory.exact_M0)):
+        try:
+            out[name] = f(params)
+        except ValueError as e:
+            out[name], refused[name] = None, str(e)
+    out.update(params=params.as_dict(), convention="model (Gamma_w = 2 Gamma)")
+    if refused:
+        if a.json:
+            print(dumps({**out, "refused": refused}))
+        else:
+            for name, unit in (("D ", "m^2/s"), ("M0", "m/s")):
+                if name.strip() not in refused:
+                    print(f"white-noise {name} = {out[name.strip()]:.6g} {unit}")
+        kept = " and ".join(k for k in ("D", "M0") if k not in refused)
+        skipped = "; the DI chain at --h is not computed" if a.h is not None else ""
+        raise _UserError("; ".join(refused.values()) + (f" ({kept} printed above{skipped})" if kept else ""))
+    if a.h is not None:
+        from .chain_law import white_chain_law
+
+        law = white_chain_law(params, a.h)
+        out.update(h=a.h, chain_D=law.D, chain_M0=law.M0, chain_mean_v2=law.mean_v2,
+                   mean_v2=theory.exact_mean_square_velocity(params))
+    if a.json:
+        print(dumps(out))
+    else:
+        print(f"white-noise D  = {out['D']:.6g} m^2/s\nwhite-noise M0 = {out['M0']:.6g} m/s")
+        if a.h is not None:
+            rel = lambda x, y: f"{100 * (x / y - 1):+.2f}%" if y else "exactly 0"
+            print(f"DI chain at h = {a.h:.4g} s (white noise, exact): D = {law.D:.6g} ({rel(law.D, out['D'])}), "
+                  f"M0 = {law.M0:.6g} ({rel(law.M0, out['M0'])}), E[V^2] = {law.mean_v2:.6g} "
+                  f"({rel(law.mean_v2, out['mean_v2'])})")
+    return 0
 
 
 def _points(n: int) -> str:

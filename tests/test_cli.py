@@ -279,6 +279,24 @@ def test_bruteforce_and_theory_json(capsys, solve_rounding):
     assert out["chain_D"] < out["D"] and abs(out["chain_M0"]) < solve_rounding(law)
 
 
+def test_theory_prints_m0_when_only_d_leaves_float64(capsys):
+    """At tau_L = 1e-300 s, D ~ 2 tau_L^2 Gamma underflows float64 but M0 ~ 3e-301 m/s does not: D is
+    refused by name (exit 2) and M0 still printed, in text and in JSON (the whole output was refused)."""
+    from dryfric_jax import theory
+
+    m0 = theory.exact_M0(Params(**{**FIG3, "tau_L": 1e-300}))
+    assert 0 < m0 < 1e-299
+    assert main(["theory", "--tau-L", "1e-300", "--json"]) == 2
+    cap = capsys.readouterr()
+    out = json.loads(cap.out)
+    assert out["D"] is None and out["M0"] == m0 and out["refused"]["D"].startswith("D underflows float64 for")
+    assert cap.err.startswith("dryfric: error: D underflows float64") and cap.err.endswith("(M0 printed above)\n")
+    assert main(["theory", "--tau-L", "1e-300", "--h", "1e-303"]) == 2
+    cap = capsys.readouterr()
+    assert cap.out == f"white-noise M0 = {m0:.6g} m/s\n" and "the DI chain at --h is not computed" in cap.err
+    assert "Traceback" not in cap.err
+
+
 def test_bench_json_has_the_side_by_side_numbers(capsys):
     assert main(["bench", "--n-excursions", "50", "--repeat", "2", "--json"]) == 0
     b = json.loads(capsys.readouterr().out)
