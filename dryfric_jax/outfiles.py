@@ -9,6 +9,8 @@ import tempfile
 
 import numpy as np
 
+from .params import shown
+
 
 _NONFINITE = {"inf": math.inf, "-inf": -math.inf, "nan": math.nan}
 
@@ -98,9 +100,8 @@ def check_writable(path: str, name: str = "out") -> None:
             why = _can_create(p)
             ok = why is None
     if not ok:
-        text = repr(path) if len(repr(path)) <= 80 else f"{repr(path)[:40]}... ({len(repr(path))} characters)"
         raise ValueError(f"{name} must be a writable file path in an existing directory, not a directory or a "
-                         f"device (got {text}" + (f": {why})" if why else ")"))
+                         f"device (got {shown(path, 80, 40)}" + (f": {why})" if why else ")"))
 
 
 def check_writable_dir(path: str, name: str = "out") -> None:

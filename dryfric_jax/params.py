@@ -20,10 +20,11 @@ import jax
 import numpy as np
 
 
-def shown(x) -> str:
-    """``repr(x)`` in one readable line: an int of 400 digits as its first digits and its length."""
+def shown(x, width: int = 60, head: int = 24) -> str:
+    """``repr(x)`` in one readable line: up to ``width`` characters as it is, longer (an int of 400
+    digits, a long path) as its first ``head`` characters and its length."""
     text = repr(x)
-    return text if len(text) <= 60 else f"{text[:24]}... ({len(text)} characters)"
+    return text if len(text) <= width else f"{text[:head]}... ({len(text)} characters)"
 
 
 def _concrete(name: str, x):
