@@ -317,8 +317,8 @@ ROW_KEYS = ("D", "D_ci", "M0", "M0_ci", "mean_duration", "n_excursions", "n_trun
 
 def rows(path: str, seed: int | None = None, **settings) -> list[dict]:
     """The records of a sweep file as flat dicts for tables and plots, sorted by the parameters:
-    the parameters, ``status``, the result's :data:`ROW_KEYS` (NaN for a point without a result)
-    and ``reason``.  ``seed`` (the sweep seed) and keyword settings keep only the matching records
+    the parameters, ``status``, the result's :data:`ROW_KEYS` (NaN for a point without a result),
+    ``reason`` and ``stopped_by`` (``"max_time"`` for a point its time limit stopped; "" if unknown).  ``seed`` (the sweep seed) and keyword settings keep only the matching records
     (e.g. ``n_excursions=500``)."""
     unknown = sorted(set(settings) - set(SETTING_KEYS))
     if unknown:
@@ -330,7 +330,7 @@ def rows(path: str, seed: int | None = None, **settings) -> list[dict]:
             continue
         res = r.get("result") or {}
         out.append({**r["params"], "status": status(r), **{k: res.get(k, math.nan) for k in ROW_KEYS},
-                    "reason": r.get("reason", "")})
+                    "reason": r.get("reason", ""), "stopped_by": stopped_by(r) or ""})
     return sorted(out, key=lambda r: tuple(r[k] for k in PARAM_KEYS))
 
 

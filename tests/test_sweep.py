@@ -309,6 +309,7 @@ def test_max_time_bounds_each_point_and_a_resumed_sweep_with_more_time_reruns_it
     first = _lines(out)
     assert [(r["status"], sweep.stopped_by(r), r["max_time"]) for r in first] == [("ok", "max_time", 1.0)] * 2
     assert all(0 < r["result"]["n_excursions"] < 3000 for r in first)
+    assert [r["stopped_by"] for r in sweep.rows(out)] == ["max_time"] * 2
     # the same or less time: nothing rerun, the file unchanged
     for t in (1.0, 0.5):
         assert sweep.run_sweep(pts, out, max_time=t, n_excursions=3000)["computed"] == 0
