@@ -27,11 +27,11 @@ settings, or delete its line).  Each record's ``status`` is ``"ok"`` (with ``res
 
 ``max_time`` bounds each point's wall time (as in :func:`~dryfric_jax.api.estimate_diffusivity`:
 the rounds stop after it, the final round is cut at twice it).  It is a limit, not a setting: it
-does not enter a point's seed or identity, and a point that finished within it gets the same record
+does not enter a point's seed or identity, and a point that finished within it gets the same result
 as without it.  A point that it stopped (``"ok"`` with ``stopped_by = "max_time"``, or ``"failed"``
 with ``stopped_by = "max_time"``) keeps its record, with the ``max_time`` it had; a resumed sweep
 reruns it when given more time (a larger ``max_time``, or none), and the new record replaces the old
-one only once the point has finished.  Its rounds are those of the first run (same seed), continued.
+one only once the point has finished.  The rerun repeats the first run's rounds (same seed) and goes on.
 """
 from __future__ import annotations
 
