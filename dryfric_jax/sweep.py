@@ -318,8 +318,9 @@ ROW_KEYS = ("D", "D_ci", "M0", "M0_ci", "mean_duration", "n_excursions", "n_trun
 def rows(path: str, seed: int | None = None, **settings) -> list[dict]:
     """The records of a sweep file as flat dicts for tables and plots, sorted by the parameters:
     the parameters, ``status``, the result's :data:`ROW_KEYS` (NaN for a point without a result),
-    ``reason`` and ``stopped_by`` (``"max_time"`` for a point its time limit stopped; "" if unknown).  ``seed`` (the sweep seed) and keyword settings keep only the matching records
-    (e.g. ``n_excursions=500``)."""
+    ``reason`` and ``stopped_by`` (``"max_time"`` for a point its time limit stopped; "" if
+    unknown).  ``seed`` (the sweep seed) and keyword settings keep only the matching records (e.g.
+    ``n_excursions=500``)."""
     unknown = sorted(set(settings) - set(SETTING_KEYS))
     if unknown:
         raise ValueError(f"settings must be among {list(SETTING_KEYS)} (got {unknown})")
