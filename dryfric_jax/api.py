@@ -379,9 +379,9 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
                      f"excursions hit the work bound (max_steps = {plan.max_steps} {unit} per excursion) and are "
                      "excluded: the estimate is biased low")
     if sim.n_excursions < 2:
-        raise NoEstimateError("fewer than 2 complete excursions within the work bounds (raise "
-                              + ("max_time" if stopped == "max_time" else "max_work / max_steps") + "): "
-                              + "; ".join(notes), stopped_by=stopped)
+        cause = {"max_time": "within max_time (raise it)", "interrupted": "before Ctrl-C"}.get(
+            stopped, "within the work bounds (raise max_work / max_steps)")
+        raise NoEstimateError(f"fewer than 2 complete excursions {cause}: " + "; ".join(notes), stopped_by=stopped)
     if sim.n_excursions < MIN_RELIABLE_N:
         notes.append(small_n_note(sim.n_excursions))
     if params.tau_L_nd > WEAK_DAMPING_TAU_L:

@@ -3,7 +3,8 @@
 Exit codes: 0 success; 2 a user mistake (one line on stderr naming the parameter and its valid
 range, no traceback, nothing simulated); 3 a result was printed (and written to ``--out``) but
 excursions hit the work bound, so it is biased (``--allow-truncated`` accepts it: exit 0);
-1 no result possible (fewer than 2 complete excursions within the work bounds); 130 Ctrl-C.
+1 no result possible (fewer than 2 complete excursions within the work bounds or ``--max-time``);
+130 Ctrl-C (what the completed rounds reached is printed; nothing if fewer than 2 excursions closed).
 ``sweep`` runs every point it can: 1 if a point ended without a result, else 3 if a point's
 excursions were truncated (``--allow-truncated``), else 0; its refused and failed points are
 recorded in the results file with their reasons.
@@ -17,7 +18,7 @@ import re
 import sys
 import warnings
 
-from .api import MAX_FIGURE_SEED
+from .api import MAX_FIGURE_SEED, NoEstimateError
 from .outfiles import check_writable, check_writable_dir, dumps, loads, write_atomic
 from .params import FIG3, Params
 from .xla_flags import use_all_cpu_cores
@@ -519,7 +520,10 @@ def main(argv=None) -> int:
     except (_UserError, ValueError) as exc:
         print(f"dryfric: error: {exc}", file=sys.stderr)
         return 2
-    except RuntimeError as exc:  # e.g. every excursion hit the work bound: no estimate to print
+    except NoEstimateError as exc:  # every excursion hit the work bound, or Ctrl-C came first
+        print(f"dryfric: error: {exc}", file=sys.stderr)
+        return 130 if exc.stopped_by == "interrupted" else 1
+    except RuntimeError as exc:  # e.g. a failed write after the run: no estimate to print
         print(f"dryfric: error: {exc}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
