@@ -314,11 +314,12 @@ def test_max_time_bounds_each_point_and_a_resumed_sweep_with_more_time_reruns_it
     for t in (1.0, 0.5):
         assert sweep.run_sweep(pts, out, max_time=t, n_excursions=3000)["computed"] == 0
     assert _lines(out) == first
-    # more time, interrupted: the old records stay
-    with monkeypatch.context() as m:
-        m.setattr(sweep, "estimate_diffusivity", lambda *a, **k: (_ for _ in ()).throw(KeyboardInterrupt))
-        assert sweep.run_sweep(pts, out, n_excursions=3000)["interrupted"]
-    assert _lines(out) == first
+    # more time, interrupted (Ctrl-C between rounds, or before 2 excursions closed): the old records stay
+    for ctrl_c in (KeyboardInterrupt, sweep.NoEstimateError("fewer than 2 ...", stopped_by="interrupted")):
+        with monkeypatch.context() as m:
+            m.setattr(sweep, "estimate_diffusivity", lambda *a, **k: (_ for _ in ()).throw(ctrl_c))
+            assert sweep.run_sweep(pts, out, n_excursions=3000)["interrupted"]
+        assert _lines(out) == first  # the second was recorded as a failed point, never to be rerun
     # no limit, from the CLI: rerun in place, same seeds, now to N
     assert main(["sweep", "--Gamma", "5,2", "--n-excursions", "3000", "--out", out, "--json"]) == 0
     again = _lines(out)
