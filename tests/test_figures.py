@@ -124,6 +124,24 @@ def test_figure_points_of_another_version_are_recomputed(tmp_path, monkeypatch):
     assert other.estimate(p, 3, **kw).D == a.D and (other.reused, other.computed) == (0, 1)
 
 
+def test_a_ctrl_c_before_two_excursions_closed_is_an_interruption(tmp_path, monkeypatch):
+    """A run that Ctrl-C stopped before 2 excursions closed has no result (NoEstimateError with
+    stopped_by "interrupted"): the scene stops as for any Ctrl-C (the CLI says the finished runs are
+    kept), nothing is written; another NoEstimateError is the run's own failure and propagates."""
+    from dryfric_jax import NoEstimateError
+    from dryfric_jax.figures import points
+    from dryfric_jax.params import FIG3, Params
+
+    for stopped, raised in (("interrupted", KeyboardInterrupt), ("work_bound", NoEstimateError)):
+        def run(*a, **kw):
+            raise NoEstimateError("fewer than 2 complete excursions ...", stopped_by=stopped)
+
+        monkeypatch.setitem(points._KINDS, "estimate", (run, points._KINDS["estimate"][1]))
+        with pytest.raises(raised):
+            points.Points(str(tmp_path), "s").estimate(Params(**FIG3), 3, n_excursions=64)
+        assert not (tmp_path / "s.points.jsonl").exists()
+
+
 def test_fig8_bruteforce_and_long_excursions_agree_and_exponent_is_reported(figs):
     """Brute force at t = 10 s is biased by O(tau_c / t) (section 5.3): compared where t >= 100 tau0.
     At quick settings (100 paths) the brute-force CI is ~30% of D: a smoke check of the scene; the
