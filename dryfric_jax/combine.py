@@ -33,12 +33,12 @@ from .plan import DTYPES, MAX_COUNT
 _SAME = ("params", "method", "h", "delta", "L_X", "dtype", "ci_level")
 
 
-def _as_result(r) -> EstimateResult:
+def _as_result(r, label: str) -> EstimateResult:
     if isinstance(r, EstimateResult):
         return r
     if isinstance(r, dict) and r.get("status", "ok") != "ok" and "params" in r:  # a sweep's refused/failed point
-        raise ValueError(f"results must be estimate results: a sweep record of a {r['status']} point has none "
-                         f"({str(r.get('reason', ''))[:200]})")
+        raise ValueError(f"results must be estimate results: {label} is a sweep record of a {r['status']} point, "
+                         f"which has none ({str(r.get('reason', ''))[:200]})")
     if isinstance(r, dict) and isinstance(r.get("result"), dict) and "params" in r:  # a sweep's record
         r = {**r["result"], "params": r["params"], "seed": r.get("seed")}
     if isinstance(r, dict):  # EstimateResult.to_dict() (the JSON of 'dryfric estimate --out')
@@ -46,11 +46,12 @@ def _as_result(r) -> EstimateResult:
         missing = [f.name for f in fields if f.default is dataclasses.MISSING
                    and f.default_factory is dataclasses.MISSING and f.name not in r]
         if missing:
-            raise ValueError(f"results must be estimate results: a dict lacks {missing[:4]} (a brute-force "
+            raise ValueError(f"results must be estimate results: {label} lacks {missing[:4]} (a brute-force "
                              "result or another file?)")
         names = {f.name for f in fields}
         return EstimateResult(**{k: v for k, v in r.items() if k in names})
-    raise ValueError(f"results must be EstimateResult objects or their to_dict() (got {type(r).__name__})")
+    raise ValueError(f"results must be EstimateResult objects or their to_dict() ({label} is of type "
+                     f"{type(r).__name__})")
 
 
 def _real(x) -> bool:
@@ -141,16 +142,18 @@ def combine_estimates(results: Sequence, *, labels: Sequence[str] | None = None)
     """
     if isinstance(results, (str, bytes, dict, EstimateResult)) or not hasattr(results, "__iter__"):
         raise ValueError(f"results must be a list of EstimateResult objects (got {type(results).__name__})")
-    rs = [_as_result(r) for r in results]
-    if not rs:
+    results = list(results)
+    if not results:
         raise ValueError("results must hold at least one EstimateResult (got none)")
     if labels is None:
-        labels = [f"results[{i}]" for i in range(len(rs))]
+        labels = [f"results[{i}]" for i in range(len(results))]
     else:  # zip cut a short list, and an int failed with a TypeError
         ok = not isinstance(labels, (str, bytes)) and hasattr(labels, "__iter__")
         labels = list(labels) if ok else labels
-        if not (ok and len(labels) == len(rs) and all(isinstance(x, str) for x in labels)):
-            raise ValueError(f"labels must be a list of {len(rs)} strings, one per result (got {str(labels)[:60]})")
+        if not (ok and len(labels) == len(results) and all(isinstance(x, str) for x in labels)):
+            raise ValueError(f"labels must be a list of {len(results)} strings, one per result "
+                             f"(got {str(labels)[:60]})")
+    rs = [_as_result(r, label) for r, label in zip(results, labels)]
     for r, label in zip(rs, labels):
         _check_fields(r, label)
     first = rs[0]
@@ -222,7 +225,7 @@ def gather_hosts(result: EstimateResult) -> EstimateResult:
     import jax
     from jax.experimental import multihost_utils
 
-    r = _as_result(result)
+    r = _as_result(result, "result")
     if set(r.sums) != set(STAT_NAMES):
         raise ValueError("result has no excursion sums: rerun it with this version")
     seed = -1 if r.seed is None else r.seed

@@ -84,6 +84,14 @@ def test_a_malformed_result_is_refused_by_name(runs, edit, field):
         combine_estimates([runs[0], d])
 
 
+@pytest.mark.parametrize("other,what", [({"sums": {}}, r"run-b.json lacks \['D'"), ({"D": "x"}, "run-b.json lacks"),
+                                        (5, r"\(run-b.json is of type int\)")])
+def test_a_foreign_result_is_named(runs, other, what):
+    """A file without an estimate's fields was refused without its name ('a dict lacks ...')."""
+    with pytest.raises(ValueError, match=f"^results must .*{what}"):
+        combine_estimates([runs[0].to_dict(), other], labels=["run-a.json", "run-b.json"])
+
+
 @pytest.mark.parametrize("bad", [None, 5, "r.json", {}])
 def test_results_must_be_a_list(bad):
     with pytest.raises(ValueError, match="^results must"):
