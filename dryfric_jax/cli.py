@@ -433,16 +433,15 @@ def _theory(a, params) -> int:
         except ValueError as e:
             out[name], refused[name] = None, str(e)
     out.update(params=params.as_dict(), convention="model (Gamma_w = 2 Gamma)")
-    if refused:
-        if a.json:
+    if refused:  # print the one that is not (nothing when both are: a runaway bias, a user's mistake)
+        kept = [k for k in ("D", "M0") if k not in refused]
+        if kept and a.json:
             print(dumps({**out, "refused": refused}))
-        else:
-            for name, unit in (("D ", "m^2/s"), ("M0", "m/s")):
-                if name.strip() not in refused:
-                    print(f"white-noise {name} = {out[name.strip()]:.6g} {unit}")
-        kept = " and ".join(k for k in ("D", "M0") if k not in refused)
+        elif kept:
+            print(f"white-noise {kept[0]:<2} = {out[kept[0]]:.6g} {'m^2/s' if kept[0] == 'D' else 'm/s'}")
+        why = "; ".join(dict.fromkeys(refused.values()))  # D and M0 refused for one reason: said once
         skipped = "; the DI chain at --h is not computed" if a.h is not None else ""
-        raise _UserError("; ".join(refused.values()) + (f" ({kept} printed above{skipped})" if kept else ""))
+        raise _UserError(why + (f" ({kept[0]} printed above{skipped})" if kept else ""))
     if a.h is not None:
         from .chain_law import white_chain_law
 

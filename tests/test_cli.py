@@ -295,6 +295,10 @@ def test_theory_prints_m0_when_only_d_leaves_float64(capsys):
     cap = capsys.readouterr()
     assert cap.out == f"white-noise M0 = {m0:.6g} m/s\n" and "the DI chain at --h is not computed" in cap.err
     assert "Traceback" not in cap.err
+    # both refused (a runaway bias, a user's mistake): nothing printed, the reason said once
+    assert main(["theory", "--tau-L", "inf", "--gamma-bar", "4", "--json"]) == 2
+    cap = capsys.readouterr()
+    assert cap.out == "" and cap.err.count("gamma_bar must") == 1 and cap.err.count("\n") == 1
 
 
 @pytest.mark.parametrize("stopped,code,cause", [
