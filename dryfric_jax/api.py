@@ -114,7 +114,7 @@ def duration_text(s: float) -> str:
 
 
 def time_left(elapsed: float, work: float, closed: int, in_flight: int, target: int, *, rtol=None,
-              rel=None, max_work=None, max_time=None):
+              rel=None, max_work=None, max_time=None, rate=None):
     """Projected seconds left of a long-excursion run and the limit that ends it first
     (``"n_excursions"``, ``"target"`` (``rtol``), ``"max_work"`` or ``"max_time"``), from the rounds
     so far: ``work`` lane-steps (events) paid in ``elapsed`` seconds, ``closed`` excursions closed
@@ -124,11 +124,14 @@ def time_left(elapsed: float, work: float, closed: int, in_flight: int, target: 
     one: a lower estimate, as the engine's own round sizing, and available before the first
     excursion closes (at a huge Gamma that takes minutes).  With ``rtol`` the excursions
     needed follow from the CI's :math:`N^{-1/2}` scaling, :math:`N (rel/rtol)^2`, once ``rel``
-    (the relative half-width so far) is known.  The final round's tail is not counted.
+    (the relative half-width so far) is known.  The final round's tail is not counted.  ``rate``
+    (lane-steps per second) defaults to ``work / elapsed``; :func:`estimate_diffusivity` passes the
+    rate of the rounds after the first, whose time holds the compilation (on a short run it made
+    the projection ~8x too long).
     """
     if closed + in_flight < 1 or elapsed <= 0 or work <= 0:
         return None, None
-    rate, per_exc = work / elapsed, work_per_excursion(work, closed, in_flight)
+    rate, per_exc = rate or work / elapsed, work_per_excursion(work, closed, in_flight)
     need, to = float(target), "n_excursions"
     if rtol is not None:
         if rel is None or not math.isfinite(rel):
@@ -329,13 +332,23 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
 
     warned = []
 
+    # the engine's rate: rounds after the first (which compiled the engine), less the time spent here
+    # (the estimator compiles at its first snapshot): the projection was ~2-8x too long on short runs
+    first, here = [], [0.0]
+
     def report(st):  # after every round: the projection, an early warning, the progress callback
+        now = time.perf_counter()
+        el, sim = now - t0, now - t0 - here[0]
         e = (snapshot(st) or {}) if progress is not None or rtol else {}
-        el = time.perf_counter() - t0
         closed = st.n_excursions + st.n_truncated
         rel = e["D_ci"] / abs(e["D"]) if e.get("D") else None
-        left, to = time_left(el, st.slot_steps, closed, st.n_in_flight, n_excursions, rtol=rtol, rel=rel,
-                             max_work=max_work, max_time=max_time)
+        if not first:  # no projection yet: the first round's rate is mostly compile time
+            first.append((sim, st.slot_steps))
+            left, to = None, None
+        else:
+            rate = (st.slot_steps - first[0][1]) / (sim - first[0][0]) if sim > first[0][0] else None
+            left, to = time_left(el, st.slot_steps, closed, st.n_in_flight, n_excursions, rtol=rtol, rel=rel,
+                                 max_work=max_work, max_time=max_time, rate=rate)
         if to == "max_work" and not warned:  # say so now, not only after the whole max_work
             warned.append(to)
             per_exc = work_per_excursion(st.slot_steps, closed, st.n_in_flight)
@@ -349,6 +362,7 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
             progress(dict(n_excursions=st.n_excursions, D=e.get("D", math.nan) * params.D0,
                           D_ci=e.get("D_ci", math.nan) * params.D0, target=n_excursions, rtol=rtol,
                           elapsed_s=el, left_s=left, left_to=to))
+        here[0] += time.perf_counter() - now
 
     t0 = time.perf_counter()
     sim, stopped = simulate_long_excursions(model, key, n_excursions, lanes=plan.lanes, block=plan.block,

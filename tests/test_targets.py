@@ -47,6 +47,38 @@ def test_bad_targets(kw, match):
         dj.estimate_diffusivity(P, 0, **kw)
 
 
+def test_the_projection_is_the_engines_rate_after_the_first_round(monkeypatch):
+    """The time left is projected from the engine's rate over the rounds after the first (which
+    compiled it), not counting the time spent between rounds (the estimator compiles at its first
+    snapshot; a progress callback may be slow): both had made a short run's projection ~8x too
+    long.  A fake clock in the API, one second per reading: a callback that takes 100 s more at
+    every round leaves every projection exactly as it was; none is made after the first round."""
+    import types
+
+    from dryfric_jax import api
+
+    def run(delay):
+        clock = [0.0]
+
+        def now():
+            clock[0] += 1.0
+            return clock[0]
+
+        seen = []
+
+        def progress(d):
+            seen.append(d["left_s"])
+            clock[0] += delay
+
+        monkeypatch.setattr(api, "time", types.SimpleNamespace(perf_counter=now))
+        _quiet(n_excursions=20_000, progress=progress, lanes=64)
+        return seen
+
+    fast, slow = run(0.0), run(100.0)
+    assert len(fast) >= 4 and fast[0] is None and all(x is not None and x > 0 for x in fast[1:-1])
+    assert slow == fast
+
+
 def test_time_left_projects_to_the_first_limit():
     """The projection behind the progress line: 10 excursions closed after 10 s and 1e6
     lane-steps (1e5 per excursion at 1e5 lane-steps/s); hand-computed values."""
