@@ -172,8 +172,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="stop after this many seconds (the excursions in flight are then finished, for at most as "
                         "long again; any still running are counted as truncated: exit 3)")
     e.add_argument("--lanes", type=_int_at_least("lanes", 1), default=None,
-                   help="engine lanes (default: a power of two near N/32, 512-4096 on a CPU, up to 2^18 on a GPU; "
-                        "'dryfric bench --lanes ...' measures layouts); the law does not change, the random streams do")
+                   help="engine lanes (default: a power of two near N/32, 512-4096 on a CPU (fewer when N < 512), "
+                        "up to 2^18 on a GPU; 'dryfric bench --lanes ...' measures layouts); the law does not change, "
+                        "the random streams do")
     e.add_argument("--block", type=_int_at_least("block", 1), default=None,
                    help="engine block size K, steps per loop iteration (default 128; 256 for the DI on a GPU)")
     e.add_argument("--max-steps", type=_int_at_least("max-steps", 1), default=None,

@@ -48,7 +48,7 @@ import numpy as np
 from . import __version__
 from .api import DryfricWarning, NoEstimateError, ProjectionWarning, check_progress, check_seed, estimate_diffusivity
 from .limits import MAX_WORK
-from .outfiles import check_writable, read_records, write_records
+from .outfiles import check_writable, dumps, read_records, write_records
 from .params import FIG3, Params, plain_number, real_or_none
 from .plan import check_max_time, check_settings, plan_estimate
 
@@ -157,7 +157,7 @@ def _more_time(record: dict, max_time) -> bool:
 def _at_point(show, pt):
     """``show`` (a ``warnings.showwarning``) with the sweep point appended to the message."""
     def at(message, category, *args, **kw):
-        show(f"{message} [at sweep point {json.dumps(pt)}]", category, *args, **kw)
+        show(f"{message} [at sweep point {dumps(pt)}]", category, *args, **kw)
     return at
 
 
@@ -169,9 +169,9 @@ def _first_clause(reason: str) -> str:
 def _refusal_text(refused: list, total: int) -> str:
     """One line: the first refused point's reason in full, then the others' points and first clauses."""
     (pt, why), rest = refused[0], refused[1:]
-    text = f"{why} [at sweep point {json.dumps(pt)}]"
+    text = f"{why} [at sweep point {dumps(pt)}]"
     if rest:
-        named = "; ".join(f"{json.dumps(p)} ({_first_clause(w)})" for p, w in rest[:MAX_NAMED])
+        named = "; ".join(f"{dumps(p)} ({_first_clause(w)})" for p, w in rest[:MAX_NAMED])
         more = f"; and {len(rest) - MAX_NAMED} more" if len(rest) > MAX_NAMED else ""
         text = f"{len(refused)} of {total} sweep points are refused. {text}. Also refused: {named}{more}"
     return (f"{text}.  Nothing was run; --skip-refused records the refused points and runs the others "
@@ -225,7 +225,7 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
         try:
             p = Params(**pt)
         except ValueError as e:  # invalid parameters: the grid itself is wrong
-            raise ValueError(f"{e} [at sweep point {json.dumps(pt)}]") from None
+            raise ValueError(f"{e} [at sweep point {dumps(pt)}]") from None
         try:
             plan_estimate(p, method=method, h=h, delta=delta, dtype=dtype, n_excursions=n_excursions,
                           max_work=max_work)
