@@ -171,6 +171,13 @@ def combine_estimates(results: Sequence, *, labels: Sequence[str] | None = None)
         dup = sorted({s for s in known if known.count(s) > 1})
         raise ValueError(f"seeds must differ between the runs combined (seed(s) {dup} used more than once): "
                          "the same seed gives the same excursions")
+    seen = {}
+    for i, r in enumerate(rs):  # the same run twice (a key-made run has no seed to compare)
+        j = seen.setdefault(tuple(r.sums[k] for k in STAT_NAMES), i)
+        if j != i:
+            raise ValueError(f"results must be different runs: {labels[j]} and {labels[i]} have the same excursion "
+                             "sums (the same run, or the same seed or key): pooling them would count its excursions "
+                             "twice")
     if len(known) < len(seeds):
         warnings.warn("some results were made from a jax.random key, not a seed: their streams are assumed "
                       "independent", DryfricWarning, stacklevel=2)

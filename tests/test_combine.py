@@ -55,6 +55,15 @@ def test_one_run_combines_to_itself_and_round_trips_through_json(runs):
 def test_refusals_name_what_differs(runs):
     with pytest.raises(ValueError, match="seeds must differ .*41"):
         combine_estimates([runs[0], runs[0]])
+    # a run made from a key has no seed: the same run twice (the same key, or seed 41 and its key) is
+    # seen by its sums (it was pooled, its excursions counted twice)
+    keyed = dataclasses.replace(runs[0], seed=None)
+    for pair in ([keyed, keyed], [runs[0], keyed], [runs[1], keyed, runs[0]]):
+        with pytest.raises(ValueError, match=r"^results must be different runs: results\[\d\] and results\[\d\] "
+                                             "have the same excursion sums"):
+            combine_estimates(pair)
+    with pytest.warns(dj.DryfricWarning, match="assumed independent"):
+        combine_estimates([runs[1], keyed])
     with pytest.raises(ValueError, match="must share h"):
         combine_estimates([runs[0], dataclasses.replace(runs[1], h=2 * runs[1].h)])
     with pytest.raises(ValueError, match="must share params"):
