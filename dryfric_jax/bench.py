@@ -34,7 +34,7 @@ from .api import DryfricWarning, default_h, estimate_diffusivity
 from .cost import default_delta
 from .di import make_di_model
 from . import rng
-from .excursions import BLOCK, UNROLL, block_keys, draw_block, increment_dtype, numbers_at
+from .excursions import BLOCK, MAX_LAYOUT, UNROLL, block_keys, draw_block, increment_dtype, numbers_at
 from .pdmp import make_pdmp_model
 from .plan import check_count, check_layout, plan_estimate
 from .params import FIG3, Params
@@ -274,9 +274,14 @@ def tune_layout(lanes_list, blocks, dtype: str = "float32", n_excursions: int = 
     """
     from . import excursions
 
-    for lanes in lanes_list:
-        for block in blocks:
-            check_layout(lanes, block)
+    lanes_list = [check_layout(lanes, 1)[0] for lanes in lanes_list]
+    blocks = [check_layout(1, block)[1] for block in blocks]
+    # a grid's layouts past lanes * K <= 2^28 are listed as skipped (2^19 lanes at K = 1024 refused a
+    # whole device check); a grid with none within it is refused, naming the first
+    fits = [(la, bl) for la in lanes_list for bl in blocks if la * bl <= MAX_LAYOUT]
+    if not fits:
+        raise ValueError(f"lanes * block must be <= 2^28 for some layout (a block's normals are drawn at once) "
+                         f"(got lanes {lanes_list}, block {blocks})")
     if dtype not in ("float32", "float64"):
         raise ValueError(f"dtype must be 'float32' or 'float64' (got {dtype!r})")
     check_count("repeat", repeat, lo=1)
@@ -293,7 +298,9 @@ def tune_layout(lanes_list, blocks, dtype: str = "float32", n_excursions: int = 
     t0 = time.perf_counter()
     over = lambda: budget_s is not None and time.perf_counter() - t0 > budget_s
     attempted = 0  # layouts compiled or tried: the first always runs, later ones only within budget_s
-    combos = [(int(lanes), int(block), ev) for lanes in lanes_list for block in blocks for ev in events]
+    combos = [(lanes, block, ev) for lanes, block in fits for ev in events]
+    out["skipped"] += [dict(lanes=la, block=bl, unroll=u, events=ev, reason="lanes * K > 2^28")
+                       for la in lanes_list for bl in blocks if la * bl > MAX_LAYOUT for u in unrolls for ev in events]
     # each (lanes, K) its own seed: the first lanes of 32 and 64 lanes from one seed share their keys
     # (split(key, 32) is split(key, 64)[:32]), which made their D agree for free; the unrolls and the
     # event layouts of one (lanes, K) keep its seed (they differ by rounding only)
@@ -423,7 +430,8 @@ def format_layouts(b: dict) -> str:
                      f"{r['lane_steps_per_s']:>13.4g} {r['utilization']:>6.3f} {r['wall_s']:>8.2f}  "
                      f"{r['D']:.5g} ± {r['D_ci']:.2g}{spread}")
     for r in b.get("skipped", []):
-        lines.append(f"{r['lanes']:>8} {r['block']:>5} {r['unroll']:>6} {ev(r):>7}  skipped (budget_s)")
+        lines.append(f"{r['lanes']:>8} {r['block']:>5} {r['unroll']:>6} {ev(r):>7}  skipped "
+                     f"({r.get('reason', 'budget_s')})")
     for r in b.get("failed", []):
         lines.append(f"{r['lanes']:>8} {r['block']:>5} {r['unroll']:>6} {ev(r):>7}  failed: {r['error'][:200]}")
     lines.append(f"best: lanes = {b['best_lanes']}, K = {b['best_block']}, {b['best_lane_steps_per_s']:.4g} "

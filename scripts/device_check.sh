@@ -12,7 +12,7 @@ if [ "${SMALL:-0}" = 1 ]; then
   FIGS="5"; FIGQ=--quick; EVENTS=${EVENTS:-wait,fused}
   TESTS=tests/test_di_exact.py::test_float32_at_paper_values
 else  # the H100 of 2026-11-27: the fused layout best at 2^18 lanes, K = 1024 (README "On an H100");
-  # next: more lanes and K between (2^19 x 1024 is past the layout bound 2^28 and is refused), and what
+  # next: more lanes and K between (2^19 x 1024 is past the layout bound 2^28: listed as skipped), and what
   # that lease did not reach: the paired float32 tests and Figs. 6 and 4
   LANES=262144,524288; BLOCKS=512,1024; BIG=262144; N=200000; BOUND=1073741824; BENCH=100000
   T=(150 130 110 50 0 100); NDT=4000000; FIGS="6 4 table1 7"; FIGQ=""

@@ -405,6 +405,21 @@ def test_layout_sweep_lists_a_layout_that_fails_and_goes_on(monkeypatch):
         bench.tune_layout([64], [64], "float64", n_excursions=200, numba_excursions=0, bound_n=1 << 16)
 
 
+def test_layout_sweep_skips_the_layouts_past_the_bound(monkeypatch):
+    """A grid whose lanes * K pass the layout bound (2^28; 2^10 here) in some cells lists those as
+    skipped and measures the others (2^19 lanes at K = 1024 refused a whole device check); a grid
+    with no cell within it is refused, naming the layout."""
+    from dryfric_jax import bench
+
+    monkeypatch.setattr(bench, "MAX_LAYOUT", 1 << 10)
+    b = bench.tune_layout([16, 64], [8, 32], "float64", n_excursions=200, numba_excursions=0, bound_n=1 << 14)
+    assert sorted((r["lanes"], r["block"]) for r in b["layouts"]) == [(16, 8), (16, 32), (64, 8)]
+    assert [(r["lanes"], r["block"], r["reason"]) for r in b["skipped"]] == [(64, 32, "lanes * K > 2^28")]
+    assert "skipped (lanes * K > 2^28)" in bench.format_layouts(b)
+    with pytest.raises(ValueError, match=r"^lanes \* block must be <= 2\^28 for some layout .*\[64\], block \[32\]"):
+        bench.tune_layout([64], [32], "float64", n_excursions=200, numba_excursions=0, bound_n=1 << 14)
+
+
 def test_pdmp_and_auto_json(capsys):
     assert main(["estimate", "--method", "pdmp", "--delta", "0.2", "--n-excursions", "200", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
