@@ -68,7 +68,7 @@ def main(argv=None) -> int:
                         unrolls=ints(a.unroll), events=a.events.split(",") if a.events else None, budget_s=left,
                         bound_n=int(a.bound_n), on_layout=lambda row: emit(kind="layout", dtype=dt, **row))
         for row in b["skipped"]:
-            emit(kind="skipped", dtype=dt, reason="budget", **row)
+            emit(kind="skipped", dtype=dt, **{"reason": "budget", **row})  # or past the layout bound
         for row in b["failed"]:
             emit(kind="failed", dtype=dt, **row)
         emit(kind="tune", **{k: v for k, v in b.items() if k not in ("layouts", "skipped", "failed", "params")})
