@@ -10,13 +10,13 @@ half-width.
 (sizes are approximate: a replicate holds about N excursions, the budget being set from a pilot)
 """
 import argparse
-import json
 import math
 
 import dryfric_jax as dj
 from dryfric_jax.di import make_di_model
 from dryfric_jax.estimators import replicate_coverage
 from dryfric_jax.excursions import STAT_NAMES, simulate_replicates
+from dryfric_jax.outfiles import dumps
 
 
 def main():
@@ -31,9 +31,19 @@ def main():
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args()
-    p = dj.Params.from_nondim(a.tau, a.tau_L, a.gamma_bar)
     smallest = min(a.sizes)
-    sim = simulate_replicates(make_di_model(p, a.h), dj.api._key(a.seed)[0], a.total // smallest, smallest,
+    # bad input: one line and exit 2 (a ZeroDivisionError or a ValueError traceback before)
+    if smallest < 1 or any(n % smallest for n in a.sizes):
+        ap.error(f"--sizes must be positive multiples of the smallest (got {a.sizes})")
+    if a.total < smallest or a.lanes_per_replicate < 1:
+        ap.error(f"--total must be >= the smallest size and --lanes-per-replicate >= 1 (got {a.total}, "
+                 f"{a.lanes_per_replicate})")
+    try:
+        p = dj.Params.from_nondim(a.tau, a.tau_L, a.gamma_bar)
+        model = make_di_model(p, a.h)
+    except ValueError as e:
+        ap.error(str(e))
+    sim = simulate_replicates(model, dj.api._key(a.seed)[0], a.total // smallest, smallest,
                               lanes_per_replicate=a.lanes_per_replicate)
     D, M = dj.theory.exact_D(p), dj.theory.exact_M0(p)
     rows = []
@@ -46,7 +56,7 @@ def main():
             print(f"N={n:6d}  replicates={reps:5d}  coverage(D)={cD:.3f} ± {se:.3f}  coverage(M0)={cM:.3f}  "
                   f"half-width={100 * w:.1f}%", flush=True)
     if a.json:
-        print(json.dumps(dict(params=vars(a), rows=rows)))
+        print(dumps(dict(params=vars(a), rows=rows)))  # strict JSON: tau_L = inf as "inf"
 
 
 if __name__ == "__main__":

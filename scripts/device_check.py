@@ -30,14 +30,21 @@ def emit(**kw):
 
 
 def ints(text):
-    return [int(x) for x in text.split(",")] if text else None
+    """A comma-separated list of positive integers (None for ""); one line and exit 2 otherwise."""
+    try:
+        out = [int(x) for x in text.split(",")] if text else None
+    except ValueError:
+        out = [0]
+    if out is not None and min(out) < 1:
+        raise argparse.ArgumentTypeError(f"must be comma-separated positive integers (got {text!r})")
+    return out
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--lanes", default="65536,262144")
-    ap.add_argument("--block", default="256")
-    ap.add_argument("--unroll", default="", help="steps per iteration of the wait layout's loop "
+    ap.add_argument("--lanes", type=ints, default="65536,262144")
+    ap.add_argument("--block", type=ints, default="256")
+    ap.add_argument("--unroll", type=ints, default="", help="steps per iteration of the wait layout's loop "
                     "(excursions.QUIET_UNROLL; default: the engine's)")
     ap.add_argument("--events", default="", help="event layouts to sweep, e.g. wait,fused (default: the "
                     "device's; 'fused' is the DI's quiet loop as one Pallas kernel, dryfric_jax.fused)")
@@ -48,6 +55,10 @@ def main(argv=None) -> int:
     ap.add_argument("--bound-n", type=float, default=2**30, help="lane-steps per RNG-bound timing")
     ap.add_argument("--budget-s", type=float, default=240)
     a = ap.parse_args(argv)
+    bad = [d for d in a.dtypes.split(",") if d not in ("float32", "float64")]
+    bad += [e for e in (a.events.split(",") if a.events else []) if e not in ("wait", "fused", "branch")]
+    if bad:
+        ap.error(f"--dtypes must be among float32,float64 and --events among wait,fused,branch (got {bad})")
     t0 = time.perf_counter()
 
     import jax
@@ -64,8 +75,8 @@ def main(argv=None) -> int:
         if left <= 0:
             emit(kind="skipped", dtype=dt, reason="budget")
             continue
-        b = tune_layout(ints(a.lanes), ints(a.block), dt, n_excursions=int(a.n), numba_excursions=0,
-                        unrolls=ints(a.unroll), events=a.events.split(",") if a.events else None, budget_s=left,
+        b = tune_layout(a.lanes, a.block, dt, n_excursions=int(a.n), numba_excursions=0,
+                        unrolls=a.unroll, events=a.events.split(",") if a.events else None, budget_s=left,
                         bound_n=int(a.bound_n), on_layout=lambda row: emit(kind="layout", dtype=dt, **row))
         for row in b["skipped"]:
             emit(kind="skipped", dtype=dt, **{"reason": "budget", **row})  # or past the layout bound
