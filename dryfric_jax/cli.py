@@ -194,7 +194,7 @@ def build_parser() -> argparse.ArgumentParser:
     fg.add_argument("--fig", default="all", help="all, 1 (Figs. 1-2), 3, 4, 5, 6, 7, 8, 9 or table1")
     fg.add_argument("--quick", action="store_true", help="small settings: all figures in minutes on a CPU")
     fg.add_argument("--out", required=True, help="output directory (created if its parent exists); Figs. 3, 8 "
-                    "and 9 keep each finished run there (<fig>.points.jsonl), so rerunning an interrupted "
+                    "and 9 keep each finished run there (fig3.points.jsonl, ...), so rerunning an interrupted "
                     "command resumes")
     fg.add_argument("--seed", type=_seed, default=0)
     sw = sub.add_parser("sweep", help="D and M0 with CIs over a grid of parameters, resumable (JSON Lines file)")
@@ -374,6 +374,9 @@ def _run(a) -> int:
             print(f"dryfric: interrupted; the finished runs of Figs. 3, 8 and 9 are kept in {a.out}/*.points.jsonl: "
                   "the same command resumes from them", file=sys.stderr)
             return 130
+        except OSError as e:  # the directory was checked writable; a file may still fail (a full disk)
+            raise RuntimeError(f"could not write a figure into --out {a.out!r} ({e}); the finished runs of Figs. 3, "
+                               "8 and 9 are kept in *.points.jsonl there: the same command resumes") from None
         print(f"figures written to {a.out}")
         return 0
     if a.cmd == "combine":

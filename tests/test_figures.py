@@ -24,7 +24,9 @@ def figs(tmp_path_factory):
 
 
 def _stem(name):
-    return {"table1": "table1", "1": "fig1_2"}.get(name, f"fig{name}")
+    stem = {"table1": "table1", "1": "fig1_2"}.get(name, f"fig{name}")
+    assert SCENES[name].__name__ == stem  # the figures notebook names the files by the scene's function
+    return stem
 
 
 def test_table1_first_moment_matches_the_model_not_the_printed_row(figs):
@@ -140,6 +142,16 @@ def test_a_ctrl_c_before_two_excursions_closed_is_an_interruption(tmp_path, monk
         with pytest.raises(raised):
             points.Points(str(tmp_path), "s").estimate(Params(**FIG3), 3, n_excursions=64)
         assert not (tmp_path / "s.points.jsonl").exists()
+
+
+def test_a_figure_that_cannot_be_written_is_one_line_exit_1(tmp_path, capsys):
+    """A figure file that fails after the run (here a directory in its place) was an
+    IsADirectoryError traceback; the JSON is now written atomically and nothing torn is left."""
+    (tmp_path / "fig1_2.json").mkdir()
+    assert main(["figures", "--fig", "1", "--quick", "--out", str(tmp_path)]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("dryfric: error: could not write a figure into --out") and err.count("\n") == 1, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fig1_2.json", "fig1_2.pdf", "fig1_2.png"]
 
 
 def test_fig8_bruteforce_and_long_excursions_agree_and_exponent_is_reported(figs):

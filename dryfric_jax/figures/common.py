@@ -9,7 +9,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-from ..outfiles import dumps  # noqa: E402
+from ..outfiles import dumps, write_atomic  # noqa: E402
 
 
 def exact_steps(t: float, h: float) -> int:
@@ -29,6 +29,5 @@ def save(fig, out_dir: str, name: str, numbers: dict, t0: float) -> dict:
     fig.savefig(os.path.join(out_dir, f"{name}.png"), dpi=120)
     fig.savefig(os.path.join(out_dir, f"{name}.pdf"))
     plt.close(fig)
-    with open(os.path.join(out_dir, f"{name}.json"), "w") as f:
-        f.write(dumps(numbers, indent=1))
+    write_atomic(os.path.join(out_dir, f"{name}.json"), dumps(numbers, indent=1))  # never a torn file
     return numbers
