@@ -374,6 +374,10 @@ def _run(a) -> int:
             print(f"dryfric: interrupted; the finished runs of Figs. 3, 8 and 9 are kept in {a.out}/*.points.jsonl: "
                   "the same command resumes from them", file=sys.stderr)
             return 130
+        except ValueError as e:  # a points file that is not one: the option's name, as for --out's other errors
+            if str(e).startswith("out must"):
+                raise _UserError("--" + str(e)) from None
+            raise
         except OSError as e:  # the directory was checked writable; a file may still fail (a full disk)
             raise RuntimeError(f"could not write a figure into --out {a.out!r} ({e}); the finished runs of Figs. 3, "
                                "8 and 9 are kept in *.points.jsonl there: the same command resumes") from None

@@ -1,8 +1,9 @@
 """Lower the engine's round for a CUDA GPU without one: checks that the ``"fused"`` layout's
 Pallas kernel (``dryfric_jax.fused``) builds into Triton IR, in both dtypes.
 
-Needs jax's CUDA plugin of the same version (no GPU, no driver), best in a separate
-environment, since the plugin makes every jax import look for a GPU:
+jax 0.10 lowers for CUDA without its CUDA plugin (2026-11-27, jax 0.10.2 on a CPU-only machine: one
+Triton kernel per dtype).  An older jax needs the plugin of the same version (no GPU, no driver),
+best in a separate environment, since the plugin makes every jax import look for a GPU:
 
     python -m venv /tmp/cv && /tmp/cv/bin/pip install "jax==X" "jaxlib==X" "jax-cuda12-plugin==X" \\
         "jax-cuda12-pjrt==X" equinox absl-py   # X: the installed jax's version

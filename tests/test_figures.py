@@ -108,6 +108,7 @@ def test_figure_points_file_that_is_not_one_is_refused_not_overwritten(tmp_path,
     (tmp_path / "fig3.points.jsonl").write_text("not a record\n")
     assert main(["figures", "--fig", "3", "--quick", "--out", str(tmp_path)]) == 2
     err = capsys.readouterr().err
+    assert err.startswith("dryfric: error: --out must be a directory of dryfric figure outputs")
     assert "fig3.points.jsonl" in err and "Traceback" not in err
     assert (tmp_path / "fig3.points.jsonl").read_text() == "not a record\n"
 
