@@ -235,15 +235,23 @@ def gather_hosts(result: EstimateResult) -> EstimateResult:
     r = _as_result(result, "result")
     if set(r.sums) != set(STAT_NAMES):
         raise ValueError("result has no excursion sums: rerun it with this version")
-    seed = -1 if r.seed is None else r.seed
-    row = np.array([r.sums[k] for k in STAT_NAMES]
-                   + [r.n_truncated, r.wall_s, r.lane_steps_per_s, r.lane_utilization, r.work, r.predicted_work, seed],
-                   np.float64)
-    rows = np.asarray(multihost_utils.process_allgather(row)).reshape(jax.process_count(), row.size)
+    def gather(x):
+        return np.asarray(multihost_utils.process_allgather(x)).reshape(jax.process_count(), -1)
+
+    # the counts and seeds as int64 (through float64 a seed above 2^53 was rounded: 2^62 - 1 came back
+    # as 2^62), and the seeds of a pooled result padded to the longest list (they came back as [None])
+    seeds = [-1 if s is None else s for s in (r.combined_from or [r.seed])]
+    width = int(gather(np.array([len(seeds)], np.int64)).max())
+    ints = gather(np.array([r.n_truncated, r.work, len(seeds)] + seeds + [-2] * (width - len(seeds)), np.int64))
+    reals = gather(np.array([r.sums[k] for k in STAT_NAMES]
+                            + [r.wall_s, r.lane_steps_per_s, r.lane_utilization, r.predicted_work], np.float64))
     k = len(STAT_NAMES)
-    per_host = [dataclasses.replace(
-        r, sums=dict(zip(STAT_NAMES, map(float, x[:k]))), n_truncated=int(x[k]), wall_s=float(x[k + 1]),
-        lane_steps_per_s=float(x[k + 2]), lane_utilization=float(x[k + 3]), work=int(x[k + 4]),
-        predicted_work=float(x[k + 5]), seed=None if x[k + 6] < 0 else int(x[k + 6]), combined_from=[])
-        for x in rows]
+    per_host = []
+    for x, i in zip(reals, ints):
+        got = [None if s < 0 else int(s) for s in i[3:3 + int(i[2])]]
+        per_host.append(dataclasses.replace(
+            r, sums=dict(zip(STAT_NAMES, map(float, x[:k]))), n_truncated=int(i[0]), work=int(i[1]),
+            wall_s=float(x[k]), lane_steps_per_s=float(x[k + 1]), lane_utilization=float(x[k + 2]),
+            predicted_work=float(x[k + 3]), seed=got[0] if len(got) == 1 else None,
+            combined_from=got if len(got) > 1 else []))
     return combine_estimates(per_host)

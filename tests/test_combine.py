@@ -8,6 +8,7 @@ import socket
 import subprocess
 import sys
 import textwrap
+import warnings
 
 import pytest
 
@@ -110,6 +111,15 @@ def test_results_must_be_a_list(bad):
 def test_gather_hosts_in_one_process_is_the_run_itself(runs):
     g = gather_hosts(runs[0])
     assert (g.D, g.D_ci, g.n_excursions, g.combined_from) == (runs[0].D, runs[0].D_ci, runs[0].n_excursions, [41])
+    # seeds past 2^53 and a pooled result's seeds come through exactly (2^62 - 1 came back as 2^62, a
+    # pooled result's seeds as [None] with a key warning), and so do the integer counts
+    big = dataclasses.replace(runs[0], seed=2**62 - 1, work=2**53 + 1)
+    assert gather_hosts(big).combined_from == [2**62 - 1] and gather_hosts(big).work == 2**53 + 1
+    pooled = combine_estimates(runs)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", dj.DryfricWarning)
+        g = gather_hosts(pooled)
+    assert g.combined_from == pooled.combined_from and (g.D, g.D_ci) == (pooled.D, pooled.D_ci)
 
 
 _HOST = textwrap.dedent("""
