@@ -29,7 +29,7 @@ import math
 import equinox as eqx
 import jax.numpy as jnp
 
-from .params import check_positive
+from .params import check_positive, shown
 
 _N_SERIES = 30
 # coefficients c_j of ghat(r) = sum_j c_j r^j, j = k - 2, k = 3 .. 3 + _N_SERIES - 1
@@ -65,9 +65,11 @@ def ou_moments(h, tau):
     Returns:
         ``(m1, m2, S11, S12, S22)`` with :math:`m = (m_1, m_2)` and
         :math:`\Sigma = [[S_{11}, S_{12}], [S_{12}, S_{22}]]` (paper section 6.2), computed in the
-        dtype of the inputs.
+        dtype of the inputs (float64 for Python numbers and integers).
     """
-    h = jnp.asarray(h)
+    check_positive("h", h)  # concrete values only, as in ou_step (0 or -1 gave NaN or a negative variance)
+    check_positive("tau", tau)
+    h = jnp.asarray(h, jnp.result_type(h, float))  # an integer h made tau an integer: tau = 0.5 became 0
     tau = jnp.asarray(tau, dtype=h.dtype)
     r = h / tau
     em1 = jnp.expm1(-r)  # e^{-r} - 1, accurate for small r
@@ -102,6 +104,13 @@ class OUStep(eqx.Module):
         return OUStep(*(jnp.asarray(c, dtype) for c in (self.m1, self.m2, self.L11, self.L21, self.L22)))
 
 
+def _dtype_name(dtype):
+    try:
+        return jnp.dtype(dtype).name
+    except TypeError:
+        return None
+
+
 def ou_step(h, tau, dtype=None) -> OUStep:
     r"""Build :class:`OUStep` for step ``h`` and correlation time ``tau``.
 
@@ -112,6 +121,8 @@ def ou_step(h, tau, dtype=None) -> OUStep:
     check_positive("tau", tau)
     if dtype is None:
         dtype = jnp.result_type(float)
+    elif _dtype_name(dtype) not in ("float32", "float64"):  # "foo" was a TypeError, float16 accepted
+        raise ValueError(f"dtype must be float32 or float64 (got {shown(dtype)})")
     h = jnp.asarray(h, jnp.result_type(h, float))
     tau = jnp.asarray(tau, h.dtype)
     r = h / tau

@@ -125,3 +125,21 @@ def test_a_step_that_is_not_positive_is_refused(h, tau, name):
     """Before: a factor of NaNs (h = 0: 0/0 in m1 and the Cholesky terms)."""
     with pytest.raises(ValueError, match=f"^{name} must be finite and > 0"):
         ou_step(h, tau)
+
+
+def test_ou_moments_and_step_refuse_bad_input_by_name():
+    """ou_moments had no checks (h = 0: NaN; h = -1: a negative variance) and an integer h made tau
+    an integer (tau = 0.5 became 0: S11 = nan); ou_step took dtype float16 and failed on 'foo' with
+    a TypeError."""
+    import numpy as np
+
+    from dryfric_jax.ou import ou_moments, ou_step
+
+    assert np.allclose(ou_moments(1, 0.5), ou_moments(1.0, 0.5), rtol=0, atol=0)
+    for h, tau, name in ((0.0, 1.0, "h"), (-1.0, 1.0, "h"), (1.0, 0.0, "tau"), (1.0, float("nan"), "tau")):
+        with pytest.raises(ValueError, match=f"^{name} must be finite and > 0"):
+            ou_moments(h, tau)
+    for dtype in ("foo", "float16", 5):
+        with pytest.raises(ValueError, match="^dtype must be float32 or float64"):
+            ou_step(0.1, 1.0, dtype=dtype)
+    assert ou_step(0.1, 1.0, dtype=np.float32).m1.dtype == np.float32
