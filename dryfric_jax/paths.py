@@ -24,9 +24,9 @@ from . import rng
 from .api import _key
 from .di import DIModel
 from .excursions import BLOCK, block_keys
-from .params import check_finite, shown
+from .params import check_finite, check_positive, shown
 from .plan import check_count
-from .pdmp import flow
+from .pdmp import PDMPModel, flow
 from .sharding import over_lanes
 
 
@@ -321,8 +321,21 @@ def pdmp_stationary(model, key, n_paths: int, n_records: int, dt_rec: float, bur
 
     Paths start at s_+; every event is bounded by ``max_events`` per path (default 10x the
     expected jump count); a path stopped by it raises ``RuntimeError`` rather than returning
-    a short record.
+    a short record.  ``key`` is a seed or a ``jax.random`` key, as elsewhere.
     """
+    # checked as the DI's path functions check theirs (an int seed was a TypeError, a DIModel an
+    # AttributeError, dt_rec < 0 repeated values, n_paths = 0 an empty array)
+    if not isinstance(model, PDMPModel):
+        raise ValueError(f"model must be a PDMPModel, from dryfric_jax.make_pdmp_model(params, delta) "
+                         f"(got {type(model).__name__})")
+    key = _key(key)[0]
+    n_paths, n_records = check_count("n_paths", n_paths, 1), check_count("n_records", n_records, 1)
+    check_positive("dt_rec", dt_rec)
+    check_finite("burn", burn)
+    if not burn >= 0:
+        raise ValueError(f"burn must be >= 0 (got {shown(burn)})")
+    if max_events is not None:
+        max_events = check_count("max_events", max_events, 1)
     t_end = burn + n_records * dt_rec
     if max_events is None:
         max_events = int(10 * float(model.rate) * t_end) + 10_000

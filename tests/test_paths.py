@@ -51,6 +51,26 @@ def test_pdmp_recorder_reports_its_event_bound():
         pdmp_stationary(make_pdmp_model(p, 0.125), jax.random.key(0), 4, 100, 0.05, 10.0, max_events=50)
 
 
+@pytest.mark.parametrize("kw,match", [
+    (dict(model="di"), "^model must be a PDMPModel"), (dict(n_paths=0), "^n_paths must be"),
+    (dict(dt_rec=-0.1), "^dt_rec must be finite and > 0"), (dict(burn=float("nan")), "^burn must be a finite"),
+    (dict(burn=-1.0), "^burn must be >= 0"), (dict(max_events=0), "^max_events must be")])
+def test_pdmp_recorder_refuses_bad_input_by_name(kw, match):
+    """It checked nothing (a DIModel: AttributeError; burn = nan: an unnamed conversion error;
+    dt_rec < 0: repeated values; n_paths = 0: an empty array); an int seed is taken as elsewhere."""
+    from dryfric_jax.di import make_di_model
+
+    p = Params(**FIG3)
+    args = dict(model=make_pdmp_model(p, 0.125), key=3, n_paths=2, n_records=5, dt_rec=0.05, burn=0.5)
+    args.update(kw)
+    if args["model"] == "di":
+        args["model"] = make_di_model(p, 1e-3)
+    with pytest.raises(ValueError, match=match):
+        pdmp_stationary(**args)
+    good = dict(model=make_pdmp_model(p, 0.125), n_paths=2, n_records=5, dt_rec=0.05, burn=0.5)
+    np.testing.assert_array_equal(pdmp_stationary(key=3, **good), pdmp_stationary(key=jax.random.key(3), **good))
+
+
 # --- the DI path recorders against the per-path definition of their random numbers ---
 
 def _di_reference(model, carry, key, n_steps):
