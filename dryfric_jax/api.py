@@ -440,6 +440,9 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
     chunk_lanes = check_count("chunk_lanes", chunk_lanes, 1)
     if max_events is not None:
         max_events = check_count("max_events", max_events, 1, hi=MAX_COUNT)  # int64 counters
+        if method == "di":  # it was taken and ignored
+            raise ValueError("max_events must not be given with method 'di': it bounds the PDMP's events per "
+                             "path (the DI runs exactly t/h steps)")
     plan = choose(params, method, h, delta, dtype)
     notes, method, h, grid, dname = plan.notes, plan.method, plan.h, plan.grid, plan.dtype
     check_positive("t", t)

@@ -57,7 +57,8 @@ def test_settings_are_refused_by_name(kw, name):
         dj.estimate_diffusivity(P, 0, n_excursions=50, **kw)
 
 
-@pytest.mark.parametrize("kw", [dict(burn_in=True), dict(burn_in=np.float32(-1.0)), dict(t=True)])
+@pytest.mark.parametrize("kw", [dict(burn_in=True), dict(burn_in=np.float32(-1.0)), dict(t=True),
+                                dict(max_events=5)])  # max_events with the DI was taken and ignored
 def test_bruteforce_settings_are_refused_by_name(kw):
     name = next(iter(kw))
     with pytest.raises(ValueError, match=f"^{name} must"):
