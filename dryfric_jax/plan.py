@@ -44,10 +44,12 @@ H_MAX_REL = 0.1
 
 def default_h(params: Params) -> float:
     """The default DI step ``H_REL * min(tau0, tau_L)`` in seconds."""
+    check_params(params)  # a dict (FIG3) was an AttributeError
     return H_REL * min(params.tau0, params.tau_L)
 
 
 def h_max(params: Params) -> float:
+    check_params(params)
     return H_MAX_REL * min(params.tau0, params.tau_L)
 
 

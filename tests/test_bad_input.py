@@ -20,7 +20,7 @@ P = dj.Params(**dj.FIG3)
     lambda p: dj.bruteforce_diffusivity(p, 0, t=1.0, n_paths=4),
     lambda p: dj.plan_estimate(p),
     theory.exact_D, theory.exact_M0, theory.exact_mean_square_velocity,
-    lambda p: white_chain_law(p, 1e-3),
+    lambda p: white_chain_law(p, 1e-3), dj.default_h, dj.plan.h_max,  # default_h(FIG3) was an AttributeError
 ])
 def test_params_that_are_not_Params_are_refused_by_name(call, bad):
     with pytest.raises(ValueError, match="^params must be a dryfric_jax.Params"):
