@@ -210,6 +210,7 @@ def _result(first: EstimateResult, rs, total: dict, seeds) -> EstimateResult:
         events_per_s=None if first.events_per_s is None else rate,
         lane_utilization=useful / slots if slots else first.lane_utilization,
         work=sum(r.work for r in rs), predicted_work=sum(r.predicted_work for r in rs),
+        max_work=sum(r.max_work for r in rs),  # the pool's bound, as its work (it was the first run's)
         stopped_by="combined", rtol=None, warnings=notes, sums=total, combined_from=list(seeds),
         lanes=_common(rs, "lanes"), block=_common(rs, "block"))
 

@@ -98,6 +98,8 @@ def delta_method(psi, mean, cov, n: int, level: float = 0.95):
     Returns:
         ``(estimate, half_width, sigma)`` with :math:`\hat\sigma_N^2 = \nabla\Psi^T \hat C_N \nabla\Psi`.
     """
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer, float, np.floating)) or not n >= 1:
+        raise ValueError(f"n must be a sample size >= 1 (got {n!r}): n = 0 gave an infinite CI, n < 0 NaN")
     mean = jnp.asarray(mean, jnp.float64)
     g = jax.grad(psi)(mean)
     var = jnp.maximum(g @ jnp.asarray(cov, jnp.float64) @ g, 0.0)

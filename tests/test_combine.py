@@ -120,6 +120,8 @@ def test_gather_hosts_in_one_process_is_the_run_itself(runs):
         warnings.simplefilter("error", dj.DryfricWarning)
         g = gather_hosts(pooled)
     assert g.combined_from == pooled.combined_from and (g.D, g.D_ci) == (pooled.D, pooled.D_ci)
+    # the pool's work bound is the sum of the runs' bounds, as its work is (it was the first run's)
+    assert pooled.max_work == sum(r.max_work for r in runs) and pooled.work == sum(r.work for r in runs)
 
 
 _HOST = textwrap.dedent("""

@@ -139,3 +139,12 @@ def test_bruteforce_estimate_does_not_depend_on_a_shift_of_U():
     # adding 1e6 rounds each U by <= 6e-11, 6e-8 of its sd
     assert b["D_t"] == pytest.approx(a["D_t"], rel=1e-6) and b["D_t_ci"] == pytest.approx(a["D_t_ci"], rel=1e-6)
     assert bruteforce_estimates(np.full(8, 1e-27), 1e-12)["D_t"] == 0.0  # never below 0
+
+
+@pytest.mark.parametrize("n", [0, -3, float("nan"), True])
+def test_delta_method_refuses_a_sample_size_below_one(n):
+    """n = 0 gave an infinite half-width, n < 0 a NaN one."""
+    from dryfric_jax.estimators import delta_method
+
+    with pytest.raises(ValueError, match="^n must be a sample size >= 1"):
+        delta_method(lambda m: m[0], [1.0], [[1.0]], n)
