@@ -36,10 +36,15 @@ def _concrete(name: str, x):
     a = None if isinstance(x, (bool, np.bool_, str, bytes)) else np.asarray(x)
     if a is None or a.shape != () or a.dtype.kind not in "iuf":
         if a is not None and a.shape != ():
-            raise ValueError(f"{name} must be a real number (got an array of shape {a.shape}): make one Params "
-                             "per grid point (or run 'dryfric sweep')")
+            fix = ("make one Params per grid point (or run 'dryfric sweep')" if name in _FIELDS
+                   else "call once per value")  # t of first_moment: not a Params field
+            raise ValueError(f"{name} must be a real number (got an array of shape {a.shape}): {fix}")
         raise ValueError(f"{name} must be a real number (got {shown(x)})")
     return float(a)
+
+
+#: the model parameters (an array of one of them is a grid: one Params per point)
+_FIELDS = ("Gamma", "Delta", "tau", "tau_L", "gamma_bar")
 
 
 def real_or_none(x) -> float | None:
