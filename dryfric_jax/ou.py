@@ -29,7 +29,8 @@ import math
 import equinox as eqx
 import jax.numpy as jnp
 
-from .params import check_positive, shown
+from .params import check_positive
+from .plan import dtype_name
 
 _N_SERIES = 30
 # coefficients c_j of ghat(r) = sum_j c_j r^j, j = k - 2, k = 3 .. 3 + _N_SERIES - 1
@@ -104,13 +105,6 @@ class OUStep(eqx.Module):
         return OUStep(*(jnp.asarray(c, dtype) for c in (self.m1, self.m2, self.L11, self.L21, self.L22)))
 
 
-def _dtype_name(dtype):
-    try:
-        return jnp.dtype(dtype).name
-    except TypeError:
-        return None
-
-
 def ou_step(h, tau, dtype=None) -> OUStep:
     r"""Build :class:`OUStep` for step ``h`` and correlation time ``tau``.
 
@@ -119,10 +113,7 @@ def ou_step(h, tau, dtype=None) -> OUStep:
     """
     check_positive("h", h)  # concrete values only; a tracer is checked where it was made
     check_positive("tau", tau)
-    if dtype is None:
-        dtype = jnp.result_type(float)
-    elif _dtype_name(dtype) not in ("float32", "float64"):  # "foo" was a TypeError, float16 accepted
-        raise ValueError(f"dtype must be float32 or float64 (got {shown(dtype)})")
+    dtype = jnp.result_type(float) if dtype is None else dtype_name(dtype)  # float16 was accepted, "foo" a TypeError
     h = jnp.asarray(h, jnp.result_type(h, float))
     tau = jnp.asarray(tau, h.dtype)
     r = h / tau
