@@ -307,7 +307,9 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
             limit ``left_to`` that ends the run first (:func:`time_left`).
 
     A Ctrl-C between rounds returns what the completed rounds reached (``stopped_by =
-    "interrupted"``); nothing already simulated is lost.
+    "interrupted"``); nothing already simulated is lost.  Before 2 excursions have closed there is
+    nothing to return, and the ``KeyboardInterrupt`` goes on up (with that reason): callers (the
+    CLI, sweeps, figures) treat it as any Ctrl-C.
 
     Returns:
         :class:`EstimateResult`: D, M0 with 95% CI half-widths, mean excursion duration, counts.
@@ -396,9 +398,11 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
         notes.append(f"{hit_bound} of {n_truncated + sim.n_excursions} "
                      f"excursions hit the work bound (max_steps = {plan.max_steps} {unit} per excursion) and are "
                      "excluded: the estimate is biased low")
+    if sim.n_excursions < 2 and stopped == "interrupted":  # nothing to return: the Ctrl-C goes on up
+        raise KeyboardInterrupt("fewer than 2 complete excursions before Ctrl-C")
     if sim.n_excursions < 2:
-        cause = {"max_time": "within max_time (raise it)", "interrupted": "before Ctrl-C"}.get(
-            stopped, "within the work bounds (raise max_work / max_steps)")
+        cause = "within max_time (raise it)" if stopped == "max_time" else \
+            "within the work bounds (raise max_work / max_steps)"
         raise NoEstimateError(f"fewer than 2 complete excursions {cause}: " + "; ".join(notes), stopped_by=stopped)
     if sim.n_excursions < MIN_RELIABLE_N:
         notes.append(small_n_note(sim.n_excursions))

@@ -18,7 +18,7 @@ import re
 import sys
 import warnings
 
-from .api import MAX_FIGURE_SEED, NoEstimateError
+from .api import MAX_FIGURE_SEED
 from .outfiles import check_writable, check_writable_dir, dumps, loads, write_atomic
 from .params import FIG3, Params
 from .xla_flags import use_all_cpu_cores
@@ -527,14 +527,11 @@ def main(argv=None) -> int:
     except (_UserError, ValueError) as exc:
         print(f"dryfric: error: {exc}", file=sys.stderr)
         return 2
-    except NoEstimateError as exc:  # every excursion hit the work bound, or Ctrl-C came first
-        print(f"dryfric: error: {exc}", file=sys.stderr)
-        return 130 if exc.stopped_by == "interrupted" else 1
-    except RuntimeError as exc:  # e.g. a failed write after the run: no estimate to print
+    except RuntimeError as exc:  # e.g. every excursion hit the work bound: no estimate to print
         print(f"dryfric: error: {exc}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt:
-        print("dryfric: interrupted", file=sys.stderr)
+    except KeyboardInterrupt as exc:  # with its reason when the API gave one (before 2 excursions closed)
+        print("dryfric: interrupted" + (f": {exc}" if str(exc) else ""), file=sys.stderr)
         return 130
 
 

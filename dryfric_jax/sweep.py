@@ -274,9 +274,6 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
             interrupted = True
             break
         except NoEstimateError as e:  # deterministic (unless max_time stopped it): recorded, not rerun on resume
-            if e.stopped_by == "interrupted":  # Ctrl-C before 2 excursions closed: not a finished point
-                interrupted = True
-                break
             rec = _record(seed, pt, settings, "failed", max_time, reason=str(e), stopped_by=e.stopped_by)
         else:
             if r.stopped_by == "interrupted":  # Ctrl-C inside the point: not a finished point

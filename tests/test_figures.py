@@ -128,18 +128,20 @@ def test_figure_points_of_another_version_are_recomputed(tmp_path, monkeypatch):
 
 
 def test_a_ctrl_c_before_two_excursions_closed_is_an_interruption(tmp_path, monkeypatch):
-    """A run that Ctrl-C stopped before 2 excursions closed has no result (NoEstimateError with
-    stopped_by "interrupted"): the scene stops as for any Ctrl-C (the CLI says the finished runs are
-    kept), nothing is written; another NoEstimateError is the run's own failure and propagates."""
-    from dryfric_jax import NoEstimateError
+    """A run that Ctrl-C stopped before 2 excursions closed has no result: the API lets the
+    KeyboardInterrupt go on up, so the scene stops as for any Ctrl-C (the CLI says the finished runs
+    are kept) and nothing is written; a run that ends without an estimate otherwise is its own
+    failure (NoEstimateError) and propagates."""
+    import numpy as np
+
+    from dryfric_jax import NoEstimateError, api
+    from dryfric_jax.excursions import STAT_NAMES, ExcursionStats
     from dryfric_jax.figures import points
     from dryfric_jax.params import FIG3, Params
 
+    empty = ExcursionStats(np.zeros((4, len(STAT_NAMES))), 0, 0, 0)
     for stopped, raised in (("interrupted", KeyboardInterrupt), ("work_bound", NoEstimateError)):
-        def run(*a, **kw):
-            raise NoEstimateError("fewer than 2 complete excursions ...", stopped_by=stopped)
-
-        monkeypatch.setitem(points._KINDS, "estimate", (run, points._KINDS["estimate"][1]))
+        monkeypatch.setattr(api, "simulate_long_excursions", lambda *a, **k: (empty, stopped))
         with pytest.raises(raised):
             points.Points(str(tmp_path), "s").estimate(Params(**FIG3), 3, n_excursions=64)
         assert not (tmp_path / "s.points.jsonl").exists()

@@ -314,12 +314,21 @@ def test_max_time_bounds_each_point_and_a_resumed_sweep_with_more_time_reruns_it
     for t in (1.0, 0.5):
         assert sweep.run_sweep(pts, out, max_time=t, n_excursions=3000)["computed"] == 0
     assert _lines(out) == first
-    # more time, interrupted (Ctrl-C between rounds, or before 2 excursions closed): the old records stay
-    for ctrl_c in (KeyboardInterrupt, sweep.NoEstimateError("fewer than 2 ...", stopped_by="interrupted")):
+    # more time, interrupted (Ctrl-C in a point, or before its first 2 excursions closed, when the engine
+    # has nothing to return): the old records stay (the second was recorded as a failed point, never rerun)
+    import numpy as np
+
+    from dryfric_jax import api
+    from dryfric_jax.excursions import STAT_NAMES, ExcursionStats
+
+    empty = ExcursionStats(np.zeros((4, len(STAT_NAMES))), 0, 0, 0)
+    for where, name, stub in (
+            (sweep, "estimate_diffusivity", lambda *a, **k: (_ for _ in ()).throw(KeyboardInterrupt)),
+            (api, "simulate_long_excursions", lambda *a, **k: (empty, "interrupted"))):
         with monkeypatch.context() as m:
-            m.setattr(sweep, "estimate_diffusivity", lambda *a, **k: (_ for _ in ()).throw(ctrl_c))
+            m.setattr(where, name, stub)
             assert sweep.run_sweep(pts, out, n_excursions=3000)["interrupted"]
-        assert _lines(out) == first  # the second was recorded as a failed point, never to be rerun
+        assert _lines(out) == first
     # no limit, from the CLI: rerun in place, same seeds, now to N
     assert main(["sweep", "--Gamma", "5,2", "--n-excursions", "3000", "--out", out, "--json"]) == 0
     again = _lines(out)

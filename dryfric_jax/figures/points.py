@@ -25,8 +25,7 @@ import time
 import warnings
 
 from .. import __version__
-from ..api import (BruteForceResult, DryfricWarning, EstimateResult, NoEstimateError, bruteforce_diffusivity,
-                   estimate_diffusivity)
+from ..api import BruteForceResult, DryfricWarning, EstimateResult, bruteforce_diffusivity, estimate_diffusivity
 from ..outfiles import read_records, write_records
 
 _KINDS = {"estimate": (estimate_diffusivity, EstimateResult), "bruteforce": (bruteforce_diffusivity, BruteForceResult)}
@@ -92,12 +91,7 @@ class Points:
             return r
         with warnings.catch_warnings():  # a scene reports its numbers; the notes stay in the record
             warnings.simplefilter("ignore", DryfricWarning)
-            try:
-                r = fn(params, seed, **kw)
-            except NoEstimateError as e:  # Ctrl-C before 2 excursions closed: as any Ctrl-C
-                if e.stopped_by == "interrupted":
-                    raise KeyboardInterrupt from None
-                raise
+            r = fn(params, seed, **kw)
         if getattr(r, "stopped_by", None) == "interrupted":  # Ctrl-C inside the run: not a finished point
             raise KeyboardInterrupt
         rec = dict(ident=ident, kind=kind, version=__version__, finished_at=time.strftime("%Y-%m-%dT%H:%M:%S"),
