@@ -49,7 +49,8 @@ Choice of C
 -----------
 :math:`C_\pm = [x_{\pm\Delta} - w, x_{\pm\Delta} + w]` with
 :math:`w = \min(\kappa/|a|,\ 4/\sqrt{\tau})`, :math:`\kappa = 1`.  For :math:`\tau \gg h`,
-:math:`|a|^2 \approx 2\tau^2/h`, so :math:`w \approx 0.7` one-step standard deviations of X and
+:math:`|a|^2 \approx 2\tau^2/h`, so :math:`w \approx \sqrt{h/2}/\tau`, half the one-step standard
+deviation :math:`\sqrt{2h}/\tau` of X, and
 :math:`\varepsilon = 2\Phi(-1) \approx 0.32` per stuck step: C shrinks to the threshold as
 :math:`h \to 0`, so regeneration converges to the continuous-time rule.  For :math:`\tau \ll h`,
 :math:`|a|^2 \approx \tau^2/(2h) \to 0`: C covers :math:`\pm 4` stationary standard deviations
