@@ -37,6 +37,23 @@ def test_resume_skips_finished_points_and_adds_new_ones(tmp_path):
     assert sweep.run_sweep(sweep.grid(Gamma=[2.0]), out, n_excursions=300, seed=3)["computed"] == 1
 
 
+def test_every_setting_is_part_of_a_points_identity(tmp_path):
+    """Changing any one of the settings alone gives another point (another seed, computed anew):
+    a resumed sweep never reuses a float64 record for a float32 run, nor an h for another h."""
+    p = dict(Gamma=2.0, Delta=3.84, tau=0.5, tau_L=0.067, gamma_bar=0.342)
+    base = dict(method="di", h=None, delta=None, dtype="float64", n_excursions=200, rtol=None, max_work=1e11)
+    other = dict(method="pdmp", h=1e-3, delta=0.01, dtype="float32", n_excursions=300, rtol=0.1, max_work=2e11)
+    assert set(base) == set(other) == set(sweep.SETTING_KEYS)
+    seeds = {sweep.point_seed(3, p, base)} | {sweep.point_seed(3, p, {**base, k: other[k]}) for k in base}
+    assert len(seeds) == 1 + len(base)
+    out = str(tmp_path / "s.jsonl")
+    kw = dict(seed=3, n_excursions=200)
+    assert sweep.run_sweep(sweep.grid(Gamma=[2.0]), out, **kw)["computed"] == 1
+    assert sweep.run_sweep(sweep.grid(Gamma=[2.0]), out, dtype="float32", **kw)["computed"] == 1
+    assert sweep.run_sweep(sweep.grid(Gamma=[2.0]), out, dtype="float32", **kw)["computed"] == 0
+    assert sorted(r["settings"]["dtype"] for r in _lines(out)) == ["float32", "float64"]
+
+
 def test_a_point_that_max_work_ends_early_says_so_at_once(tmp_path, capsys):
     """The sweep keeps its points' warnings in the records, but a ProjectionWarning (max_work
     will end the point before N) is said at once, naming the point; the CLI prints it on stderr."""
