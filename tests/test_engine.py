@@ -339,6 +339,64 @@ def test_di_durations_are_the_lanes_counted_steps(events):
     np.testing.assert_array_equal(steps - np.rint(t_steps).astype(np.int64), (steps > 0).astype(np.int64))
 
 
+def test_di_lane_sums_match_a_step_by_step_rebuild_of_each_lane():
+    r"""The engine's per-lane sums equal those of each lane rebuilt one step at a time from the same
+    numbers (``"branch"`` layout: lane key ``split(key, lanes)[l]``, block key ``fold_in(lane_key,
+    b)``, normals ``chain.draw``, step i's coin key ``fold_in(chain.coin_key(block_key), i)``), with
+    the bookkeeping written out here from the definition (section 4; DI: the regenerating step is
+    the new cycle's first step): seek a regeneration on C_+, the +HLE runs to one on C_-, the
+    -HLE to the next on C_+, which closes the excursion and opens the next.  Every closed
+    excursion's U, U^2, t = n h, t U and t_half, and the lane's counted steps, must agree: the
+    engine adds in blocks, so to float64 rounding.  A first excursion that missed its opening
+    step (found by mutation: no CI-based test can see one step) fails here."""
+    m = make_di_model(dj.Params.from_nondim(0.5, 1.0, 0.2), 0.02)
+    h, block, lanes, key = float(m.fixed_dt), 8, 4, jax.random.key(3)
+    r = run_round(m, key, lanes, 1500, block=block, events="branch")
+    s = dict(zip(STAT_NAMES, r.stats.T))
+    assert r.n_truncated == 0 and r.n_unfinished == 0 and s["n"].min() >= 2
+
+    @jax.jit
+    def draw(lane_key, b):
+        bkey = jax.random.fold_in(lane_key, b)
+        return m.draw(bkey, block), m.coin_key(bkey)
+
+    @jax.jit
+    def step(X, V, z1, z2, watch_plus, ck, i):
+        _, Xn, Vn, dU = m.move(X, V, z1, z2)
+        released = jnp.where(watch_plus, Vn > 0, Vn < 0)
+        cand = (V == 0) & released & m._set(watch_plus).contains(X)
+        return Xn, Vn, dU, cand & m.coin((X, V), (z1, z2), watch_plus, jax.random.fold_in(ck, i))
+
+    for lane, lane_key in enumerate(jax.random.split(key, lanes)):
+        X, V = (a[0] for a in m.init_state(1))
+        phase, U, n, t_half, counted, closed = "seek", 0.0, 0, 0.0, 0, []
+        b = 0
+        while len(closed) < int(s["n"][lane]):
+            (z1, z2), ck = jax.device_get(draw(lane_key, b))
+            for i in range(block):
+                X, V, dU, heads = step(X, V, z1[i], z2[i], phase != "plus", ck, i)
+                dU, heads = jax.device_get((dU, heads))
+                if phase == "minus" and heads:  # closes the excursion; this step opens the next
+                    closed.append((U, n * h, t_half))
+                if heads and phase != "plus":
+                    phase, U, n = "plus", 0.0, 0
+                elif heads:  # on C_-: the -HLE starts with this step
+                    phase, t_half = "minus", n * h
+                if phase != "seek":
+                    U, n, counted = U + dU, n + 1, counted + 1
+                if len(closed) == int(s["n"][lane]):  # the engine's lane stops at this closing step,
+                    break  # counted in its steps, opening nothing
+            b += 1
+        Us, ts, th = (np.array(c) for c in zip(*closed))
+        got = {k: s[k][lane] for k in ("U", "U2", "t", "t2", "Ut", "t_half")}
+        want = dict(U=Us.sum(), U2=(Us ** 2).sum(), t=ts.sum(), t2=(ts ** 2).sum(), Ut=(Us * ts).sum(),
+                    t_half=th.sum())
+        for k in got:
+            scale = {"U": np.abs(Us).sum(), "Ut": np.abs(Us * ts).sum()}.get(k, abs(want[k]))
+            assert abs(got[k] - want[k]) <= 1e-12 * scale, (lane, k, got[k], want[k])
+        assert int(r.lane_steps[lane]) == counted, lane
+
+
 def test_half_durations_are_half_the_durations_at_zero_bias():
     r"""At :math:`\bar\gamma' = 0` the mean duration of the +HLE, ``t_half`` (the duration at which
     the -HLE began), is exactly half the long excursion's: z of :math:`\sum (t_{1/2} - t/2)` within
