@@ -729,7 +729,9 @@ def simulate_long_excursions(chain, key, n_excursions: int, *, lanes: int | None
     Returns:
         ``(stats, stopped_by)`` with ``stopped_by`` in ``{"n_excursions", "target", "max_time",
         "interrupted", "work_bound"}``.  Completed rounds are never lost: on Ctrl-C the in-flight
-        excursions are finished (a second Ctrl-C drops them, see ``n_in_flight``).
+        excursions are finished (a second Ctrl-C drops them, see ``n_in_flight``).  A first Ctrl-C
+        that comes during the final round (a Ctrl-C acts between its calls) runs that round again
+        from its start, which gives the same excursions; it was taken for the second.
     """
     if n_excursions < 1:
         raise ValueError(f"n_excursions must be >= 1 (got {n_excursions})")
@@ -777,13 +779,20 @@ def simulate_long_excursions(chain, key, n_excursions: int, *, lanes: int | None
             stopped = "interrupted"
             if total is None:
                 raise
-        try:
-            total = ln.finish(jax.random.fold_in(key, r), deadline=deadline)
-            r += 1
-            if total.n_unfinished and deadline is not None and stopped != "interrupted" and _now() >= deadline:
-                stopped = "max_time"  # the deadline cut the final round (whatever ended the rounds)
-        except KeyboardInterrupt:  # second Ctrl-C: keep the closed excursions, in-flight ones dropped
-            stopped = "interrupted"
+        first_ctrl_c = stopped != "interrupted"  # the run's first Ctrl-C may still come, in this round
+        while True:
+            try:
+                total = ln.finish(jax.random.fold_in(key, r), deadline=deadline)
+                r += 1
+                if total.n_unfinished and deadline is not None and stopped != "interrupted" and _now() >= deadline:
+                    stopped = "max_time"  # the deadline cut the final round (whatever ended the rounds)
+            except KeyboardInterrupt:
+                stopped = "interrupted"
+                if first_ctrl_c:  # the first Ctrl-C finishes the in-flight excursions: the final round
+                    first_ctrl_c = False  # runs again from its start (same key, lanes unchanged: same chains)
+                    continue
+                # second Ctrl-C: keep the closed excursions, in-flight ones dropped
+            break
         if stopped != "n_excursions" or more is None:
             break
         # the final round added the in-flight excursions: check the target on the final sums

@@ -40,6 +40,33 @@ def test_ctrl_c_keeps_completed_rounds():
     assert r.D > 0 and r.D_ci > 0 and not any("dropped" in w for w in r.warnings)
 
 
+@pytest.mark.parametrize("ctrl_c_at", [1, 2])
+def test_one_ctrl_c_in_the_final_round_still_finishes_the_excursions_in_flight(monkeypatch, ctrl_c_at):
+    """A single Ctrl-C that comes during a final round (between its calls) is the run's first: the
+    in-flight excursions are still finished, giving the same excursions as without it (the round
+    runs again from its start); it was taken for a second Ctrl-C, dropping 512 of them and biasing D
+    low (audit).  A second Ctrl-C in the rerun drops them, as documented."""
+    from dryfric_jax import excursions
+
+    want = _quiet(n_excursions=2000)
+    real, seen = excursions.Lanes.finish, []
+
+    def finish(self, *a, **k):
+        seen.append(1)
+        if len(seen) <= ctrl_c_at:
+            raise KeyboardInterrupt
+        return real(self, *a, **k)
+
+    monkeypatch.setattr(excursions.Lanes, "finish", finish)
+    r = _quiet(n_excursions=2000)
+    assert r.stopped_by == "interrupted"
+    if ctrl_c_at == 1:
+        assert (r.D, r.D_ci, r.M0, r.n_excursions) == (want.D, want.D_ci, want.M0, want.n_excursions)
+        assert not any("dropped" in w for w in r.warnings)
+    else:
+        assert r.n_excursions < want.n_excursions and any("dropped (second Ctrl-C)" in w for w in r.warnings)
+
+
 @pytest.mark.parametrize("kw,match", [(dict(rtol=0.0), "rtol"), (dict(rtol=1.5), "rtol"),
                                       (dict(max_time=-1), "max_time")])
 def test_bad_targets(kw, match):
