@@ -2,10 +2,16 @@
 JSON (:func:`dumps`, :func:`loads`)."""
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
 import tempfile
+
+try:
+    import fcntl
+except ImportError:  # not POSIX (Windows): no lock
+    fcntl = None
 
 import numpy as np
 
@@ -162,6 +168,28 @@ def read_records(path: str, keys: tuple, refusal: str, check=None) -> list[dict]
     except (ValueError, KeyError, TypeError, AttributeError):  # UnicodeDecodeError is a ValueError
         raise ValueError(refusal.format(path=path, line=i + (i == 0))) from None
     return out
+
+
+@contextlib.contextmanager
+def locked(path: str):
+    """Hold an exclusive lock on ``path``'s directory (``flock``) while a results file is read and
+    rewritten, so two processes updating one file take turns instead of writing over each
+    other's records.  No lock where ``fcntl`` is missing (Windows) or the directory cannot be
+    opened or locked (some network file systems)."""
+    fd = None
+    if fcntl is not None:
+        try:
+            fd = os.open(os.path.dirname(os.path.abspath(path)), os.O_RDONLY)
+            fcntl.flock(fd, fcntl.LOCK_EX)
+        except OSError:
+            if fd is not None:
+                os.close(fd)
+            fd = None
+    try:
+        yield
+    finally:
+        if fd is not None:
+            os.close(fd)  # releases the lock
 
 
 def write_records(path: str, records: list[dict]) -> None:

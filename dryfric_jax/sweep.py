@@ -32,6 +32,11 @@ as without it.  A point that it stopped (``"ok"`` with ``stopped_by = "max_time"
 with ``stopped_by = "max_time"``) keeps its record, with the ``max_time`` it had; a resumed sweep
 reruns it when given more time (a larger ``max_time``, or none), and the new record replaces the old
 one only once the point has finished.  The rerun repeats the first run's rounds (same seed) and goes on.
+
+Two sweeps may write to one file at once (two GPUs, two shells): each point's record is written
+under a lock (:func:`~dryfric_jax.outfiles.locked`), re-reading the file first, so neither loses
+the other's points.  They share no plan, so both may compute a point that is in both grids; the
+file then keeps one record of it (the same result unless ``max_time`` stopped one).
 """
 from __future__ import annotations
 
@@ -48,7 +53,7 @@ import numpy as np
 from . import __version__
 from .api import DryfricWarning, NoEstimateError, ProjectionWarning, check_progress, check_seed, estimate_diffusivity
 from .limits import MAX_WORK
-from .outfiles import check_writable, dumps, read_records, write_records
+from .outfiles import check_writable, dumps, locked, read_records, write_records
 from .params import FIG3, Params, plain_number, real_or_none
 from .plan import check_max_time, check_settings, plan_estimate
 
@@ -233,21 +238,21 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
             refused.setdefault(_ident(seed, pt, settings), (pt, str(e)))
     if refused and not skip_refused:
         raise ValueError(_refusal_text(list(refused.values()), len(full)))
-    records = read_results(out)
     grid_idents = [_ident(seed, pt, settings) for pt in full]
-    # a refused record of a grid point that the planner now accepts (another version) is dropped and run
-    stale = set(grid_idents) - set(refused)
-    pairs = [(_ident(r["sweep_seed"], r["params"], r["settings"]), r) for r in records]
-    pairs = [(i, r) for i, r in pairs if status(r) != "refused" or i not in stale]
-    kept, have = [r for _, r in pairs], dict(pairs)
-    new_refused = [(i, pt, why) for i, (pt, why) in refused.items() if i not in have]
-    for i, pt, why in new_refused:
-        rec = _record(seed, pt, settings, "refused", reason=why)
-        kept.append(rec)
-        have[i] = rec
-    if len(kept) != len(records) or new_refused:
-        write_records(out, kept)
-    records = kept
+    with locked(out):
+        records = read_results(out)
+        # a refused record of a grid point that the planner now accepts (another version) is dropped and run
+        stale = set(grid_idents) - set(refused)
+        pairs = [(_rec_ident(r), r) for r in records]
+        pairs = [(i, r) for i, r in pairs if status(r) != "refused" or i not in stale]
+        kept, have = [r for _, r in pairs], dict(pairs)
+        new_refused = [(i, pt, why) for i, (pt, why) in refused.items() if i not in have]
+        for i, pt, why in new_refused:
+            rec = _record(seed, pt, settings, "refused", reason=why)
+            kept.append(rec)
+            have[i] = rec
+        if len(kept) != len(records) or new_refused:
+            write_records(out, kept)
     # a point that max_time stopped is rerun when given more time; its record stays until replaced
     rerun = {i for i in grid_idents if i in have and _more_time(have[i], max_time)}
     todo, seen = [], set(have) - rerun
@@ -283,12 +288,8 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
             for k in ("params", "seed"):
                 res.pop(k)
             rec = _record(seed, pt, settings, "ok", max_time, result=res)
-        if ident in have:  # a rerun with more time: the new record takes the old one's place
-            records[next(k for k, old in enumerate(records) if old is have[ident])] = rec
-        else:
-            records.append(rec)
+        _put(out, ident, rec)
         have[ident] = rec
-        write_records(out, records)
         computed += 1
         done += 1
         if progress:
@@ -299,6 +300,24 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
     return dict(computed=computed, skipped=skipped, total=total, interrupted=interrupted,
                 refused=count["refused"], failed=count["failed"], truncated=truncated,
                 time_limited=sum(map(_time_limited, mine)))
+
+
+def _rec_ident(rec: dict) -> str:
+    return _ident(rec["sweep_seed"], rec["params"], rec["settings"])
+
+
+def _put(out: str, ident: str, rec: dict) -> None:
+    """Write a finished point's record: the file is read again under the lock, so the records
+    another sweep wrote there meanwhile are kept; a record of the same point (a rerun with more
+    time, or the other sweep's) is replaced in place, otherwise the record is appended."""
+    with locked(out):
+        records = read_results(out)
+        at = next((k for k, old in enumerate(records) if _rec_ident(old) == ident), None)
+        if at is None:
+            records.append(rec)
+        else:
+            records[at] = rec
+        write_records(out, records)
 
 
 def _record(seed: int, pt: dict, settings: dict, state: str, max_time=None, **what) -> dict:

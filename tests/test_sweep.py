@@ -54,6 +54,38 @@ def test_every_setting_is_part_of_a_points_identity(tmp_path):
     assert sorted(r["settings"]["dtype"] for r in _lines(out)) == ["float32", "float64"]
 
 
+def test_two_sweeps_on_one_file_keep_each_others_points(tmp_path):
+    """A second sweep writing to the same file while the first runs (here: from the first's
+    progress callback, between its points) keeps the first's points, and the first, writing its
+    next point, keeps the second's: each write re-reads the file under a lock.  Before, each
+    sweep rewrote the file from its own list, and 2 sweeps of 3 points left 3 records (audit)."""
+    out = str(tmp_path / "s.jsonl")
+    kw = dict(n_excursions=200, seed=3)
+    other = []
+
+    def progress(done, total, rec):
+        if rec is not None and not other:  # after the first sweep's first point
+            other.append(sweep.run_sweep(sweep.grid(Gamma=[6.0, 7.0]), out, **kw))
+
+    first = sweep.run_sweep(sweep.grid(Gamma=[2.0, 3.0]), out, progress=progress, **kw)
+    assert first["computed"] == 2 and other[0]["computed"] == 2
+    assert [r["params"]["Gamma"] for r in _lines(out)] == [2.0, 6.0, 7.0, 3.0]
+    # a point of both grids, recorded by the other sweep meanwhile, is replaced in place, not doubled
+    alone = str(tmp_path / "alone.jsonl")
+    sweep.run_sweep(sweep.grid(Gamma=[2.0, 6.0]), alone, **kw)
+    other.clear()
+    out2 = str(tmp_path / "s2.jsonl")
+
+    def progress2(done, total, rec):
+        if rec is not None and not other:
+            other.append(sweep.run_sweep(sweep.grid(Gamma=[6.0]), out2, **kw))
+
+    sweep.run_sweep(sweep.grid(Gamma=[2.0, 6.0]), out2, progress=progress2, **kw)
+    recs = _lines(out2)
+    assert [r["params"]["Gamma"] for r in recs] == [2.0, 6.0]
+    assert [r["result"]["D"] for r in recs] == [r["result"]["D"] for r in _lines(alone)]
+
+
 def test_a_point_that_max_work_ends_early_says_so_at_once(tmp_path, capsys):
     """The sweep keeps its points' warnings in the records, but a ProjectionWarning (max_work
     will end the point before N) is said at once, naming the point; the CLI prints it on stderr."""
