@@ -301,7 +301,8 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
             runs until ``max_work`` or ``max_time`` ends it, and the result says so).
         max_time: stop after the round that passes this many seconds (``stopped_by`` says so); the
             final round, which finishes the excursions in flight, is cut at twice ``max_time``,
-            and the excursions it cut are counted as truncated (excluded, warned).
+            and the excursions it cut are counted as truncated (excluded, warned).  Both act
+            between calls: add up to one round and one call (~4 s each on 2 CPU cores).
         progress: optional callback ``progress(dict)`` after every round: N, D, D_ci so far, the
             target, ``elapsed_s``, and the projection ``left_s`` (seconds, None until known) to the
             limit ``left_to`` that ends the run first (:func:`time_left`).

@@ -587,7 +587,10 @@ class Lanes:
         nd = len(self.devices)
         small = -(-(self.n // nd) // COMPACT) if finish and self.compact else 0  # per device, compacted
         lane, nb = self._call(self.lane, keys, np.zeros(self.n, np.int64), budget, finish, small, True, deadline)
-        host = self._compact_tail(jax.device_get(lane), keys, nb, budget, small, deadline) if small else lane
+        # the tail is further calls: none starts past the deadline (it ran one, compiling a new shape:
+        # 2 x 4-5 s past a 3-s max_time on 2 cores)
+        tail = small and (deadline is None or _now() < deadline)
+        host = self._compact_tail(jax.device_get(lane), keys, nb, budget, small, deadline) if tail else lane
         if host is not lane:
             lane = jax.device_put(host, self._sharding) if nd > 1 else jax.tree_util.tree_map(jnp.asarray, host)
         stats, n_trunc, steps, done, phase, work = jax.device_get(
@@ -722,7 +725,8 @@ def simulate_long_excursions(chain, key, n_excursions: int, *, lanes: int | None
             The final round that finishes them is cut once ``FINAL_DEADLINE * max_time`` seconds
             have passed (between calls of a few seconds): the excursions still in flight are
             then left unfinished (``n_unfinished``, reported as truncated), so the run takes
-            at most about twice ``max_time``.
+            at most about twice ``max_time``, plus one round and one call (``round_lane_steps``
+            and ``FINAL_CALL_LANE_STEPS`` lane-steps; no compacted tail starts past the deadline).
         max_work: stop the same way once the lanes have paid for this many lane-steps.
         progress: optional ``progress(stats)`` called after every round.
 

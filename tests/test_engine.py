@@ -270,6 +270,28 @@ def test_max_time_cuts_the_final_round_and_counts_what_it_cut(monkeypatch):
     assert r.stopped_by == "max_time" and r.n_truncated > 0 and not any("Ctrl-C" in w for w in r.warnings)
 
 
+def test_no_compacted_tail_starts_past_the_deadline(monkeypatch):
+    """The final round's compacted tail is further calls: past the deadline none starts, and the
+    lanes still in flight are counted as unfinished.  It used to start one (a new shape to compile:
+    a --max-time 3 run took 15 s on 2 cores, audit).  Before the deadline the tail runs as usual."""
+    from dryfric_jax import excursions
+
+    chain = make_di_model(dj.Params.from_nondim(0.5, 1.0, 0.2), 0.02)
+    got = {}
+    for past in (False, True):
+        monkeypatch.setattr(excursions, "_now", lambda: 10.0 if past else 0.0)
+        ln = Lanes(chain, 256, block=8, max_steps=1500)
+        ln.advance(jax.random.key(1), 3000)
+        calls, real = [], Lanes._call_once
+        monkeypatch.setattr(Lanes, "_call_once", lambda self, lane, *a: calls.append(lane.done.shape[0])
+                            or real(self, lane, *a))
+        got[past] = ln.finish(jax.random.key(2), 2000, deadline=5.0), calls
+        monkeypatch.setattr(Lanes, "_call_once", real)
+    (st, calls), (cut, calls_cut) = got[False], got[True]
+    assert st.n_unfinished == 0 and min(calls) == 256 // 8  # the tail ran on 1/8 of the lanes
+    assert calls_cut == [256] and 0 < cut.n_unfinished <= 256 // 8
+
+
 def test_pilot_rounds_stay_within_a_rounds_lane_steps(monkeypatch):
     """Before any excursion closes, the pilot budget grows 4x per round but no further than
     round_lane_steps per round, as later rounds: it grew without bound (one pilot round of a case
