@@ -27,6 +27,7 @@ from .estimators import MIN_RELIABLE_N, delta_method, psi_D, psi_M  # noqa: E402
 from .ou import OUStep, ou_moments, ou_step  # noqa: E402
 from .params import FIG3, Params  # noqa: E402
 from .plan import Plan, plan_estimate  # noqa: E402
+from ._version import __version__  # noqa: E402, F401
 
 __all__ = [
     "Params", "FIG3", "OUStep", "ou_step", "ou_moments", "DIModel", "make_di_model",
@@ -35,4 +36,3 @@ __all__ = [
     "delta_method", "psi_D", "psi_M", "MIN_RELIABLE_N",
     "theory", "ChainLaw", "white_chain_law", "combine_estimates", "gather_hosts",
 ]
-__version__ = "0.1.0"

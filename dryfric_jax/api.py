@@ -14,6 +14,7 @@ from dataclasses import asdict, dataclass, field
 import jax
 import numpy as np
 
+from ._version import __version__
 from .bruteforce import simulate_bruteforce
 from .di import make_di_model
 from .estimators import MIN_RELIABLE_N, WEAK_DAMPING_TAU_L, bruteforce_estimates, long_excursion_estimates
@@ -196,6 +197,11 @@ class EstimateResult:
     combined_from: list = field(default_factory=list)  # seeds of the runs a combined result pools
     lanes: int = 0  # the engine's layout (with the seed, it fixes the random streams)
     block: int = 0
+    # what reproduces the run with the seed and the fields above: the n_excursions asked for (N is
+    # what closed), the time limit, and the package version ("" for results written before it)
+    n_requested: int = 0
+    max_time: float | None = None
+    version: str = ""
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -425,7 +431,8 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
         events_per_s=None if grid is None else sim.useful_steps / wall, method_reason=plan.reason,
         max_steps=plan.max_steps, max_work=plan.max_work, predicted_work=plan.predicted_work,
         work=int(sim.slot_steps), sums={k: float(v) for k, v in sim.total().items()}, lanes=plan.lanes,
-        block=plan.block)
+        block=plan.block, n_requested=n_excursions,
+        max_time=None if max_time == math.inf else max_time, version=__version__)
 
 
 def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, method: str = "di",

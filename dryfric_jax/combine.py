@@ -93,6 +93,9 @@ _FIELDS = (
     ("warnings", lambda x: isinstance(x, list) and all(isinstance(w, str) for w in x), "a list of strings"),
     ("lanes", _count, "an integer >= 0"),
     ("block", _count, "an integer >= 0"),
+    ("n_requested", _count, "an integer >= 0"),
+    ("max_time", lambda x: x is None or (_real(x) and x > 0), "a number > 0 (s) or null"),
+    ("version", lambda x: isinstance(x, str), "a string"),
 )
 #: sums that are sums of squares (or of positive times) and must be >= 0; n and t must be > 0
 _NONNEGATIVE_SUMS = ("U2", "U4", "t2", "t3", "t4", "U2t", "U2t2", "t_half")
@@ -212,11 +215,12 @@ def _result(first: EstimateResult, rs, total: dict, seeds) -> EstimateResult:
         work=sum(r.work for r in rs), predicted_work=sum(r.predicted_work for r in rs),
         max_work=sum(r.max_work for r in rs),  # the pool's bound, as its work (it was the first run's)
         stopped_by="combined", rtol=None, warnings=notes, sums=total, combined_from=list(seeds),
-        lanes=_common(rs, "lanes"), block=_common(rs, "block"))
+        lanes=_common(rs, "lanes"), block=_common(rs, "block"), n_requested=sum(r.n_requested for r in rs),
+        max_time=None, version=_common(rs, "version") or "mixed")
 
 
 def _common(rs, name):
-    """The runs' shared value of an engine setting, 0 where they differ (the law does not)."""
+    """The runs' shared value of an engine setting (or the version), 0 where they differ."""
     vals = {getattr(r, name) for r in rs}
     return vals.pop() if len(vals) == 1 else 0
 

@@ -33,6 +33,11 @@ with ``stopped_by = "max_time"``) keeps its record, with the ``max_time`` it had
 reruns it when given more time (a larger ``max_time``, or none), and the new record replaces the old
 one only once the point has finished.  The rerun repeats the first run's rounds (same seed) and goes on.
 
+A record made by another package version (``version``) is rerun the same way, and replaced once
+the point has finished: the version is raised with every change to the numbers a seed gives or
+fix of a result (:mod:`dryfric_jax._version`), so a resumed sweep never mixes in points of older
+code.
+
 Two sweeps may write to one file at once (two GPUs, two shells): each point's record is written
 under a lock (:func:`~dryfric_jax.outfiles.locked`), re-reading the file first, so neither loses
 the other's points.  They share no plan, so both may compute a point that is in both grids; the
@@ -50,7 +55,7 @@ import zlib
 
 import numpy as np
 
-from . import __version__
+from ._version import __version__
 from .api import DryfricWarning, NoEstimateError, ProjectionWarning, check_progress, check_seed, estimate_diffusivity
 from .limits import MAX_WORK
 from .outfiles import check_writable, dumps, locked, read_records, write_records
@@ -253,8 +258,9 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
             have[i] = rec
         if len(kept) != len(records) or new_refused:
             write_records(out, kept)
-    # a point that max_time stopped is rerun when given more time; its record stays until replaced
-    rerun = {i for i in grid_idents if i in have and _more_time(have[i], max_time)}
+    # a point that max_time stopped is rerun when given more time, and one an earlier version recorded
+    # is rerun by this one; its record stays until replaced
+    rerun = {i for i in grid_idents if i in have and (_more_time(have[i], max_time) or _outdated(have[i]))}
     todo, seen = [], set(have) - rerun
     for ident, pt in zip(grid_idents, full):
         if ident not in seen:
@@ -300,6 +306,12 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
     return dict(computed=computed, skipped=skipped, total=total, interrupted=interrupted,
                 refused=count["refused"], failed=count["failed"], truncated=truncated,
                 time_limited=sum(map(_time_limited, mine)))
+
+
+def _outdated(rec: dict) -> bool:
+    """A record of an ``"ok"`` or ``"failed"`` point made by another package version (the version
+    is raised with every change to the numbers a seed gives, or fix of a result: :mod:`dryfric_jax._version`)."""
+    return status(rec) != "refused" and rec.get("version") != __version__
 
 
 def _rec_ident(rec: dict) -> str:

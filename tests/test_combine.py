@@ -49,6 +49,8 @@ def test_one_run_combines_to_itself_and_round_trips_through_json(runs):
     assert (c.D, c.D_ci, c.M0, c.M0_ci, c.mean_duration) == (r.D, r.D_ci, r.M0, r.M0_ci, r.mean_duration)
     via_json = combine_estimates([json.loads(json.dumps(x.to_dict())) for x in runs])
     assert (via_json.D, via_json.D_ci) == (combine_estimates(runs).D, combine_estimates(runs).D_ci)
+    pooled = combine_estimates(runs)
+    assert pooled.version == runs[0].version != "" and pooled.n_requested == sum(r.n_requested for r in runs)
     # a combined result combines further, keeping its seeds
     assert combine_estimates([combine_estimates(runs[:2]), runs[2]]).D == combine_estimates(runs).D
 
@@ -82,6 +84,7 @@ def test_refusals_name_what_differs(runs):
     (dict(sums={"t": 0.0}), "finite excursion sums"), (dict(sums={"n": math.nan}), "finite excursion sums"),
     (dict(sums={"U2": -5.0}), "finite excursion sums"),
     (dict(sums={"t": "x"}), "finite excursion sums"),
+    (dict(n_requested=-3), "n_requested"), (dict(max_time=0.0), "max_time"), (dict(version=1), "version"),
 ])
 def test_a_malformed_result_is_refused_by_name(runs, edit, field):
     """A hand-edited or foreign file: a TypeError or OverflowError before, or D = nan (t = 0) and

@@ -33,6 +33,20 @@ def test_same_seed_bit_identical_in_two_processes(argv):
     assert math.isfinite(a.get("D", a.get("D_t")))
 
 
+def test_an_estimates_json_holds_what_reproduces_it(tmp_path):
+    """``--out`` records the N asked for (``n_requested``; ``n_excursions`` is what closed, more),
+    the time limit and the package version besides seed, lanes and block: a run with those
+    settings gives the same sums.  It recorded only the N closed, and a rerun with it differed
+    (audit)."""
+    out = tmp_path / "r.json"
+    _cli_json(["estimate", "--n-excursions", "300", "--seed", "7", "--out", str(out)])
+    r = json.loads(out.read_text())
+    assert r["n_requested"] == 300 < r["n_excursions"] and r["max_time"] is None and r["version"] == dj.__version__
+    again = _cli_json(["estimate", "--n-excursions", str(r["n_requested"]), "--seed", str(r["seed"]),
+                       "--lanes", str(r["lanes"]), "--block", str(r["block"])])
+    assert again["sums"] == r["sums"]
+
+
 def _xla_flags_seen(flags):
     """XLA_FLAGS after importing dryfric_jax in a fresh process that then computes (so the backend
     started with them: an unknown flag would abort it)."""

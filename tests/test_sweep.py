@@ -9,6 +9,7 @@ import time
 
 import pytest
 
+import dryfric_jax as dj
 from dryfric_jax import ProjectionWarning, sweep
 from dryfric_jax.cli import main
 
@@ -52,6 +53,24 @@ def test_every_setting_is_part_of_a_points_identity(tmp_path):
     assert sweep.run_sweep(sweep.grid(Gamma=[2.0]), out, dtype="float32", **kw)["computed"] == 1
     assert sweep.run_sweep(sweep.grid(Gamma=[2.0]), out, dtype="float32", **kw)["computed"] == 0
     assert sorted(r["settings"]["dtype"] for r in _lines(out)) == ["float32", "float64"]
+
+
+def test_a_record_of_another_version_is_rerun_in_place(tmp_path):
+    """A resumed sweep reruns the points an earlier package version recorded (the version is raised
+    with every change to the numbers a seed gives, or fix of a result) and replaces their records
+    in place; it reused them, so a sweep resumed after an update mixed old and new code (audit)."""
+    out = str(tmp_path / "s.jsonl")
+    kw = dict(n_excursions=200, seed=3)
+    sweep.run_sweep(sweep.grid(Gamma=[2.0, 3.0]), out, **kw)
+    first = _lines(out)
+    old = [{**first[0], "version": "0.1.0", "result": {**first[0]["result"], "D": 1.0}}, first[1]]
+    with open(out, "w") as f:
+        f.writelines(json.dumps(r) + "\n" for r in old)
+    r = sweep.run_sweep(sweep.grid(Gamma=[2.0, 3.0]), out, **kw)
+    assert r["computed"] == 1 and r["skipped"] == 1
+    again = _lines(out)
+    assert [x["params"]["Gamma"] for x in again] == [2.0, 3.0] and again[1] == first[1]
+    assert again[0]["version"] == dj.__version__ and again[0]["result"]["sums"] == first[0]["result"]["sums"]
 
 
 def test_two_sweeps_on_one_file_keep_each_others_points(tmp_path):

@@ -24,7 +24,7 @@ import os
 import time
 import warnings
 
-from .. import __version__
+from .._version import __version__
 from ..api import BruteForceResult, DryfricWarning, EstimateResult, bruteforce_diffusivity, estimate_diffusivity
 from ..outfiles import read_records, write_records
 
