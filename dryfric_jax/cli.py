@@ -225,7 +225,7 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--json", action="store_true", help="print a JSON summary")
     cb = sub.add_parser("combine", help="pool the excursions of independent estimate runs (JSON files of "
                                         "'estimate --out' or '--json', different seeds, same model)")
-    cb.add_argument("files", nargs="+", help="result files")
+    cb.add_argument("files", nargs="+", help="result files (one JSON object each, or JSON Lines: sweep records)")
     cb.add_argument("--out", default=None, help="also write the pooled JSON result to this file (atomically)")
     cb.add_argument("--json", action="store_true", help="print the pooled result as one JSON object")
     bn = sub.add_parser("bench", help="throughput: DI engine vs RNG bound vs compiled baseline")
@@ -281,16 +281,28 @@ def _write_out(path, obj):
 
 
 def _read_results(paths):
-    out = []
+    """The results in ``paths`` with their labels: a file holds one JSON object (``estimate --out``)
+    or one per line (a sweep's records, labelled ``path:line``; they failed with 'Extra data')."""
+    out, labels = [], []
     for path in paths:
         try:
             with open(path, encoding="utf-8") as f:
-                out.append(loads(f.read()))
+                text = f.read()
+            try:
+                found = [(path, loads(text))]
+            except ValueError:  # JSON Lines?
+                lines = [(i, x) for i, x in enumerate(text.splitlines(), 1) if x.strip()]
+                if len(lines) < 2:
+                    raise
+                found = [(f"{path}:{i}", loads(x)) for i, x in lines]
         except (OSError, ValueError) as e:  # ValueError: not JSON, or not UTF-8
             raise _UserError(f"files: cannot read an estimate result from {path!r} ({e})") from None
-        if not isinstance(out[-1], dict):
-            raise _UserError(f"files: {path!r} holds no estimate result (a JSON object)")
-    return out
+        for label, r in found:
+            if not isinstance(r, dict):
+                raise _UserError(f"files: {label!r} holds no estimate result (a JSON object)")
+            out.append(r)
+            labels.append(label)
+    return out, labels
 
 
 def _print_estimate(r):
@@ -389,7 +401,8 @@ def _run(a) -> int:
 
         _check_out(a.out)
         with _warnings_kept_in_result():
-            r = combine_estimates(_read_results(a.files), labels=a.files)
+            results, labels = _read_results(a.files)
+            r = combine_estimates(results, labels=labels)
         _report(a, r, _print_estimate)
         return 0
     params = _params(a)

@@ -176,3 +176,25 @@ def test_a_sweep_record_combines_with_a_new_run(tmp_path, runs):
     c = combine_estimates([rec, runs[0]])
     assert c.n_excursions == rec["result"]["n_excursions"] + runs[0].n_excursions
     assert c.combined_from == [rec["seed"], 41]
+
+
+def test_the_cli_pools_a_sweep_file_line_by_line(tmp_path, runs, capsys):
+    """``dryfric combine`` reads a sweep's JSON Lines file as one result per line (it failed with
+    'Extra data' past the first line, audit): the same point swept with two seeds pools to the
+    API's pool of the two records; a line of another point is refused, named by its line."""
+    from dryfric_jax import sweep
+    from dryfric_jax.cli import main
+
+    out = tmp_path / "s.jsonl"
+    grid = sweep.grid(**{k: [v] for k, v in P.as_dict().items()})
+    for seed in (7, 8):
+        sweep.run_sweep(grid, str(out), seed=seed, n_excursions=500)
+    recs = [json.loads(x) for x in out.read_text().splitlines()]
+    assert main(["combine", str(out), "--json"]) == 0
+    got = json.loads(capsys.readouterr().out)
+    want = combine_estimates(recs)
+    assert (got["D"], got["D_ci"], got["n_excursions"]) == (want.D, want.D_ci, want.n_excursions)
+    sweep.run_sweep(sweep.grid(**{**{k: [v] for k, v in P.as_dict().items()}, "Gamma": [2 * P.Gamma]}), str(out),
+                    seed=7, n_excursions=500)
+    assert main(["combine", str(out)]) == 2
+    assert f"{out}:3 has" in capsys.readouterr().err
