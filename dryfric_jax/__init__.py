@@ -4,9 +4,13 @@ Importing the package enables float64 in JAX (``jax_enable_x64``): the statistic
 accumulated in float64; the simulation dtype is chosen per call (``dtype="float32"``).  It also
 asks XLA for deterministic GPU reductions, so that the same seed gives bit-identical results on a
 GPU too, and for one host device per CPU core, so that the lanes use every core (the numbers do
-not depend on it; :mod:`dryfric_jax.xla_flags`).
+not depend on it; :mod:`dryfric_jax.xla_flags`), and makes sure a Ctrl-C is never swallowed by a
+garbage-collection callback (:mod:`dryfric_jax.interrupts`).
 """
+from .interrupts import keep_ctrl_c
 from .xla_flags import request_deterministic_gpu_ops, use_all_cpu_cores
+
+keep_ctrl_c()  # before JAX registers its garbage-collection callback
 
 request_deterministic_gpu_ops()  # before JAX starts its backend
 use_all_cpu_cores()

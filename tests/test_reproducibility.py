@@ -140,3 +140,28 @@ def test_lane_layouts_agree_within_ci(method):
     k = 3.0 / 1.96
     assert abs(r1.D - r2.D) <= k * math.hypot(r1.D_ci, r2.D_ci)
     assert abs(r1.M0 - r2.M0) <= k * math.hypot(r1.M0_ci, r2.M0_ci)
+
+
+def test_a_ctrl_c_swallowed_in_a_callback_is_delivered_again(monkeypatch):
+    """A KeyboardInterrupt raised where Python cannot propagate it (a garbage-collection callback,
+    here a ``__del__``) was printed as 'Exception ignored' and lost: ``dryfric estimate`` given a
+    Ctrl-C ~1 s after its start ran to the end and exited 0 (audit).  The hook the package installs
+    on import delivers it to the main thread again (pytest swaps the hook per test: installed
+    again here, over pytest's)."""
+    import time
+
+    from dryfric_jax.interrupts import keep_ctrl_c
+
+    class Callback:
+        def __del__(self):
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(sys, "unraisablehook", sys.unraisablehook)  # restored after the test
+    keep_ctrl_c()
+    ticks = []
+    with pytest.raises(KeyboardInterrupt):
+        Callback()  # collected at once: its KeyboardInterrupt is unraisable
+        for _ in range(200):  # Python code for 10 s, where a pending interrupt is raised
+            ticks.append(1)
+            time.sleep(0.05)
+    assert len(ticks) < 200
