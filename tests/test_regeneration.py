@@ -63,3 +63,29 @@ def test_set_covers_the_noise_when_tau_much_smaller_than_h():
     # epsilon = 2 Phi(-w |a|) with |a| ~ tau/sqrt(2h): 2 Phi(-4 sqrt(tau/(2h))) = 0.977 here
     assert float(s.c2) == pytest.approx(4 / np.sqrt(tau))
     assert float(s.epsilon) == pytest.approx(float(2 * ndtr(-4 * np.sqrt(tau / 2.0))), rel=1e-3)
+
+
+@pytest.mark.parametrize("dtype", ["float64", "float32"])
+@pytest.mark.parametrize("watch_plus", [True, False])
+def test_the_chains_coin_is_heads_with_probability_r(key, dtype, watch_plus):
+    r"""``DIModel.coin``, the coin the engine flips, is heads with probability
+    :math:`\min(1, r(x, y))` = ``min(1, exp(log_coin))`` of the watched set: 10^5 flips at fixed
+    (x, z1, z2), within 5 binomial SE, at two points of C_+ (C_-) with r = 0.20 and 0.55.  Only
+    ``SplitSet.log_coin`` was tested: a coin heads with probability min(1, 2r) passed every test
+    (mutation audit)."""
+    import dryfric_jax as dj
+    from dryfric_jax.di import make_di_model
+
+    m = make_di_model(dj.Params.from_nondim(0.5, 1.0, 0.2), 0.02, dtype=dtype)
+    s = m._set(watch_plus)
+    dt = m.h.dtype
+    keys = jax.random.split(key, 100_000)
+    for frac, z1 in ((0.1, 0.3), (0.8, -0.2)):
+        x = jnp.asarray(s.c1 + frac * (s.c2 - s.c1), dt)
+        z = (jnp.asarray(z1, dt), jnp.asarray(0.5, dt))
+        p = float(jnp.minimum(1.0, jnp.exp(s.log_coin(x, *z))))
+        assert 0.05 < p < 0.95, p  # the rate can be told from 2 p and from 1
+        heads = jax.vmap(lambda k: m.coin((x, jnp.zeros((), dt)), z, jnp.asarray(watch_plus), k))(keys)
+        rate = float(jnp.mean(heads))
+        se = (p * (1 - p) / keys.shape[0]) ** 0.5
+        assert abs(rate - p) < 5 * se, (frac, rate, p)
