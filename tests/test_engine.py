@@ -590,6 +590,30 @@ def _paired_difference(sa, sb, groups: int = 64):
     return D(sa) - D(sb), math.sqrt((groups - 1) / groups * np.sum((jk - jk.mean()) ** 2)), D(sb)
 
 
+def test_a_float32_chains_excursion_displacement_is_summed_in_float64():
+    """In float32 the quiet loop sums a block's increments in float32 from 0 and adds the sum to
+    the excursion's float64 U: a block moves U by the same amount whether U starts at 0 or at
+    1e5, to float64 rounding.  Rounding the running U to float32 each block (off by float32's
+    ulp of 1e5, 0.008) passed every test (mutation audit)."""
+    import equinox as eqx
+
+    from dryfric_jax.excursions import PLUS, _quiet_steps
+
+    m = make_di_model(dj.Params.from_nondim(0.5, 1.0, 0.2), 0.02, dtype=jnp.float32)
+    lanes, block = 64, 128
+    rs = m.draw_lanes(jax.random.split(jax.random.key(5), lanes), block)
+    moved = []
+    for U0 in (0.0, 1e5):
+        ln = init_lanes(m, lanes)
+        ln = eqx.tree_at(lambda l: (l.phase, l.U), ln, (jnp.full((lanes,), PLUS, jnp.int32),
+                                                        jnp.full((lanes,), U0, jnp.float64)))
+        out, _ = _quiet_steps(m, 10**6, 10**6, False, block, ln, rs)
+        assert out.U.dtype == jnp.float64
+        moved.append(np.asarray(out.U) - U0)
+    assert np.count_nonzero(moved[0]) > lanes // 2
+    np.testing.assert_allclose(moved[1], moved[0], rtol=0, atol=1e-9)
+
+
 def test_float32_arithmetic_matches_float64_on_the_same_numbers():
     """Fig. 3 point: float32 against float64 arithmetic, both driven by the same float32 random
     numbers, so the lanes' paths stay coupled (the same excursion counts in >= 95% of lanes)
