@@ -148,3 +148,18 @@ def test_delta_method_refuses_a_sample_size_below_one(n):
 
     with pytest.raises(ValueError, match="^n must be a sample size >= 1"):
         delta_method(lambda m: m[0], [1.0], [[1.0]], n)
+
+
+def test_moments_from_sums_are_the_sample_mean_and_covariance():
+    """The mean and covariance (divisor N, as documented) of X = (U, U^2, t, Ut, t^2) from the
+    sums equal numpy's on the samples: every product of the covariance is the right one
+    (an n/(n-1) divisor or a swapped product passed the CI tests: mutation audit)."""
+    from dryfric_jax.estimators import moments_from_sums, sums_from_samples
+
+    rng = np.random.default_rng(4)
+    t = rng.exponential(2.0, 7)
+    U = rng.normal(0.3 * t, np.sqrt(t))
+    S, C = moments_from_sums(sums_from_samples(U, t))
+    X = np.stack([U, U**2, t, U * t, t**2])
+    np.testing.assert_allclose(S, X.mean(axis=1), rtol=1e-13)
+    np.testing.assert_allclose(C, np.cov(X, bias=True), rtol=1e-10, atol=1e-12 * np.abs(C).max())
