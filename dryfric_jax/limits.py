@@ -74,6 +74,14 @@ FLOAT32_MIN_H_OVER_TAU = 1e-4
 FLOAT32_MIN_H_ND = 1e-5
 #: ... and where X's stationary SD 1/sqrt(tau') is at most 1e15 (float32 overflows near 3.4e38)
 FLOAT32_MIN_TAU_ND = 1e-30
+#: the PDMP (no step h to bound it) in float32 only for tau_L' >= this: its velocities are of order
+#: tau_L' and its 1/tau_L' overflows float32 below 2.9e-39 (measured: NaN at tau_L' = 3e-40, D 155x
+#: too small at 1e-36; float32 and float64 agree to 1e-8 at 1e-30, same seed)
+FLOAT32_MIN_TAU_L_ND = 1e-25
+#: no simulation below this tau_L': D ~ tau_L'^2 and the excursion sums behind the CI (U^4 ~
+#: tau_L'^4) underflow float64 (measured, PDMP: CI 0 at tau_L' = 1e-80, D = 0 +- 0 at 1e-300; D/tau_L'^2
+#: unchanged to 1e-14 from 1e-30 to 1e-70, same seed)
+MIN_TAU_L_ND = 1e-60
 
 
 def _int_erfcx(lo: float, hi: float) -> float:
@@ -178,6 +186,24 @@ def _exp10(log_x: float) -> str:
     if e >= 1e6:
         return f"10^({e:.3g})"
     return f"{10 ** (e - math.floor(e)):.2g}e{int(math.floor(e))}"
+
+
+def check_simulable(tau_L: float, tau_L_s: float, tau0: float) -> None:
+    """Refuse a simulation at :math:`\tau_L' <` :data:`MIN_TAU_L_ND` (``tau_L`` nondimensional,
+    ``tau_L_s`` and ``tau0`` in seconds, for the message)."""
+    if tau_L < MIN_TAU_L_ND:
+        raise ValueError(
+            f"tau_L must be >= {MIN_TAU_L_ND:g} tau0 = {MIN_TAU_L_ND * tau0:.3g} s for a simulation (got tau_L = "
+            f"{tau_L_s:.3g} s, tau_L/tau0 = {tau_L:.3g}): D ~ tau_L^2 there, and the excursion sums behind its CI "
+            "(U^4 ~ (tau_L/tau0)^4) underflow float64, collapsing the CI to 0")
+
+
+def pdmp_float32_unsafe_reason(tau_L: float) -> str | None:
+    """Why float32 is not safe for the PDMP at this :math:`\tau_L'` (None if it is)."""
+    if tau_L < FLOAT32_MIN_TAU_L_ND:
+        return (f"tau_L/tau0 = {tau_L:.3g} < {FLOAT32_MIN_TAU_L_ND:g}: the velocities, of order tau_L/tau0, "
+                "near float32's smallest numbers")
+    return None
 
 
 def float32_unsafe_reason(h_over_tau: float, h_nd: float, tau_nd: float = 1.0) -> str | None:

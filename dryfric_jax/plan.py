@@ -8,11 +8,13 @@ feasible before paying for it.
 
 Decisions, in order:
 
-1. the model has a stationary state (:func:`~dryfric_jax.limits.check_recurrent`);
+1. the model has a stationary state (:func:`~dryfric_jax.limits.check_recurrent`), and a
+   simulable one (:func:`~dryfric_jax.limits.check_simulable`: :math:`\tau_L' \ge 10^{-60}`);
 2. the method (``"auto"``: :mod:`dryfric_jax.cost`), the DI step h (:func:`check_h`) or the
    PDMP grid step delta (:func:`~dryfric_jax.noise.check_delta`);
-3. the dtype: the DI falls back to float64 where float32 is not safe
-   (:func:`~dryfric_jax.limits.float32_unsafe_reason`), and says so in ``notes``;
+3. the dtype: the DI and the PDMP fall back to float64 where float32 is not safe
+   (:func:`~dryfric_jax.limits.float32_unsafe_reason`,
+   :func:`~dryfric_jax.limits.pdmp_float32_unsafe_reason`), and say so in ``notes``;
 4. the work: refused if the prediction exceeds ``max_work``
    (:func:`~dryfric_jax.limits.check_work`), and a per-excursion bound ``max_steps``
    (:func:`~dryfric_jax.limits.max_steps_per_excursion`, at most ``max_work / lanes``).
@@ -27,7 +29,10 @@ import numpy as np
 
 from .cost import choose_method, default_delta
 from .excursions import MAX_LAYOUT, default_block, lanes_for
-from .limits import MAX_WORK, check_recurrent, check_work, float32_unsafe_reason, max_steps_per_excursion
+from .limits import (
+    MAX_WORK, check_recurrent, check_simulable, check_work, float32_unsafe_reason, max_steps_per_excursion,
+    pdmp_float32_unsafe_reason,
+)
 from .params import Params, check_params, real_or_none, shown
 from .pdmp import pdmp_grid_info
 
@@ -81,8 +86,11 @@ def check_h(params: Params, h: float) -> float:
 
 
 def dtype_name(dtype) -> str:
-    try:  # jnp.dtype(None) is float64: None is refused, not taken for the default
-        name = dtype if isinstance(dtype, str) else None if dtype is None else jnp.dtype(dtype).name
+    # jnp.dtype(None) is float64: None is refused, not taken for the default; so is a value (a numpy
+    # scalar or array: jnp.dtype(np.float32(nan)) is float32)
+    try:
+        value = dtype is None or isinstance(dtype, (np.generic, np.ndarray, jnp.ndarray))
+        name = dtype if isinstance(dtype, str) else None if value else jnp.dtype(dtype).name
     except TypeError:
         name = None
     if name not in DTYPES:
@@ -204,6 +212,7 @@ def choose(params: Params, method: str, h, delta, dtype) -> Plan:
     check_method(method, h, delta)
     dtype = dtype_name(dtype)
     check_recurrent(params.tau_L_nd, params.gamma_bar_nd)
+    check_simulable(params.tau_L_nd, params.tau_L, params.tau0)
     d = real(delta)
     if d is not None and math.isfinite(d):  # as a float (an int of 400 digits stays itself, for check_delta to show)
         delta = d
@@ -224,6 +233,10 @@ def choose(params: Params, method: str, h, delta, dtype) -> Plan:
         return Plan("di", h, None, None, dtype, reason, "steps", params.tau0 / h, notes=notes)
     delta = default_delta(params) if delta is None else delta
     grid = pdmp_grid_info(params, delta)
+    unsafe = pdmp_float32_unsafe_reason(params.tau_L_nd) if dtype == "float32" else None
+    if unsafe:
+        notes.append(f"float32 is not safe here ({unsafe}): simulated in float64")
+        dtype = "float64"
     # every noise jump is an event: the jump rate Lambda' is a lower estimate of the events per tau0
     return Plan("pdmp", None, grid["delta"], grid, dtype, reason, "events", grid["rate_nd"], notes=notes)
 

@@ -50,6 +50,7 @@ def test_closed_form_times_take_numpy_numbers_and_arrays():
     (dict(h=True), "h"), (dict(h=np.array([1e-3])), "h"),
     (dict(method="pdmp", delta=True), "delta"),
     (dict(dtype=None), "dtype"),  # jnp.dtype(None) is float64: it used to be taken for the default
+    (dict(dtype=np.float32(np.nan)), "dtype"), (dict(dtype=np.zeros(2)), "dtype"),  # values, not dtypes (audit)
     (dict(method=5), "method"),
 ])
 def test_settings_are_refused_by_name(kw, name):

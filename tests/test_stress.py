@@ -356,3 +356,30 @@ def test_float32_falls_back_where_the_noise_would_leave_its_range():
     plan = plan_estimate(p, dtype="float32", n_excursions=1000)
     assert plan.dtype == "float64" and "tau/tau0" in plan.notes[0]
     assert plan_estimate(dj.Params(5.0, DELTA, 1e-20, 0.067, 0.342), dtype="float32").dtype == "float32"
+
+
+def test_tiny_tau_L_pdmp_scales_as_tau_L_squared_then_is_refused():
+    r"""Strong damping, :math:`\tau_L' \to 0`: D/tau_L'^2 and M0/tau_L' of the PDMP converge, and the
+    same seed gives the same scaled numbers at tau_L' = 1e-20 and 1e-55 (nothing under- or
+    overflows); float32 agrees at 1e-20 and falls back to float64 below tau_L' = 1e-25.
+    Below 1e-60 a run is refused by name.  Before (audit): float32 gave NaN at tau_L' = 3e-40 and a
+    D 155x too small at 1e-36; float64 gave a CI of 0 at 1e-80 and D = 0 +- 0 at 1e-300, all exit 0."""
+    out = {}
+    for tl, dtype in ((1e-20, "float64"), (1e-55, "float64"), (1e-20, "float32")):
+        p = dj.Params.from_nondim(1.47, tl, 0.089)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", dj.DryfricWarning)
+            r = dj.estimate_diffusivity(p, 3, method="pdmp", dtype=dtype, n_excursions=500)
+        out[tl, dtype] = (r.dtype, r.D / p.D0 / tl**2, r.D_ci / p.D0 / tl**2, r.M0 / p.v0 / tl)
+        assert all(map(math.isfinite, out[tl, dtype][1:])) and out[tl, dtype][2] > 0
+    np.testing.assert_allclose(out[1e-55, "float64"][1:], out[1e-20, "float64"][1:], rtol=1e-10)
+    # float32 against float64 at 1e-20: the same seed, within float32 rounding of the paths
+    f32, f64 = out[1e-20, "float32"], out[1e-20, "float64"]
+    assert f32[0] == "float32" and abs(f32[1] - f64[1]) < f64[2]
+    plan = plan_estimate(dj.Params.from_nondim(1.47, 1e-40, 0.089), method="pdmp", dtype="float32")
+    assert plan.dtype == "float64" and "tau_L/tau0 = 1e-40 < 1e-25" in plan.notes[0]
+    for method in ("pdmp", "di", "auto"):
+        with pytest.raises(ValueError, match=r"^tau_L must be >= 1e-60 tau0"):
+            plan_estimate(dj.Params.from_nondim(1.47, 1e-61, 0.089), method=method)
+    with pytest.raises(ValueError, match=r"^tau_L must be >= 1e-60 tau0"):
+        dj.bruteforce_diffusivity(dj.Params.from_nondim(1.47, 1e-300, 0.089), 0, t=1.0, n_paths=10, method="pdmp")
