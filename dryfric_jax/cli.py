@@ -475,7 +475,7 @@ def _theory(a, params) -> int:
     else:
         print(f"white-noise D  = {out['D']:.6g} m^2/s\nwhite-noise M0 = {out['M0']:.6g} m/s")
         if a.h is not None:
-            rel = lambda x, y: f"{100 * (x / y - 1):+.2f}%" if y else "exactly 0"
+            rel = lambda x, y: f"{100 * (x / y - 1):+.2f}%" if y else "white noise: 0"
             print(f"DI chain at h = {a.h:.4g} s (white noise, exact): D = {law.D:.6g} ({rel(law.D, out['D'])}), "
                   f"M0 = {law.M0:.6g} ({rel(law.M0, out['M0'])}), E[V^2] = {law.mean_v2:.6g} "
                   f"({rel(law.mean_v2, out['mean_v2'])})")
