@@ -371,15 +371,17 @@ def test_max_time_bounds_each_point_and_a_resumed_sweep_with_more_time_reruns_it
     monkeypatch.setattr(excursions, "_now", lambda: float(next(clock)))
     out = str(tmp_path / "s.jsonl")
     pts = sweep.grid(Gamma=[2.0, 5.0])
-    r1 = sweep.run_sweep(pts, out, max_time=1.0, n_excursions=3000)
+    # max_time 2: the clock reads 2 after the second round (the rounds stop) and 3 before the final
+    # round's compacted tail, inside the deadline 4 (at max_time 1 it cuts the final round, truncating)
+    r1 = sweep.run_sweep(pts, out, max_time=2.0, n_excursions=3000)
     assert r1 == dict(computed=2, skipped=0, total=2, interrupted=False, refused=0, failed=0, truncated=0,
                       time_limited=2)
     first = _lines(out)
-    assert [(r["status"], sweep.stopped_by(r), r["max_time"]) for r in first] == [("ok", "max_time", 1.0)] * 2
+    assert [(r["status"], sweep.stopped_by(r), r["max_time"]) for r in first] == [("ok", "max_time", 2.0)] * 2
     assert all(0 < r["result"]["n_excursions"] < 3000 for r in first)
     assert [r["stopped_by"] for r in sweep.rows(out)] == ["max_time"] * 2
     # the same or less time: nothing rerun, the file unchanged
-    for t in (1.0, 0.5):
+    for t in (2.0, 0.5):
         assert sweep.run_sweep(pts, out, max_time=t, n_excursions=3000)["computed"] == 0
     assert _lines(out) == first
     # more time, interrupted (Ctrl-C in a point, or before its first 2 excursions closed, when the engine
