@@ -211,6 +211,11 @@ class Params(eqx.Module):
         tau, tau_L, gamma_bar = (_concrete(k, v) for k, v in (("tau", tau), ("tau_L", tau_L), ("gamma_bar", gamma_bar)))
         Gamma, Delta = float(Gamma), float(Delta)
         tau0 = Gamma / (Delta * Delta)
+        lo, hi = SCALE_RANGE
+        if not lo <= tau0 <= hi:  # tau = tau' tau0 would be 0 (or inf), and refused as if the user gave it
+            raise ValueError(f"Gamma and Delta must keep tau0 = Gamma/Delta^2 in [{lo:g}, {hi:g}] (got {tau0:.3g} from "
+                             f"Gamma = {Gamma!r}, Delta = {Delta!r}): out of floating-point range, express the "
+                             "parameters in other units")
         for name, v, unit in (("tau", tau, tau0), ("tau_L", tau_L, tau0), ("gamma_bar", gamma_bar, Delta)):
             if math.isfinite(v) and not math.isfinite(v * unit):  # 1e300 tau0 would read as tau_L = inf
                 raise ValueError(f"{name} must keep {name}' x its unit finite (got {name}' = {v!r} with unit "

@@ -118,6 +118,8 @@ def test_a_huge_integer_is_refused_in_one_short_line():
     # tau_L' = 1e300 in a tau0 of 1e10 s overflowed to tau_L = inf, then was refused as
     # "|gamma_bar| >= Delta with tau_L = inf"
     (dict(tau=1.0, tau_L=1e300, gamma_bar=2.0, Gamma=1e10), "tau_L"),
+    # tau0 = 1e-200/1e400 underflowed to 0 and tau = tau' tau0 = 0 was refused as "tau must be > 0 (got 0.0)"
+    (dict(tau=1.0, Gamma=1e-200, Delta=1e200), "Gamma and Delta"),
 ])
 def test_from_nondim_refuses_by_name(kw, name):
     with pytest.raises(ValueError, match=f"^{name} must"):
