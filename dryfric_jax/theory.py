@@ -111,10 +111,14 @@ def _quad(f, a, b, tails, epsrel):
 def _mode_points(itl, g):
     r"""For :math:`|\bar\gamma'| > 1` with viscous damping, p is a bump of width
     :math:`\sqrt{\tau_L'}` at :math:`v^* = \operatorname{sgn}(\bar\gamma')(|\bar\gamma'| - 1)\tau_L'`,
-    which may lie far from 0 on the quadrature's scale: break the integrals there too."""
+    which may lie far from 0 on the quadrature's scale: break the integrals there too, unless it
+    reaches 0 (:math:`|v^*| \le 8\sqrt{\tau_L'}`), where they are broken already (there the extra
+    points made D jump by 2e-5 across :math:`|\bar\gamma'| = 1` at :math:`\tau_L' = 10^9`)."""
     if itl == 0.0 or abs(g) <= 1.0:
         return ()
     v, sd = math.copysign((abs(g) - 1.0) / itl, g), 1.0 / math.sqrt(itl)
+    if abs(v) <= 8.0 * sd:  # the bump reaches 0, where the integrals are broken already
+        return ()
     return v - 8.0 * sd, v, v + 8.0 * sd
 
 

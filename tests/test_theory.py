@@ -370,3 +370,35 @@ def test_closed_forms_without_spurious_overflow_or_underflow():
     assert theory.D_pure_dry(1e-100, 1e-70) == pytest.approx(10 * 1e-300 / 1e-280, rel=1e-14, abs=0)
     g = 1 - 2.0**-53
     assert theory.M0_constant_bias(1.0, 1.0, g) == pytest.approx(2 * g / (2.0**-53 * (2 - 2.0**-53)), rel=1e-15)
+
+
+def _grid_reference_nd(tl_nd, g, n=2_000_001):
+    r"""D' and M0' of :math:`p \propto e^{\psi}`, :math:`\psi(v) = -v^2/(2\tau_L') - |v| + \bar\gamma' v`,
+    by the trapezoid rule on a fine grid (an independent method: no adaptive quadrature, no
+    breakpoints): :math:`D' = 2\int F^2/p`, F from the nearer tail."""
+    sd = math.sqrt(tl_nd)
+    center = math.copysign((abs(g) - 1.0) * tl_nd, g) if abs(g) > 1 else 0.0
+    lo, hi = min(0.0, center) - 40 * sd, max(0.0, center) + 40 * sd
+    v = np.unique(np.concatenate([np.linspace(lo, hi, n), np.linspace(-50.0, 50.0, n // 4), [0.0]]))
+    psi = -0.5 * v * v / tl_nd + np.where(v > 0, g - 1.0, g + 1.0) * v
+    p = np.exp(psi - psi.max())
+    trap = lambda f: np.concatenate([[0.0], np.cumsum(0.5 * (f[1:] + f[:-1]) * np.diff(v))])
+    p /= trap(p)[-1]
+    m = trap(v * p)[-1]
+    F = trap((v - m) * p)
+    F = np.where(v > m, F - F[-1], F)
+    integrand = np.where(p > 1e-300, F * F / np.maximum(p, 1e-300), 0.0)
+    return 2.0 * trap(integrand)[-1], m
+
+
+@pytest.mark.parametrize("tl_nd,gbar_nd", [(1e9, 1 + 1e-10), (1e9, 1 + 1e-6), (1e9, 1 - 1e-10), (1e3, 1.001),
+                                           (1e3, 1.1)])
+def test_bias_just_past_the_friction_with_weak_damping_matches_a_grid_quadrature(tl_nd, gbar_nd):
+    """|gamma_bar'| just above 1 with tau_L' >> 1: the velocity law's bump at v* = (|g'| - 1) tau_L'
+    lies within a few of its widths sqrt(tau_L') of 0.  Breaking the integrals at v* +- 8 widths
+    there made D jump by -2.3e-5 (relative) from g' = 1 to 1 + 1e-10 at tau_L' = 1e9 (audit): D
+    and M0 now agree with a fine trapezoid grid to 1e-7 (measured: < 1e-9)."""
+    p = Params.from_nondim(1e-9, tl_nd, gbar_nd)
+    D_ref, M_ref = _grid_reference_nd(tl_nd, gbar_nd)
+    assert theory.exact_D(p) / p.D0 == pytest.approx(D_ref, rel=1e-7)
+    assert theory.exact_M0(p) / p.v0 == pytest.approx(M_ref, rel=1e-7)
