@@ -189,7 +189,7 @@ def _exp10(log_x: float) -> str:
 
 
 def check_simulable(tau_L: float, tau_L_s: float, tau0: float) -> None:
-    """Refuse a simulation at :math:`\tau_L' <` :data:`MIN_TAU_L_ND` (``tau_L`` nondimensional,
+    r"""Refuse a simulation at :math:`\tau_L' <` :data:`MIN_TAU_L_ND` (``tau_L`` nondimensional,
     ``tau_L_s`` and ``tau0`` in seconds, for the message)."""
     if tau_L < MIN_TAU_L_ND:
         raise ValueError(
@@ -199,7 +199,7 @@ def check_simulable(tau_L: float, tau_L_s: float, tau0: float) -> None:
 
 
 def pdmp_float32_unsafe_reason(tau_L: float) -> str | None:
-    """Why float32 is not safe for the PDMP at this :math:`\tau_L'` (None if it is)."""
+    r"""Why float32 is not safe for the PDMP at this :math:`\tau_L'` (None if it is)."""
     if tau_L < FLOAT32_MIN_TAU_L_ND:
         return (f"tau_L/tau0 = {tau_L:.3g} < {FLOAT32_MIN_TAU_L_ND:g}: the velocities, of order tau_L/tau0, "
                 "near float32's smallest numbers")
