@@ -223,22 +223,20 @@ def choose(params: Params, method: str, h, delta, dtype) -> Plan:
         pdmp_grid_info(params, d_c)  # validates delta
         method, reason = choose_method(params, h_c, d_c)
         h, delta = (h_c, None) if method == "di" else (None, d_c)
-    notes = []
     if method == "di":
         h = check_h(params, h)
-        unsafe = float32_unsafe_reason(h / params.tau, h / params.tau0, params.tau_nd) if dtype == "float32" else None
-        if unsafe:
-            notes.append(f"float32 is not safe here ({unsafe}): simulated in float64")
-            dtype = "float64"
-        return Plan("di", h, None, None, dtype, reason, "steps", params.tau0 / h, notes=notes)
-    delta = default_delta(params) if delta is None else delta
-    grid = pdmp_grid_info(params, delta)
-    unsafe = pdmp_float32_unsafe_reason(params.tau_L_nd) if dtype == "float32" else None
-    if unsafe:
-        notes.append(f"float32 is not safe here ({unsafe}): simulated in float64")
-        dtype = "float64"
-    # every noise jump is an event: the jump rate Lambda' is a lower estimate of the events per tau0
-    return Plan("pdmp", None, grid["delta"], grid, dtype, reason, "events", grid["rate_nd"], notes=notes)
+        unsafe = float32_unsafe_reason(h / params.tau, h / params.tau0, params.tau_nd)
+        plan = Plan("di", h, None, None, dtype, reason, "steps", params.tau0 / h)
+    else:
+        delta = default_delta(params) if delta is None else delta
+        grid = pdmp_grid_info(params, delta)
+        unsafe = pdmp_float32_unsafe_reason(params.tau_L_nd)
+        # every noise jump is an event: the jump rate Lambda' is a lower estimate of the events per tau0
+        plan = Plan("pdmp", None, grid["delta"], grid, dtype, reason, "events", grid["rate_nd"])
+    if dtype == "float32" and unsafe:
+        plan.notes.append(f"float32 is not safe here ({unsafe}): simulated in float64")
+        plan.dtype = "float64"
+    return plan
 
 
 def plan_estimate(params: Params, *, method: str = "di", h: float | None = None, delta: float | None = None,

@@ -14,6 +14,7 @@ outside float64's range is refused by name (``ValueError``), never returned as i
 """
 from __future__ import annotations
 
+import contextlib
 import math
 import sys
 import warnings
@@ -95,6 +96,16 @@ def _tail_scales(itl, g):
     the nested quadrature of :func:`exact_D` took 78 s at :math:`\tau_L' = 10^8, \bar\gamma' = 1 - 10^{-4}`)."""
     side = lambda rate: 1.0 / max(math.sqrt(itl), rate) if rate > 0 else 1.0 / math.sqrt(itl)  # noqa: E731
     return side(1.0 + g), side(1.0 - g)
+
+
+@contextlib.contextmanager
+def _round_off_ignored():
+    """The quadratures near the kink at v = 0 report harmless round-off (scipy's IntegrationWarning,
+    printed raw on stderr): silenced in :func:`exact_D`, :func:`exact_M0` and
+    :func:`exact_mean_square_velocity`."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", integrate.IntegrationWarning)
+        yield
 
 
 def _quad(f, a, b, tails, epsrel):
@@ -213,8 +224,7 @@ def exact_M0(params: Params) -> float:
     itl, g = _nd(params)
     if itl == 0.0:
         return M0_constant_bias(params.Gamma, params.Delta, params.gamma_bar)
-    with warnings.catch_warnings():  # as in exact_D: round-off near the kink, reported raw on stderr
-        warnings.simplefilter("ignore", integrate.IntegrationWarning)
+    with _round_off_ignored():
         return _in_units("M0", _velocity_moment_nd(itl, g, 1), (1, -1), params, positive=False)
 
 
@@ -225,8 +235,7 @@ def exact_mean_square_velocity(params: Params) -> float:
     itl, g = _nd(params)
     if itl == 0.0:
         return _mean_square_constant_bias(params.Gamma, params.Delta, params.gamma_bar)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", integrate.IntegrationWarning)
+    with _round_off_ignored():
         return _in_units("E[V^2]", _velocity_moment_nd(itl, g, 2), (2, -2), params, positive=True)
 
 
@@ -246,8 +255,7 @@ def exact_D(params: Params) -> float:
     itl, g = _nd(params)
     if itl == 0.0:
         return D_constant_bias(params.Gamma, params.Delta, params.gamma_bar)
-    with warnings.catch_warnings():  # inner quads near the kink report harmless round-off
-        warnings.simplefilter("ignore", integrate.IntegrationWarning)
+    with _round_off_ignored():
         return _in_units("D", _exact_D_nd(itl, g), (3, -4), params, positive=True)
 
 
