@@ -192,6 +192,21 @@ def locked(path: str):
             os.close(fd)  # releases the lock
 
 
+def put_record(path: str, rec: dict, same, read) -> None:
+    """Write one finished record to a JSON Lines results file that other processes may update too:
+    under :func:`locked`, the file is read again (``read(path)``), so the records they wrote
+    meanwhile are kept; ``rec`` replaces the first record ``same(old)`` holds for, or is appended;
+    the file is rewritten atomically (:func:`write_records`)."""
+    with locked(path):
+        records = read(path)
+        at = next((k for k, old in enumerate(records) if same(old)), None)
+        if at is None:
+            records.append(rec)
+        else:
+            records[at] = rec
+        write_records(path, records)
+
+
 def write_records(path: str, records: list[dict]) -> None:
     """Rewrite a JSON Lines results file with ``records``, atomically (:func:`write_atomic`)."""
     write_atomic(path, "".join(dumps(rec) + "\n" for rec in records))

@@ -58,7 +58,7 @@ import numpy as np
 from ._version import __version__
 from .api import DryfricWarning, NoEstimateError, ProjectionWarning, check_progress, check_seed, estimate_diffusivity
 from .limits import MAX_WORK
-from .outfiles import check_writable, dumps, locked, read_records, write_records
+from .outfiles import check_writable, dumps, locked, put_record, read_records, write_records
 from .params import FIG3, Params, plain_number, real_or_none
 from .plan import check_max_time, check_settings, plan_estimate
 
@@ -294,7 +294,9 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
             for k in ("params", "seed"):
                 res.pop(k)
             rec = _record(seed, pt, settings, "ok", max_time, result=res)
-        _put(out, ident, rec)
+        # the file read again under its lock: another sweep's records are kept, a record of this point
+        # (a rerun with more time, or the other sweep's) is replaced in place
+        put_record(out, rec, lambda old: _rec_ident(old) == ident, read_results)
         have[ident] = rec
         computed += 1
         done += 1
@@ -316,20 +318,6 @@ def _outdated(rec: dict) -> bool:
 
 def _rec_ident(rec: dict) -> str:
     return _ident(rec["sweep_seed"], rec["params"], rec["settings"])
-
-
-def _put(out: str, ident: str, rec: dict) -> None:
-    """Write a finished point's record: the file is read again under the lock, so the records
-    another sweep wrote there meanwhile are kept; a record of the same point (a rerun with more
-    time, or the other sweep's) is replaced in place, otherwise the record is appended."""
-    with locked(out):
-        records = read_results(out)
-        at = next((k for k, old in enumerate(records) if _rec_ident(old) == ident), None)
-        if at is None:
-            records.append(rec)
-        else:
-            records[at] = rec
-        write_records(out, records)
 
 
 def _record(seed: int, pt: dict, settings: dict, state: str, max_time=None, **what) -> dict:

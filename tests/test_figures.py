@@ -127,6 +127,25 @@ def test_figure_points_of_another_version_are_recomputed(tmp_path, monkeypatch):
     assert other.estimate(p, 3, **kw).D == a.D and (other.reused, other.computed) == (0, 1)
 
 
+def test_two_runs_of_a_scene_into_one_directory_keep_each_others_runs(tmp_path):
+    """Each finished run is written after re-reading the points file under a lock: a second
+    Points on the same file (another process running the same scene) keeps the first's runs,
+    and the first, writing its next run, keeps the second's (it rewrote the file from its own
+    list, as the sweep did)."""
+    import json
+
+    from dryfric_jax.figures import points
+    from dryfric_jax.params import FIG3, Params
+
+    p, kw = Params(**FIG3), dict(n_excursions=64)
+    a, b = points.Points(str(tmp_path), "s"), points.Points(str(tmp_path), "s")
+    a.estimate(p, 1, **kw)
+    b.estimate(p, 2, **kw)
+    a.estimate(p, 3, **kw)
+    lines = (tmp_path / "s.points.jsonl").read_text().splitlines()
+    assert [json.loads(x)["result"]["seed"] for x in lines] == [1, 2, 3]
+
+
 def test_a_ctrl_c_before_two_excursions_closed_is_an_interruption(tmp_path, monkeypatch):
     """A run that Ctrl-C stopped before 2 excursions closed has no result: the API lets the
     KeyboardInterrupt go on up, so the scene stops as for any Ctrl-C (the CLI says the finished runs

@@ -4,8 +4,9 @@ The scenes of many estimates (Fig. 3: 80 runs of N = 1e5, hours on a CPU; Fig. 8
 call :func:`~dryfric_jax.api.estimate_diffusivity` and
 :func:`~dryfric_jax.api.bruteforce_diffusivity` through :class:`Points`.  Each finished run is
 appended to ``<out_dir>/<scene>.points.jsonl`` (one JSON line per run: what was asked, the
-package version, the result), the whole file rewritten atomically
-(:func:`~dryfric_jax.outfiles.write_records`), so a kill at any moment leaves a valid file.
+package version, the result), the whole file re-read under a lock and rewritten atomically
+(:func:`~dryfric_jax.outfiles.put_record`), so a kill at any moment leaves a valid file and two
+runs of a scene into one directory keep each other's runs.
 Running the same scene again into the same directory reuses every run already there (same
 kind, parameters, seed, settings and package version) instead of computing it: the seeds are
 fixed by the scene, so the resumed figure is bit-identical to an uninterrupted one (tested).
@@ -26,7 +27,7 @@ import warnings
 
 from .._version import __version__
 from ..api import BruteForceResult, DryfricWarning, EstimateResult, bruteforce_diffusivity, estimate_diffusivity
-from ..outfiles import read_records, write_records
+from ..outfiles import put_record, read_records
 
 _KINDS = {"estimate": (estimate_diffusivity, EstimateResult), "bruteforce": (bruteforce_diffusivity, BruteForceResult)}
 
@@ -52,6 +53,12 @@ def _check_record(rec: dict) -> None:
         raise TypeError("not a finished-run record")
 
 
+def _read(path: str) -> list[dict]:
+    return read_records(path, ("ident", "kind", "result"),
+                        "out must be a directory of dryfric figure outputs; {path!r} line {line} is "
+                        "not a finished-run record (move the file away)", check=_check_record)
+
+
 def points_path(out_dir: str, scene: str) -> str:
     return os.path.join(out_dir, f"{scene}.points.jsonl")
 
@@ -66,10 +73,7 @@ class Points:
     def __init__(self, out_dir: str, scene: str):
         self.path = points_path(out_dir, scene)
         self.reused, self.computed, self.runs_wall_s = 0, 0, 0.0
-        self.records = read_records(self.path, ("ident", "kind", "result"),
-                                    "out must be a directory of dryfric figure outputs; {path!r} line {line} is "
-                                    "not a finished-run record (move the file away)", check=_check_record)
-        self._done = {rec["ident"]: rec for rec in self.records}
+        self._done = {rec["ident"]: rec for rec in _read(self.path)}
 
     def estimate(self, params, seed: int, **kw) -> EstimateResult:
         """:func:`~dryfric_jax.api.estimate_diffusivity` ``(params, seed, **kw)``, or its kept result."""
@@ -96,9 +100,8 @@ class Points:
             raise KeyboardInterrupt
         rec = dict(ident=ident, kind=kind, version=__version__, finished_at=time.strftime("%Y-%m-%dT%H:%M:%S"),
                    result=r.to_dict())
-        self.records.append(rec)
+        put_record(self.path, rec, lambda old: old["ident"] == ident, _read)  # keeps what others wrote there
         self._done[ident] = rec
-        write_records(self.path, self.records)
         self.computed += 1
         self.runs_wall_s += r.wall_s
         return r
