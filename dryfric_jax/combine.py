@@ -184,7 +184,9 @@ def combine_estimates(results: Sequence, *, labels: Sequence[str] | None = None)
     if len(known) < len(seeds):
         warnings.warn("some results were made from a jax.random key, not a seed: their streams are assumed "
                       "independent", DryfricWarning, stacklevel=2)
-    total = {k: float(sum(r.sums[k] for r in rs)) for k in STAT_NAMES}
+    # math.fsum is correctly rounded, so the pooled sums, and all that follows from them, do not depend on the
+    # order of the runs (with sum() the last digit of M0 did)
+    total = {k: math.fsum(r.sums[k] for r in rs) for k in STAT_NAMES}
     if total["n"] > MAX_COUNT:
         raise ValueError(f"results must hold at most 2^62 excursions together (got {total['n']:.3g})")
     out = _result(first, rs, total, seeds)
@@ -197,9 +199,9 @@ def combine_estimates(results: Sequence, *, labels: Sequence[str] | None = None)
 def _result(first: EstimateResult, rs, total: dict, seeds) -> EstimateResult:
     p = Params(**first.params)
     e = long_excursion_estimates(total, first.ci_level)
-    wall = sum(r.wall_s for r in rs)
-    useful = sum(r.lane_steps_per_s * r.wall_s for r in rs)
-    slots = sum(r.lane_steps_per_s * r.wall_s / r.lane_utilization if r.lane_utilization else 0.0 for r in rs)
+    wall = math.fsum(r.wall_s for r in rs)
+    useful = math.fsum(r.lane_steps_per_s * r.wall_s for r in rs)
+    slots = math.fsum(r.lane_steps_per_s * r.wall_s / r.lane_utilization if r.lane_utilization else 0.0 for r in rs)
     # the runs' notes once each, but the small-N note for the pool's N, not each run's
     notes = list(dict.fromkeys(w for r in rs for w in r.warnings if w != small_n_note(r.n_excursions)))
     if e["n_excursions"] < MIN_RELIABLE_N:
@@ -212,7 +214,7 @@ def _result(first: EstimateResult, rs, total: dict, seeds) -> EstimateResult:
         n_truncated=sum(r.n_truncated for r in rs), seed=None, wall_s=wall, lane_steps_per_s=rate,
         events_per_s=None if first.events_per_s is None else rate,
         lane_utilization=useful / slots if slots else first.lane_utilization,
-        work=sum(r.work for r in rs), predicted_work=sum(r.predicted_work for r in rs),
+        work=sum(r.work for r in rs), predicted_work=math.fsum(r.predicted_work for r in rs),
         max_work=sum(r.max_work for r in rs),  # the pool's bound, as its work (it was the first run's)
         stopped_by="combined", rtol=None, warnings=notes, sums=total, combined_from=list(seeds),
         lanes=_common(rs, "lanes"), block=_common(rs, "block"), n_requested=sum(r.n_requested for r in rs),

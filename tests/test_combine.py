@@ -1,6 +1,7 @@
 """Pooling independent runs (dryfric_jax.combine): exact against white noise, refusals, and two
 processes of a jax.distributed job on the CPU."""
 import dataclasses
+import itertools
 import json
 import math
 import os
@@ -198,3 +199,16 @@ def test_the_cli_pools_a_sweep_file_line_by_line(tmp_path, runs, capsys):
                     seed=7, n_excursions=500)
     assert main(["combine", str(out)]) == 2
     assert f"{out}:3 has" in capsys.readouterr().err
+
+
+def test_the_pool_does_not_depend_on_the_order_of_the_runs(runs):
+    # more runs than the fixture's three, so that there are orders whose float sums differ: with sum() the
+    # last digit of the pooled M0 and D followed the order of the files given to 'dryfric combine'
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", dj.DryfricWarning)  # the small-N note
+        more = runs + [dj.estimate_diffusivity(P, s, n_excursions=2_000) for s in (44, 45)]
+    first = combine_estimates(more)
+    for order in itertools.permutations(range(len(more))):
+        c = combine_estimates([more[i] for i in order])
+        assert (c.D, c.D_ci, c.M0, c.M0_ci, c.mean_duration, c.sums) == \
+            (first.D, first.D_ci, first.M0, first.M0_ci, first.mean_duration, first.sums), order
