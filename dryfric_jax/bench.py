@@ -398,8 +398,11 @@ def _layout_row(at, unroll, compile_s, rs) -> dict:
 
 def _summarise_layouts(out: dict) -> dict:
     """Add the best layout, the inverse-variance pooled D and ``max_z`` to ``out``; return the best row."""
-    rows = out["layouts"]
-    best = max(rows, key=lambda row: row["lane_steps_per_s"])
+    best = max(out["layouts"], key=lambda row: row["lane_steps_per_s"])
+    # the wait and fused layouts and the unrolls of one (lanes, K) run the same excursions (its seed, the numbers
+    # used alike; up to rounding): one row of them, or a row's twin in the pool of the others pulls that pool
+    # towards it (wait and fused: max_z shrank by sqrt(2/3)).  "branch" uses the numbers otherwise
+    rows = list({(row["lanes"], row["block"], row["events"] == "branch"): row for row in out["layouts"]}.values())
     w = [(1.96 / row["D_ci"]) ** 2 for row in rows]
     pooled = sum(wi * row["D"] for wi, row in zip(w, rows)) / sum(w)
 

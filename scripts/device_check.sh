@@ -15,7 +15,7 @@ else  # the H100 of 2026-11-27: the fused layout best at 2^18 lanes, K = 1024 (R
   # next: more lanes and K between (2^19 x 1024 is past the layout bound 2^28: listed as skipped), and what
   # that lease did not reach: the paired float32 tests and Figs. 6 and 4
   LANES=262144,524288; BLOCKS=512,1024; BIG=262144; N=200000; BOUND=1073741824; BENCH=100000
-  T=(150 130 110 50 0 100); NDT=4000000; FIGS="6 4 table1 7"; FIGQ=""
+  T=(150 130 110 50 0 90); NDT=4000000; FIGS="6 4 table1 7"; FIGQ=""
   TESTS="tests/test_engine.py::test_float32_arithmetic_matches_float64_on_the_same_numbers
     tests/test_engine.py::test_float32_numbers_match_float64_numbers_in_float64_arithmetic
     tests/test_engine.py::test_pdmp_float32_matches_float64_paired
@@ -24,14 +24,15 @@ fi
 EVENTS=${EVENTS:-fused}  # the DI's default on an NVIDIA GPU; EVENTS=wait,fused compares them
 {
   date -u; nvidia-smi -L 2>&1; nproc
-  $PY -m pip install -q --no-deps --no-build-isolation -e . 2>&1 | tail -3
-  $PY -c 'import jax, numba, equinox, scipy; print("jax", jax.__version__, jax.devices(), "numba", numba.__version__, "equinox", equinox.__version__)'
+  # no pip install: PYTHONPATH=$PWD, every stage runs "$PY -m", and the tests' subprocesses inherit it
+  timeout 60 $PY -c 'import jax, numba, equinox, scipy; print("jax", jax.__version__, jax.devices(), "numba", numba.__version__, "equinox", equinox.__version__)'
 } > "$OUT/env.log" 2>&1
 cat "$OUT/env.log"
 stage() {  # name limit command...
   local name=$1 lim=$2; shift 2
   local t=$(date +%s)
-  timeout -s INT -k 10 "$lim" "$@" > "$OUT/$name.log" 2>&1
+  # SIGINT first (dryfric prints what it reached and exits 130), SIGKILL 5 s later
+  timeout -s INT -k 5 "$lim" "$@" > "$OUT/$name.log" 2>&1
   echo "== $name: rc $? in $(( $(date +%s) - t )) s (limit $lim)"; tail -4 "$OUT/$name.log"
 }
 # the DI's quiet loop as one Pallas kernel (dryfric_jax.fused), every layout
@@ -46,13 +47,16 @@ stage layouts64_bench "${T[2]}" $PY scripts/device_check.py --dtypes float64 --l
 export PY NDT BIG
 stage dtypes "${T[3]}" bash -c 'for dt in float32 float64; do s=11; [ $dt = float64 ] && s=12
   $PY -m dryfric_jax.cli estimate --json --dtype $dt --seed $s --n-excursions $NDT --lanes $BIG --block 256 \
-    --max-work 1e12; done'
+    --max-work 1e12; [ $? = 130 ] && break; done'
 [ "${T[4]}" -gt 0 ] && stage unroll32 "${T[4]}" $PY scripts/device_check.py --dtypes float32 --lanes $BIG \
   --block 256 --unroll 1,4 --events wait --n $N --bound-n $BOUND --numba-n 0 --budget-s $(( ${T[4]} - 30 ))
 # issue 5: the path scenes at full settings (the README's CPU column), one after another until the limit;
 # figures go to /tmp (too many files for $OUT), each scene's wall time from its JSON into the log
 export FIGS FIGQ
-stage figs "${T[5]}" bash -c 'for f in $FIGS; do t=$(date +%s); $PY -m dryfric_jax.cli figures --fig $f $FIGQ \
-  --out /tmp/figs > /dev/null || echo "fig $f rc $?"; echo "fig $f: $(( $(date +%s) - t )) s in all"; done;
+# (the loops stop at the limit's SIGINT: dryfric exits 130 rather than dying of it, and the next item would be
+# SIGKILLed, losing the summary)
+stage figs "${T[5]}" bash -c 'for f in $FIGS; do t=$(date +%s); rc=0; $PY -m dryfric_jax.cli figures --fig $f $FIGQ \
+  --out /tmp/figs > /dev/null || { rc=$?; echo "fig $f rc $rc"; }; echo "fig $f: $(( $(date +%s) - t )) s in all";
+  [ $rc = 130 ] && break; done;
   $PY -c "import glob, json; [print(f, round(json.load(open(f))[\"wall_s\"], 1))
     for f in sorted(glob.glob(\"/tmp/figs/*.json\"))]"'

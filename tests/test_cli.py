@@ -363,6 +363,28 @@ def test_bench_layout_sweep(capsys):
     assert b["ratio_best_to_rng_bound"] > 0 and b["max_z"] < 3
 
 
+def test_layout_disagreement_counts_the_twins_of_a_layout_once():
+    """``max_z`` compares each layout's D with the pool of the others: the wait and fused layouts
+    (and the unrolls) of one (lanes, K) run the same excursions, so a row's twin must not sit in its
+    pool (it pulled the pool towards the row: the z of two layouts shrank by sqrt(2/3) with
+    ``events=wait,fused``)."""
+    from dryfric_jax.bench import _summarise_layouts
+
+    def row(lanes, events, D, unroll=1):
+        return dict(lanes=lanes, block=64, unroll=unroll, events=events, D=D, D_ci=1.96, lane_steps_per_s=lanes)
+
+    two = dict(layouts=[row(32, "wait", 0.0), row(64, "wait", 5.0)])
+    _summarise_layouts(two)
+    assert two["max_z"] == pytest.approx(5 / math.sqrt(2), rel=1e-12) and two["D_pooled"] == 2.5
+    twins = dict(layouts=[row(32, "wait", 0.0), row(32, "fused", 0.0), row(32, "wait", 0.0, unroll=2),
+                          row(64, "wait", 5.0), row(64, "fused", 5.0)])
+    assert _summarise_layouts(twins)["lanes"] == 64
+    assert (twins["max_z"], twins["D_pooled"]) == (two["max_z"], two["D_pooled"])
+    branch = dict(layouts=two["layouts"] + [row(64, "branch", 5.0)])  # other excursions: a layout of its own
+    _summarise_layouts(branch)
+    assert branch["max_z"] > two["max_z"]
+
+
 def test_layout_sweep_over_unrolls_streams_rows_and_keeps_to_its_budget():
     """What ``scripts/device_check.py`` asks of :func:`tune_layout`: the wait loop's unroll and the
     event layouts swept (each unroll compiled afresh, the engine's settings restored after),
