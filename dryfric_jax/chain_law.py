@@ -84,7 +84,9 @@ def white_chain_law(params: Params, h: float, *, nodes_per_sd: int = 8, width: f
     fewer would cost the result its accuracy (a width of -1 gave D 25 times too small).
     ``tau`` is not used: this is the :math:`\tau/h \to 0` limit.  Raises ``ValueError`` where
     the grid would exceed ``MAX_NODES`` (``h`` small against the law's width: small h, or a wide
-    law, :math:`|\bar\gamma| \to \Delta` with :math:`\tau_L = \infty`), for an ``h`` outside
+    law, :math:`|\bar\gamma| \to \Delta` with :math:`\tau_L = \infty`, or a bump far from 0,
+    :math:`|\bar\gamma'| > 1` with a large :math:`\tau_L'`: its sd :math:`\sqrt{\tau_L'}` at
+    :math:`(|\bar\gamma'| - 1)\tau_L'`, which the grid covers too), for an ``h`` outside
     :func:`~dryfric_jax.plan.check_h`'s range and for a law that is not recurrent.
     """
     check_params(params)
@@ -104,14 +106,18 @@ def white_chain_law(params: Params, h: float, *, nodes_per_sd: int = 8, width: f
     s = math.sqrt(2 * hn)
     dv = s / nodes_per_sd
     L = width * _scale(itl, g) + 10 * s
+    if itl > 0 and abs(g) > 1:  # a bump of sd sqrt(tau_L') at |v*| = (|g| - 1) tau_L' (theory._mode_points)
+        L = max(L, (abs(g) - 1) / itl + width / math.sqrt(itl) + 10 * s)
     ratio = L / dv if dv > 0 else math.inf  # h near 5e-324: dv underflows
     kf = math.ceil(ratio) if ratio < 1e300 else math.inf
     if 2 * kf + 3 > MAX_NODES:
         nodes = 2.0 * kf + 3  # a float: one readable number, not 150 digits
         # nodes ~ 2 L / dv with dv^2 = 2 h' / nodes_per_sd^2: the h that fits, without h (which may underflow)
-        need = (h * (nodes / MAX_NODES) ** 2 if nodes < 1e150
-                else 2.0 * (L * nodes_per_sd / MAX_NODES) ** 2 * params.tau0)
-        fix = (f"use h >= {need:.3g} s or fewer nodes_per_sd" if need <= h_max(params) else
+        # exactly: ceil(W nps / s + 10 nps) <= (MAX_NODES - 3) / 2 with W = L - 10 s, the law's part of the
+        # span (h-free); room > 0 as nodes_per_sd <= MAX_NODES_PER_SD; 1% up: the message prints 3 digits
+        room = (MAX_NODES - 3) // 2 - 10 * nodes_per_sd
+        need = 0.5 * ((L - 10 * s) * nodes_per_sd / room) ** 2 * params.tau0
+        fix = (f"use h >= {min(1.01 * need, h_max(params)):.3g} s or fewer nodes_per_sd" if need <= h_max(params) else
                f"no admissible h (<= {h_max(params):.3g} s) is large enough: the law is too wide")
         raise ValueError(f"h = {h:.4g} s: the dense chain law would need {nodes:.3g} grid nodes > {MAX_NODES} (the "
                          f"law spans +-{L:.3g} against a step noise sd of {s:.3g}, nondimensional); {fix}")

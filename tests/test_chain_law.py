@@ -11,6 +11,7 @@
 Tolerances: z = 2.81 (0.5% per comparison, as test_di_exact), fixed seeds.
 """
 import math
+import re
 
 import jax
 import numpy as np
@@ -59,10 +60,34 @@ def test_chain_law_is_grid_converged_and_first_order_in_h(case, solve_rounding):
         assert abs(c.M0) < solve_rounding(c)
 
 
+@pytest.mark.parametrize("g", [3.0, -3.0])
+def test_chain_law_covers_a_bump_far_from_zero(g):
+    """|gamma_bar'| > 1 with a finite tau_L: the law is a bump of sd sqrt(tau_L') at
+    |v*| = (|gamma_bar'| - 1) tau_L' = 20, beyond the decay width the grid was sized by (it reached
+    15: D came out 86% low, M0 15%, no error).  The bump is 6.3 sd from 0, where the particle
+    sticks (mass ~ exp(-20) ~ 2e-9), so the chain is an Euler AR(1) velocity, whose long-run
+    variance, hence D, and whose mean are those of the continuum at any h; its E[V^2] is
+    first order in h."""
+    p = dj.Params.from_nondim(1e-4, 10.0, g)
+    hs = np.array([0.1, 0.05]) * min(p.tau0, p.tau_L)
+    laws = [white_chain_law(p, h) for h in hs]
+    for c in laws:  # measured 2e-12 and 2e-13
+        assert c.D == pytest.approx(dj.theory.exact_D(p), rel=1e-7)
+        assert c.M0 == pytest.approx(dj.theory.exact_M0(p), rel=1e-7)
+    v2 = dj.theory.exact_mean_square_velocity(p)
+    gaps = [c.mean_v2 / v2 - 1 for c in laws]  # measured 1.23e-4, 6.11e-5
+    assert 0 < gaps[0] < 1e-3 and 1.8 < gaps[0] / gaps[1] < 2.2, gaps
+
+
 def test_chain_law_refuses_a_step_too_small_or_too_large():
     p = _params("fig5")
-    with pytest.raises(ValueError, match="h = .* grid nodes .* use h >="):
+    with pytest.raises(ValueError, match="h = .* grid nodes .* use h >=") as err:
         white_chain_law(p, 1e-4 * p.tau0)
+    # the step it suggests fits (it was ~5% too small, and refused in turn)
+    need = float(re.search(r"use h >= (\S+) s", str(err.value)).group(1))
+    assert white_chain_law(p, need).n_nodes <= dj.chain_law.MAX_NODES
+    with pytest.raises(ValueError, match="no admissible h"):  # the bump at v* = 50 with sd 10 spans +-350
+        white_chain_law(dj.Params.from_nondim(1e-4, 100.0, 1.5), 0.05)
     with pytest.raises(ValueError, match="h must be in"):
         white_chain_law(p, 0.5 * p.tau0)
 
