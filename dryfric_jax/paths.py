@@ -25,7 +25,7 @@ from .api import _key
 from .di import DIModel
 from .excursions import BLOCK, block_keys
 from .params import check_finite, check_positive, shown
-from .plan import check_count
+from .plan import MAX_COUNT, check_count
 from .pdmp import PDMPModel, flow
 from .sharding import over_lanes
 
@@ -34,6 +34,9 @@ def _check_model(model) -> None:
     if not isinstance(model, DIModel):
         raise ValueError(f"model must be a DIModel, from dryfric_jax.make_di_model(params, h) "
                          f"(got {type(model).__name__})")
+    if not float(model.ou.m2) < 1.0:  # float32 at h/tau < 6e-8: X a random walk, its stationary sd inf
+        raise ValueError(f"model must have a noise decay exp(-h/tau) < 1 in its dtype (got {float(model.ou.m2)!r} in "
+                         f"{model.h.dtype}: h/tau is below its resolution); build it with dtype float64")
 
 
 def _record_steps(record_steps) -> list:
@@ -48,6 +51,11 @@ def _record_steps(record_steps) -> list:
         raise ValueError("record_steps must be a non-empty sequence of non-negative integers in non-decreasing "
                          f"order (step counts at which V is recorded) (got {shown(record_steps)})")
     return [int(s) for s in steps]
+
+
+#: the longest stretch of steps between records: its numbers are one draw of 2 per step, counted in uint32
+MAX_SEGMENT = 2**31 - 1
+SEGMENT_WHY = " (steps between records: their normals are counted in 32 bits)"
 
 
 def _segment(model: DIModel, carry, keys, n_steps: int, block: int = BLOCK):
@@ -80,8 +88,12 @@ def _segment(model: DIModel, carry, keys, n_steps: int, block: int = BLOCK):
 
 
 def _stationary_sd(model: DIModel):
-    """Standard deviation of the stationary law of the discrete X chain (1/sqrt(tau') exactly)."""
-    return jnp.sqrt((model.ou.L21**2 + model.ou.L22**2) / (1.0 - model.ou.m2**2))
+    r"""Standard deviation of the stationary law of the model's discrete X chain,
+    :math:`\sqrt{(L_{21}^2 + L_{22}^2)/(1 - m_2^2)}`, computed in float64 (in the model's dtype it was
+    8% off at h/tau = 1e-7 in float32): :math:`1/\sqrt{\tau'}` for a float64 model (tested), that of
+    the rounded chain for a float32 one (:func:`_check_model` refuses :math:`m_2 = 1`)."""
+    c = [jnp.asarray(a, jnp.float64) for a in (model.ou.L21, model.ou.L22, model.ou.m2)]
+    return jnp.sqrt((c[0] ** 2 + c[1] ** 2) / (1.0 - c[2] ** 2)).astype(model.h.dtype)
 
 
 def _transient(model, keys, x0, v0, *, segments):
@@ -108,6 +120,9 @@ def di_transient(model: DIModel, key, n_paths: int, record_steps, v0: float = 1.
     check_finite("v0", v0)
     v0 = float(v0)
     segments = tuple(np.diff([0] + steps).tolist())
+    if max(segments) > MAX_SEGMENT:
+        raise ValueError(f"record_steps must be at most {MAX_SEGMENT} apart{SEGMENT_WHY} "
+                         f"(got a gap of {max(segments)})")
     sd = _stationary_sd(model)
     out = []
     for c in range(-(-n_paths // chunk)):
@@ -142,11 +157,13 @@ def di_stationary(model: DIModel, key, n_paths: int, n_records: int, every: int 
     Path p has key ``split(key)[p]``; its burn-in uses ``jax.random.normal(fold_in(path_key,
     n_records), (burn_steps, 2))``, record i the numbers of ``fold_in(path_key, i)``.  ``key`` is a
     ``jax.random`` key or an integer seed in [0, 2^62]; ``n_paths``, ``n_records`` and ``every`` are
-    integers >= 1, ``burn_steps`` >= 0.  ``ValueError`` naming the argument."""
+    integers >= 1 (``every`` and ``burn_steps`` <= 2^31 - 1, :data:`MAX_SEGMENT`; ``burn_steps`` >= 0).
+    ``ValueError`` naming the argument."""
     _check_model(model)
     key = _key(key)[0]
     n_paths, n_records = check_count("n_paths", n_paths, 1), check_count("n_records", n_records, 1)
-    every, burn_steps = check_count("every", every, 1), check_count("burn_steps", burn_steps, 0)
+    every = check_count("every", every, 1, MAX_SEGMENT, SEGMENT_WHY)
+    burn_steps = check_count("burn_steps", burn_steps, 0, MAX_SEGMENT, SEGMENT_WHY)
     V, U = over_lanes(_stationary, (model, jax.random.split(key, n_paths)), (False, True),
                       n_records=n_records, every=every, burn=burn_steps)
     return np.asarray(V), np.asarray(U)
@@ -335,10 +352,15 @@ def pdmp_stationary(model, key, n_paths: int, n_records: int, dt_rec: float, bur
     if not burn >= 0:
         raise ValueError(f"burn must be >= 0 (got {shown(burn)})")
     if max_events is not None:
-        max_events = check_count("max_events", max_events, 1)
+        max_events = check_count("max_events", max_events, 1, MAX_COUNT)
     t_end = burn + n_records * dt_rec
     if max_events is None:
-        max_events = int(10 * float(model.rate) * t_end) + 10_000
+        bound = 10 * float(model.rate) * t_end + 10_000  # an OverflowError past int64 (burn = 1e30)
+        if not bound <= MAX_COUNT:
+            most = (MAX_COUNT - 10_000) / 10 / float(model.rate)
+            raise ValueError(f"burn + n_records * dt_rec must be at most {most:.3g} (tau0): its default event bound, "
+                             f"10x the expected jumps, must be at most 2^62 (got {t_end:.3g})")
+        max_events = int(bound)
     V, ok = _pdmp_sampled(model, jax.random.split(key, n_paths), jnp.asarray(burn, jnp.float64),
                           jnp.asarray(dt_rec, jnp.float64), jnp.asarray(max_events, jnp.int64),
                           n_records=int(n_records))

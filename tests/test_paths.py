@@ -54,7 +54,11 @@ def test_pdmp_recorder_reports_its_event_bound():
 @pytest.mark.parametrize("kw,match", [
     (dict(model="di"), "^model must be a PDMPModel"), (dict(n_paths=0), "^n_paths must be"),
     (dict(dt_rec=-0.1), "^dt_rec must be finite and > 0"), (dict(burn=float("nan")), "^burn must be a finite"),
-    (dict(burn=-1.0), "^burn must be >= 0"), (dict(max_events=0), "^max_events must be")])
+    (dict(burn=-1.0), "^burn must be >= 0"), (dict(max_events=0), "^max_events must be"),
+    (dict(max_events=2**63), r"^max_events must be an integer in \[1, 2\^62\]"),
+    # an OverflowError: the default event bound past int64
+    (dict(burn=1e30), r"^burn \+ n_records \* dt_rec must be at most .* 2\^62 \(got 1e\+30\)"),
+    (dict(dt_rec=1e300), r"^burn \+ n_records \* dt_rec must be at most")])
 def test_pdmp_recorder_refuses_bad_input_by_name(kw, match):
     """It checked nothing (a DIModel: AttributeError; burn = nan: an unnamed conversion error;
     dt_rec < 0: repeated values; n_paths = 0: an empty array); an int seed is taken as elsewhere."""
@@ -205,10 +209,10 @@ _V_NAN = np.where(np.arange(50) == 3, np.nan, _V)
     (lambda m: di_transient(dict(FIG3), 0, 3, [10]), "^model must be a DIModel"),
     (lambda m: di_stationary(m, 0, 0, 4), "^n_paths must be an integer >= 1"),  # was an IndexError
     (lambda m: di_stationary(m, 0, 2, 0), "^n_records must be an integer >= 1"),
-    (lambda m: di_stationary(m, 0, 2, 4, every=0), "^every must be an integer >= 1"),  # was accepted
-    (lambda m: di_stationary(m, 0, 2, 4, every=-1), "^every must be an integer >= 1"),  # was accepted
-    (lambda m: di_stationary(m, 0, 2, 4, every=True), "^every must be an integer >= 1"),
-    (lambda m: di_stationary(m, 0, 2, 4, burn_steps=-5), "^burn_steps must be an integer >= 0"),  # was accepted
+    (lambda m: di_stationary(m, 0, 2, 4, every=0), r"^every must be an integer in \[1, 2147483647\]"),  # was accepted
+    (lambda m: di_stationary(m, 0, 2, 4, every=-1), r"^every must be an integer in \[1, 2147483647\]"),  # was accepted
+    (lambda m: di_stationary(m, 0, 2, 4, every=True), r"^every must be an integer in \[1, 2147483647\]"),
+    (lambda m: di_stationary(m, 0, 2, 4, burn_steps=-5), r"^burn_steps must be an integer in \[0, "),  # was accepted
     (lambda m: autocorrelation(_V, 60), r"^max_lag must be an integer in \[0, 49\]"),  # was a broadcast error
     (lambda m: autocorrelation(_V, -1), r"^max_lag must be an integer in \[0, 49\]"),  # was an IndexError
     (lambda m: autocorrelation(_V, 2.0), r"^max_lag must be an integer in \[0, 49\]"),
@@ -219,6 +223,10 @@ _V_NAN = np.where(np.arange(50) == 3, np.nan, _V)
     (lambda m: autocorrelation(_V_NAN, 5), "^V must be finite"),
     (lambda m: autocorrelation(np.ones((3, 10)), 2), "^V must vary"),  # r = 0/0
     (lambda m: autocorrelation(_V, 5, center="yes"), "^center must be True or False"),
+    # "a recorded segment must have fewer than 2**31 steps", naming none of them
+    (lambda m: di_stationary(m, 0, 2, 3, burn_steps=2**31), r"^burn_steps must be an integer in \[0, 2147483647\]"),
+    (lambda m: di_stationary(m, 0, 2, 3, every=2**31), r"^every must be an integer in \[1, 2147483647\] \(steps"),
+    (lambda m: di_transient(m, 0, 2, [1, 2**31 + 5]), r"^record_steps must be at most 2147483647 apart"),
     (lambda m: di_excursion(m, 0, -1), r"^max_steps must be an integer in \[1, "),  # was an IndexError
     (lambda m: di_excursion(m, 0, 0), r"^max_steps must be an integer in \[1, "),
     (lambda m: di_excursion(m, 0, 2**40), r"^max_steps must be an integer in \[1, "),
@@ -240,6 +248,45 @@ def test_path_recorders_take_an_int_seed_as_the_api_does(di_model):
     np.testing.assert_array_equal(di_excursion(di_model, 5, 2000)["v"], di_excursion(di_model, k, 2000)["v"])
     r, se = autocorrelation(_V, np.int64(49))
     assert r.shape == se.shape == (50,) and r[0] == 1.0 and np.all(np.isfinite(se))
+
+
+@pytest.mark.parametrize("center", [False, True])
+def test_autocovariance_is_the_lagged_mean_product_at_every_lag(center):
+    """The FFT autocovariance against its definition, the mean over the n - k pairs of each path at
+    every lag up to samples - 1, then over paths (a factor 1.05 on it, or a circular FFT without
+    the zero padding, passed every other test of this file)."""
+    V = np.random.default_rng(3).normal(0.3, 1.0, (4, 37)).cumsum(1)  # correlated, not centred
+    W = V - V.mean() if center else V
+    n = V.shape[1]
+    direct = np.array([[np.mean(w[: n - k] * w[k:]) for k in range(n)] for w in W])
+    c, se = autocovariance(V, n - 1, center=center)
+    np.testing.assert_allclose(c, direct.mean(0), rtol=1e-12, atol=1e-12 * np.abs(direct).max())
+    np.testing.assert_allclose(se, direct.std(0, ddof=1) / 2, rtol=1e-9, atol=1e-12 * np.abs(direct).max())
+
+
+@pytest.mark.parametrize("tau", [1e-3, 0.1, 10.0, 1e3])
+def test_the_stationary_start_is_the_noise_law(tau):
+    """The paths start with X from the stationary law of the OU noise, N(0, 1/tau') (no test saw
+    a start 3 times too wide: the tests of the paths run where one step forgets X)."""
+    from dryfric_jax.di import make_di_model
+    from dryfric_jax.paths import _stationary_sd
+
+    p = Params.from_nondim(tau)
+    for h in (1e-3, 0.1):  # h/tau from 1e-6 to 100
+        assert float(_stationary_sd(make_di_model(p, h * p.tau0))) == pytest.approx(1 / math.sqrt(tau), rel=1e-12)
+
+
+def test_a_float32_model_whose_noise_decay_rounds_to_1_is_refused():
+    """At h/tau = 1e-8 exp(-h/tau) is 1 in float32: the start's sd was inf and the paths inf or NaN."""
+    from dryfric_jax.di import make_di_model
+
+    p = Params.from_nondim(1e7)
+    m = make_di_model(p, 0.1 * p.tau0, "float32")
+    for call in (lambda: di_transient(m, 0, 2, [0, 4]), lambda: di_stationary(m, 0, 2, 3)):
+        with pytest.raises(ValueError, match=r"^model must have a noise decay exp\(-h/tau\) < 1 .*float64"):
+            call()
+    V = di_transient(make_di_model(p, 0.1 * p.tau0), 0, 2, [0, 4])  # float64: fine
+    assert np.all(np.isfinite(V))
 
 
 @pytest.mark.parametrize("args,match", [
