@@ -14,6 +14,7 @@ import numpy as np
 from .di import DIModel
 from . import rng
 from .excursions import BLOCK, block_keys
+from .plan import check_count
 from .sharding import over_lanes
 
 
@@ -50,12 +51,14 @@ def simulate_bruteforce(model: DIModel, key, n_paths: int, n_steps: int, *, burn
     Returns:
         ``(U, t)`` in nondimensional units, t = n_steps h.
     """
-    if n_steps < 1 or burn_in_steps < 0:
-        raise ValueError(f"n_steps must be >= 1 and burn_in_steps >= 0 (got {n_steps}, {burn_in_steps})")
-    lanes = min(chunk_lanes, n_paths)
+    n_paths, n_steps = check_count("n_paths", n_paths, 1), check_count("n_steps", n_steps, 1)
+    burn_in_steps = check_count("burn_in_steps", burn_in_steps, 0)
+    lanes = min(check_count("chunk_lanes", chunk_lanes, 1), n_paths)
     out = []
     for c in range(-(-n_paths // lanes)):
-        keys = jax.random.split(jax.random.fold_in(key, c), lanes)
+        # the last chunk runs only its paths (padded to a full chunk it cost up to twice the work asked for, and
+        # the work and speed reported did not count it); the keys are those of a full chunk
+        keys = jax.random.split(jax.random.fold_in(key, c), lanes)[: n_paths - c * lanes]
         out.append(np.asarray(over_lanes(_run_paths, (model, keys, jnp.asarray(burn_in_steps, jnp.int64),
                                                       jnp.asarray(n_steps, jnp.int64)),
                                          (False, True, False, False), block=block)))

@@ -60,3 +60,27 @@ def test_bruteforce_counts_exactly_the_requested_steps(key):
                                   block=block)
     e = bruteforce_estimates(U, t_nd)
     assert (bf.D_t, bf.M0_t) == pytest.approx((float(e["D_t"]) * p.D0, float(e["M0_t"]) * p.v0), rel=1e-12)
+
+
+def test_bruteforce_runs_only_the_paths_asked_for(key, monkeypatch):
+    """The last chunk of paths runs only its paths (it was padded to a full chunk: 4097 paths cost
+    twice 4096, uncounted in the work and speed reported), with the keys of a full chunk, so a path
+    is the same path whatever n_paths (to the last bits: another shape compiles to other code);
+    bad counts are named (n_paths = 0 was a ZeroDivisionError, 2.5 a TypeError)."""
+    from dryfric_jax import bruteforce
+
+    model = dj.make_di_model(dj.Params(**dj.FIG3), 6.7e-4)
+    lanes, real = [], bruteforce.over_lanes
+    monkeypatch.setattr(bruteforce, "over_lanes", lambda f, args, *a, **kw: lanes.append(len(args[1])) or
+                        real(f, args, *a, **kw))
+    U5, _ = bruteforce.simulate_bruteforce(model, key, 5, 40, chunk_lanes=4)
+    assert lanes == [4, 1]
+    U8, _ = bruteforce.simulate_bruteforce(model, key, 8, 40, chunk_lanes=4)
+    assert U5 == pytest.approx(U8[:5], rel=1e-12, abs=1e-14) and U8[:5].std() > 0
+    for kw, match in ((dict(n_paths=0), r"^n_paths must be an integer >= 1"),
+                      (dict(n_paths=2.5), r"^n_paths must be an integer >= 1"),
+                      (dict(n_steps=0), r"^n_steps must be an integer >= 1"),
+                      (dict(burn_in_steps=-1), r"^burn_in_steps must be an integer >= 0"),
+                      (dict(chunk_lanes=0), r"^chunk_lanes must be an integer >= 1")):
+        with pytest.raises(ValueError, match=match):
+            bruteforce.simulate_bruteforce(model, key, **{**dict(n_paths=2, n_steps=10), **kw})
