@@ -531,7 +531,9 @@ class Lanes:
         self.devices = tuple(jax.local_devices())
         nd = len(self.devices)
         self.n_real = n_lanes
-        self.n = -(-n_lanes // nd) * nd  # lanes in the layout, pad lanes included
+        # lanes in the layout, pad lanes included; at least 2 per device: XLA:CPU compiled a one-lane shard to other
+        # arithmetic (the last bits of M0 and the CIs changed with the device count)
+        self.n = max(2, -(-n_lanes // nd)) * nd
         self.chain, self.block, self.max_steps = chain, block, max_steps
         self.events = _events_layout(self.devices, chain, events)
         # the final round's tail runs on n / COMPACT lanes (see _compact_tail)
