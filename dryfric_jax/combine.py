@@ -95,6 +95,7 @@ _FIELDS = (
     ("block", _count, "an integer >= 0"),
     ("n_requested", _count, "an integer >= 0"),
     ("max_time", lambda x: x is None or (_real(x) and x > 0), "a number > 0 (s) or null"),
+    ("max_work", lambda x: _real(x) and x >= 0, "a number >= 0"),  # a string was a TypeError in the pooled sum
     ("version", lambda x: isinstance(x, str), "a string"),
 )
 #: sums that are sums of squares (or of positive times) and must be >= 0; n and t must be > 0
@@ -135,7 +136,8 @@ def combine_estimates(results: Sequence, *, labels: Sequence[str] | None = None)
             names); default ``results[i]``.
 
     Returns an :class:`EstimateResult` whose D, M0, CIs and mean duration are those of all the
-    runs' complete excursions together; counts, work and wall time are sums (``wall_s`` is the
+    runs' complete excursions together (their sums added by ``math.fsum``, correctly rounded, so
+    the same to the last bit in any order of the runs); counts, work and wall time are sums (``wall_s`` is the
     compute spent, not the elapsed time of runs made side by side), ``combined_from`` lists the
     seeds.  Raises ``ValueError`` naming what differs, for a field of the wrong type or range
     (a hand-edited file: every field combining reads is checked), for results without sums (made
@@ -184,6 +186,11 @@ def combine_estimates(results: Sequence, *, labels: Sequence[str] | None = None)
     if len(known) < len(seeds):
         warnings.warn("some results were made from a jax.random key, not a seed: their streams are assumed "
                       "independent", DryfricWarning, stacklevel=2)
+    versions = sorted({r.version for r in rs})
+    if len(versions) > 1:  # pooled as before, but said: a seed's numbers may differ between versions
+        warnings.warn(f"results come from versions {', '.join(map(repr, versions))} of dryfric_jax: pooled as the same "
+                      "model (the pool's version is 'mixed'); rerun the older ones for a single-version result",
+                      DryfricWarning, stacklevel=2)
     # math.fsum is correctly rounded, so the pooled sums, and all that follows from them, do not depend on the
     # order of the runs (with sum() the last digit of M0 did)
     total = {k: math.fsum(r.sums[k] for r in rs) for k in STAT_NAMES}
@@ -240,7 +247,8 @@ def gather_hosts(result: EstimateResult) -> EstimateResult:
     from jax.experimental import multihost_utils
 
     r = _as_result(result, "result")
-    if set(r.sums) != set(STAT_NAMES):
+    _check_fields(r, "result")
+    if not isinstance(r.sums, dict) or set(r.sums) != set(STAT_NAMES):  # None was a TypeError
         raise ValueError("result has no excursion sums: rerun it with this version")
     def gather(x):
         return np.asarray(multihost_utils.process_allgather(x)).reshape(jax.process_count(), -1)
@@ -249,16 +257,19 @@ def gather_hosts(result: EstimateResult) -> EstimateResult:
     # as 2^62), and the seeds of a pooled result padded to the longest list (they came back as [None])
     seeds = [-1 if s is None else s for s in (r.combined_from or [r.seed])]
     width = int(gather(np.array([len(seeds)], np.int64)).max())
-    ints = gather(np.array([r.n_truncated, r.work, len(seeds)] + seeds + [-2] * (width - len(seeds)), np.int64))
-    reals = gather(np.array([r.sums[k] for k in STAT_NAMES]
-                            + [r.wall_s, r.lane_steps_per_s, r.lane_utilization, r.predicted_work], np.float64))
-    k = len(STAT_NAMES)
+    # every per-host field combining adds up or compares, each host's own (n_requested, lanes, block and max_work
+    # were this host's, copied for every host: two hosts returned different pools)
+    counts = ("n_truncated", "work", "n_requested", "lanes", "block")
+    ints = gather(np.array([getattr(r, c) for c in counts] + [len(seeds)] + seeds + [-2] * (width - len(seeds)),
+                           np.int64))
+    floats = ("wall_s", "lane_steps_per_s", "lane_utilization", "predicted_work", "max_work")
+    reals = gather(np.array([r.sums[k] for k in STAT_NAMES] + [getattr(r, f) for f in floats], np.float64))
+    k, c = len(STAT_NAMES), len(counts)
     per_host = []
     for x, i in zip(reals, ints):
-        got = [None if s < 0 else int(s) for s in i[3:3 + int(i[2])]]
+        got = [None if s < 0 else int(s) for s in i[c + 1:c + 1 + int(i[c])]]
         per_host.append(dataclasses.replace(
-            r, sums=dict(zip(STAT_NAMES, map(float, x[:k]))), n_truncated=int(i[0]), work=int(i[1]),
-            wall_s=float(x[k]), lane_steps_per_s=float(x[k + 1]), lane_utilization=float(x[k + 2]),
-            predicted_work=float(x[k + 3]), seed=got[0] if len(got) == 1 else None,
+            r, sums=dict(zip(STAT_NAMES, map(float, x[:k]))), **{n: int(v) for n, v in zip(counts, i)},
+            **{f: float(v) for f, v in zip(floats, x[k:])}, seed=got[0] if len(got) == 1 else None,
             combined_from=got if len(got) > 1 else []))
     return combine_estimates(per_host)

@@ -52,8 +52,10 @@ def test_one_run_combines_to_itself_and_round_trips_through_json(runs):
     assert (via_json.D, via_json.D_ci) == (combine_estimates(runs).D, combine_estimates(runs).D_ci)
     pooled = combine_estimates(runs)
     assert pooled.version == runs[0].version != "" and pooled.n_requested == sum(r.n_requested for r in runs)
-    # a combined result combines further, keeping its seeds
-    assert combine_estimates([combine_estimates(runs[:2]), runs[2]]).D == combine_estimates(runs).D
+    # a combined result combines further, keeping its seeds: the pool of all, to rounding (each pooling rounds its
+    # sums once, exactly: so the pool of a pool may differ in the last bit, but not with the order of the runs)
+    again = combine_estimates([combine_estimates(runs[:2]), runs[2]])
+    assert again.D == pytest.approx(combine_estimates(runs).D, rel=1e-13) and again.combined_from == [41, 42, 43]
 
 
 def test_refusals_name_what_differs(runs):
@@ -86,6 +88,7 @@ def test_refusals_name_what_differs(runs):
     (dict(sums={"U2": -5.0}), "finite excursion sums"),
     (dict(sums={"t": "x"}), "finite excursion sums"),
     (dict(n_requested=-3), "n_requested"), (dict(max_time=0.0), "max_time"), (dict(version=1), "version"),
+    (dict(max_work="x"), "max_work"), (dict(max_work=None), "max_work"), (dict(max_work=-5.0), "max_work"),
 ])
 def test_a_malformed_result_is_refused_by_name(runs, edit, field):
     """A hand-edited or foreign file: a TypeError or OverflowError before, or D = nan (t = 0) and
@@ -126,6 +129,10 @@ def test_gather_hosts_in_one_process_is_the_run_itself(runs):
     assert g.combined_from == pooled.combined_from and (g.D, g.D_ci) == (pooled.D, pooled.D_ci)
     # the pool's work bound is the sum of the runs' bounds, as its work is (it was the first run's)
     assert pooled.max_work == sum(r.max_work for r in runs) and pooled.work == sum(r.work for r in runs)
+    with pytest.raises(ValueError, match="result has no excursion sums"):  # was a TypeError
+        gather_hosts({**runs[0].to_dict(), "sums": None})
+    with pytest.raises(ValueError, match="result must have max_work a number >= 0"):
+        gather_hosts(dataclasses.replace(runs[0], max_work="x"))
 
 
 _HOST = textwrap.dedent("""
@@ -136,7 +143,8 @@ _HOST = textwrap.dedent("""
     import dryfric_jax as dj
     from dryfric_jax.combine import gather_hosts
     p = dj.Params.from_nondim(1e-5, 1.0, 0.3)
-    r = dj.estimate_diffusivity(p, 100 + jax.process_index(), n_excursions=3000)
+    i = jax.process_index()  # runs of other sizes and layouts: each host's own counts must reach every host
+    r = dj.estimate_diffusivity(p, 100 + i, n_excursions=3000 + 1000 * i, lanes=64 * (1 + i))
     g = gather_hosts(r)
     print(json.dumps(dict(local=r.to_dict(), pooled=g.to_dict())))
 """)
@@ -165,6 +173,10 @@ def test_two_processes_pool_their_runs(tmp_path):
     assert pooled[0]["D"] == pooled[1]["D"] and pooled[0]["combined_from"] == [100, 101]
     ref = combine_estimates(local)
     assert (pooled[0]["D"], pooled[0]["D_ci"], pooled[0]["n_excursions"]) == (ref.D, ref.D_ci, ref.n_excursions)
+    # the per-host counts too (each host copied its own n_requested, max_work, lanes: 6000 on one, 8000 on the other)
+    for name in ("n_requested", "max_work", "lanes", "block", "work", "n_truncated", "wall_s", "predicted_work"):
+        assert pooled[0][name] == pooled[1][name] == getattr(ref, name), name
+    assert ref.n_requested == 7000 and ref.lanes == 0  # the runs' sizes and lanes differ
 
 
 def test_a_sweep_record_combines_with_a_new_run(tmp_path, runs):
@@ -199,6 +211,13 @@ def test_the_cli_pools_a_sweep_file_line_by_line(tmp_path, runs, capsys):
                     seed=7, n_excursions=500)
     assert main(["combine", str(out)]) == 2
     assert f"{out}:3 has" in capsys.readouterr().err
+
+
+def test_runs_of_other_versions_are_pooled_with_a_warning(runs):
+    old = dataclasses.replace(runs[1], version="0.1.0")
+    with pytest.warns(dj.DryfricWarning, match=r"versions '0.1.0', '0.2"):
+        c = combine_estimates([runs[0], old])
+    assert c.version == "mixed" and c.D == combine_estimates(runs[:2]).D
 
 
 def test_the_pool_does_not_depend_on_the_order_of_the_runs(runs):
