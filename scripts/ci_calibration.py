@@ -41,9 +41,10 @@ def main():
     try:
         p = dj.Params.from_nondim(a.tau, a.tau_L, a.gamma_bar)
         model = make_di_model(p, a.h)
+        key = dj.api._key(a.seed)[0]  # --seed -1: a traceback, exit 1
     except ValueError as e:
         ap.error(str(e))
-    sim = simulate_replicates(model, dj.api._key(a.seed)[0], a.total // smallest, smallest,
+    sim = simulate_replicates(model, key, a.total // smallest, smallest,
                               lanes_per_replicate=a.lanes_per_replicate)
     D, M = dj.theory.exact_D(p), dj.theory.exact_M0(p)
     rows = []

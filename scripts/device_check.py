@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import sys
 import time
@@ -40,6 +41,17 @@ def ints(text):
     return out
 
 
+def amount(text):
+    """A finite number >= 0 (1e5 allowed); one line and exit 2 otherwise (nan and inf were tracebacks)."""
+    try:
+        v = float(text)
+    except ValueError:
+        v = math.nan
+    if not (math.isfinite(v) and v >= 0):
+        raise argparse.ArgumentTypeError(f"must be a finite number >= 0 (got {text!r})")
+    return v
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--lanes", type=ints, default="65536,262144")
@@ -49,11 +61,11 @@ def main(argv=None) -> int:
     ap.add_argument("--events", default="", help="event layouts to sweep, e.g. wait,fused (default: the "
                     "device's; 'fused' is the DI's quiet loop as one Pallas kernel, dryfric_jax.fused)")
     ap.add_argument("--dtypes", default="float32,float64")
-    ap.add_argument("--n", type=float, default=2e5, help="excursions per layout (at least 8 per lane)")
+    ap.add_argument("--n", type=amount, default=2e5, help="excursions per layout (at least 8 per lane)")
     ap.add_argument("--numba-n", type=int, default=4000, help="excursions per numba timing (0: skip)")
-    ap.add_argument("--bench-n", type=float, default=0, help="N of the side-by-side bench (0: skip)")
-    ap.add_argument("--bound-n", type=float, default=2**30, help="lane-steps per RNG-bound timing")
-    ap.add_argument("--budget-s", type=float, default=240)
+    ap.add_argument("--bench-n", type=amount, default=0, help="N of the side-by-side bench (0: skip)")
+    ap.add_argument("--bound-n", type=amount, default=2**30, help="lane-steps per RNG-bound timing")
+    ap.add_argument("--budget-s", type=amount, default=240)
     a = ap.parse_args(argv)
     bad = [d for d in a.dtypes.split(",") if d not in ("float32", "float64")]
     bad += [e for e in (a.events.split(",") if a.events else []) if e not in ("wait", "fused", "branch")]
@@ -75,9 +87,12 @@ def main(argv=None) -> int:
         if left <= 0:
             emit(kind="skipped", dtype=dt, reason="budget")
             continue
-        b = tune_layout(a.lanes, a.block, dt, n_excursions=int(a.n), numba_excursions=0,
-                        unrolls=a.unroll, events=a.events.split(",") if a.events else None, budget_s=left,
-                        bound_n=int(a.bound_n), on_layout=lambda row: emit(kind="layout", dtype=dt, **row))
+        try:
+            b = tune_layout(a.lanes, a.block, dt, n_excursions=int(a.n), numba_excursions=0,
+                            unrolls=a.unroll, events=a.events.split(",") if a.events else None, budget_s=left,
+                            bound_n=int(a.bound_n), on_layout=lambda row: emit(kind="layout", dtype=dt, **row))
+        except ValueError as e:  # a layout or size the engine refuses (--lanes 5000000): named, exit 2
+            ap.error(str(e))
         for row in b["skipped"]:
             emit(kind="skipped", dtype=dt, **{"reason": "budget", **row})  # or past the layout bound
         for row in b["failed"]:

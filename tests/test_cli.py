@@ -556,3 +556,18 @@ def test_json_is_strict_with_tau_L_inf_and_reads_back(tmp_path, capsys):
     assert main(["combine", str(tmp_path / "r1.json"), str(tmp_path / "r2.json"), "--json"]) == 0
     pooled = strict(capsys.readouterr().out)
     assert pooled["params"]["tau_L"] == "inf" and pooled["n_excursions"] == n
+
+
+@pytest.mark.parametrize("argv,match", [
+    (["scripts/device_check.py", "--n", "nan"], "argument --n: must be a finite number >= 0"),  # were tracebacks
+    (["scripts/device_check.py", "--budget-s", "inf"], "argument --budget-s: must be a finite number >= 0"),
+    (["scripts/ci_calibration.py", "--seed", "-1", "--total", "100", "--sizes", "10"],
+     r"seed must be an integer in \[0, 2\^62\] \(got -1\)"),
+])
+def test_scripts_refuse_bad_numbers_in_one_line(argv, match):
+    import pathlib
+    import re
+
+    root = pathlib.Path(__file__).parent.parent
+    p = subprocess.run([sys.executable, *argv], cwd=root, capture_output=True, text=True, timeout=300)
+    assert p.returncode == 2 and "Traceback" not in p.stderr and re.search(match, p.stderr), p.stderr[-600:]

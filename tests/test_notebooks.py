@@ -24,3 +24,13 @@ def test_notebook_runs(path, monkeypatch, tmp_path):
 
 def test_there_are_notebooks():
     assert {"quickstart.ipynb", "sweep.ipynb", "figures.ipynb"} <= {p.name for p in NOTEBOOKS}
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.name for p in NOTEBOOKS])
+def test_notebook_cells_have_the_ids_their_format_requires(path):
+    """Format 4.5 requires a unique id per cell (nbformat warned, and Jupyter rewrote the files with
+    random ids on every save)."""
+    nb = json.loads(path.read_text())
+    ids = [c.get("id") for c in nb["cells"]]
+    assert (nb["nbformat"], nb["nbformat_minor"]) >= (4, 5)
+    assert all(isinstance(i, str) and 1 <= len(i) <= 64 for i in ids) and len(set(ids)) == len(ids), ids
