@@ -8,6 +8,8 @@ import pytest
 
 from dryfric_jax.cli import main
 from dryfric_jax.figures import SCENES
+from dryfric_jax.figures.diffusivity import local_exponent
+from dryfric_jax.figures.speed_error import fit_slope
 from dryfric_jax.params import FIG3, Params
 from dryfric_jax.plan import default_h
 
@@ -68,6 +70,7 @@ def test_fig3_pdmp_and_di_agree(figs):
     f = figs["fig3"]
     for tau, z in f["agree"].items():  # |D_pdmp - D_di| / hypot(CIs); 3 SE = 1.53
         assert max(z) <= 3 / 1.96, (tau, z)
+        assert min(z) > 0, (tau, z)  # two runs: a PDMP that ran the DI would agree exactly
 
 
 def test_fig3_interrupted_then_resumed_is_bit_identical(figs, tmp_path, monkeypatch, capsys):
@@ -192,6 +195,9 @@ def test_fig8_bruteforce_and_long_excursions_agree_and_exponent_is_reported(figs
                     compared += 1
                     assert abs(a - b) <= 3 / 1.96 * math.hypot(ca, cb), (name, tau, a, b)
             assert all(math.isfinite(s) and ci > 0 for s, ci in zip(row["exponent"], row["exponent_ci"]))
+            # the exponent is the local_exponent of the scene's D (tested against exact ones below)
+            gm, s, ci = local_exponent(figs["fig8"]["Gamma"], row["D"], row["D_ci"])
+            assert (list(s), list(ci)) == (row["exponent"], row["exponent_ci"])
     assert compared >= 8
     visc = figs["fig8"]["cases"]["b = -v/tau_L + gamma_bar"]
     for a, ca, ex in zip(visc["1e-05"]["D"], visc["1e-05"]["D_ci"], visc["exact"]):
@@ -205,8 +211,15 @@ def test_fig9_speed_against_error_slopes(figs):
     assert abs(f["le_slope"] - (-0.5)) <= 3 * f["le_slope_se"], (f["le_slope"], f["le_slope_se"])
     assert abs(f["bf_slope"] - (-1 / 3)) <= 3 * f["bf_slope_se"], (f["bf_slope"], f["bf_slope_se"])
     assert f["le_slope_se"] > 0 and f["bf_slope_se"] > 0
-    for rows in (f["di"], f["pdmp"]):
+    for rows, step in ((f["di"], "h"), (f["pdmp"], "delta")):
         assert all(r["D_ci"] > 0 and r["wall_s"] > 0 for r in rows)
+        # (b) converges: the two finest steps agree within their CIs (3 SE), at the steps the scene says
+        a, b = sorted(rows, key=lambda r: r[step])[:2]
+        assert abs(a["D"] - b["D"]) <= 3 / 1.96 * math.hypot(a["D_ci"], b["D_ci"]), (step, a, b)
+    p = Params(**FIG3)
+    assert [r["h"] for r in f["di"]] == pytest.approx([x * min(p.tau0, p.tau_L) for x in (0.1, 0.03, 0.01, 0.003)])
+    deltas = [d * p.Delta / p.Gamma**0.5 for d in (0.15, 0.1, 0.05, 0.025)]
+    assert [r["delta"] for r in f["pdmp"]] == pytest.approx(deltas)
 
 
 def test_fig1_2_one_complete_excursion_each(figs):
@@ -214,6 +227,41 @@ def test_fig1_2_one_complete_excursion_each(figs):
         if name == "wall_s":
             continue
         assert e["complete"] and 0 < e["half_s"] < e["duration_s"], (name, e)
+        # in SI units: an excursion starts where the noise just beat the friction, X = (Delta - gamma_bar)/sqrt(Gamma)
+        # (1.564 s^-1/2), the PDMP on the grid point past it (delta = 0.125), the DI within a step's noise (0.07)
+        p = Params(**FIG3)
+        x_thr = (p.Delta - p.gamma_bar) / math.sqrt(p.Gamma)
+        assert -0.25 < e["x_start"] - x_thr < 0.25, (name, e["x_start"], x_thr)
+
+
+def test_local_exponent_of_exact_power_laws():
+    """d ln D / d ln Gamma of D = c Gamma^3 (white noise with b = 0: 3 exactly) at the geometric
+    midpoints, with the delta-method half-width of two independent 2% CIs; bad input named."""
+    G = [0.5, 1.0, 2.0, 4.0]
+    D = [10 * g**3 / 3.84**4 for g in G]
+    gm, s, ci = local_exponent(G, D, [0.02 * d for d in D])
+    assert s == pytest.approx([3.0] * 3, abs=1e-12)
+    assert gm == pytest.approx([math.sqrt(a * b) for a, b in zip(G, G[1:])])
+    assert ci == pytest.approx([math.sqrt(2) * 0.02 / math.log(2)] * 3, rel=1e-12)
+    assert local_exponent([1.0, 3.0], [2.0, 2.0 * 3**1.61], [0.0, 0.0])[1] == pytest.approx([1.61])
+    for args, match in ((([1, 1, 2], D[:3], D[:3]), "^G must be finite and > 0 and increasing"),  # was inf
+                        (([1, 2], [1.0, -1.0], [0.1, 0.1]), "^D must be finite and > 0"),  # was nan
+                        (([1, 2], [1.0, 2.0], [0.1]), "^G, D and D_ci must be 1-D sequences of one length")):
+        with pytest.raises(ValueError, match=match):
+            local_exponent(*args)
+
+
+def test_fit_slope_of_exact_power_laws_and_bad_input():
+    x = [1e3, 1e4, 1e5, 1e6]
+    slope, se = fit_slope(x, [7 * c**-0.5 for c in x], [100] * 4)
+    # on a line, the propagated SE: sd of log RMSE 1/sqrt(2 R) over sqrt(sum (log x - mean)^2) = ln 10 sqrt(5)
+    assert slope == pytest.approx(-0.5, abs=1e-12)
+    assert se == pytest.approx(200**-0.5 / (math.log(10) * 5**0.5), rel=1e-9)
+    for args, match in (((x[:2], [1.0, 2.0]), "length >= 3"),  # two points: a zero SE
+                        ((x[:3], [1.0, 0.0, 2.0]), "^y must be finite and > 0"),  # a zero RMSE: a nan slope
+                        ((x[:3], [1.0, 2.0, 3.0], [5, 0, 5]), "^replicates must be finite and >= 1")):
+        with pytest.raises(ValueError, match=match):
+            fit_slope(*args)
 
 
 def test_fig4_pdmp_and_di_covariances_agree(figs):

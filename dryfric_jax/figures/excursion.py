@@ -35,11 +35,12 @@ def fig1_2(out_dir, quick, seed):
             row[0].plot(t[sl], x[sl], col, lw=0.7, drawstyle=draw)
             row[1].plot(t[sl], v[sl], col, lw=0.7)
             row[2].plot(t[sl], U[sl], col, lw=0.7)
-            row[3].plot(x[sl], v[sl], col, lw=0.5)
+            # the PDMP's X is constant between events while V follows its flow: vertical, then a jump in X
+            row[3].plot(x[sl], v[sl], col, lw=0.5, drawstyle="steps-pre" if draw == "steps-post" else "default")
         for ax, yl in zip(row, ("X (s^-1/2)", "V (m/s)", "U (m)", "V (m/s)")):
             ax.set_ylabel(yl)
             ax.set_xlabel("X (s^-1/2)" if yl == "V (m/s)" and ax is row[3] else "t (s)")
         row[0].set_title(name)
         nums[name] = dict(duration_s=float(t[-1]), half_s=float(t[k]), U_m=float(U[-1]), steps_or_events=len(t) - 1,
-                          complete=e["complete"])
+                          complete=e["complete"], x_start=float(x[0]), x_half=float(x[k]))
     return save(fig, out_dir, "fig1_2", nums, t0)

@@ -37,8 +37,18 @@ def fit_slope(x, y, replicates=None):
     the larger of the propagated one and the one from the residuals (which alone understates it
     when a few points happen to lie on a line).
     """
-    lx, ly = np.log(np.asarray(x, float)), np.log(np.asarray(y, float))
-    sig = np.ones_like(lx) if replicates is None else 1.0 / np.sqrt(2.0 * np.asarray(replicates, float))
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    r = None if replicates is None else np.asarray(replicates, float)
+    if not (x.ndim == y.ndim == 1 and len(x) == len(y) >= 3 and (r is None or r.shape == x.shape)):
+        raise ValueError(f"x, y (and replicates) must be 1-D of one length >= 3 (got shapes {x.shape}, {y.shape}"
+                         f"{'' if r is None else ', ' + str(r.shape)})")  # 2 points: a zero SE; 1: LinAlgError
+    for name, a in (("x", x), ("y", y)):
+        if not np.all(np.isfinite(a) & (a > 0)):  # a zero RMSE gave a nan slope
+            raise ValueError(f"{name} must be finite and > 0 (a log-log fit) (got {a.tolist()[:6]})")
+    if r is not None and not np.all(np.isfinite(r) & (r >= 1)):
+        raise ValueError(f"replicates must be finite and >= 1 (got {r.tolist()[:6]})")
+    lx, ly = np.log(x), np.log(y)
+    sig = np.ones_like(lx) if r is None else 1.0 / np.sqrt(2.0 * r)
     A = np.stack([lx, np.ones_like(lx)], 1)
     W = np.diag(1.0 / sig**2)
     cov_known = np.linalg.inv(A.T @ W @ A)
