@@ -130,3 +130,41 @@ def test_jump_noise_relaxes_exactly_like_ou():
     # power: a clock 5% fast or slow (the mean at t' = 1.05 t or 0.95 t) is rejected
     for c in (0.95, 1.05):
         assert abs((x.mean() - x0 * math.exp(-c * t / tau)) / math.sqrt(var / n)) > 6
+
+
+@pytest.mark.parametrize("d,tau,gb", [(1 / 64, 64.0, 0.0), (0.01, 100.0, 0.5), (0.01, 100.0, -0.5)])
+def test_the_grid_holds_both_release_states(d, tau, gb):
+    """s_+ (k_+ + 1) and s_- (k_- - 1) lie on the grid where the thresholds, not 8/sqrt(tau), set the
+    reach (with a threshold on a grid point too): without them the chain never releases on that side."""
+    from dryfric_jax.noise import required_reach
+    from dryfric_jax.pdmp import grid_offsets
+
+    N = grid_size(d, tau, gb)
+    kp, km, _, _ = grid_offsets(d, gb)
+    assert -N <= km - 1 and kp + 1 <= N, (N, kp, km)
+    assert N * d >= required_reach(tau, gb) + d * (1 - 1e-12)
+
+
+def test_stationary_law_on_a_wide_grid_and_at_the_reflecting_ends():
+    """20 001 points: no overflow (normalised by the largest term), and N(0, 1/tau) to O(tau delta^2); at the
+    ends the detailed balance of the reflecting rule, pi_N / pi_(N-1) = alpha_(N-1) exactly."""
+    from dryfric_jax.noise import up_probability
+
+    d, tau = 1e-4, 1e4
+    x, pi = stationary_law(grid_size(d, tau), d, tau)
+    assert np.all(np.isfinite(pi)) and abs(pi.sum() - 1) < 1e-12
+    assert (pi * x**2).sum() == pytest.approx(1 / tau, rel=1e-2)
+    d, tau = 0.2, 1.0
+    N = grid_size(d, tau)
+    x, pi = stationary_law(N, d, tau)
+    alpha = lambda k: 0.5 - 0.25 * tau * d * d * k  # noqa: E731
+    assert pi[-1] / pi[-2] == pytest.approx(alpha(N - 1), rel=1e-12)
+    assert pi[0] / pi[1] == pytest.approx(1 - alpha(-N + 1), rel=1e-12)
+    assert up_probability(N, N, d, tau) == 0 and up_probability(-N, N, d, tau) == 1
+
+
+def test_grid_limits_are_exclusive_as_stated():
+    with pytest.raises(ValueError, match="^delta must be in"):  # delta_max itself is excluded
+        check_delta(delta_max(1.0), 1.0)
+    with pytest.raises(ValueError, match="too small: the noise grid would have"):  # more than 2^31 - 1 points
+        grid_size(8 / (2**30 + 100), 1.0)

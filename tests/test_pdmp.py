@@ -209,3 +209,59 @@ def test_pdmp_bruteforce_counts_exactly_the_window_after_the_burn_in(key):
     e = bruteforce_estimates(U, t)
     assert bf.D_t == pytest.approx(float(e["D_t"]) * p.D0, rel=1e-12)
     assert bf.M0_t == pytest.approx(float(e["M0_t"]) * p.v0, rel=1e-12)
+
+
+def _event(m, k, y, v, u1, u2):
+    f = jnp.float64
+    return m.event((jnp.int32(k), jnp.int32(y), f(v)), (f(u1), f(u2)))
+
+
+def test_only_a_stop_at_the_release_state_regenerates():
+    """A downward slide that stops with the noise at k > k_+ + 1 (it jumped up while sliding) is not
+    s_+: the state is (x_k, +1, 0), k != k_+ + 1, and counting it as a regeneration would break the
+    i.i.d. cycles.  u1 = tiny puts the noise jump after the stop.  Mirrored for s_-."""
+    m = make_pdmp_model(dj.Params.from_nondim(0.5), 0.1)
+    kp, km, tiny = int(m.kp), int(m.km), float(jnp.finfo(jnp.float64).tiny)
+    for k in (kp + 2, kp + 5):
+        _, _, (kn, yn, vn), tp, tm = _event(m, k, -1, -0.05, tiny, 0.5)
+        assert (int(kn), int(yn), float(vn)) == (k, 1, 0.0) and not bool(tp) and not bool(tm)
+    assert bool(_event(m, kp + 1, -1, -0.05, tiny, 0.5)[3])
+    for k in (km - 2, km - 5):
+        _, _, (kn, yn, vn), tp, tm = _event(m, k, 1, 0.05, tiny, 0.5)
+        assert (int(kn), int(yn), float(vn)) == (k, -1, 0.0) and not bool(tp) and not bool(tm)
+    assert bool(_event(m, km - 1, 1, 0.05, tiny, 0.5)[4])
+
+
+def test_the_grid_ends_reflect():
+    """alpha_N = 0, alpha_-N = 1: from either end the noise can only step inwards."""
+    m = make_pdmp_model(dj.Params.from_nondim(0.5), 0.1)
+    N, tiny = int(m.N), float(jnp.finfo(jnp.float64).tiny)
+    assert int(_event(m, N, 0, 0.0, 0.5, tiny)[2][0]) == N - 1  # u2 ~ 0 < alpha would step up
+    assert int(_event(m, -N, 0, 0.0, 0.5, 1 - 1e-16)[2][0]) == -N + 1
+
+
+def test_noise_jumps_at_the_exact_rate():
+    """Lambda' = 2/(tau' delta')^2 noise jumps per tau0 (a Poisson clock: the count over the
+    excursions' total time has sd sqrt(count)); every jump moves k, the reflecting ends included."""
+    tau, d = 0.5, 0.1
+    m = make_pdmp_model(dj.Params.from_nondim(tau), d)
+    jumps = total = 0.0
+    for i in range(20):
+        sk = excursion_skeleton(m, jax.random.key(100 + i))
+        k = np.round(sk["x"] / float(m.delta)).astype(int)
+        jumps += np.count_nonzero(np.diff(k))
+        total += sk["t"][-1]
+    rate = 2 / (tau * d) ** 2
+    assert abs(jumps / total - rate) <= 5 * math.sqrt(jumps) / total, (jumps / total, rate)
+
+
+@pytest.mark.parametrize("z", [0.09, -0.09, 0.05, -0.005])
+def test_phi_near_its_series_cut(z):
+    """phi1, phi2 to 1e-14 on both sides of the float64 series cut 0.01 (a cut at 0.1 was 1e-10 off)."""
+    from dryfric_jax.pdmp import phi1, phi2
+
+    assert float(phi1(jnp.float64(z))) == pytest.approx(math.expm1(z) / z, rel=1e-14)
+    e2 = (math.expm1(z) - z) / z**2 if abs(z) > 0.01 else sum(z**n / math.factorial(n + 2) for n in range(12))
+    assert float(phi2(jnp.float64(z))) == pytest.approx(e2, rel=1e-12)
+    exact = 0.7 * 0.4 - 1.3 * 0.08  # v s + a s^2 / 2 without viscosity
+    assert float(displacement(jnp.float64(0.7), -1.3, 0.0, 0.4)) == pytest.approx(exact, rel=1e-14)

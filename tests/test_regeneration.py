@@ -89,3 +89,11 @@ def test_the_chains_coin_is_heads_with_probability_r(key, dtype, watch_plus):
         rate = float(jnp.mean(heads))
         se = (p * (1 - p) / keys.shape[0]) ** 0.5
         assert abs(rate - p) < 5 * se, (frac, rate, p)
+
+
+def test_small_set_has_its_design_width_and_epsilon():
+    """KAPPA = 1: the set's half-width w |a| is 1, so epsilon = 2 Phi(-1) = 0.317 per stuck step (module
+    docstring); at h' = 1e-4, tau' = 1 the half-width w = 1/|a| is sqrt(h'/2) to first order."""
+    s = split_set(ou_step(1e-4, 1.0), 0.0, 1.0)
+    assert float(s.epsilon) == pytest.approx(2 * ndtr(-1.0), rel=1e-12)
+    assert float(s.c2) == pytest.approx(np.sqrt(1e-4 / 2), rel=1e-3)
