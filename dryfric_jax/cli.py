@@ -294,7 +294,13 @@ def _read_results(paths):
                 lines = [(i, x) for i, x in enumerate(text.splitlines(), 1) if x.strip()]
                 if len(lines) < 2:
                     raise
-                found = [(f"{path}:{i}", loads(x)) for i, x in lines]
+                found = []
+                for i, x in lines:
+                    try:
+                        found.append((f"{path}:{i}", loads(x)))
+                    except ValueError as e:
+                        raise _UserError(f"files: cannot read an estimate result from {path!r} line {i} ({e})") \
+                            from None
         except (OSError, ValueError) as e:  # ValueError: not JSON, or not UTF-8
             raise _UserError(f"files: cannot read an estimate result from {path!r} ({e})") from None
         for label, r in found:
@@ -507,10 +513,10 @@ def _sweep(a) -> int:
     else:
         extra = "".join(f", {out[k]} {k}" for k in ("refused", "failed", "truncated") if out[k]) + (
             f", {out['time_limited']} stopped by --max-time" if out["time_limited"] else "")
-        print(f"{out['computed']} points computed, {out['skipped']} already in {a.out}, {out['total']} in the grid"
+        print(f"{_points(out['computed'])} computed, {out['skipped']} already in {a.out}, {out['total']} in the grid"
               + extra)
     if out["interrupted"]:
-        print(f"dryfric: interrupted: {out['computed']} new points were written to {a.out}; run the same command "
+        print(f"dryfric: interrupted: {_points(out['computed'])} newly written to {a.out}; run the same command "
               "again to resume", file=sys.stderr)
         return 130
     if out["time_limited"]:

@@ -6,6 +6,7 @@ import contextlib
 import json
 import math
 import os
+import stat
 import tempfile
 
 try:
@@ -100,8 +101,10 @@ def check_writable(path: str, name: str = "out") -> None:
     p = _path_text(path)
     ok, why = p is not None and "\0" not in p and not p.endswith(("/", os.sep)), None
     if ok:
-        d = os.path.dirname(os.path.abspath(p))
+        d = os.path.dirname(os.path.realpath(p))
         ok = (not os.path.lexists(p) or os.path.isfile(p)) and os.path.isdir(d) and _can_create_in(d)
+        if ok and os.path.isfile(p) and not os.stat(p).st_mode & 0o222:
+            ok, why = False, "the file is read-only"
         if ok and not os.path.lexists(p):
             why = _can_create(p)
             ok = why is None
@@ -127,16 +130,21 @@ def check_writable_dir(path: str, name: str = "out") -> None:
 def write_atomic(path: str, text: str) -> None:
     """Write ``text`` to a temporary file in the same directory, fsync, then rename over ``path``:
     a reader (or a kill at any moment) sees the old file or the new one, never a part."""
-    d = os.path.dirname(os.path.abspath(path))
+    path = os.path.realpath(path)  # a symlinked file is replaced where it lies; the link stays
+    d = os.path.dirname(path)
     fd, tmp = tempfile.mkstemp(dir=d, prefix=".dryfric-", suffix=".tmp")
     try:
         with os.fdopen(fd, "w") as f:
             f.write(text)
             f.flush()
             os.fsync(f.fileno())
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes it private; an output file is not
+        try:  # a replaced file keeps its mode
+            mode = stat.S_IMODE(os.stat(path).st_mode)
+        except FileNotFoundError:
+            umask = os.umask(0)
+            os.umask(umask)
+            mode = 0o666 & ~umask  # mkstemp makes it private; a new output file is not
+        os.chmod(tmp, mode)
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):
@@ -179,7 +187,7 @@ def locked(path: str):
     fd = None
     if fcntl is not None:
         try:
-            fd = os.open(os.path.dirname(os.path.abspath(path)), os.O_RDONLY)
+            fd = os.open(os.path.dirname(os.path.realpath(path)), os.O_RDONLY)
             fcntl.flock(fd, fcntl.LOCK_EX)
         except OSError:
             if fd is not None:

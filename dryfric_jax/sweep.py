@@ -48,6 +48,7 @@ from __future__ import annotations
 import itertools
 import json
 import math
+import os
 import sys
 import time
 import warnings
@@ -256,7 +257,9 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
             rec = _record(seed, pt, settings, "refused", reason=why)
             kept.append(rec)
             have[i] = rec
-        if len(kept) != len(records) or new_refused:
+        # an existing file is rewritten now (unchanged if nothing is): one that cannot be replaced fails before any
+        # work, not after the first point is computed
+        if len(kept) != len(records) or new_refused or os.path.exists(out):
             write_records(out, kept)
     # a point that max_time stopped is rerun when given more time, and one an earlier version recorded
     # is rerun by this one; its record stays until replaced

@@ -211,6 +211,10 @@ def test_the_cli_pools_a_sweep_file_line_by_line(tmp_path, runs, capsys):
                     seed=7, n_excursions=500)
     assert main(["combine", str(out)]) == 2
     assert f"{out}:3 has" in capsys.readouterr().err
+    # a line that is not JSON is named by its number (the message said line 1 of the file)
+    out.write_text("".join(x + "\n" for x in out.read_text().splitlines()[:2]) + "garbage{\n")
+    assert main(["combine", str(out)]) == 2
+    assert f"from {str(out)!r} line 3 (Expecting value" in capsys.readouterr().err
 
 
 def test_runs_of_other_versions_are_pooled_with_a_warning(runs):

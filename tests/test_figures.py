@@ -116,6 +116,19 @@ def test_figure_points_file_that_is_not_one_is_refused_not_overwritten(tmp_path,
     assert (tmp_path / "fig3.points.jsonl").read_text() == "not a record\n"
 
 
+def test_a_kept_run_of_this_version_without_its_result_is_refused_by_name(tmp_path):
+    """A hand-edited points record whose result lacks its fields was a TypeError traceback when reused."""
+    from dryfric_jax.figures import points
+    from dryfric_jax.params import FIG3, Params
+
+    points.Points(str(tmp_path), "s").estimate(Params(**FIG3), 3, n_excursions=64)
+    path = tmp_path / "s.points.jsonl"
+    rec = json.loads(path.read_text())
+    path.write_text(json.dumps({**rec, "result": {}}) + "\n")
+    with pytest.raises(ValueError, match="line 1 is not a finished-run record"):
+        points.Points(str(tmp_path), "s")
+
+
 def test_figure_points_of_another_version_are_recomputed(tmp_path, monkeypatch):
     """A kept run is reused only by the package version that made it."""
     from dryfric_jax.figures import points
