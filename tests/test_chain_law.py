@@ -70,7 +70,7 @@ def test_chain_law_covers_a_bump_far_from_zero(g):
     first order in h."""
     p = dj.Params.from_nondim(1e-4, 10.0, g)
     hs = np.array([0.1, 0.05]) * min(p.tau0, p.tau_L)
-    laws = [white_chain_law(p, h) for h in hs]
+    laws = [white_chain_law(p, h, width=15.0) for h in hs]  # the narrowest grid allowed: 4x faster than 30
     for c in laws:  # measured 2e-12 and 2e-13
         assert c.D == pytest.approx(dj.theory.exact_D(p), rel=1e-7)
         assert c.M0 == pytest.approx(dj.theory.exact_M0(p), rel=1e-7)
