@@ -9,7 +9,7 @@ import math
 import numbers
 import time
 import warnings
-from dataclasses import asdict, dataclass, field
+from dataclasses import MISSING, asdict, dataclass, field, fields
 
 import jax
 import numpy as np
@@ -151,6 +151,12 @@ def _ratio(rel: float, rtol: float) -> float:
     capped at :data:`~dryfric_jax.plan.MAX_COUNT` (``rtol`` = 1e-160 overflowed: the work bound
     or ``max_time`` ends such a run, and its result says so)."""
     return rel / rtol if rel / rtol < 2.0**32 else 2.0**32  # also for inf and nan
+
+
+def missing_fields(cls, d: dict) -> list[str]:
+    """The fields of the result dataclass ``cls`` (:class:`EstimateResult`, :class:`BruteForceResult`)
+    without a default that the dict ``d`` (a ``to_dict()`` read back from a file) lacks."""
+    return [f.name for f in fields(cls) if f.default is MISSING and f.default_factory is MISSING and f.name not in d]
 
 
 def _with_warnings(text, ws):

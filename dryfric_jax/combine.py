@@ -22,7 +22,7 @@ from typing import Sequence
 
 import numpy as np
 
-from .api import MAX_SEED, DryfricWarning, EstimateResult, small_n_note
+from .api import MAX_SEED, DryfricWarning, EstimateResult, missing_fields, small_n_note
 from .estimators import MIN_RELIABLE_N, long_excursion_estimates
 from .excursions import STAT_NAMES
 from .params import Params
@@ -42,13 +42,11 @@ def _as_result(r, label: str) -> EstimateResult:
     if isinstance(r, dict) and isinstance(r.get("result"), dict) and "params" in r:  # a sweep's record
         r = {**r["result"], "params": r["params"], "seed": r.get("seed")}
     if isinstance(r, dict):  # EstimateResult.to_dict() (the JSON of 'dryfric estimate --out')
-        fields = dataclasses.fields(EstimateResult)
-        missing = [f.name for f in fields if f.default is dataclasses.MISSING
-                   and f.default_factory is dataclasses.MISSING and f.name not in r]
+        missing = missing_fields(EstimateResult, r)
         if missing:
             raise ValueError(f"results must be estimate results: {label} lacks {missing[:4]} (a brute-force "
                              "result or another file?)")
-        names = {f.name for f in fields}
+        names = {f.name for f in dataclasses.fields(EstimateResult)}
         return EstimateResult(**{k: v for k, v in r.items() if k in names})
     raise ValueError(f"results must be EstimateResult objects or their to_dict() ({label} is of type "
                      f"{type(r).__name__})")

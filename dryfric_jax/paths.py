@@ -67,7 +67,7 @@ def _segment(model: DIModel, carry, keys, n_steps: int, block: int = BLOCK):
     dt = model.h.dtype
     if not rng.is_threefry(keys):
         block = n_steps
-    if n_steps * 2 >= 2**32:
+    if n_steps > MAX_SEGMENT:  # the public functions name their argument first
         raise ValueError(f"a recorded segment must have fewer than 2**31 steps (got {n_steps})")
 
     def run(c, start, size):

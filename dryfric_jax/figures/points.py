@@ -26,7 +26,9 @@ import time
 import warnings
 
 from .._version import __version__
-from ..api import BruteForceResult, DryfricWarning, EstimateResult, bruteforce_diffusivity, estimate_diffusivity
+from ..api import (
+    BruteForceResult, DryfricWarning, EstimateResult, bruteforce_diffusivity, estimate_diffusivity, missing_fields,
+)
 from ..outfiles import put_record, read_records
 
 _KINDS = {"estimate": (estimate_diffusivity, EstimateResult), "bruteforce": (bruteforce_diffusivity, BruteForceResult)}
@@ -51,11 +53,8 @@ def _check_record(rec: dict) -> None:
     """Raise (TypeError) unless ``rec`` has a finished run's shape (an ident list made a TypeError)."""
     if not (isinstance(rec["ident"], str) and rec["kind"] in _KINDS and isinstance(rec["result"], dict)):
         raise TypeError("not a finished-run record")
-    if rec.get("version") == __version__:  # a record this version may reuse has every field of its result
-        cls = _KINDS[rec["kind"]][1]
-        if any(f.name not in rec["result"] for f in dataclasses.fields(cls)
-               if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING):
-            raise TypeError("not a finished-run record")
+    if rec.get("version") == __version__ and missing_fields(_KINDS[rec["kind"]][1], rec["result"]):
+        raise TypeError("not a finished-run record")  # a record this version may reuse has its result's fields
 
 
 def _read(path: str) -> list[dict]:
