@@ -361,6 +361,36 @@ def test_di_durations_are_the_lanes_counted_steps(events):
     np.testing.assert_array_equal(steps - np.rint(t_steps).astype(np.int64), (steps > 0).astype(np.int64))
 
 
+@pytest.mark.parametrize("events", ["branch", "wait"])
+def test_di_truncated_excursions_are_counted_once_at_exactly_max_steps(events):
+    r"""The work bound's accounting, lane by lane, over a paused and a final round: a lane's counted
+    steps are those of its complete excursions (t / h), plus exactly ``max_steps`` per truncated
+    excursion (closed by the work bound once its n reaches ``max_steps``), plus 1 if its last
+    closing step opened nothing (:func:`test_di_durations_are_the_lanes_counted_steps`).  A seek
+    that reaches ``max_steps`` is restarted but is no excursion: it is counted neither in the
+    steps nor in ``n_truncated``.  ``max_steps`` near the mean excursion (~10^3 steps) truncates
+    both excursions and seeks (a seek after a truncation starts anywhere).  Counting the seeks as
+    truncated, or closing a runaway one step late (``n > max_steps``, or the "wait" layout's work
+    bound event one step late), fails the identity.  A final round of budget 0 closes exactly the
+    excursions in flight (``n_in_flight``; counting only those in the -HLE passed), and a paused
+    round runs ceil(budget / block) blocks (floor passed: the other tests use multiples of the
+    block).  Each mutant passed every test before (mutation audit)."""
+    m = make_di_model(dj.Params.from_nondim(0.5, 1.0, 0.2), 0.02)
+    h, max_steps = float(m.fixed_dt), 900
+    ln = Lanes(m, 64, block=8, max_steps=max_steps, events=events)
+    a = ln.advance(jax.random.key(5), 2001)
+    assert ln.slot_steps == 64 * 251 * 8  # ceil(2001 / 8) blocks, budget not a multiple of the block
+    # budget 0 (what simulate_long_excursions runs): the final round closes the in-flight excursions, opens none
+    r = ln.finish(jax.random.key(6))
+    assert r.n_unfinished == 0 and r.n_excursions > 50
+    assert r.n_excursions + r.n_truncated == a.n_excursions + a.n_truncated + a.n_in_flight
+    n_trunc = np.asarray(ln.lane.n_trunc)[:64]
+    assert n_trunc.sum() == r.n_truncated >= 10
+    t_steps = np.rint(r.stats[:, STAT_NAMES.index("t")] / h).astype(np.int64)
+    extra = np.asarray(r.lane_steps) - t_steps - max_steps * n_trunc
+    assert set(extra.tolist()) <= {0, 1} and r.lane_steps.sum() == r.useful_steps, extra
+
+
 def test_di_lane_sums_match_a_step_by_step_rebuild_of_each_lane():
     r"""The engine's per-lane sums equal those of each lane rebuilt one step at a time from the same
     numbers (``"branch"`` layout: lane key ``split(key, lanes)[l]``, block key ``fold_in(lane_key,
