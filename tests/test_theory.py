@@ -4,6 +4,7 @@ Expected numbers come from MODEL_NOTES section 2 (closed forms, Table 1 values),
 """
 import math
 import warnings
+from decimal import Decimal, localcontext
 
 import numpy as np
 import pytest
@@ -33,6 +34,8 @@ def quad_evals(monkeypatch):
     def quad(f, *args, **kw):
         def counted(x):
             n[0] += 1
+            if n[0] > MAX_EVALS:  # a hang fails at once, not after minutes
+                raise AssertionError(f"more than {MAX_EVALS:g} integrand evaluations")
             return f(x)
         return real(counted, *args, **kw)
 
@@ -276,17 +279,32 @@ def test_correlation_identities():
     assert total == pytest.approx(5.0, rel=1e-10)  # D' = 2 * 5 = 10
 
 
+def _correlation_ref(t):
+    """C(t) of test_correlation_identities' formula in 60-digit decimal arithmetic, with erfc from its
+    continued fraction (erfc(x) = e^{-x^2}/sqrt(pi) / (x + (1/2)/(x + 1/(x + (3/2)/(x + ...))))): no
+    scipy, no asymptotic series, and the two terms' cancellation (~t^4/768) costs ~10 of the 60 digits."""
+    with localcontext() as ctx:
+        ctx.prec = 60
+        t = Decimal(repr(t))
+        x, k = t.sqrt() / 2, Decimal(0)
+        for n in range(400, 0, -1):
+            k = (Decimal(n) / 2) / (x + k)
+        sqrt_pi = Decimal("3.14159265358979323846264338327950288419716939937510582097494459").sqrt()
+        erfcx = 1 / (sqrt_pi * (x + k))
+        c = (t**3 + 6 * t**2 - 12 * t + 24) / 12 * erfcx - t.sqrt() * (t**2 + 4 * t - 12) / (6 * sqrt_pi)
+        return float(c * (-t / 4).exp())
+
+
 def test_correlation_no_cancellation_in_the_tail():
     t = np.array([40.0, 100.0, 299.99, 300.01, 1e3, 2e3])  # e^{-t/4} underflows past ~2800
     c = theory.correlation(t)
     assert np.all(np.isfinite(c)) and np.all(c > 0)
-    # both branches agree where both are accurate (erfcx form keeps ~eps t^4/768 relative)
-    for tt in (150.0, 250.0, 290.0):
-        x = np.sqrt(tt) / 2
-        from scipy.special import erfcx
-        direct = np.exp(-tt / 4) * ((tt**3 + 6 * tt**2 - 12 * tt + 24) / 12 * erfcx(x)
-                                    - np.sqrt(tt) * (tt**2 + 4 * tt - 12) / (6 * np.sqrt(np.pi)))
-        assert theory._corr_asymptotic(tt) == pytest.approx(direct, rel=1e-8)
+    # against a 60-digit reference, abs=0 (C(150) ~ 2e-18: pytest.approx's default abs=1e-12 made the old
+    # comparison of the two branches vacuous, and an 8-term series or a cut at t = 3000 passed).  The
+    # erfcx form keeps ~eps t^4/768 relative (5e-9 at t = 300), the series beyond 300 ~1e-11.
+    for tt in (20.0, 40.0, 150.0, 299.99, 300.01, 500.0, 1e3, 2e3):
+        rel = 1e-10 if tt > 300 else max(1e-12, 4 * np.finfo(float).eps * tt**4 / 768)
+        assert float(theory.correlation(tt)) == pytest.approx(_correlation_ref(tt), rel=rel, abs=0), tt
     # leading behaviour C ~ 128 e^{-t/4}/(sqrt(pi) t^{3/2}), first correction -24/t
     lead = 128 * np.exp(-t[4:] / 4) / (np.sqrt(np.pi) * t[4:] ** 1.5)
     assert np.allclose(c[4:] / lead, 1 - 24 / t[4:], atol=1e-3)
@@ -340,6 +358,9 @@ def test_touchette_formulas_at_their_edges():
     (lambda: theory.D_viscous_only(5.0, math.nan), "tau_L"),
     (lambda: theory.D_viscous_only(5.0, math.inf), "tau_L"),  # was inf
     (lambda: theory.D_viscous_only(5.0, 0), "tau_L"),  # was 0.0
+    # |gamma_bar| = Delta exactly: no stationary state (a mutant accepting it divided by zero)
+    (lambda: theory.D_constant_bias(5.0, 3.84, 3.84), "gamma_bar"),
+    (lambda: theory.M0_constant_bias(5.0, 3.84, -3.84), "gamma_bar"),
     # results out of float64's range, refused by name rather than OverflowError, ZeroDivisionError, inf or 0
     (lambda: theory.M0_constant_bias(1.0, 1e200, 0.5), "M0"),  # was an OverflowError (Delta**2)
     (lambda: theory.D_constant_bias(1.0, 1e-200, 0.0), "D"),  # was a ZeroDivisionError
@@ -392,13 +413,15 @@ def _grid_reference_nd(tl_nd, g, n=2_000_001):
 
 
 @pytest.mark.parametrize("tl_nd,gbar_nd", [(1e9, 1 + 1e-10), (1e9, 1 + 1e-6), (1e9, 1 - 1e-10), (1e3, 1.001),
-                                           (1e3, 1.1)])
-def test_bias_just_past_the_friction_with_weak_damping_matches_a_grid_quadrature(tl_nd, gbar_nd):
+                                           (1e3, 1.1), (1e9, 1 + 1e-4)])
+def test_bias_just_past_the_friction_with_weak_damping_matches_a_grid_quadrature(tl_nd, gbar_nd, quad_evals):
     """|gamma_bar'| just above 1 with tau_L' >> 1: the velocity law's bump at v* = (|g'| - 1) tau_L'
     lies within a few of its widths sqrt(tau_L') of 0.  Breaking the integrals at v* +- 8 widths
     there made D jump by -2.3e-5 (relative) from g' = 1 to 1 + 1e-10 at tau_L' = 1e9 (audit): D
-    and M0 now agree with a fine trapezoid grid to 1e-7 (measured: < 1e-9)."""
+    and M0 now agree with a fine trapezoid grid to 1e-7 (measured: < 1e-9).  At g' = 1 + 1e-4 the bump
+    lies 3.2 widths from 0: breaking there too (a mutant's cut at 1 width instead of 8) hung exact_D."""
     p = Params.from_nondim(1e-9, tl_nd, gbar_nd)
     D_ref, M_ref = _grid_reference_nd(tl_nd, gbar_nd)
     assert theory.exact_D(p) / p.D0 == pytest.approx(D_ref, rel=1e-7)
     assert theory.exact_M0(p) / p.v0 == pytest.approx(M_ref, rel=1e-7)
+    assert quad_evals[0] < MAX_EVALS
