@@ -14,6 +14,7 @@ In these units :math:`\Gamma = \Delta = 1` and the model keeps three numbers,
 from __future__ import annotations
 
 import math
+import sys
 
 import equinox as eqx
 import jax
@@ -99,6 +100,17 @@ def check_finite(name: str, value) -> None:
 SCALE_RANGE = (1e-300, 1e300)
 
 
+def _tau0(Gamma, Delta):
+    r""":math:`\tau_0 = \Gamma/\Delta^2`; as :math:`(\Gamma/\Delta)/\Delta` where :math:`\Delta^2` itself leaves
+    float64's normal range although :math:`\tau_0` need not (:math:`\Gamma = 10^{300}, \Delta = 10^{155}`:
+    :math:`\tau_0 = 10^{-10}`, was computed as 0 and those parameters refused as "tau0 ... got 0").
+    ``Delta * Delta``, not ``Delta**2``: a float's ** raises on overflow.  A tracer (under jit) as is."""
+    d2 = Delta * Delta
+    if isinstance(d2, float) and not sys.float_info.min <= d2 <= sys.float_info.max:
+        return Gamma / Delta / Delta
+    return Gamma / d2
+
+
 def _check_scales(p: "Params") -> None:
     r"""``ValueError`` unless the reference units :math:`\tau_0, u_0, v_0, D_0` and the numbers
     :math:`\tau', \tau_L'` (unless infinite) lie in :data:`SCALE_RANGE` and
@@ -110,7 +122,7 @@ def _check_scales(p: "Params") -> None:
         return
     lo, hi = SCALE_RANGE
     div = lambda a, b: a / b if b != 0.0 else math.inf
-    tau0, v0 = div(v["Gamma"], v["Delta"] * v["Delta"]), v["Gamma"] / v["Delta"]  # as the properties do
+    tau0, v0 = _tau0(v["Gamma"], v["Delta"]), v["Gamma"] / v["Delta"]  # as the properties do
     checks = [("Gamma and Delta", "tau0 = Gamma/Delta^2", tau0), ("Gamma and Delta", "v0 = Gamma/Delta", v0),
               ("Gamma and Delta", "u0 = Gamma^2/Delta^3", tau0 * v0),
               ("Gamma and Delta", "D0 = Gamma^3/Delta^4", tau0 * v0 * v0),
@@ -159,7 +171,7 @@ class Params(eqx.Module):
     @property
     def tau0(self):
         r"""Reference time :math:`\tau_0 = \Gamma/\Delta^2` (s)."""
-        return self.Gamma / (self.Delta * self.Delta)  # not Delta**2: a float's ** raises on overflow
+        return _tau0(self.Gamma, self.Delta)
 
     @property
     def u0(self):
@@ -210,7 +222,7 @@ class Params(eqx.Module):
         check_positive("Delta", Delta)
         tau, tau_L, gamma_bar = (_concrete(k, v) for k, v in (("tau", tau), ("tau_L", tau_L), ("gamma_bar", gamma_bar)))
         Gamma, Delta = float(Gamma), float(Delta)
-        tau0 = Gamma / (Delta * Delta)
+        tau0 = _tau0(Gamma, Delta)
         lo, hi = SCALE_RANGE
         if not lo <= tau0 <= hi:  # tau = tau' tau0 would be 0 (or inf), and refused as if the user gave it
             raise ValueError(f"Gamma and Delta must keep tau0 = Gamma/Delta^2 in [{lo:g}, {hi:g}] (got {tau0:.3g} from "

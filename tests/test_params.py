@@ -124,3 +124,14 @@ def test_a_huge_integer_is_refused_in_one_short_line():
 def test_from_nondim_refuses_by_name(kw, name):
     with pytest.raises(ValueError, match=f"^{name} must"):
         Params.from_nondim(**kw)
+
+
+@pytest.mark.parametrize("G,D,tau0", [(1e300, 1e155, 1e-10), (1e-170, 1e-160, 1e150), (1e-300, 1e-300, 1e300)])
+def test_units_representable_although_delta_squared_is_not(G, D, tau0):
+    """Delta^2 overflows (1e310) or underflows (1e-320, 1e-600) while tau0 = Gamma/Delta^2, v0, u0
+    and D0 all lie in range: such parameters were refused as "tau0 ... (got 0)" (or inf), and
+    from_nondim with them too.  Expected values: powers of ten, by hand."""
+    p = Params(G, D, tau0, tau0)
+    assert p.tau0 == pytest.approx(tau0, rel=1e-14) and p.tau_nd == pytest.approx(1.0, rel=1e-14)
+    assert p.u0 == pytest.approx(tau0 * G / D, rel=1e-14) and p.D0 == pytest.approx(tau0 * (G / D) ** 2, rel=1e-14)
+    assert Params.from_nondim(2.0, Gamma=G, Delta=D).tau == pytest.approx(2 * tau0, rel=1e-14)
