@@ -127,7 +127,7 @@ def make_di_model(params: Params, h: float, dtype=jnp.float64) -> DIModel:
 
     The arguments are checked as the planner checks them (:mod:`dryfric_jax.plan`), ``ValueError``
     naming the one that is wrong: ``params`` a :class:`~dryfric_jax.Params`, ``h`` in
-    (0, 0.1*min(tau0, tau_L)] s (None: the default step, :func:`~dryfric_jax.plan.default_h`),
+    [1e-12, 0.1]*min(tau0, tau_L) s (None: the default step, :func:`~dryfric_jax.plan.default_h`),
     ``dtype`` float32 or float64 (a name or a dtype).  Unlike a planned run, float32 is used as asked
     where it is not safe (:func:`~dryfric_jax.limits.float32_unsafe_reason`)."""
     from .params import check_params  # the planner's own checks (imported here: plan is a layer above)

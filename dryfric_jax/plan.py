@@ -45,6 +45,10 @@ DTYPES = {"float64": jnp.float64, "float32": jnp.float32}
 H_REL = 0.01
 #: Largest admissible step: h <= H_MAX_REL * min(tau0, tau_L).
 H_MAX_REL = 0.1
+#: Smallest admissible step, h >= H_MIN_REL * min(tau0, tau_L): 1e12 steps per tau0, far past any
+#: run's work bound.  Without it a step like 5e-324 s made the step count per tau0 inf, and the
+#: refusal then named max_work or t instead of h.
+H_MIN_REL = 1e-12
 
 
 def default_h(params: Params) -> float:
@@ -79,9 +83,11 @@ def check_h(params: Params, h: float) -> float:
     if h is None:
         return default_h(params)
     hm = h_max(params)
+    lo = H_MIN_REL * min(params.tau0, params.tau_L)
     v = real(h)
-    if v is None or not (math.isfinite(v) and 0 < v <= hm):
-        raise ValueError(f"h must be in (0, {hm:.4g}] s, i.e. at most 0.1*min(tau0, tau_L) (got {shown(h)})")
+    if v is None or not (math.isfinite(v) and lo <= v <= hm):
+        raise ValueError(f"h must be in [{lo:.4g}, {hm:.4g}] s, i.e. between 1e-12 and 0.1 times min(tau0, tau_L) "
+                         f"(got {shown(h)})")
     return v
 
 
@@ -172,10 +178,10 @@ def check_settings(*, method="di", h=None, delta=None, dtype="float64", n_excurs
     """The settings of :func:`plan_estimate` (and ``rtol``) that no parameter point changes, as plain
     values: ``ValueError`` naming the first one that is wrong.  A sweep checks them once, before its
     grid: a wrong setting is no point's refusal.  h and delta are checked only against the bounds
-    that hold at every point (h <= 0.1*min(tau0, tau_L) and delta's bound depend on the point)."""
+    that hold at every point (h in [1e-12, 0.1]*min(tau0, tau_L) and delta's bound depend on the point)."""
     check_method(method, h, delta)
     steps = {}
-    for name, v, rng in (("h", h, "(0, 0.1*min(tau0, tau_L)] s"),
+    for name, v, rng in (("h", h, "[1e-12, 0.1] times min(tau0, tau_L) s"),
                          ("delta", delta, "(0, delta_max) s^-1/2, delta_max depending on tau and gamma_bar")):
         x = None if v is None else real(v)
         if v is not None and (x is None or not (math.isfinite(x) and x > 0)):

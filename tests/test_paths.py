@@ -291,10 +291,11 @@ def test_a_float32_model_whose_noise_decay_rounds_to_1_is_refused():
 
 @pytest.mark.parametrize("args,match", [
     ((dict(FIG3), 6.7e-4), "^params must be a dryfric_jax.Params"),  # was an AttributeError
-    ((Params(**FIG3), 1.0), r"^h must be in \(0, 0.0067\] s"),  # above 0.1*min(tau0, tau_L): was accepted
-    ((Params(**FIG3), -1e-3), r"^h must be in \(0, "),
-    ((Params(**FIG3), math.nan), r"^h must be in \(0, "),
-    ((Params(**FIG3), "1e-3"), r"^h must be in \(0, "),
+    ((Params(**FIG3), 1.0), r"^h must be in \[6.7e-14, 0.0067\] s"),  # above 0.1*min(tau0, tau_L): was accepted
+    ((Params(**FIG3), -1e-3), r"^h must be in \["),
+    ((Params(**FIG3), 6e-14), r"^h must be in \[6.7e-14, "),  # > 1e12 steps per tau0 (5e-324: inf)
+    ((Params(**FIG3), math.nan), r"^h must be in \["),
+    ((Params(**FIG3), "1e-3"), r"^h must be in \["),
     ((Params(**FIG3), 6.7e-4, jnp.float16), "^dtype must be one of"),  # was accepted
     ((Params(**FIG3), 6.7e-4, None), "^dtype must be one of"),
 ])

@@ -152,6 +152,50 @@ def test_plan_matrix_every_case_is_planned_or_refused_by_name():
     assert outcomes["planned"] > 0.15 * sum(outcomes.values()), outcomes
 
 
+@pytest.mark.parametrize("tl,fastest", [(0.067, 0.067), (math.inf, 5.0 / 3.84**2), (1.0, 5.0 / 3.84**2)])
+def test_default_h_and_its_bound_are_the_documented_fractions(tl, fastest):
+    """README "Choosing h": default h = 0.01 min(tau0, tau_L), admissible 0 < h <= 0.1 min(tau0, tau_L)
+    (the bound itself included); tau0 = Gamma/Delta^2 written out here."""
+    p = dj.Params(5.0, 3.84, 0.5, tl, 0.342)
+    assert dj.default_h(p) == pytest.approx(0.01 * fastest, rel=1e-14)
+    assert plan_estimate(p, n_excursions=100).h == pytest.approx(0.01 * fastest, rel=1e-14)
+    hm = h_max(p)
+    assert hm == pytest.approx(0.1 * fastest, rel=1e-14)
+    assert plan_estimate(p, h=hm, n_excursions=100).h == hm
+    with pytest.raises(ValueError, match=r"^h must be in \["):
+        plan_estimate(p, h=hm * (1 + 1e-12), n_excursions=100)
+
+
+def test_bias_equal_to_the_friction_without_damping_is_refused_before_planning():
+    """tau_L = inf and |gamma_bar| = Delta exactly: no stationary state (the particle runs away), so
+    the planner refuses by name (a check with > instead of >= planned the run)."""
+    for gb in (3.84, -3.84):
+        with pytest.raises(ValueError, match="^gamma_bar must satisfy"):
+            plan_estimate(dj.Params(5.0, 3.84, 0.5, math.inf, gb), n_excursions=100)
+
+
+@pytest.mark.parametrize("tl", [0.05, 0.5, 100.0, math.inf])
+def test_predicted_duration_is_floored_at_min_1_tau_L_for_fast_noise(tl):
+    """limits docstring: for fast noise (tau' = 1e-3, OU passage sum ~1e-4 tau0) the predicted
+    duration is the floor min(1, tau_L') (a max(1, tau_L') predicted 100x the work at tau_L' = 100)."""
+    assert math.exp(dj.limits.log_duration_scale(1e-3, tl, 0.3)) == pytest.approx(min(1.0, tl), rel=1e-12)
+
+
+@pytest.mark.parametrize("tau,a,b,rel", [(1.0, 0.0, -4.0, 1e-6), (2.0, 1.0, -3.0, 1e-6), (1.0, 0.0, -9.5, 0.02)])
+def test_ou_passage_time_against_a_double_quadrature(tau, a, b, rel):
+    r"""T(a -> b) = \int_b^a s(y) \int_y^\infty m(z) dz dy, scale density e^{tau y^2/2} and speed density
+    tau^2 e^{-tau z^2/2} of tau dX = -X dt + sqrt2 dW, by a plain numpy trapezoid (no erfcx).  The
+    Arrhenius form e^{u^2}/|u| is used below u = -6 only (1/(2u^2) ~ 1% there): a cut at -2 was 7% off at
+    u_b = -2.8."""
+    z = np.linspace(b, 12.0 / math.sqrt(tau), 400_001)
+    w = np.exp(-0.5 * tau * (z * z - b * b))  # speed density / (tau^2 e^{-tau b^2/2})
+    tail = np.concatenate([[0.0], np.cumsum(0.5 * (w[1:] + w[:-1]) * np.diff(z))])
+    inner = tail[-1] - tail  # int_y^inf, same scale
+    f = np.where(z <= a, np.exp(0.5 * tau * (z * z - b * b)) * inner, 0.0)  # s(y) e^{-tau b^2/2} x inner
+    T = tau * tau * np.sum(0.5 * (f[1:] + f[:-1]) * np.diff(z))
+    assert math.exp(log_ou_passage_time(a, b, tau)) == pytest.approx(T, rel=rel)
+
+
 def test_predicted_duration_is_the_exact_ou_passage_time():
     """The work predictor's OU mean first-passage time against Monte Carlo of the exact OU
     chain, with Siegmund's correction 0.5826 sd for the discrete monitoring; tolerance 3 SE."""
