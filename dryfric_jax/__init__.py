@@ -5,10 +5,13 @@ accumulated in float64; the simulation dtype is chosen per call (``dtype="float3
 asks XLA for deterministic GPU reductions, so that the same seed gives bit-identical results on a
 GPU too, and for one host device per CPU core, so that the lanes use every core (the numbers do
 not depend on it; :mod:`dryfric_jax.xla_flags`), and makes sure a Ctrl-C is never swallowed by a
-garbage-collection callback (:mod:`dryfric_jax.interrupts`).
+garbage-collection callback, and that a Ctrl-C while the ``dryfric`` command imports it exits 130
+quietly (:mod:`dryfric_jax.interrupts`).
 """
-from .interrupts import keep_ctrl_c
-from .xla_flags import request_deterministic_gpu_ops, use_all_cpu_cores
+from .interrupts import keep_ctrl_c, quiet_ctrl_c_while_starting
+
+_starting = quiet_ctrl_c_while_starting()  # first: the imports below take 1-2 s
+from .xla_flags import request_deterministic_gpu_ops, use_all_cpu_cores  # noqa: E402
 
 keep_ctrl_c()  # before JAX registers its garbage-collection callback
 
@@ -32,6 +35,9 @@ from .ou import OUStep, ou_moments, ou_step  # noqa: E402
 from .params import FIG3, Params  # noqa: E402
 from .plan import Plan, plan_estimate  # noqa: E402
 from ._version import __version__  # noqa: E402, F401
+
+_starting()  # Python's Ctrl-C handler again (cli.main turns its KeyboardInterrupt into exit 130)
+del _starting
 
 __all__ = [
     "Params", "FIG3", "OUStep", "ou_step", "ou_moments", "DIModel", "make_di_model",

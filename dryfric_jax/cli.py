@@ -75,13 +75,14 @@ class _Once(argparse.Action):
         setattr(namespace, self.dest, values)
 
 
-#: a value that starts with '-' but is a number or a list of numbers ("-1e-3", "-inf", "-0.5,0.5")
-_NEGATIVE_VALUE = re.compile(r"^-(\d|\.\d|inf)", re.IGNORECASE)
+#: a value that starts with '-' but is a number or a list of numbers ("-1e-3", "-inf", "-0.5,0.5"), or
+#: "-nan" (refused by the option's own check, which names its range, not as a missing value)
+_NEGATIVE_VALUE = re.compile(r"^-(\d|\.\d|inf|nan)", re.IGNORECASE)
 
 
 def _join_negative_values(parser: argparse.ArgumentParser, argv: list[str]) -> list[str]:
     """``--gamma-bar -1e-3`` as ``--gamma-bar=-1e-3``: argparse takes only plain negative decimals
-    ("-0.5") for an option's value, and "-1e-3", "-inf" or "-0.5,0.5" for an unknown option."""
+    ("-0.5") for an option's value, and "-1e-3", "-inf", "-nan" or "-0.5,0.5" for an unknown option."""
     subs = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
     takes_value = {opt for sub in subs for sp in sub.choices.values() for a in sp._actions
                    if a.nargs != 0 for opt in a.option_strings}
@@ -228,6 +229,9 @@ def build_parser() -> argparse.ArgumentParser:
     cb.add_argument("files", nargs="+", help="result files (one JSON object each, or JSON Lines: sweep records)")
     cb.add_argument("--out", default=None, help="also write the pooled JSON result to this file (atomically)")
     cb.add_argument("--json", action="store_true", help="print the pooled result as one JSON object")
+    cb.add_argument("--allow-truncated", action="store_true",
+                    help="exit 0 even when runs had excursions that hit the work bound (the pooled result is biased "
+                         "low; exit 3 otherwise, as for 'estimate')")
     bn = sub.add_parser("bench", help="throughput: DI engine vs RNG bound vs compiled baseline")
     bn.add_argument("--json", action="store_true", help="print one JSON object")
     bn.add_argument("--n-excursions", type=_count_option("n-excursions"), default=10_000,
@@ -410,7 +414,7 @@ def _run(a) -> int:
             results, labels = _read_results(a.files)
             r = combine_estimates(results, labels=labels)
         _report(a, r, _print_estimate)
-        return 0
+        return _truncation_exit(a, r, "")
     params = _params(a)
     if a.cmd == "theory":
         return _theory(a, params)
@@ -434,11 +438,7 @@ def _run(a) -> int:
         _report(a, r, text)
         if r.stopped_by == "interrupted":
             return 130
-        if r.n_truncated and not a.allow_truncated:
-            print(f"dryfric: warning: {r.n_truncated} truncated excursions: the result above is biased low; exit 3 "
-                  "(--allow-truncated accepts it, --max-steps raises the bound)", file=sys.stderr)
-            return 3
-        return 0
+        return _truncation_exit(a, r, ", --max-steps raises the bound")
     if a.cmd == "bruteforce":
         with _warnings_kept_in_result():
             r = api.bruteforce_diffusivity(params, a.seed, t=a.t, n_paths=a.n_paths, method=a.method, h=a.h,
@@ -446,6 +446,16 @@ def _run(a) -> int:
         _report(a, r, _print_bruteforce)
         return 0
     raise _UserError(f"unknown command {a.cmd!r}")
+
+
+def _truncation_exit(a, r, remedy: str) -> int:
+    """3 when excursions hit the work bound (the result printed is biased low) unless
+    ``--allow-truncated``; else 0."""
+    if r.n_truncated and not a.allow_truncated:
+        print(f"dryfric: warning: {r.n_truncated} truncated excursions: the result above is biased low; exit 3 "
+              f"(--allow-truncated accepts it{remedy})", file=sys.stderr)
+        return 3
+    return 0
 
 
 def _theory(a, params) -> int:

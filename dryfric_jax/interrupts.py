@@ -10,10 +10,19 @@ again (``_thread.interrupt_main`` from a helper thread after :data:`DELAY_S`: ca
 itself, or from a thread at once, it is raised in the hook and ignored again; should it land in a
 callback once more, the hook delivers it again)
 and passes every other unraisable exception to the hook it replaced.
+
+A Ctrl-C while the ``dryfric`` command imports the package (``import jax``: the first 1-2 s)
+printed Python's KeyboardInterrupt traceback (or an ImportError, when it landed in a compiled
+module's initialisation) and exited -SIGINT or 1.  :func:`quiet_ctrl_c_while_starting`, called
+first thing on import, makes such a Ctrl-C end the command at once with exit code 130 and one line
+on stderr, as later ones do; it acts only in the command (:func:`launched_as_cli`), never where a
+program or a notebook imports the package.
 """
 from __future__ import annotations
 
 import _thread
+import os
+import signal
 import sys
 import threading
 
@@ -41,3 +50,38 @@ def keep_ctrl_c() -> None:
 
     hook._dryfric_keeps_ctrl_c = True
     sys.unraisablehook = hook
+
+
+#: the line a Ctrl-C during the command's import prints (nothing was computed yet)
+STARTING_LINE = b"dryfric: interrupted while starting (nothing was run)\n"
+
+
+def launched_as_cli() -> bool:
+    """Whether this process is the ``dryfric`` command: its console script (``sys.argv[0]`` is
+    .../dryfric) or ``python -m dryfric_jax.cli``, whose ``sys.argv[0]`` is "-m" while the module is
+    located (which imports the package)."""
+    argv0 = sys.argv[0] if sys.argv else ""
+    if os.path.basename(argv0).removesuffix(".exe") in ("dryfric", "dryfric-script.py"):
+        return True
+    orig = list(getattr(sys, "orig_argv", ()))
+    return argv0 == "-m" and ("-mdryfric_jax.cli" in orig or any(
+        a == "-m" and b == "dryfric_jax.cli" for a, b in zip(orig, orig[1:])))
+
+
+def quiet_ctrl_c_while_starting():
+    """In the ``dryfric`` command, with Python's own Ctrl-C handler in place (not where SIGINT is
+    ignored, as in a background job), a Ctrl-C exits 130 at once with one line on stderr until the
+    returned function is called (at the end of the package's import).  A handler, not an ``except
+    KeyboardInterrupt``: a KeyboardInterrupt raised in a compiled module's initialisation (numpy's,
+    jaxlib's) comes out as an ImportError.  ``os._exit``: nothing was computed or opened for
+    writing yet, and the handler may run in the middle of any import."""
+    if not (launched_as_cli() and threading.current_thread() is threading.main_thread()
+            and signal.getsignal(signal.SIGINT) is signal.default_int_handler):
+        return lambda: None
+
+    def stop(signum, frame):
+        os.write(2, STARTING_LINE)  # not print: the handler may run inside a write to sys.stderr
+        os._exit(130)
+
+    signal.signal(signal.SIGINT, stop)
+    return lambda: signal.signal(signal.SIGINT, signal.default_int_handler)
