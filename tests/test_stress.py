@@ -129,7 +129,7 @@ def test_plan_matrix_every_case_is_planned_or_refused_by_name():
             name = msg.split(" must ")[0]
             assert name in PARAM_NAMES and " must " in msg and "\n" not in msg, msg
             if name == "h":  # the range is stated
-                assert f"(0, {h_max(p):.4g}]" in msg
+                assert f", {h_max(p):.4g}] s" in msg and msg.startswith("h must be in [")
             if math.isinf(p.tau_L) and abs(p.gamma_bar) >= p.Delta:
                 assert name == "gamma_bar", msg  # no stationary state: refused first
             outcomes[name] = outcomes.get(name, 0) + 1
