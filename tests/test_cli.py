@@ -309,9 +309,11 @@ def test_a_command_started_with_ctrl_c_ignored_still_ignores_it_while_starting()
     import signal
     import time
 
-    p = subprocess.Popen([sys.executable, "-m", "dryfric_jax.cli", "theory", "--json"],
+    # the shell's trap ignores SIGINT and exec keeps it ignored (a preexec_fn would run Python in a
+    # child forked from this multithreaded process: a deadlock risk, and a RuntimeWarning)
+    p = subprocess.Popen(["sh", "-c", 'trap "" INT; exec "$0" -m dryfric_jax.cli theory --json', sys.executable],
                          cwd=pathlib.Path(__file__).parent.parent, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                         text=True, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
+                         text=True)
     time.sleep(0.4)
     p.send_signal(signal.SIGINT)
     out, err = p.communicate(timeout=300)
