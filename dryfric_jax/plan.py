@@ -86,8 +86,8 @@ def check_h(params: Params, h: float) -> float:
     lo = H_MIN_REL * min(params.tau0, params.tau_L)
     v = real(h)
     if v is None or not (math.isfinite(v) and lo <= v <= hm):
-        raise ValueError(f"h must be in [{lo:.4g}, {hm:.4g}] s, i.e. between 1e-12 and 0.1 times min(tau0, tau_L) "
-                         f"(got {shown(h)})")
+        raise ValueError(f"h must be in [{lo:.4g}, {hm:.4g}] s, i.e. between {H_MIN_REL:g} and {H_MAX_REL:g} times "
+                         f"min(tau0, tau_L) (got {shown(h)})")
     return v
 
 
@@ -181,7 +181,7 @@ def check_settings(*, method="di", h=None, delta=None, dtype="float64", n_excurs
     that hold at every point (h in [1e-12, 0.1]*min(tau0, tau_L) and delta's bound depend on the point)."""
     check_method(method, h, delta)
     steps = {}
-    for name, v, rng in (("h", h, "[1e-12, 0.1] times min(tau0, tau_L) s"),
+    for name, v, rng in (("h", h, f"[{H_MIN_REL:g}, {H_MAX_REL:g}] times min(tau0, tau_L) s"),
                          ("delta", delta, "(0, delta_max) s^-1/2, delta_max depending on tau and gamma_bar")):
         x = None if v is None else real(v)
         if v is not None and (x is None or not (math.isfinite(x) and x > 0)):
