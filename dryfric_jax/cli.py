@@ -186,7 +186,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="exit 0 even when excursions hit the work bound (the result is biased low; exit 3 otherwise)")
     b = sub.add_parser("bruteforce", parents=[model, sim], help="fixed-horizon (brute force) D^t")
     b.add_argument("--t", type=_number("t"), required=True, help="horizon, s")
-    b.add_argument("--n-paths", type=_count_option("n-paths"), required=True)
+    b.add_argument("--n-paths", type=_int_at_least("n-paths", 3, 2**62, "2^62"), required=True)
     b.add_argument("--burn-in", type=_number("burn-in"), default=0.0, help="uncounted warm-up, s")
     th = sub.add_parser("theory", parents=[model], help="exact white-noise D and M0")
     th.add_argument("--h", type=_number("h"), default=None,
@@ -290,7 +290,7 @@ def _read_results(paths):
     out, labels = [], []
     for path in paths:
         try:
-            with open(path, encoding="utf-8") as f:
+            with open(path, encoding="utf-8-sig") as f:  # -sig: a file saved with a byte-order mark
                 text = f.read()
             try:
                 found = [(path, loads(text))]

@@ -163,7 +163,7 @@ def read_records(path: str, keys: tuple, refusal: str, check=None) -> list[dict]
         raise ValueError(refusal.format(path=path, line=0).split(";")[0] + f" (got {path!r}, not a file)")
     out, i = [], 0
     try:
-        with open(path, encoding="utf-8") as f:
+        with open(path, encoding="utf-8-sig") as f:  # -sig: a file saved with a byte-order mark
             for i, line in enumerate(f, 1):
                 if not line.strip():
                     continue

@@ -66,6 +66,12 @@ def test_bruteforce_settings_are_refused_by_name(kw):
         dj.bruteforce_diffusivity(P, 0, **{"t": 1.0, "n_paths": 4, **kw})
 
 
+def test_two_bruteforce_paths_are_refused_before_any_work():
+    """With 2 paths the centred U^2 are equal and the D_t CI came out 0."""
+    with pytest.raises(ValueError, match=r"^n_paths must be an integer in \[3, 2\^62\] \(with 2 paths the D_t CI is 0\)"):
+        dj.bruteforce_diffusivity(P, 0, t=1e6, n_paths=2)  # refused first: 1e6 s would be past max_work
+
+
 @pytest.mark.parametrize("kw", [dict(h=np.float32(1e-3)), dict(h=np.array(1e-3)), dict(h=np.int64(0) + 1e-3),
                                 dict(method="pdmp", delta=np.float32(0.05)), dict(dtype=np.float32)])
 def test_numpy_settings_plan_like_python_ones(kw):

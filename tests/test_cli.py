@@ -75,7 +75,7 @@ _NUMERIC = [  # (command prefix, option, API name in the message, out-of-range v
     (["estimate"], "--max-steps", "max-steps", ["-1", "0", "nan", "1.5"]),
     (["estimate"], "--seed", "seed", ["-1", "1.5", "nan"]),
     (_BF[:1] + _BF[3:], "--t", "t", ["-1", "0", "nan", "inf"]),
-    (_BF[:3], "--n-paths", "n-paths", ["-1", "0", "1", "nan"]),
+    (_BF[:3], "--n-paths", "n-paths", ["-1", "0", "1", "2", "nan"]),
     (_BF, "--burn-in", "burn_in", ["-1", "nan", "inf"]),
     (_BF, "--max-work", "max_work", ["0", "nan"]),
 ]

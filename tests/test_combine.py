@@ -217,6 +217,29 @@ def test_the_cli_pools_a_sweep_file_line_by_line(tmp_path, runs, capsys):
     assert f"from {str(out)!r} line 3 (Expecting value" in capsys.readouterr().err
 
 
+def test_a_file_saved_with_a_byte_order_mark_is_read(tmp_path, runs, capsys):
+    """An ``--out`` file re-saved by an editor that writes a UTF-8 byte-order mark (Windows Notepad)
+    is read as the same result (it was refused as 'Unexpected UTF-8 BOM'), and so is a sweep file."""
+    from dryfric_jax import sweep
+    from dryfric_jax.cli import main
+    from dryfric_jax.outfiles import dumps
+
+    files = []
+    for i, r in enumerate(runs[:2]):
+        files.append(tmp_path / f"r{i}.json")
+        files[-1].write_bytes(b"\xef\xbb\xbf" + dumps(r.to_dict(), indent=1).encode())
+    assert main(["combine", *map(str, files), "--json"]) == 0
+    got, want = json.loads(capsys.readouterr().out), combine_estimates(runs[:2])
+    assert (got["D"], got["D_ci"], got["n_excursions"]) == (want.D, want.D_ci, want.n_excursions)
+    # a sweep resumes from such a file: the point is found done, not refused as a foreign file
+    out = tmp_path / "s.jsonl"
+    grid = sweep.grid(**{k: [v] for k, v in P.as_dict().items()})
+    sweep.run_sweep(grid, str(out), seed=7, n_excursions=500)
+    out.write_bytes(b"\xef\xbb\xbf" + out.read_bytes())
+    got = sweep.run_sweep(grid, str(out), seed=7, n_excursions=500)
+    assert (got["computed"], got["skipped"]) == (0, 1)
+
+
 def test_runs_of_other_versions_are_pooled_with_a_warning(runs):
     old = dataclasses.replace(runs[1], version="0.1.0")
     with pytest.warns(dj.DryfricWarning, match=r"versions '0.1.0', '0.2"):

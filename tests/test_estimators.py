@@ -128,6 +128,21 @@ def test_too_few_samples_refused():
         long_excursion_estimates(sums_from_samples([1.0], [1.0]))
     with pytest.raises(ValueError, match="n_paths"):
         bruteforce_estimates([1.0], 1.0)
+    # two paths: the centred U^2 are equal, so the D_t CI came out 0 (a certainty from two samples)
+    with pytest.raises(ValueError, match=r"^n_paths must be >= 3 \(got 2\)"):
+        bruteforce_estimates([0.3, 1.7], 1.0)
+    assert bruteforce_estimates([0.3, 1.7, -0.4], 1.0)["D_t_ci"] > 0
+
+
+def test_bruteforce_ci_under_covers_at_few_paths_as_the_warning_says():
+    """The numbers behind MIN_RELIABLE_PATHS and the brute-force small-N' warning: the delta-method
+    CI of D^t on N' Gaussian U(t) (true D^t = 1) covers ~0.74 at N' = 10 and ~0.92 at N' = 100,
+    well below 0.95 (3 binomial SE bands, 3000 replicates)."""
+    rng = np.random.default_rng(5)
+    for n, said in ((10, 0.74), (100, 0.92)):
+        hits = [abs((e := bruteforce_estimates(rng.standard_normal(n), 1.0))["D_t"] - 1) <= e["D_t_ci"]
+                for _ in range(3000)]
+        assert abs(np.mean(hits) - said) <= 3 * np.sqrt(said * (1 - said) / 3000), (n, np.mean(hits))
 
 
 def test_bruteforce_estimate_does_not_depend_on_a_shift_of_U():

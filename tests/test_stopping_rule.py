@@ -35,6 +35,23 @@ def test_long_excursions_match_bruteforce(case):
     assert le.D_ci <= 0.1 * le.D and bf.D_t_ci <= 0.1 * bf.D_t
 
 
+def test_bruteforce_warns_below_the_reliable_number_of_paths():
+    """Below MIN_RELIABLE_PATHS the D_t CI under-covers (test_estimators measures it): a
+    DryfricWarning, also kept in the result; none from 500 paths on."""
+    import warnings
+
+    from dryfric_jax.estimators import MIN_RELIABLE_PATHS
+
+    p = dj.Params(**dj.FIG3)
+    with pytest.warns(dj.DryfricWarning, match=r"^n_paths = 499 < 500: the delta-method CI of D_t under-covers"):
+        r = dj.bruteforce_diffusivity(p, 3, t=0.01, n_paths=MIN_RELIABLE_PATHS - 1)
+    assert any(w.startswith("n_paths = 499 < 500") for w in r.warnings) and r.D_t_ci > 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", dj.DryfricWarning)
+        r = dj.bruteforce_diffusivity(p, 3, t=0.01, n_paths=MIN_RELIABLE_PATHS)
+    assert r.warnings == [] or r.warnings == ()
+
+
 def test_bruteforce_counts_exactly_the_requested_steps(key):
     """The horizon is t = n h for the n the user asked for, not rounded to whole blocks: with the
     same key the chain is the same path whatever the burn-in, so U over steps [a, a + m) is
