@@ -24,7 +24,23 @@ from .params import FIG3, Params
 from .xla_flags import use_all_cpu_cores
 
 
+class _StoreOnce(argparse._StoreAction):
+    """The action of every option that takes a value: given at most once (with argparse's own,
+    ``--tau 1 ... --tau 2`` silently ran at the last one)."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        given = namespace.__dict__.setdefault("_options_given", set())
+        if self.dest in given:
+            raise argparse.ArgumentError(self, f"{option_string} must be given once (it was given again: {values!r})")
+        given.add(self.dest)
+        setattr(namespace, self.dest, values)
+
+
 class _Parser(argparse.ArgumentParser):
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.register("action", None, _StoreOnce)  # the default action ("store") of this parser's options
+
     def error(self, message):  # one line, exit 2 (argparse prints the usage block otherwise)
         if message.startswith("argument ") and ": --" in message:
             message = message.split(": ", 1)[1]  # our converters already name the option
@@ -120,7 +136,7 @@ def _count_option(name):
 
 
 def _model_options() -> argparse.ArgumentParser:
-    m = argparse.ArgumentParser(add_help=False)
+    m = _Parser(add_help=False)
     g = m.add_argument_group("model (defaults: the paper's Fig. 3 point, SI units)")
     g.add_argument("--Gamma", type=_number("Gamma"), help=f"noise strength, m^2 s^-3 ({FIG3['Gamma']})")
     g.add_argument("--Delta", type=_number("Delta"), help=f"dry friction, m s^-2 ({FIG3['Delta']})")
@@ -148,7 +164,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="dryfric", description="Dry friction under colored noise: diffusivity D and mobility M0.")
     sub = p.add_subparsers(dest="cmd", required=True, parser_class=_Parser)
     model = _model_options()
-    sim = argparse.ArgumentParser(add_help=False)
+    sim = _Parser(add_help=False)
     sim.add_argument("--method", default="di",
                      help="di (differential inclusion, OU noise), pdmp (exact jump-noise PDMP) or auto "
                           "(the cheaper by the cost model; estimate only)")

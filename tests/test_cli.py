@@ -43,6 +43,11 @@ BAD = [  # (argv, word the one-line message must contain)
     (["estimate", "--dtype", "float16"], "dtype"),
     (["bruteforce", "--t", "-1", "--n-paths", "10"], "t must"),
     (["bruteforce", "--t", "1", "--n-paths", "1"], "--n-paths"),
+    # an option given twice ran silently at the last value
+    (["estimate", "--tau", "1", "--Gamma", "2", "--tau", "2"], "--tau must be given once (it was given again: 2.0)"),
+    (["bruteforce", "--t", "1", "--n-paths", "10", "--t=2"], "--t must be given once"),
+    (["sweep", "--out", "/nonexistent-dir/x.jsonl", "--seed", "1", "--seed", "1"], "--seed must be given once"),
+    (["combine", "a.json", "--out", "x.json", "--out", "y.json"], "--out must be given once"),
     (["theory", "--tau-L", "inf", "--gamma-bar", "4"], "gamma_bar"),  # |gamma_bar| >= Delta: no stationary state
     (["estimate", "--Gamma", "abc"], "--Gamma"),
     (["estimate", "--method", "pdmp", "--delta", "0"], f"delta must be in (0, {DELTA_MAX})"),
