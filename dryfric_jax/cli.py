@@ -51,13 +51,24 @@ class _UserError(Exception):
     pass
 
 
+def _in_float64(name, s, v):
+    """``v = float(s)``, refused where the text is a number float64 cannot hold: "1e400" read as inf
+    and "1e-400" as 0 (the range checks then said "got inf", "got 0.0", and --tau-L 1e999 ran
+    silently as tau_L = inf)."""
+    mantissa = s.strip().lower().split("e")[0]
+    if (math.isinf(v) and "inf" not in mantissa) or (v == 0 and any(c in mantissa for c in "123456789")):
+        raise argparse.ArgumentTypeError(f"--{name} must be a number within float64's range, 1e-308 to 1e308 in "
+                                         f"magnitude (got {s!r})")
+    return v
+
+
 def _number(name):
     def conv(s):
         try:
             v = float(s)
         except ValueError:
             raise argparse.ArgumentTypeError(f"--{name} must be a number (got {s!r})") from None
-        return v
+        return _in_float64(name, s, v)
     conv.__name__ = name
     return conv
 
@@ -66,9 +77,10 @@ def _tau_L(s):
     if s.strip().lower() in ("inf", "infinity", "+inf"):
         return math.inf
     try:
-        return float(s)
+        v = float(s)
     except ValueError:
         raise argparse.ArgumentTypeError(f"--tau-L must be a number > 0 or 'inf' (got {s!r})") from None
+    return _in_float64("tau-L", s, v)
 
 
 def _list_of(conv, name):

@@ -43,6 +43,13 @@ BAD = [  # (argv, word the one-line message must contain)
     (["estimate", "--dtype", "float16"], "dtype"),
     (["bruteforce", "--t", "-1", "--n-paths", "10"], "t must"),
     (["bruteforce", "--t", "1", "--n-paths", "1"], "--n-paths"),
+    # numbers beyond float64 were read as inf or 0: "(got 0.0)" for 1e-400, and tau_L = 1e999 ran as inf
+    (["estimate", "--Gamma", "1e-400"], "--Gamma must be a number within float64's range, 1e-308 to 1e308 in "
+                                        "magnitude (got '1e-400')"),
+    (["estimate", "--tau-L", "1e999"], "--tau-L must be a number within float64's range"),
+    (["estimate", "--gamma-bar", "-1e400"], "--gamma-bar must be a number within float64's range"),
+    (["sweep", "--out", "/nonexistent-dir/x.jsonl", "--tau", "0.1,1e400"], "--tau must be a number within"),
+    (["bruteforce", "--t", "1", "--n-paths", "10", "--h", "0.00e-999"], "h must be in ["),  # a zero: its range
     # an option given twice ran silently at the last value
     (["estimate", "--tau", "1", "--Gamma", "2", "--tau", "2"], "--tau must be given once (it was given again: 2.0)"),
     (["bruteforce", "--t", "1", "--n-paths", "10", "--t=2"], "--t must be given once"),
