@@ -30,7 +30,7 @@ from .api import (  # noqa: E402
 from .chain_law import ChainLaw, white_chain_law  # noqa: E402
 from .combine import combine_estimates, gather_hosts  # noqa: E402
 from .di import DIModel, make_di_model  # noqa: E402
-from .estimators import MIN_RELIABLE_N, delta_method, psi_D, psi_M  # noqa: E402
+from .estimators import MIN_RELIABLE_N, MIN_RELIABLE_PATHS, delta_method, psi_D, psi_M  # noqa: E402
 from .ou import OUStep, ou_moments, ou_step  # noqa: E402
 from .params import FIG3, Params  # noqa: E402
 from .plan import Plan, plan_estimate  # noqa: E402
@@ -43,6 +43,6 @@ __all__ = [
     "Params", "FIG3", "OUStep", "ou_step", "ou_moments", "DIModel", "make_di_model",
     "estimate_diffusivity", "bruteforce_diffusivity", "EstimateResult", "BruteForceResult",
     "DryfricWarning", "ProjectionWarning", "NoEstimateError", "default_h", "Plan", "plan_estimate",
-    "delta_method", "psi_D", "psi_M", "MIN_RELIABLE_N",
+    "delta_method", "psi_D", "psi_M", "MIN_RELIABLE_N", "MIN_RELIABLE_PATHS",
     "theory", "ChainLaw", "white_chain_law", "combine_estimates", "gather_hosts",
 ]

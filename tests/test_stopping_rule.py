@@ -40,15 +40,13 @@ def test_bruteforce_warns_below_the_reliable_number_of_paths():
     DryfricWarning, also kept in the result; none from 500 paths on."""
     import warnings
 
-    from dryfric_jax.estimators import MIN_RELIABLE_PATHS
-
     p = dj.Params(**dj.FIG3)
     with pytest.warns(dj.DryfricWarning, match=r"^n_paths = 499 < 500: the delta-method CI of D_t under-covers"):
-        r = dj.bruteforce_diffusivity(p, 3, t=0.01, n_paths=MIN_RELIABLE_PATHS - 1)
+        r = dj.bruteforce_diffusivity(p, 3, t=0.01, n_paths=dj.MIN_RELIABLE_PATHS - 1)
     assert any(w.startswith("n_paths = 499 < 500") for w in r.warnings) and r.D_t_ci > 0
     with warnings.catch_warnings():
         warnings.simplefilter("error", dj.DryfricWarning)
-        r = dj.bruteforce_diffusivity(p, 3, t=0.01, n_paths=MIN_RELIABLE_PATHS)
+        r = dj.bruteforce_diffusivity(p, 3, t=0.01, n_paths=dj.MIN_RELIABLE_PATHS)
     assert r.warnings == [] or r.warnings == ()
 
 
