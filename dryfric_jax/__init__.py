@@ -10,7 +10,7 @@ quietly (:mod:`dryfric_jax.interrupts`).
 """
 from .interrupts import keep_ctrl_c, quiet_ctrl_c_while_starting
 
-_starting = quiet_ctrl_c_while_starting()  # first: the imports below take 1-2 s
+quiet_ctrl_c_while_starting()  # first: the imports below take 1-2 s (cli.main ends it)
 from .xla_flags import request_deterministic_gpu_ops, use_all_cpu_cores  # noqa: E402
 
 keep_ctrl_c()  # before JAX registers its garbage-collection callback
@@ -35,9 +35,6 @@ from .ou import OUStep, ou_moments, ou_step  # noqa: E402
 from .params import FIG3, Params  # noqa: E402
 from .plan import Plan, plan_estimate  # noqa: E402
 from ._version import __version__  # noqa: E402, F401
-
-_starting()  # Python's Ctrl-C handler again (cli.main turns its KeyboardInterrupt into exit 130)
-del _starting
 
 __all__ = [
     "Params", "FIG3", "OUStep", "ou_step", "ou_moments", "DIModel", "make_di_model",

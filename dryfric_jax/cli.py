@@ -18,6 +18,7 @@ import re
 import sys
 import warnings
 
+from . import interrupts
 from .api import MAX_FIGURE_SEED
 from .outfiles import check_writable, check_writable_dir, dumps, loads, write_atomic
 from .params import FIG3, Params
@@ -579,6 +580,7 @@ def _sweep(a) -> int:
 def main(argv=None) -> int:
     use_all_cpu_cores(vector_width=True)  # one device per core (also at import) and 512-bit vectors
     try:
+        interrupts.started()  # from here a Ctrl-C is the KeyboardInterrupt below, not "while starting"
         parser = build_parser()
         a = parser.parse_args(_join_negative_values(parser, list(sys.argv[1:] if argv is None else argv)))
         return _run(a)

@@ -15,8 +15,9 @@ A Ctrl-C while the ``dryfric`` command imports the package (``import jax``: the 
 printed Python's KeyboardInterrupt traceback (or an ImportError, when it landed in a compiled
 module's initialisation) and exited -SIGINT or 1.  :func:`quiet_ctrl_c_while_starting`, called
 first thing on import, makes such a Ctrl-C end the command at once with exit code 130 and one line
-on stderr, as later ones do; it acts only in the command (:func:`launched_as_cli`), never where a
-program or a notebook imports the package.
+on stderr, as later ones do, until ``cli.main`` takes over (:func:`started`: the window between the
+end of the package's import and main's ``try`` gave a traceback too); it acts only in the command
+(:func:`launched_as_cli`), never where a program or a notebook imports the package.
 """
 from __future__ import annotations
 
@@ -68,20 +69,34 @@ def launched_as_cli() -> bool:
         a == "-m" and b == "dryfric_jax.cli" for a, b in zip(orig, orig[1:])))
 
 
-def quiet_ctrl_c_while_starting():
+_restore = None  # set while the quiet handler is installed: what started() calls
+
+
+def started() -> None:
+    """Python's own Ctrl-C handler again, if :func:`quiet_ctrl_c_while_starting` replaced it: called
+    by ``cli.main`` inside the ``try`` that turns a KeyboardInterrupt into exit 130 (a no-op elsewhere,
+    and the second time)."""
+    global _restore
+    if _restore is not None:
+        _restore, restore = None, _restore
+        restore()
+
+
+def quiet_ctrl_c_while_starting() -> None:
     """In the ``dryfric`` command, with Python's own Ctrl-C handler in place (not where SIGINT is
-    ignored, as in a background job), a Ctrl-C exits 130 at once with one line on stderr until the
-    returned function is called (at the end of the package's import).  A handler, not an ``except
+    ignored, as in a background job), a Ctrl-C exits 130 at once with one line on stderr until
+    :func:`started` is called (by ``cli.main``, which handles it from then on).  A handler, not an ``except
     KeyboardInterrupt``: a KeyboardInterrupt raised in a compiled module's initialisation (numpy's,
     jaxlib's) comes out as an ImportError.  ``os._exit``: nothing was computed or opened for
     writing yet, and the handler may run in the middle of any import."""
+    global _restore
     if not (launched_as_cli() and threading.current_thread() is threading.main_thread()
             and signal.getsignal(signal.SIGINT) is signal.default_int_handler):
-        return lambda: None
+        return
 
     def stop(signum, frame):
         os.write(2, STARTING_LINE)  # not print: the handler may run inside a write to sys.stderr
         os._exit(130)
 
     signal.signal(signal.SIGINT, stop)
-    return lambda: signal.signal(signal.SIGINT, signal.default_int_handler)
+    _restore = lambda: signal.signal(signal.SIGINT, signal.default_int_handler)

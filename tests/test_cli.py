@@ -314,6 +314,28 @@ def test_ctrl_c_while_the_command_imports_jax_exits_130_without_a_traceback(tmp_
     assert "while starting" in said[0]  # the 0.25 s one reached the import
 
 
+def test_ctrl_c_between_the_import_and_main_exits_130_quietly(tmp_path):
+    """The window after the package's import (where its quiet handler was removed) and before
+    ``main``'s try (importing ``cli.py``): a SIGINT there printed a KeyboardInterrupt traceback.  The
+    console script's process signals itself right there; then ``main`` hands Ctrl-C back to Python's
+    handler (its KeyboardInterrupt is main's exit 130).  ~3 s."""
+    import os
+    import pathlib
+
+    root = pathlib.Path(__file__).parent.parent
+    script = tmp_path / "dryfric"  # the console script's name: launched_as_cli()
+    script.write_text("import os, signal, sys, time\nimport dryfric_jax.cli as cli\n"
+                      "if sys.argv[1:] == ['window']:\n    os.kill(os.getpid(), signal.SIGINT)\n    time.sleep(5)\n"
+                      "    print('not stopped')\n"
+                      "else:\n    assert cli.main(['theory', '--json']) == 0\n"
+                      "    print(signal.getsignal(signal.SIGINT) is signal.default_int_handler)\n")
+    env = {**os.environ, "PYTHONPATH": str(root)}
+    p = subprocess.run([sys.executable, str(script), "window"], env=env, capture_output=True, text=True, timeout=300)
+    assert (p.returncode, p.stdout, p.stderr) == (130, "", "dryfric: interrupted while starting (nothing was run)\n")
+    p = subprocess.run([sys.executable, str(script)], env=env, capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0 and p.stdout.splitlines()[-1] == "True", p.stderr[-800:]
+
+
 def test_a_command_started_with_ctrl_c_ignored_still_ignores_it_while_starting():
     """A background job (``dryfric ... &`` in a script) starts with SIGINT ignored: a Ctrl-C at the
     terminal must not end it, during the import either.  ~3 s."""
