@@ -122,6 +122,17 @@ def test_chain_law_at_its_coarsest_grid_keeps_its_accuracy():
         assert abs(law.D / ref.D - 1) < 1e-3 and abs(law.mean_v2 / ref.mean_v2 - 1) < 1e-3
 
 
+@pytest.mark.parametrize("case", list(CASES))
+def test_chain_law_nodes_per_sd_is_the_grid_density(case):
+    """nodes_per_sd nodes per step-noise sd: the grid spacing is sd / nodes_per_sd, so on the same
+    span 8 nodes per sd take twice the half-grid k = ceil(span / spacing) of 4, up to the ceiling
+    (k8 = 2 k4 or 2 k4 - 1).  A spacing of sd / (nodes_per_sd - 1) (7 and 3 per sd: k8 / k4 = 2.3) kept
+    D within the grid-convergence band of the tests above, unseen. ~0.1 s."""
+    p = _params(case)
+    k4, k8 = ((white_chain_law(p, _coarse_h(p), nodes_per_sd=n, width=15.0).n_nodes - 3) // 2 for n in (4, 8))
+    assert k8 in (2 * k4 - 1, 2 * k4), (k4, k8)
+
+
 @pytest.mark.parametrize("Gamma,Delta", [(1e-6, 1e-3), (1e4, 1e2)])
 def test_chain_law_is_unit_free_for_tiny_and_huge_gamma(Gamma, Delta):
     """Physical units only scale the nondimensional law: the same relative step bias, no NaN."""
