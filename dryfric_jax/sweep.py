@@ -102,7 +102,15 @@ def point_seed(seed: int, params: dict, settings: dict) -> int:
 
 
 def _is_real(x) -> bool:
-    return isinstance(x, (int, float)) and not isinstance(x, bool)
+    """A number (inf included, for tau_L) that float() takes: a hand-edited integer beyond float range
+    was an OverflowError traceback where the point's identity is made, not the file's refusal."""
+    if not isinstance(x, (int, float)) or isinstance(x, bool):
+        return False
+    try:
+        float(x)
+    except OverflowError:
+        return False
+    return True
 
 
 def _check_record(rec: dict) -> None:
@@ -262,8 +270,10 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
         if len(kept) != len(records) or new_refused or os.path.exists(out):
             write_records(out, kept)
     # a point that max_time stopped is rerun when given more time, and one an earlier version recorded
-    # is rerun by this one; its record stays until replaced
-    rerun = {i for i in grid_idents if i in have and (_more_time(have[i], max_time) or _outdated(have[i]))}
+    # is rerun by this one; its record stays until replaced.  Not a point this version's planner refuses
+    # (skip_refused): the refusal, raised by estimate_diffusivity, ended the sweep; its record is kept
+    rerun = {i for i in grid_idents if i in have and i not in refused
+             and (_more_time(have[i], max_time) or _outdated(have[i]))}
     todo, seen = [], set(have) - rerun
     for ident, pt in zip(grid_idents, full):
         if ident not in seen:

@@ -89,6 +89,7 @@ def test_refusals_name_what_differs(runs):
     (dict(sums={"t": "x"}), "finite excursion sums"),
     (dict(n_requested=-3), "n_requested"), (dict(max_time=0.0), "max_time"), (dict(version=1), "version"),
     (dict(max_work="x"), "max_work"), (dict(max_work=None), "max_work"), (dict(max_work=-5.0), "max_work"),
+    (dict(lane_utilization=1.5), "lane_utilization"),
 ])
 def test_a_malformed_result_is_refused_by_name(runs, edit, field):
     """A hand-edited or foreign file: a TypeError or OverflowError before, or D = nan (t = 0) and
@@ -258,3 +259,44 @@ def test_the_pool_does_not_depend_on_the_order_of_the_runs(runs):
         c = combine_estimates([more[i] for i in order])
         assert (c.D, c.D_ci, c.M0, c.M0_ci, c.mean_duration, c.sums) == \
             (first.D, first.D_ci, first.M0, first.M0_ci, first.mean_duration, first.sums), order
+
+
+@pytest.mark.parametrize("field,other", [("method", "pdmp"), ("delta", 0.01), ("L_X", 0.5), ("dtype", "float32")])
+def test_every_setting_of_the_law_must_be_shared(runs, field, other):
+    """Runs of another method, step or dtype sample another law: each one alone is refused, naming it
+    (only h and params were tested here, ci_level in test_bad_input)."""
+    with pytest.raises(ValueError, match=f"^results must share {field}: results\\[0\\] has"):
+        combine_estimates([runs[0], dataclasses.replace(runs[1], **{field: other})])
+
+
+def test_the_small_n_note_is_the_pools(runs):
+    """The pool says N < MIN_RELIABLE_N once, for its own N: two runs of ~2000 excursions give one
+    note naming their sum, and a small run pooled with a large one (N >= 10^4) gives none."""
+    from dryfric_jax.api import small_n_note
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", dj.DryfricWarning)  # the runs' own small-N notes
+        small = [dj.estimate_diffusivity(P, s, n_excursions=2_000) for s in (51, 52)]
+    pooled = combine_estimates(small)
+    assert [w for w in pooled.warnings if "n_excursions = " in w] == [small_n_note(pooled.n_excursions)]
+    assert not [w for w in combine_estimates([runs[0], small[0]]).warnings if "n_excursions = " in w]
+
+
+def test_more_than_2_62_excursions_together_are_refused(runs):
+    """Each run within [1, 2^62] excursions, their pool beyond: refused (its count would not be exact).
+    The sums are scaled together, so every ratio, and D, stays that of a real run."""
+    big = []
+    for r in runs[:2]:
+        scale = 2.0**61 * 1.5 / r.sums["n"]
+        big.append(dataclasses.replace(r, sums={k: v * scale for k, v in r.sums.items()}))
+    assert all(b.sums["n"] <= 2**62 for b in big)
+    with pytest.raises(ValueError, match=r"^results must hold at most 2\^62 excursions together"):
+        combine_estimates(big)
+
+
+def test_sums_that_give_a_negative_d_are_refused(runs):
+    """U2 = 0 passes the field checks (a sum of squares >= 0) but gives D = -0.15 with a finite CI at
+    this point (measured): a hand-edited file, refused rather than pooled into a negative D."""
+    bad = dataclasses.replace(runs[0], sums={**runs[0].sums, "U2": 0.0})
+    with pytest.raises(ValueError, match=r"^results must hold consistent excursion sums: they give D = -"):
+        combine_estimates([bad])

@@ -127,6 +127,9 @@ def test_point_seed_depends_on_the_point_not_its_position():
         dict(Gamma=5.0, Delta=3.84, tau=0.5, tau_L=0.067, gamma_bar=0.342)
     assert sweep.point_seed(0, a, s) == sweep.point_seed(0, dict(a), dict(s)) != sweep.point_seed(0, b, s)
     assert sweep.point_seed(0, a, s) != sweep.point_seed(1, a, s)
+    # a number is the same point as an int or a float (a record hand-written with "Gamma": 2, or max_work 10**11)
+    assert sweep.point_seed(0, {**a, "Gamma": 2}, {**s, "max_work": 10**11}) == \
+        sweep.point_seed(0, a, {**s, "max_work": 1e11})
 
 
 def test_kill_mid_run_loses_nothing_finished(tmp_path):
@@ -333,6 +336,7 @@ _GOOD = dict(params={"Gamma": 5.0, "Delta": 3.84, "tau": 0.5, "tau_L": 0.067, "g
     dict(params=[]), dict(params={}), dict(params={**_GOOD["params"], "Gamma": None}), dict(settings=5),
     dict(sweep_seed=[0]), dict(status="done"), dict(status="refused"),  # a refusal without its reason
     dict(result={**_GOOD["result"], "n_truncated": "x"}),
+    dict(params={**_GOOD["params"], "Gamma": 10**400}),  # an OverflowError traceback (float(x) in the point's identity)
 ])
 def test_a_malformed_record_refuses_the_file_before_any_work(tmp_path, edit, capsys):
     out = tmp_path / "s.jsonl"
@@ -470,3 +474,94 @@ def test_an_interrupted_cli_sweep_exits_130(tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(sweep, "estimate_diffusivity", lambda *a, **k: (_ for _ in ()).throw(KeyboardInterrupt))
     assert main(["sweep", "--Gamma", "5", "--n-excursions", "50", "--out", str(tmp_path / "r.jsonl")]) == 130
     assert "dryfric: interrupted: 0 points newly written" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("raised", [True, False])
+def test_ctrl_c_in_a_point_stops_the_sweep(tmp_path, monkeypatch, raised):
+    """A Ctrl-C in the first point (a KeyboardInterrupt, or a result the engine returned with
+    stopped_by = "interrupted") ends the sweep there: the point is not recorded as finished, and the
+    next points are not started (a loop that went on would ignore Ctrl-C until the grid's end)."""
+    import types
+
+    calls = []
+
+    def interrupted(*a, **k):
+        calls.append(1)
+        if raised:
+            raise KeyboardInterrupt
+        return types.SimpleNamespace(stopped_by="interrupted", to_dict=lambda: dict(_GOOD["result"], params={}, seed=0))
+
+    monkeypatch.setattr(sweep, "estimate_diffusivity", interrupted)
+    out = tmp_path / "s.jsonl"
+    r = sweep.run_sweep(sweep.grid(Gamma=[2.0, 3.0, 4.0]), str(out), n_excursions=50)
+    assert r["interrupted"] and r["computed"] == 0 and len(calls) == 1 and not out.exists()
+
+
+def test_a_refused_record_of_another_version_is_not_run(tmp_path, monkeypatch):
+    """A point the planner still refuses keeps its refused record after a version change: only "ok" and
+    "failed" records of another version are rerun (running a refused point would exceed max_work)."""
+    out = tmp_path / "s.jsonl"
+    pts = [dict(Gamma=0.5, tau=2.0)]  # refused at n_excursions = 100 (max_work), as in the test above
+    assert sweep.run_sweep(pts, str(out), n_excursions=100, skip_refused=True)["refused"] == 1
+    (rec,) = _lines(out)
+    out.write_text(json.dumps({**rec, "version": "0.1.0"}) + "\n")
+    monkeypatch.setattr(sweep, "estimate_diffusivity", lambda *a, **k: pytest.fail("a refused point was run"))
+    r = sweep.run_sweep(pts, str(out), n_excursions=100, skip_refused=True)
+    assert (r["computed"], r["refused"]) == (0, 1) and _lines(out)[0]["status"] == "refused"
+
+
+def test_a_long_refusal_names_five_points_and_counts_the_rest(tmp_path):
+    """Past the first refused point and MAX_NAMED more, the message counts the others (8 refused: the
+    first, 5 named, 'and 2 more'), so a large grid's refusal stays one readable line."""
+    pts = [dict(Gamma=g, tau=2.0) for g in (0.5, 0.51, 0.52, 0.53, 0.54, 0.55, 0.56, 0.57)] + [dict(Gamma=5.0)]
+    with pytest.raises(ValueError, match=r"^8 of 9 sweep points are refused\. ") as e:
+        sweep.run_sweep(pts, str(tmp_path / "s.jsonl"), n_excursions=100)
+    msg = str(e.value)
+    assert "; and 2 more." in msg and '"Gamma": 0.55' in msg and '"Gamma": 0.56' not in msg
+
+
+def test_an_older_record_of_a_point_now_refused_is_kept_and_not_run(tmp_path):
+    """With skip_refused, an "ok" or "failed" record of another version at a point this version's planner
+    refuses is kept as it is (nothing lost) and not rerun: it was rerun, and the planner's refusal,
+    raised by estimate_diffusivity, ended the sweep (exit 2) before the other points, on every resume."""
+    out = tmp_path / "s.jsonl"
+    pts = [dict(Gamma=0.5, tau=2.0)]  # refused at n_excursions = 100 (max_work), as in the tests above
+    kw = dict(n_excursions=100, skip_refused=True)
+    sweep.run_sweep(pts, str(out), **kw)
+    (rec,) = _lines(out)
+    old = [{**rec, "status": "failed", "version": "0.1.0", "reason": "fewer than 2 complete excursions"},
+           {**rec, "status": "ok", "version": "0.1.0", "result": _GOOD["result"]}]
+    for r in old:
+        out.write_text(json.dumps(r) + "\n")
+        got = sweep.run_sweep(pts, str(out), **kw)
+        assert (got["computed"], got["skipped"], got["interrupted"]) == (0, 1, False) and _lines(out) == [r]
+
+
+def test_a_point_with_one_truncated_excursion_is_counted(tmp_path):
+    """One truncated excursion is enough to bias a point: it is counted (exit 3 from the CLI).  The
+    record is a finished point's, found in the file, so nothing runs."""
+    from dryfric_jax.params import FIG3
+    from dryfric_jax.plan import check_settings
+
+    out = tmp_path / "s.jsonl"
+    settings = check_settings(n_excursions=50)
+    pt = {**FIG3, "Gamma": 5.0}
+    rec = sweep._record(0, pt, settings, "ok", result={**_GOOD["result"], "n_truncated": 1})
+    out.write_text(json.dumps(rec) + "\n")
+    r = sweep.run_sweep([dict(Gamma=5.0)], str(out), n_excursions=50)
+    assert (r["computed"], r["skipped"], r["truncated"]) == (0, 1, 1)
+
+
+def test_a_file_that_cannot_be_rewritten_fails_before_any_work(tmp_path, monkeypatch):
+    """An existing results file is rewritten (unchanged) before the first point: a write that fails
+    (a full disk) fails there, not after a point was computed and lost."""
+    out = tmp_path / "s.jsonl"
+    sweep.run_sweep([dict(Gamma=0.5, tau=2.0)], str(out), n_excursions=100, skip_refused=True)  # one refused record
+
+    def full(path, records):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(sweep, "write_records", full)
+    monkeypatch.setattr(sweep, "estimate_diffusivity", lambda *a, **k: pytest.fail("a point ran"))
+    with pytest.raises(OSError, match="No space left"):
+        sweep.run_sweep([dict(Gamma=5.0)], str(out), n_excursions=100)

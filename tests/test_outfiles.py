@@ -1,0 +1,64 @@
+"""Output files (dryfric_jax.outfiles): strict JSON that reads back, and the line a refusal names."""
+import json
+import math
+import os
+
+import numpy as np
+import pytest
+
+from dryfric_jax import outfiles
+from dryfric_jax.outfiles import dumps, loads, read_records, write_atomic
+
+
+def test_non_finite_floats_are_strict_json_and_read_back_with_their_sign():
+    """inf, -inf and nan, as Python or numpy values, in dicts, lists and arrays, are written as
+    strings a strict reader accepts and read back as the same floats (a sign or a list level lost
+    would turn -inf into inf, or leave "inf" a string where a float was written)."""
+    obj = {"a": [math.inf, -math.inf, math.nan], "b": np.float32(-np.inf), "c": np.array([1.0, -np.inf]),
+           "d": {"e": [[-math.inf]]}}
+    text = dumps(obj)
+    json.loads(text, parse_constant=lambda c: pytest.fail(f"non-standard JSON constant {c}"))
+    back = loads(text)
+    assert back["a"][:2] == [math.inf, -math.inf] and math.isnan(back["a"][2])
+    assert back["b"] == -math.inf and back["c"] == [1.0, -math.inf] and back["d"] == {"e": [[-math.inf]]}
+
+
+def test_a_refused_line_is_named_by_its_number_in_the_file(tmp_path):
+    """Blank lines are skipped but counted, so the number is the line an editor shows; a file that
+    is not UTF-8 from its first byte is refused at line 1 (not 'line 0')."""
+    refusal = "not a results file: {path} line {line}"
+    path = tmp_path / "r.jsonl"
+    path.write_text('{"k": 1}\n\n{"k": 2}\n   \n{"j": 3}\n')
+    with pytest.raises(ValueError, match=r" line 5$"):
+        read_records(str(path), ("k",), refusal)
+    path.write_text('\n{"k": 1}\n\n{"k": 2}\n')
+    assert read_records(str(path), ("k",), refusal) == [{"k": 1}, {"k": 2}]
+    path.write_bytes(b"\xff\xfe\x00")
+    with pytest.raises(ValueError, match=r" line 1$"):
+        read_records(str(path), ("k",), refusal)
+
+
+def test_a_reader_of_the_old_file_never_sees_a_part_of_the_new_one(tmp_path):
+    """The new text goes to a new file renamed over the path: a reader that opened the old file
+    reads it whole after the write (written in place, it read '' or a mix)."""
+    path = tmp_path / "r.jsonl"
+    path.write_text("old line\n" * 100)
+    with open(path) as reader:
+        write_atomic(str(path), "new\n")
+        assert reader.read() == "old line\n" * 100
+    assert path.read_text() == "new\n"
+
+
+def test_a_failed_write_keeps_the_old_file_and_leaves_no_temporary_file(tmp_path, monkeypatch):
+    """A rename that fails (a full disk, a file system gone read-only) raises, leaves the old file as it
+    was, and removes the temporary file (it stayed as .dryfric-*.tmp beside the results)."""
+    path = tmp_path / "r.jsonl"
+    path.write_text("old\n")
+
+    def failed(src, dst):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(outfiles.os, "replace", failed)
+    with pytest.raises(OSError, match="No space left"):
+        write_atomic(str(path), "new\n")
+    assert path.read_text() == "old\n" and os.listdir(tmp_path) == ["r.jsonl"]
