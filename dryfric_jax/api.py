@@ -17,7 +17,9 @@ import numpy as np
 from ._version import __version__
 from .bruteforce import simulate_bruteforce
 from .di import make_di_model
-from .estimators import MIN_RELIABLE_N, MIN_RELIABLE_PATHS, WEAK_DAMPING_TAU_L, bruteforce_estimates, long_excursion_estimates
+from .estimators import (
+    MIN_PATHS, MIN_RELIABLE_N, MIN_RELIABLE_PATHS, WEAK_DAMPING_TAU_L, bruteforce_estimates, long_excursion_estimates,
+)
 from .excursions import BLOCK, FINAL_DEADLINE, simulate_long_excursions, work_per_excursion
 from .limits import MAX_WORK
 from .params import Params, check_positive, real_or_none
@@ -456,7 +458,7 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
     """
     if method == "auto":
         raise ValueError("method must be 'di' or 'pdmp' for brute force (got 'auto')")
-    n_paths = check_count("n_paths", n_paths, 3, hi=MAX_COUNT, why=" (with 2 paths the D_t CI is 0)")
+    n_paths = check_count("n_paths", n_paths, MIN_PATHS, hi=MAX_COUNT, why=" (with 2 paths the D_t CI is 0)")
     max_work = check_max_work(max_work)
     block = check_layout(None, block)[1]
     chunk_lanes = check_count("chunk_lanes", chunk_lanes, 1)

@@ -20,6 +20,7 @@ import warnings
 
 from . import interrupts
 from .api import MAX_FIGURE_SEED
+from .estimators import MIN_PATHS
 from .outfiles import check_writable, check_writable_dir, dumps, loads, write_atomic
 from .params import FIG3, Params
 from .xla_flags import use_all_cpu_cores
@@ -215,7 +216,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="exit 0 even when excursions hit the work bound (the result is biased low; exit 3 otherwise)")
     b = sub.add_parser("bruteforce", parents=[model, sim], help="fixed-horizon (brute force) D^t")
     b.add_argument("--t", type=_number("t"), required=True, help="horizon, s")
-    b.add_argument("--n-paths", type=_int_at_least("n-paths", 3, 2**62, "2^62"), required=True)
+    b.add_argument("--n-paths", type=_int_at_least("n-paths", MIN_PATHS, 2**62, "2^62"), required=True)
     b.add_argument("--burn-in", type=_number("burn-in"), default=0.0, help="uncounted warm-up, s")
     th = sub.add_parser("theory", parents=[model], help="exact white-noise D and M0")
     th.add_argument("--h", type=_number("h"), default=None,

@@ -54,6 +54,8 @@ WEAK_DAMPING_TAU_L = 1.0
 #: cover less), 2e4 replicates each: 0.44 at N' = 3, 0.74 at 10, 0.87 at 30, 0.92 at 100, 0.935 at
 #: 200, 0.947 at 500 (8000 replicates).  At N' = 2 the two centred U^2 are equal and the CI is 0.
 MIN_RELIABLE_PATHS = 500
+#: the fewest paths brute force takes (API, CLI, :func:`bruteforce_estimates`): 2 give a CI of 0
+MIN_PATHS = 3
 
 
 def psi_D(x):
@@ -174,8 +176,8 @@ def bruteforce_estimates(U, t: float, level: float = 0.95) -> dict:
     """
     U = np.asarray(U, np.float64)
     n = U.size
-    if n < 3:
-        raise ValueError(f"n_paths must be >= 3 (got {n}): with 2 paths the D_t CI is 0")
+    if n < MIN_PATHS:
+        raise ValueError(f"n_paths must be >= {MIN_PATHS} (got {n}): with 2 paths the D_t CI is 0")
     # centred first (D^t does not change under a shift of U, nor does its delta-method variance): y2 - y1^2
     # and the gradient (-2 y1, 1) cancelled catastrophically when |mean U| >> sd U (a strong bias, a long t;
     # mean 1e6, sd 1e-3 gave D = 2.4e-4 for 1.0e-6), and D went below 0 by rounding (-1.5e-54 at t = 1e-12 s)

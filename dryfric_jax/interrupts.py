@@ -69,17 +69,17 @@ def launched_as_cli() -> bool:
         a == "-m" and b == "dryfric_jax.cli" for a, b in zip(orig, orig[1:])))
 
 
-_restore = None  # set while the quiet handler is installed: what started() calls
+def _stop_while_starting(signum, frame):
+    os.write(2, STARTING_LINE)  # not print: the handler may run inside a write to sys.stderr
+    os._exit(130)
 
 
 def started() -> None:
-    """Python's own Ctrl-C handler again, if :func:`quiet_ctrl_c_while_starting` replaced it: called
-    by ``cli.main`` inside the ``try`` that turns a KeyboardInterrupt into exit 130 (a no-op elsewhere,
-    and the second time)."""
-    global _restore
-    if _restore is not None:
-        _restore, restore = None, _restore
-        restore()
+    """Python's own Ctrl-C handler again, if :func:`quiet_ctrl_c_while_starting` installed its own:
+    called by ``cli.main`` inside the ``try`` that turns a KeyboardInterrupt into exit 130 (a no-op
+    elsewhere, and the second time)."""
+    if signal.getsignal(signal.SIGINT) is _stop_while_starting:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def quiet_ctrl_c_while_starting() -> None:
@@ -89,14 +89,7 @@ def quiet_ctrl_c_while_starting() -> None:
     KeyboardInterrupt``: a KeyboardInterrupt raised in a compiled module's initialisation (numpy's,
     jaxlib's) comes out as an ImportError.  ``os._exit``: nothing was computed or opened for
     writing yet, and the handler may run in the middle of any import."""
-    global _restore
     if not (launched_as_cli() and threading.current_thread() is threading.main_thread()
             and signal.getsignal(signal.SIGINT) is signal.default_int_handler):
         return
-
-    def stop(signum, frame):
-        os.write(2, STARTING_LINE)  # not print: the handler may run inside a write to sys.stderr
-        os._exit(130)
-
-    signal.signal(signal.SIGINT, stop)
-    _restore = lambda: signal.signal(signal.SIGINT, signal.default_int_handler)
+    signal.signal(signal.SIGINT, _stop_while_starting)
