@@ -464,7 +464,7 @@ def first_moment(t, v0):
     return np.where(t > 0, math.copysign(1.0, v0) * (half1 + half2), float(v0))[()]  # a scalar for a scalar t
 
 
-def _corr_asymptotic(t, n_terms=14):
+def _corr_asymptotic(t, n_terms=34):
     # C(t) = e^{-t/4}/(6 sqrt(pi t)) * sum_k c_k t^-k, c_k = s_{k+3} + 6 s_{k+2} - 12 s_{k+1} + 24 s_k,
     # s_n = (-2)^n (2n-1)!!  (erfcx asymptotic series; the t^3 .. t^0 terms cancel exactly)
     s = [1.0]
@@ -472,6 +472,10 @@ def _corr_asymptotic(t, n_terms=14):
         s.append(s[-1] * (-2.0) * (2 * n - 1))
     acc = sum((s[k + 3] + 6 * s[k + 2] - 12 * s[k + 1] + 24 * s[k]) * t ** (-k) for k in range(1, n_terms))
     return np.exp(-t / 4) / (6 * np.sqrt(np.pi * t)) * acc
+
+
+#: where :func:`correlation` switches from the erfcx form to the asymptotic series
+CORR_SERIES_FROM = 160.0
 
 
 def correlation(t):
@@ -483,15 +487,17 @@ def correlation(t):
 
     :math:`C(0) = 2`, :math:`\int_0^\infty C = 5` (so :math:`D' = 10`).  The two terms cancel for
     large t, so the common factor :math:`e^{-t/4}` is taken out through ``erfcx`` and, beyond
-    t = 300, the cancelled asymptotic series is used.
+    ``CORR_SERIES_FROM`` = 160, the cancelled asymptotic series (34 terms) is used.  Relative error
+    against a 60-digit evaluation: ~eps t^4/768 below the cut (the terms still cancel: <= 5e-10),
+    <= 4e-12 beyond it (1e-14 from t = 200); a cut at 300 with 14 terms left 5e-9 at t = 300.
     """
     t = _times(np.abs(_real_array(t)), zero_ok=True)  # C(-t) = C(t)
-    small = t <= 300.0
+    small = t <= CORR_SERIES_FROM
     ts = np.where(small, t, 1.0)
     x = np.sqrt(ts) / 2
     direct = np.exp(-ts / 4) * ((ts**3 + 6 * ts**2 - 12 * ts + 24) / 12 * special.erfcx(x)
                                 - np.sqrt(ts) * (ts**2 + 4 * ts - 12) / (6 * np.sqrt(np.pi)))
-    tl = np.where(small, 400.0, t)
+    tl = np.where(small, 2 * CORR_SERIES_FROM, t)
     return np.where(small, direct, _corr_asymptotic(tl))
 
 

@@ -301,9 +301,10 @@ def test_correlation_no_cancellation_in_the_tail():
     assert np.all(np.isfinite(c)) and np.all(c > 0)
     # against a 60-digit reference, abs=0 (C(150) ~ 2e-18: pytest.approx's default abs=1e-12 made the old
     # comparison of the two branches vacuous, and an 8-term series or a cut at t = 3000 passed).  The
-    # erfcx form keeps ~eps t^4/768 relative (5e-9 at t = 300), the series beyond 300 ~1e-11.
-    for tt in (20.0, 40.0, 150.0, 299.99, 300.01, 500.0, 1e3, 2e3):
-        rel = 1e-10 if tt > 300 else max(1e-12, 4 * np.finfo(float).eps * tt**4 / 768)
+    # erfcx form keeps ~eps t^4/768 relative (5e-10 at t = 160, 5e-9 at t = 300), the 34-term series
+    # beyond 160 <= 4e-12 (a cut at 300 with 14 terms failed at 160.01 and 299.99)
+    for tt in (20.0, 40.0, 150.0, 159.99, 160.01, 299.99, 300.01, 500.0, 1e3, 2e3):
+        rel = 1e-11 if tt > theory.CORR_SERIES_FROM else max(1e-12, 4 * np.finfo(float).eps * tt**4 / 768)
         assert float(theory.correlation(tt)) == pytest.approx(_correlation_ref(tt), rel=rel, abs=0), tt
     # leading behaviour C ~ 128 e^{-t/4}/(sqrt(pi) t^{3/2}), first correction -24/t
     lead = 128 * np.exp(-t[4:] / 4) / (np.sqrt(np.pi) * t[4:] ** 1.5)
