@@ -4,7 +4,8 @@ Exit codes: 0 success; 2 a user mistake (one line on stderr naming the parameter
 range, no traceback, nothing simulated); 3 a result was printed (and written to ``--out``) but
 excursions hit the work bound, so it is biased (``--allow-truncated`` accepts it: exit 0);
 1 no result possible (fewer than 2 complete excursions within the work bounds or ``--max-time``);
-130 Ctrl-C (what the completed rounds reached is printed; nothing if fewer than 2 excursions closed).
+130 Ctrl-C (what the completed rounds reached is printed; nothing if fewer than 2 excursions closed);
+141 stdout's reader closed the pipe (``dryfric estimate | head -1``), quietly, as SIGPIPE would.
 ``sweep`` runs every point it can: 1 if a point ended without a result, else 3 if a point's
 excursions were truncated (``--allow-truncated``), else 0; its refused and failed points are
 recorded in the results file with their reasons.
@@ -14,6 +15,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import math
+import os
 import re
 import sys
 import warnings
@@ -594,6 +596,24 @@ def main(argv=None) -> int:
     except KeyboardInterrupt as exc:  # with its reason when the API gave one (before 2 excursions closed)
         print("dryfric: interrupted" + (f": {exc}" if str(exc) else ""), file=sys.stderr)
         return 130
+    except BrokenPipeError:  # the reader of stdout left (`dryfric estimate | head -1`): stop as SIGPIPE would
+        _drop_stdout()
+        return EXIT_BROKEN_PIPE
+
+
+#: exit status when stdout's reader closed the pipe: 128 + SIGPIPE, what a shell reports for a program
+#: that SIGPIPE ended (files a sweep or ``figures`` had written stay written)
+EXIT_BROKEN_PIPE = 141
+
+
+def _drop_stdout() -> None:
+    """Point stdout at the null device, so that the interpreter's flush at exit does not raise the
+    broken pipe again (Python's "Exception ignored ... BrokenPipeError" line)."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError, AttributeError):  # stdout replaced by an object without a descriptor
+        pass
 
 
 if __name__ == "__main__":

@@ -59,6 +59,7 @@ the regeneration's squared distances :math:`\sim 16/\tau'` must stay far inside 
 from __future__ import annotations
 
 import math
+import sys
 
 import numpy as np
 from scipy import integrate, special
@@ -173,12 +174,15 @@ def check_work(tau: float, tau_L: float, gamma_bar: float, steps_per_tau0: float
                "t": "the bias |gamma_bar| >= Delta keeps the particle moving" if abs(gamma_bar) >= 1.0 else
                "the noise rarely reaches the far threshold (slow weak noise: tau large against tau0)"
                }[max(factors, key=factors.get)]
+        # beyond float range no max_work (a finite number) allows the run: do not suggest raising it
+        beyond = log_w > math.log(sys.float_info.max)
+        head = (f"these parameters need a predicted work of {_exp10(log_w)} {unit}, more than any max_work allows"
+                if beyond else f"max_work must be >= {_exp10(log_w)} {unit} for these parameters (got {max_work:.3g})")
         raise ValueError(
-            f"max_work must be >= {_exp10(log_w)} {unit} for these parameters (got {max_work:.3g}): "
-            f"{n_excursions} excursions of predicted mean duration >= {_exp10(log_t)} tau0 at "
+            f"{head}: {n_excursions} excursions of predicted mean duration >= {_exp10(log_t)} tau0 at "
             f"{steps_per_tau0:.3g} {unit} per tau0 (tau' = {tau:.3g}, tau_L' = {tau_L:.3g}, "
-            f"gamma_bar' = {gamma_bar:.3g}); {why}.  Raise --max-work, coarsen h or delta, lower N, or use the "
-            "white-noise theory when tau << tau0")
+            f"gamma_bar' = {gamma_bar:.3g}); {why}.  " + ("Coarsen" if beyond else "Raise --max-work, coarsen")
+            + " h or delta, lower N, or use the white-noise theory when tau << tau0")
     return min(math.exp(min(log_w, 700.0)), max_work)  # accepted: log_w <= log(max_work), up to rounding
 
 

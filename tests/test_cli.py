@@ -145,7 +145,9 @@ BAD += [
     (["figures", "--seed", "-1", "--out", "figs"], "--seed"),
     (["estimate", "--Gamma", "1e-300"], "Gamma and Delta"),  # tau0 underflows
     (["estimate", "--tau", "1e300"], "tau must keep"),
-    (["estimate", "--Gamma", "1e-30"], "max_work must be >= 10^("),  # a 1e30-digit work bound, in brief
+    # a 1e30-digit work bound, in brief, and no advice to raise max_work (no float is large enough)
+    (["estimate", "--Gamma", "1e-30"], "need a predicted work of 10^(1."),
+    (["estimate", "--gamma-bar", "1e300"], "need a predicted work of inf steps, more than any max_work allows"),
     # beyond int64: a TypeError traceback from lanes_for (np.log2 of a Python int)
     (["estimate", "--n-excursions", str(2**70), "--max-work", "1e308", "--max-time", "5"],
      "--n-excursions must be an integer in [2, 2^62]"),
@@ -462,7 +464,8 @@ def test_bench_json_has_the_side_by_side_numbers(capsys):
     for k, (lo, hi) in b["ranges"].items():
         assert lo <= b[k] <= hi and b[k] == pytest.approx((rounds[0][k] + rounds[1][k]) / 2, rel=1e-12), k
     for r in rounds:
-        assert r["ratio_di_float64_to_rng_bound"] == r["di_float64_lane_steps_per_s"] / r["rng_bound_float64_lane_steps_per_s"]
+        ratio = r["di_float64_lane_steps_per_s"] / r["rng_bound_float64_lane_steps_per_s"]
+        assert r["ratio_di_float64_to_rng_bound"] == ratio
     # the same seeds in every round: the same estimate
     assert rounds[0]["D"] == rounds[1]["D"] and rounds[0]["D_ci"] == rounds[1]["D_ci"]
     for dt in ("float32", "float64"):
@@ -701,3 +704,31 @@ def test_scripts_refuse_bad_numbers_in_one_line(argv, match):
     root = pathlib.Path(__file__).parent.parent
     p = subprocess.run([sys.executable, *argv], cwd=root, capture_output=True, text=True, timeout=300)
     assert p.returncode == 2 and "Traceback" not in p.stderr and re.search(match, p.stderr), p.stderr[-600:]
+
+
+def test_a_closed_stdout_pipe_ends_quietly_with_141():
+    """``dryfric ... | head -1``: the reader leaves and the next write to stdout fails (EPIPE).  That
+    printed a BrokenPipeError traceback (exit 1), and Python's flush at exit another "Exception
+    ignored" line.  Now: nothing on stderr, exit 141 (128 + SIGPIPE, what a shell shows for a program
+    that SIGPIPE ended).  The pipe's read end is closed before the child has imported JAX.  ~3 s.
+    (``--help`` was already quiet: argparse ignores the failed write.)"""
+    import os
+    import pathlib
+
+    env = {**os.environ, "PYTHONPATH": str(pathlib.Path(__file__).parent.parent)}
+    code = "import sys; from dryfric_jax.cli import main; sys.exit(main(['theory']))"
+    p = subprocess.Popen([sys.executable, "-c", code], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    p.stdout.close()
+    err = p.stderr.read().decode()
+    assert (p.wait(timeout=300), err) == (141, "")
+
+
+def test_work_refusal_suggests_raising_max_work_only_when_a_float_could_allow_it(capsys):
+    """Past float range (log work > log(1.8e308)) no ``--max-work`` allows the run: the message said
+    "max_work must be >= 10^(1.3e+30) steps ... Raise --max-work".  Within it, it still says so."""
+    assert main(["estimate", "--Gamma", "1e-30"]) == 2
+    err = capsys.readouterr().err
+    assert "Raise --max-work" not in err and "max_work must be >=" not in err and ".  Coarsen h or delta" in err
+    assert main(["estimate", "--max-work", "1e3"]) == 2
+    err = capsys.readouterr().err
+    assert "max_work must be >= " in err and "(got 1e+03)" in err and "Raise --max-work, coarsen h" in err
