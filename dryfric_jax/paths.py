@@ -106,7 +106,7 @@ def _transient(model, keys, x0, v0, *, segments):
 
 
 def di_transient(model: DIModel, key, n_paths: int, record_steps, v0: float = 1.0, chunk: int = 8192):
-    """V after each of ``record_steps`` (increasing step counts) for ``n_paths`` paths from
+    """V after each of ``record_steps`` (non-decreasing step counts) for ``n_paths`` paths from
     :math:`(X_0, V_0) = (\\mathcal N(0, 1/\\tau'), v_0)`.  Returns ``(n_paths, len(record_steps))``.
 
     Path p of chunk c has key ``split(fold_in(key, c)[1])[p]``; its segment i (up to

@@ -515,6 +515,79 @@ def test_layout_disagreement_counts_the_twins_of_a_layout_once():
     branch = dict(layouts=two["layouts"] + [row(64, "branch", 5.0)])  # other excursions: a layout of its own
     _summarise_layouts(branch)
     assert branch["max_z"] > two["max_z"]
+    # unequal CIs: weights (1.96 / D_ci)^2 = 1 and 4, pooled D = 12 / 5, z = 3 / sqrt(1 + 1/4) (weights
+    # 1.96 / D_ci, not squared, passed with equal CIs)
+    unequal = dict(layouts=[row(32, "wait", 0.0), dict(row(64, "wait", 3.0), D_ci=0.98)])
+    _summarise_layouts(unequal)
+    assert unequal["max_z"] == pytest.approx(3 / math.sqrt(1.25), rel=1e-12)
+    assert unequal["D_pooled"] == pytest.approx(2.4, rel=1e-12)
+
+
+def test_bench_ratios_of_a_round_divide_the_right_numbers():
+    """Every ratio of :func:`run_bench`'s round on numbers chosen so that an inverted ratio, a wrong
+    denominator or the other dtype's number gives another value (only one of the ten ratios per dtype
+    was checked, in a slow test); without numba, no numba ratio."""
+    from dryfric_jax.bench import _ratios
+
+    m = dict(numba_2t_steps_per_s=8.0, numba_pdmp_2t_events_per_s=2.0)
+    for dt, (di, floor, bound, jr, pdmp, ev_floor) in (("float64", (64, 96, 256, 32, 6, 24)),
+                                                       ("float32", (30, 40, 160, 32, 10, 50))):
+        m.update({f"di_{dt}_lane_steps_per_s": di, f"di_chain_floor_{dt}_lane_steps_per_s": floor,
+                  f"rng_bound_{dt}_lane_steps_per_s": bound, f"jax_random_normal_{dt}_lane_steps_per_s": jr,
+                  f"pdmp_{dt}_events_per_s": pdmp, f"pdmp_event_floor_{dt}_events_per_s": ev_floor})
+    want = dict(ratio_pdmp_float64_to_numba_2t=3.0, ratio_di_float64_to_numba_2t=8.0,
+                ratio_pdmp_float32_to_numba_2t=5.0, ratio_di_float32_to_numba_2t=3.75,
+                ratio_di_float64_to_rng_bound=0.25, ratio_rng_bound_float64_to_jax_random_normal=8.0,
+                ratio_di_float64_to_chain_floor=2 / 3, ratio_di_chain_floor_float64_to_rng_bound=0.375,
+                ratio_pdmp_float64_to_event_floor=0.25,
+                ratio_di_float32_to_rng_bound=0.1875, ratio_rng_bound_float32_to_jax_random_normal=5.0,
+                ratio_di_float32_to_chain_floor=0.75, ratio_di_chain_floor_float32_to_rng_bound=0.25,
+                ratio_pdmp_float32_to_event_floor=0.2)
+    assert _ratios(m) == pytest.approx(want, rel=1e-15)
+    del m["numba_2t_steps_per_s"], m["numba_pdmp_2t_events_per_s"]
+    assert _ratios(m) == pytest.approx({k: v for k, v in want.items() if "numba" not in k}, rel=1e-15)
+
+
+def test_numba_rates_are_the_steps_of_a_timed_run_per_second(monkeypatch):
+    """The numba baseline's rate: the steps the timed run reports over its own wall time (compile run
+    first, not timed), for each thread count, with the seed passed on."""
+    from dryfric_jax import bench
+
+    calls, clock = [], iter([10.0, 12.0, 20.0, 23.0])
+    monkeypatch.setattr(bench.time, "perf_counter", lambda: next(clock))
+
+    def run(model, n, threads, seed=None):
+        calls.append((model, n, threads, seed))
+        return None, 600 * threads
+
+    assert bench._numba_rates(run, "m", 40, 7) == {1: 300.0, 2: 400.0}
+    assert calls == [("m", 20, 1, None), ("m", 40, 1, 7), ("m", 40, 2, 7)]
+
+
+def test_bench_tables_show_the_numbers_they_are_given():
+    """format_table: one number a line (4 significant digits), with the rounds' [min-max] where they
+    differ; format_layouts: the best layout and its ratios, and the layouts' agreement."""
+    from dryfric_jax.bench import format_layouts, format_table
+
+    b = dict(device="cpu:0", n_devices=2, cpu_count=4, params=dict(tau=1.0), n_excursions=50, repeat=2,
+             D=0.1234567, ratio_x=2.5, ranges=dict(D=[0.1, 0.2], ratio_x=[2.5, 2.5]), rounds=[{}, {}])
+    assert format_table(b).splitlines() == [
+        "device        cpu:0 (x2, 4 CPU cores)",
+        "              medians of 2 rounds [min-max]; each ratio is taken within its round",
+        "n_excursions  50", "repeat        2", "D             0.1235  [0.1-0.2]", "ratio_x       2.5"]
+    row = dict(lanes=64, block=32, unroll=1, events=None, n_excursions=512, lane_steps_per_s=1.5e8,
+               lane_steps_per_s_range=[1.4e8, 1.6e8], utilization=0.9, wall_s=1.25, D=0.2, D_ci=0.01)
+    lay = dict(device="cpu:0", n_devices=1, cpu_count=2, dtype="float32", repeat=1, layouts=[row], best_lanes=64,
+               best_block=32, best_lane_steps_per_s=1.5e8, rng_bound_lane_steps_per_s=3e8, ratio_best_to_rng_bound=0.5,
+               chain_floor_lane_steps_per_s=2e8, ratio_best_to_chain_floor=0.75, ratio_chain_floor_to_rng_bound=2 / 3,
+               numba_2t_steps_per_s=1e7, ratio_best_to_numba_2t=15.0, max_z=1.234, D_pooled=0.2)
+    lines = format_layouts(lay).splitlines()
+    assert lines[2].split() == ["64", "32", "1", "default", "512", "1.5e+08", "0.900", "1.25", "0.2", "±", "0.01"]
+    assert lines[3:] == [
+        "best: lanes = 64, K = 32, 1.5e+08 lane-steps/s = 0.5 x the RNG bound (3e+08)",
+        "       0.75 x the chain floor (2e+08; floor / bound = 0.667)",
+        "       15 x the numba 2-thread CPU loop (1e+07 steps/s)",
+        "layouts agree: largest |D - pooled others| = 1.23 SE (pooled D = 0.2)"]
 
 
 def test_layout_sweep_over_unrolls_streams_rows_and_keeps_to_its_budget():

@@ -51,6 +51,27 @@ def test_pdmp_recorder_reports_its_event_bound():
         pdmp_stationary(make_pdmp_model(p, 0.125), jax.random.key(0), 4, 100, 0.05, 10.0, max_events=50)
 
 
+def test_pdmp_recorder_raises_when_some_paths_hit_the_event_bound(monkeypatch):
+    """3 of these 8 paths need more than 500 events by t = 11 (about 480 expected): the run raises,
+    counting them (it must not wait for all paths to stop); the default bound is 10x the expected
+    events + 10^4, passed to the recorder as such."""
+    from dryfric_jax import paths
+
+    p = Params(FIG3["Gamma"], FIG3["Delta"], 1.0, FIG3["tau_L"], FIG3["gamma_bar"])
+    m = make_pdmp_model(p, 0.125)
+    with pytest.raises(RuntimeError, match="^[1-7] PDMP paths hit max_events = 500$"):  # some, not all 8
+        pdmp_stationary(m, 3, 8, 20, 0.05, 10.0, max_events=500)
+    seen = []
+
+    def sampled(model, keys, t_burn, dt_rec, max_events, *, n_records):
+        seen.append((float(t_burn), float(dt_rec), int(max_events), n_records))
+        return jnp.zeros((len(keys), n_records)), jnp.ones(len(keys), bool)
+
+    monkeypatch.setattr(paths, "_pdmp_sampled", sampled)
+    assert pdmp_stationary(m, 3, 8, 20, 0.05, 10.0).shape == (8, 20)
+    assert seen == [(10.0, 0.05, int(10 * float(m.rate) * 11.0 + 10_000), 20)]
+
+
 @pytest.mark.parametrize("kw,match", [
     (dict(model="di"), "^model must be a PDMPModel"), (dict(n_paths=0), "^n_paths must be"),
     (dict(dt_rec=-0.1), "^dt_rec must be finite and > 0"), (dict(burn=float("nan")), "^burn must be a finite"),
@@ -314,3 +335,67 @@ def test_make_di_model_default_step_and_dtype_names():
     p = Params(**FIG3)
     assert float(make_di_model(p, None).h) == pytest.approx(default_h(p) / p.tau0, rel=1e-15)
     assert make_di_model(p, np.float32(1e-3), "float32").h.dtype == jnp.float32
+
+
+@pytest.mark.parametrize("center", [False, True])
+def test_autocorrelation_is_the_ratio_of_the_mean_lagged_products(center):
+    """r(k) = mean_i c_i(k) / mean_i c_i(0) and its delta-method SE sd_i(c_i(k) - r(k) c_i(0), ddof=1)
+    / (sqrt(n) mean_i c_i(0)), c_i the mean over the T - k pairs of path i, by a direct O(T^2) sum
+    (the SE with ddof=0, 6% smaller with 4 paths, passed the replicate test's 20%)."""
+    V = np.random.default_rng(4).normal(0.5, 1.0, (4, 23)).cumsum(1)  # correlated, mean far from 0
+    W = V - V.mean() if center else V
+    n = V.shape[1]
+    c = np.array([[np.mean(w[: n - k] * w[k:]) for k in range(n)] for w in W])
+    r = c.mean(0) / c[:, 0].mean()
+    se = (c - r * c[:, :1]).std(0, ddof=1) / (2 * c[:, 0].mean())
+    got_r, got_se = autocorrelation(V, n - 1, center=center)
+    np.testing.assert_allclose(got_r, r, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(got_se, se, rtol=1e-9, atol=1e-12)
+    assert got_r[0] == 1.0 and got_se[0] == pytest.approx(0.0, abs=1e-15)
+
+
+def test_the_moments_default_to_the_raw_covariance_and_the_centred_correlation():
+    """autocovariance's default is the raw moment (the pure dry friction case, mean 0), autocorrelation's
+    the centred one (Fig. 4's h(rho)/h(0)); a swapped default passed every test."""
+    V = np.random.default_rng(5).normal(2.0, 1.0, (3, 12))
+    for f, default in ((autocovariance, False), (autocorrelation, True)):
+        for a, b in zip(f(V, 5), f(V, 5, center=default)):
+            np.testing.assert_array_equal(a, b)
+        assert not np.allclose(f(V, 5)[0], f(V, 5, center=not default)[0])
+
+
+def test_record_steps_may_repeat_and_are_not_bools(di_model):
+    """Non-decreasing, as the message says: a repeated step count records the same V twice (a
+    zero-length segment); a bool is no step count (it was taken as 0 or 1)."""
+    from dryfric_jax.paths import _record_steps
+
+    assert _record_steps(np.array([0, 4, 4, 9])) == [0, 4, 4, 9]
+    for bad in ([True], [0, np.bool_(True)]):
+        with pytest.raises(ValueError, match="^record_steps must"):
+            _record_steps(bad)
+    V = di_transient(di_model, 0, 2, [0, 4, 4])
+    assert np.all(V[:, 0] == 1.0) and np.array_equal(V[:, 1], V[:, 2]) and np.all(V[:, 1] != 1.0)
+
+
+@pytest.mark.parametrize("tau,h,seed", [(0.05, 2e-3, 1), (1.0, 1e-2, 0)])
+def test_di_excursion_is_one_excursion_from_c_plus_through_c_minus_to_c_plus(tau, h, seed):
+    """The arrays of Figs. 1-2: one state per step (t = k h), stuck in C_+ at index 0 and at the
+    end (the state whose coin ends it; the regenerating step belongs to the next excursion),
+    stuck in C_- at i_half (the state whose coin began the -HLE), and U the trapezoid sum of v
+    from 0.  The runs are 4289 and 3258 states long."""
+    from dryfric_jax.di import make_di_model
+
+    m = make_di_model(Params.from_nondim(tau), h)
+    e = di_excursion(m, seed, 100_000)
+    n, k = len(e["t"]), e["i_half"]
+    assert e["complete"] and 100 < k < n - 100 and len(e["x"]) == len(e["v"]) == len(e["U"]) == n
+    np.testing.assert_array_equal(e["t"], np.arange(n) * h)
+    inside = lambda s, x: float(s.c1) <= x <= float(s.c2)  # noqa: E731
+    assert e["v"][0] == e["v"][k] == e["v"][-1] == 0.0
+    assert inside(m.plus, e["x"][0]) and inside(m.minus, e["x"][k]) and inside(m.plus, e["x"][-1])
+    trapezoid = np.concatenate([[0.0], np.cumsum(0.5 * h * (e["v"][1:] + e["v"][:-1]))])
+    np.testing.assert_allclose(e["U"], trapezoid, rtol=0, atol=1e-12 * max(1.0, np.abs(trapezoid).max()))
+    assert np.ptp(e["U"]) > 10 * h  # U moves (an all-zero U would match an all-zero v)
+    short = di_excursion(m, seed, k + 1)  # stopped in the -HLE: the same states so far, not complete
+    assert not short["complete"] and len(short["t"]) == k + 2
+    np.testing.assert_array_equal(short["x"], e["x"][: k + 2])
