@@ -176,8 +176,8 @@ def check_work(tau: float, tau_L: float, gamma_bar: float, steps_per_tau0: float
                }[max(factors, key=factors.get)]
         # beyond float range no max_work (a finite number) allows the run: do not suggest raising it
         beyond = log_w > math.log(sys.float_info.max)
-        head = (f"these parameters need a predicted work of {_exp10(log_w)} {unit}, more than any max_work allows"
-                if beyond else f"max_work must be >= {_exp10(log_w)} {unit} for these parameters (got {max_work:.3g})")
+        head = f"max_work must be >= {_exp10(log_w)} {unit} for these parameters" + (
+            ", beyond float range (no max_work allows them)" if beyond else f" (got {max_work:.3g})")
         raise ValueError(
             f"{head}: {n_excursions} excursions of predicted mean duration >= {_exp10(log_t)} tau0 at "
             f"{steps_per_tau0:.3g} {unit} per tau0 (tau' = {tau:.3g}, tau_L' = {tau_L:.3g}, "

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import jax.numpy as jnp
 import numpy as np
 
-from .cost import choose_method, default_delta
+from .cost import choose_method, default_delta, default_delta_note
 from .excursions import MAX_LAYOUT, default_block, lanes_for
 from .limits import (
     MAX_WORK, check_recurrent, check_simulable, check_work, float32_unsafe_reason, max_steps_per_excursion,
@@ -223,6 +223,7 @@ def choose(params: Params, method: str, h, delta, dtype) -> Plan:
     if d is not None and math.isfinite(d):  # as a float (an int of 400 digits stays itself, for check_delta to show)
         delta = d
     reason = f"method {method!r} requested"
+    defaulted, plan_notes = delta is None, []
     if method == "auto":
         h_c = check_h(params, h)
         d_c = default_delta(params) if delta is None else delta
@@ -234,11 +235,16 @@ def choose(params: Params, method: str, h, delta, dtype) -> Plan:
         unsafe = float32_unsafe_reason(h / params.tau, h / params.tau0, params.tau_nd)
         plan = Plan("di", h, None, None, dtype, reason, "steps", params.tau0 / h)
     else:
-        delta = default_delta(params) if delta is None else delta
+        if defaulted:
+            delta = default_delta(params)
+            note = default_delta_note(params)
+            if note:
+                plan_notes.append(note)
         grid = pdmp_grid_info(params, delta)
         unsafe = pdmp_float32_unsafe_reason(params.tau_L_nd)
         # every noise jump is an event: the jump rate Lambda' is a lower estimate of the events per tau0
         plan = Plan("pdmp", None, grid["delta"], grid, dtype, reason, "events", grid["rate_nd"])
+    plan.notes.extend(plan_notes)
     if dtype == "float32" and unsafe:
         plan.notes.append(f"float32 is not safe here ({unsafe}): simulated in float64")
         plan.dtype = "float64"

@@ -146,8 +146,8 @@ BAD += [
     (["estimate", "--Gamma", "1e-300"], "Gamma and Delta"),  # tau0 underflows
     (["estimate", "--tau", "1e300"], "tau must keep"),
     # a 1e30-digit work bound, in brief, and no advice to raise max_work (no float is large enough)
-    (["estimate", "--Gamma", "1e-30"], "need a predicted work of 10^(1."),
-    (["estimate", "--gamma-bar", "1e300"], "need a predicted work of inf steps, more than any max_work allows"),
+    (["estimate", "--Gamma", "1e-30"], "max_work must be >= 10^(1."),
+    (["estimate", "--gamma-bar", "1e300"], "max_work must be >= inf steps for these parameters, beyond float range"),
     # beyond int64: a TypeError traceback from lanes_for (np.log2 of a Python int)
     (["estimate", "--n-excursions", str(2**70), "--max-work", "1e308", "--max-time", "5"],
      "--n-excursions must be an integer in [2, 2^62]"),
@@ -798,10 +798,11 @@ def test_a_closed_stdout_pipe_ends_quietly_with_141():
 
 def test_work_refusal_suggests_raising_max_work_only_when_a_float_could_allow_it(capsys):
     """Past float range (log work > log(1.8e308)) no ``--max-work`` allows the run: the message said
-    "max_work must be >= 10^(1.3e+30) steps ... Raise --max-work".  Within it, it still says so."""
+    "max_work must be >= 10^(1.9e+30) steps ... Raise --max-work".  Within it, it still says so."""
     assert main(["estimate", "--Gamma", "1e-30"]) == 2
     err = capsys.readouterr().err
-    assert "Raise --max-work" not in err and "max_work must be >=" not in err and ".  Coarsen h or delta" in err
+    assert "Raise --max-work" not in err and "beyond float range (no max_work allows them)" in err
+    assert ".  Coarsen h or delta" in err
     assert main(["estimate", "--max-work", "1e3"]) == 2
     err = capsys.readouterr().err
     assert "max_work must be >= " in err and "(got 1e+03)" in err and "Raise --max-work, coarsen h" in err

@@ -265,3 +265,20 @@ def test_phi_near_its_series_cut(z):
     assert float(phi2(jnp.float64(z))) == pytest.approx(e2, rel=1e-12)
     exact = 0.7 * 0.4 - 1.3 * 0.08  # v s + a s^2 / 2 without viscosity
     assert float(displacement(jnp.float64(0.7), -1.3, 0.0, 0.4)) == pytest.approx(exact, rel=1e-14)
+
+
+def test_default_delta_warns_beyond_the_thresholds_it_was_checked_at():
+    """The default delta was checked against the DI up to a stick threshold (Delta + |gamma_bar|)
+    sqrt(tau / Gamma) = 4.18 SD of the noise out (Fig. 3's tau = 1 s, Gamma = 1; README "Default
+    delta"); deeper, a PDMP run on the default delta (``method`` "pdmp" or "auto") says so in its
+    notes, which the API shows as warnings.  A delta given by the user, or the DI, has no note."""
+    def notes(Gamma, **kw):
+        p = dj.Params(**{**dj.FIG3, "Gamma": Gamma, "tau": 1.0})
+        return dj.plan_estimate(p, n_excursions=100, max_work=1e300, **kw).notes
+
+    depth = (dj.FIG3["Delta"] + abs(dj.FIG3["gamma_bar"])) * math.sqrt(1.0 / 0.9)  # Gamma = 0.9: 4.41 SD
+    for method in ("pdmp", "auto"):
+        assert notes(1.0, method=method) == []  # 4.18 SD: checked
+        (n,) = notes(0.9, method=method)
+        assert f"here one lies {depth:.3g} SD out" in n and "up to stick thresholds 4.2 SD" in n
+    assert notes(0.9, method="pdmp", delta=0.05) == [] and notes(0.9, method="di") == []
