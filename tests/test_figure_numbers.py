@@ -11,11 +11,14 @@ every test there; each fails here.  0.3-0.8 s per test (measured, 2-core machine
 import math
 from types import SimpleNamespace
 
+import jax
 import numpy as np
 import pytest
 
 from dryfric_jax import theory
-from dryfric_jax.figures import covariance, diffusivity, touchette
+from dryfric_jax.figures import covariance, diffusivity, speed_error, touchette
+from dryfric_jax.figures.speed_error import fit_slope
+from dryfric_jax.excursions import STAT_NAMES
 from dryfric_jax.params import FIG3, Params
 from dryfric_jax.paths import autocorrelation, autocovariance
 from dryfric_jax.plan import default_h
@@ -191,3 +194,292 @@ def test_fig6_numbers_from_known_paths(tmp_path, monkeypatch):
             want.append(np.max(np.abs(c / (n * w) - ex) * n * w / np.sqrt(np.maximum(c, 1))))
         got = f["max_dev_in_se"][f"{touchette.TAUS[j]:g}"]
         assert got == pytest.approx(want, rel=1e-9) and max(got) <= 0.5
+
+
+def test_local_exponent_with_unequal_spacing_and_unequal_cis():
+    """D = 3 G^1.5 at G = 1, 2, 8 (log steps ln 2 and ln 4) with relative CIs 1%, 3%, 0: exponents
+    1.5, half-widths sqrt(0.03^2 + 0.01^2) / ln 2 and 0.03 / ln 4 (each pair's own step and CIs,
+    in the order the pair has them); a zero, nan or inf D is refused by name (log 0 gave -inf)."""
+    G = np.array([1.0, 2.0, 8.0])
+    D = 3 * G**1.5
+    gm, s, ci = diffusivity.local_exponent(G, D, D * [0.01, 0.03, 0.0])
+    assert s == pytest.approx([1.5, 1.5], rel=1e-12) and gm == pytest.approx([2**0.5, 4.0], rel=1e-12)
+    assert ci == pytest.approx([math.hypot(0.03, 0.01) / math.log(2), 0.03 / math.log(4)], rel=1e-12)
+    for bad in (0.0, math.nan, math.inf):
+        with pytest.raises(ValueError, match="^D must be finite and > 0"):
+            diffusivity.local_exponent(G, [1.0, bad, 2.0], [0.1] * 3)
+
+
+def test_fit_slope_weighted_and_from_residuals():
+    """log x = 0, 1, 2 and log y = 0, 3, 3, by hand.  Replicates 1, 1, 4 (weights 2 R = 2, 2, 8):
+    weighted slope 9/7, propagated SE sqrt(1/7) = 0.38, residual SE sqrt(chi2 / (3 - 2) / 7) =
+    3 sqrt(8 / 147) = 0.70, the larger reported.  Without replicates: slope 3/2, SE from the residuals
+    alone, sqrt(3/2 / 2) (and 0 on an exact line).  Fewer than one replicate is refused."""
+    x = np.exp([0.0, 1.0, 2.0])
+    y = np.exp([0.0, 3.0, 3.0])
+    slope, se = fit_slope(x, y, [1, 1, 4])
+    assert slope == pytest.approx(9 / 7, rel=1e-12) and se == pytest.approx(3 * math.sqrt(8 / 147), rel=1e-12)
+    assert fit_slope(x, y) == pytest.approx((1.5, math.sqrt(1.5 / 2)), rel=1e-12)
+    assert fit_slope(x, x**-0.5) == pytest.approx((-0.5, 0.0), abs=1e-12)
+    with pytest.raises(ValueError, match="^replicates must be finite and >= 1"):
+        fit_slope(x, y, [1, 0.5, 1])
+
+
+def _fake_plan(calls, fits):
+    """plan_estimate that records (method, N, settings) and refuses (ValueError) what ``fits`` rejects."""
+    def plan(p, method="di", n_excursions=20_000, **kw):
+        calls.append((method, n_excursions, kw))
+        if not fits(p, method, n_excursions, kw):
+            raise ValueError("max_work")
+    return plan
+
+
+def test_affordable_n_divides_by_4_asking_with_the_runs_settings(monkeypatch):
+    """N = 1e5 refused above 3000: asked at 1e5, 25000, 6250, 1562, which fits; the method and delta
+    are the run's.  N <= 1000 is used as given, unasked."""
+    calls, p = [], Params(1.0, 3.84, 1.0, 0.067, 0.342)
+    monkeypatch.setattr(diffusivity, "plan_estimate", _fake_plan(calls, lambda p, m, n, kw: n <= 3000))
+    assert diffusivity._affordable_n(p, "pdmp", 100_000, dict(delta=0.125)) == 1562
+    assert calls == [("pdmp", n, dict(delta=0.125)) for n in (100_000, 25_000, 6250, 1562)]
+    calls.clear()
+    assert diffusivity._affordable_n(p, "di", 1000, {}) == 1000 and calls == []
+
+
+def _fake_points(module, monkeypatch, estimate, bruteforce=None):
+    """Replace the scene's Points by one whose runs are ``estimate`` / ``bruteforce`` (params, seed, kw)."""
+    runs = []
+
+    class FakePoints:
+        def __init__(self, out_dir, scene):
+            pass
+
+        def estimate(self, params, seed, **kw):
+            runs.append(("estimate", params, seed, kw))
+            return estimate(params, seed, kw)
+
+        def bruteforce(self, params, seed, **kw):
+            runs.append(("bruteforce", params, seed, kw))
+            return bruteforce(params, seed, kw)
+
+        def summary(self):
+            return {}
+
+    monkeypatch.setattr(module, "Points", FakePoints)
+    return runs
+
+
+def _no_files(module, monkeypatch, figs):
+    """The scene's ``save`` keeps the figure's plotted lines in ``figs`` and returns its numbers, writing no
+    files (PNG and PDF of many points took 2-8 s here; the files are test_figures.py's)."""
+    def save(fig, out_dir, name, numbers, t0):
+        figs.append([[(np.asarray(ln.get_xdata(), float), np.asarray(ln.get_ydata(), float)) for ln in ax.lines]
+                     for ax in fig.axes])
+        module.plt.close(fig)
+        return dict(numbers)
+    monkeypatch.setattr(module, "save", save)
+
+
+def test_fig3_numbers_from_known_runs(tmp_path, monkeypatch):
+    """Full settings (N = 1e5, cut by 4 while the planner refuses: DI above 7000 at Gamma < 2, PDMP
+    above 30000 where it is asked with delta = 0.125).  Fake runs: DI D = Gamma, CI 0.3; PDMP
+    D = Gamma - 0.5, CI 0.4, so every agreement |difference| / hypot(CIs) is exactly 1; durations
+    are 2 Gamma +- 0.1 Gamma.  Every run has its own seed (the PDMP's are not the DI's)."""
+    calls = []
+
+    def fits(p, m, n, kw):
+        return n <= (30_000 if m == "pdmp" and kw == dict(delta=0.125) else 7000 if p.Gamma < 2 else math.inf)
+
+    def est(p, seed, kw):
+        pdmp = kw.get("method") == "pdmp"
+        return SimpleNamespace(D=p.Gamma - 0.5 * pdmp, D_ci=0.3 + 0.1 * pdmp, mean_duration=2 * p.Gamma,
+                               mean_duration_ci=0.1 * p.Gamma, wall_s=1.0, n_excursions=kw["n_excursions"])
+
+    monkeypatch.setattr(diffusivity, "plan_estimate", _fake_plan(calls, fits))
+    runs = _fake_points(diffusivity, monkeypatch, est)
+    _no_files(diffusivity, monkeypatch, [])
+    f = diffusivity.fig3(str(tmp_path), False, 0)
+    G = f["Gamma"]
+    assert len(runs) == 2 * len(G) * len(f["tau"]) and len({r[2] for r in runs}) == len(runs)
+    assert {(p.tau, p.Gamma, kw["method"]) for _, p, _, kw in runs} == {(t, g, m) for t in f["tau"] for g in G
+                                                                        for m in ("pdmp", "di")}
+    for _, p, _, kw in runs:
+        assert (p.Delta, p.tau_L, p.gamma_bar) == (diffusivity.DELTA, diffusivity.TAU_L, diffusivity.GBAR)
+        want = dict(method="pdmp", delta=0.125) if kw["method"] == "pdmp" else dict(method="di")
+        n = 25_000 if kw["method"] == "pdmp" else 6250 if p.Gamma < 2 else 100_000
+        assert kw == dict(want, n_excursions=n)
+    for tau in f["tau"]:
+        for m, off, ci in (("pdmp", 0.5, 0.4), ("di", 0.0, 0.3)):
+            r = f[m][f"{tau:g}"]
+            assert r["D"] == pytest.approx([g - off for g in G], abs=1e-12) and r["D_ci"] == [ci] * len(G)
+            assert r["dur"] == pytest.approx([2 * g for g in G]) and r["dur_ci"] == pytest.approx([0.1 * g for g in G])
+        assert f["agree"][f"{tau:g}"] == pytest.approx([1.0] * len(G), rel=1e-12)
+
+
+def test_fig8_numbers_from_known_runs(tmp_path, monkeypatch):
+    """Fake long-excursion runs D = 2 Gamma^3 tau^0.1 with relative CIs 1% at even, 3% at odd points:
+    exponents exactly 3 at the geometric midpoints, half-widths hypot(0.01, 0.03) / ln 2 (Gamma doubles);
+    brute force D_t = D / 2 with CI 0.1 D at t = 10 s, N' = 100.  The reference is the exact white-noise D
+    of each case (b = 0: no viscous term, gamma_bar = 0; asked at tau = 1e-9 s), t / tau0 is in the case's
+    tau0; every run has its own seed (brute force and long excursions are independent)."""
+    rel = lambda p: 0.01 if round(math.log2(p.Gamma)) % 2 == 0 else 0.03  # noqa: E731
+
+    def est(p, seed, kw):
+        assert kw == dict(n_excursions=1000)
+        D = 2 * p.Gamma**3 * p.tau**0.1
+        return SimpleNamespace(D=D, D_ci=rel(p) * D)
+
+    def bf(p, seed, kw):
+        assert kw == dict(t=10.0, n_paths=100)
+        return SimpleNamespace(D_t=p.Gamma**3 * p.tau**0.1, D_t_ci=0.2 * p.Gamma**3 * p.tau**0.1)
+
+    runs = _fake_points(diffusivity, monkeypatch, est, bf)
+    monkeypatch.setattr(theory, "exact_D", lambda p: (p.Gamma, p.Delta, p.tau, p.tau_L, p.gamma_bar))
+    _no_files(diffusivity, monkeypatch, [])
+    f = diffusivity.fig8(str(tmp_path), True, 0)
+    G = f["Gamma"]
+    assert len(runs) == 2 * 2 * len(G) * len(f["tau"]) and len({(r[0], r[2]) for r in runs}) == len(runs)
+    assert len({r[2] for r in runs}) == len(runs)
+    for name, (tl, gb) in (("b = 0", (math.inf, 0.0)), ("b = -v/tau_L + gamma_bar", (0.067, 0.342))):
+        c = f["cases"][name]
+        assert c["exact"] == [(g, diffusivity.DELTA, 1e-9, tl, gb) for g in G]  # theory.exact_D's parameters
+        for tau in f["tau"]:
+            ps = [Params(g, diffusivity.DELTA, tau, tl, gb) for g in G]
+            for kind in ("estimate", "bruteforce"):
+                assert [r[1] for r in runs if r[0] == kind and r[1] in ps] == ps
+            r = c[f"{tau:g}"]
+            D = [2 * g**3 * tau**0.1 for g in G]
+            assert r["D"] == pytest.approx(D, rel=1e-12)
+            assert r["D_ci"] == pytest.approx([rel(q) * d for q, d in zip(ps, D)])
+            assert r["D_bf"] == pytest.approx([d / 2 for d in D])
+            assert r["D_bf_ci"] == pytest.approx([0.1 * d for d in D])
+            assert r["t_over_tau0"] == pytest.approx([10.0 / q.tau0 for q in ps], rel=1e-12)
+            assert r["exponent"] == pytest.approx([3.0] * (len(G) - 1), rel=1e-9)
+            assert r["exponent_at"] == pytest.approx([math.sqrt(a * b) for a, b in zip(G, G[1:])], rel=1e-12)
+            assert r["exponent_ci"] == pytest.approx([math.hypot(0.01, 0.03) / math.log(2)] * (len(G) - 1), rel=1e-9)
+
+
+def test_fig5_histogram_total_variation_and_u_paths(tmp_path, monkeypatch):
+    """Even paths at -x, odd ones at +x (2x = 10.5 bins of the paper's 4.8e-4 m/s), except path 1 at 2x
+    (1/256 of the samples: inside the 1e-4 quantiles) and one sample at 10 x (beyond them: out of the
+    histogram, in its denominator).  The bins run from -x in steps of 4.8e-4 past 2x: 16 bins, their
+    centres asked of the density; with a flat density of e = 0.9 / 16 per bin the total variation is
+    (|n0/N - e| + |n10/N - e| + |n15/N - e| + 13 e) / 2 exactly.  The U(t) panel: 10 paths at records
+    1..n of the step h, over 2 s, in metres."""
+    p = Params(0.16, diffusivity.DELTA, 1e-5, diffusivity.TAU_L, diffusivity.GBAR)
+    bw, x = 4.8e-4, 10.5 * 4.8e-4 / 2
+    calls, mids, figs = [], [], []
+
+    def stationary(model, key, paths, n_records, every=1, burn_steps=0):
+        calls.append((jax.random.key_data(key).tolist(), paths, n_records, every, burn_steps))
+        V = np.where(np.arange(paths)[:, None] % 2, x, -x) / p.v0 * np.ones(n_records)
+        V[1], V[0, 0] = 2 * x / p.v0, 10 * x / p.v0
+        return V, np.arange(paths)[:, None] * np.ones(n_records)
+
+    def density(v, params):
+        assert params == p
+        mids.append(np.asarray(v))
+        return np.full(len(v), 0.9 / 16 / bw)
+
+    _fake_models(monkeypatch, diffusivity, [])
+    monkeypatch.setattr(diffusivity, "di_stationary", stationary)
+    monkeypatch.setattr(diffusivity, "white_chain_law", lambda params, h: SimpleNamespace(M0=1, mean_v2=2, p_stuck=3))
+    monkeypatch.setattr(theory, "stationary_density", density)
+    for name in ("exact_M0", "exact_mean_square_velocity"):  # quadratures (5 s), test_fig5_numbers_from_known_paths'
+        monkeypatch.setattr(theory, name, lambda params: 0.0)
+    _no_files(diffusivity, monkeypatch, figs)
+    f = diffusivity.fig5(str(tmp_path), True, 0)
+    (k0, P, n, _, _), (k1, ten, n_rec, every, burn) = calls
+    N = P * n
+    assert f["bin_width"] == bw and mids[0] == pytest.approx(-x + bw * (np.arange(16) + 0.5), rel=0, abs=1e-12)
+    e, cnt = 0.9 / 16, np.array([N / 2 - 1, N / 2 - n, n])
+    assert f["total_variation"] == pytest.approx((np.abs(cnt / N - e).sum() + 13 * e) / 2, rel=1e-12)
+    h = f["h"]
+    assert k1 != k0 and (ten, every) == (10, 1) and n_rec * h == pytest.approx(2.0, abs=h) and burn * h / p.tau0 > 39
+    lines = figs[0][1]
+    assert len(lines) == 10
+    for i, (t, u) in enumerate(lines):
+        assert t == pytest.approx(np.arange(1, n_rec + 1) * h, rel=1e-12) and u == pytest.approx(i * p.u0, rel=1e-12)
+
+
+def test_fig9_numbers_from_known_runs(tmp_path, monkeypatch):
+    """(a) Lane i closes 1 + i mod 3 excursions of mean D_true + e_i (e_i known, N(0, 0.05)) in 100 + i steps;
+    a replicate of g lanes has D = its excursion-weighted mean, its cost the sum of its steps; brute-force
+    path k's D_t at horizon t is D_true + U_k(t) + 0.001 t (bias growing with t).  The RMSEs over the
+    replicates, in m^2/s like D_true (D0 = 0.57 m^2/s here), the costs, the envelope (best RMSE as the
+    cost grows) and the slopes (fit_slope, weighted by the replicates) follow.  (b) h in min(tau0,
+    tau_L), delta in Delta / sqrt(Gamma), one seed per run, the PDMP's runs are PDMP runs."""
+    made, rounds, recs, bfs = [], [], [], []
+    rng = np.random.default_rng(3)
+    e, Ub = rng.normal(0, 0.05, 1024), rng.normal(0, 0.05, (2048, 16))
+    G, Dl = FIG3["Gamma"], FIG3["Delta"]
+    p = Params(G, Dl, 1e-5 * G / Dl**2, FIG3["tau_L"], FIG3["gamma_bar"])
+    D_true = 0.3 / p.D0  # exact_D is faked at 0.3 m^2/s: nondimensional
+
+    def run_round(model, key, lanes, budget):
+        rounds.append((model, lanes, budget))
+        n = 1.0 + np.arange(lanes) % 3
+        stats = np.zeros((lanes, len(STAT_NAMES)))
+        stats[:, 0], stats[:, 1] = n, n * (D_true + e[:lanes])
+        return SimpleNamespace(stats=stats, lane_steps=100 + np.arange(lanes))
+
+    def le_est(T):
+        assert list(T) == list(STAT_NAMES)
+        return dict(D=T["U"] / T["n"])
+
+    def stationary(model, key, paths, n_records, every=1, burn_steps=0):
+        recs.append((model, paths, n_records, every))
+        return None, Ub[:paths, :n_records]
+
+    def bf_est(U, t):
+        bfs.append(t)
+        return dict(D_t=D_true + np.mean(U) + 0.001 * t)
+
+    _fake_models(monkeypatch, speed_error, made)
+    for name, fake in (("run_round", run_round), ("long_excursion_estimates", le_est), ("di_stationary", stationary),
+                       ("bruteforce_estimates", bf_est)):
+        monkeypatch.setattr(speed_error, name, fake)
+    monkeypatch.setattr(theory, "exact_D", lambda params: 0.3 if params == p else math.nan)
+    runs = _fake_points(speed_error, monkeypatch, lambda q, seed, kw: SimpleNamespace(
+        D=1.0 + seed, D_ci=0.1 * seed, wall_s=2.0 + seed))
+    _no_files(speed_error, monkeypatch, [])
+    f = speed_error.fig9(str(tmp_path), True, 0)
+    (_, pm, h), = made
+    hn = h / p.tau0
+    assert pm == p and h == default_h(p) and f["D_true"] == pytest.approx(0.3, rel=1e-12)
+    assert rounds == [(made[0], 1024, 80_000)] and recs == [(made[0], 2048, 16, round(3.75 / hn))]
+    want = []
+    for g in (1, 4, 16, 64):
+        n = (1.0 + np.arange(1024) % 3).reshape(-1, g)
+        err = (n * e.reshape(-1, g)).sum(1) / n.sum(1)
+        cost = (100 + np.arange(1024)).reshape(-1, g).sum(1).mean()
+        want.append(dict(lanes=g, n_excursions=n.sum(1).mean(), cost=cost,
+                         rmse=np.sqrt(np.mean(err**2)) * p.D0, replicates=1024 // g))
+    assert f["le"] == [pytest.approx(w, rel=1e-9) for w in want]
+    every = recs[0][3]
+    pts = []
+    for t, j in (("3.75", 0), ("15", 3), ("60", 15)):
+        tt = (j + 1) * every * hn
+        rows = []
+        for g in (16, 64, 256):
+            err = Ub[:, j].reshape(-1, g).mean(1) + 0.001 * tt
+            rows.append(dict(paths=g, cost=g * (j + 1) * every, rmse=np.sqrt(np.mean(err**2)) * p.D0,
+                             replicates=2048 // g))
+            pts.append((rows[-1]["cost"], rows[-1]["rmse"], 2048 // g))
+        assert f["bf"][t] == [pytest.approx(r, rel=1e-9) for r in rows]
+    ts = [(j + 1) * every * hn for j in (0, 3, 15) for g in (16, 64, 256) for _ in range(2048 // g)]
+    assert bfs == pytest.approx(ts, rel=1e-12)
+    pts.sort()
+    env = [q for k, q in enumerate(pts) if q[1] < min([r[1] for r in pts[:k]], default=math.inf)]
+    assert len(env) >= 3 and np.array(f["bf_envelope"]) == pytest.approx(np.array(env)[:, :2], rel=1e-9)
+    assert (f["bf_slope"], f["bf_slope_se"]) == pytest.approx(fit_slope(*zip(*env)), rel=1e-9)
+    le = [(w["cost"], w["rmse"], w["replicates"]) for w in want]
+    assert (f["le_slope"], f["le_slope_se"]) == pytest.approx(fit_slope(*zip(*le)), rel=1e-9)
+    pf = Params(**FIG3)
+    hs = [r * min(pf.tau0, pf.tau_L) for r in (0.1, 0.03, 0.01, 0.003)]
+    ds = [d * pf.Delta / math.sqrt(pf.Gamma) for d in (0.15, 0.1, 0.05, 0.025)]
+    assert [(q, kw) for _, q, _, kw in runs] == ([(pf, dict(h=x, n_excursions=2000)) for x in hs]
+                                                 + [(pf, dict(method="pdmp", delta=d, n_excursions=2000)) for d in ds])
+    seeds = [r[2] for r in runs]
+    assert len(set(seeds)) == 8
+    assert f["di"] + f["pdmp"] == [dict(D=1.0 + s, D_ci=0.1 * s, wall_s=2.0 + s, **x) for s, x in
+                                   zip(seeds, [dict(h=x) for x in hs] + [dict(delta=d) for d in ds])]
