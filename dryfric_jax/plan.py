@@ -223,7 +223,7 @@ def choose(params: Params, method: str, h, delta, dtype) -> Plan:
     if d is not None and math.isfinite(d):  # as a float (an int of 400 digits stays itself, for check_delta to show)
         delta = d
     reason = f"method {method!r} requested"
-    defaulted, plan_notes = delta is None, []
+    defaulted = delta is None  # the PDMP's default delta carries a caveat where it was not validated
     if method == "auto":
         h_c = check_h(params, h)
         d_c = default_delta(params) if delta is None else delta
@@ -235,16 +235,13 @@ def choose(params: Params, method: str, h, delta, dtype) -> Plan:
         unsafe = float32_unsafe_reason(h / params.tau, h / params.tau0, params.tau_nd)
         plan = Plan("di", h, None, None, dtype, reason, "steps", params.tau0 / h)
     else:
-        if defaulted:
-            delta = default_delta(params)
-            note = default_delta_note(params)
-            if note:
-                plan_notes.append(note)
+        delta = default_delta(params) if defaulted else delta
         grid = pdmp_grid_info(params, delta)
         unsafe = pdmp_float32_unsafe_reason(params.tau_L_nd)
         # every noise jump is an event: the jump rate Lambda' is a lower estimate of the events per tau0
         plan = Plan("pdmp", None, grid["delta"], grid, dtype, reason, "events", grid["rate_nd"])
-    plan.notes.extend(plan_notes)
+        if defaulted and (note := default_delta_note(params)):
+            plan.notes.append(note)
     if dtype == "float32" and unsafe:
         plan.notes.append(f"float32 is not safe here ({unsafe}): simulated in float64")
         plan.dtype = "float64"
