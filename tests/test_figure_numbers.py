@@ -236,13 +236,26 @@ def _fake_plan(calls, fits):
 
 def test_affordable_n_divides_by_4_asking_with_the_runs_settings(monkeypatch):
     """N = 1e5 refused above 3000: asked at 1e5, 25000, 6250, 1562, which fits; the method and delta
-    are the run's.  N <= 1000 is used as given, unasked."""
+    are the run's.  N = 1000 (quick) is asked too, once."""
     calls, p = [], Params(1.0, 3.84, 1.0, 0.067, 0.342)
     monkeypatch.setattr(diffusivity, "plan_estimate", _fake_plan(calls, lambda p, m, n, kw: n <= 3000))
     assert diffusivity._affordable_n(p, "pdmp", 100_000, dict(delta=0.125)) == 1562
     assert calls == [("pdmp", n, dict(delta=0.125)) for n in (100_000, 25_000, 6250, 1562)]
     calls.clear()
-    assert diffusivity._affordable_n(p, "di", 1000, {}) == 1000 and calls == []
+    assert diffusivity._affordable_n(p, "di", 1000, {}) == 1000 and calls == [("di", 1000, {})]
+
+
+def test_affordable_n_stops_at_the_floor_and_raises_the_planners_refusal(monkeypatch):
+    """A point the planner refuses at every N: 1562 is followed by the floor 1000 (not 390), and the
+    refusal at the floor reaches the caller instead of an unasked N <= 1000 being run."""
+    calls, p = [], Params(1.0, 3.84, 1.0, 0.067, 0.342)
+    monkeypatch.setattr(diffusivity, "plan_estimate", _fake_plan(calls, lambda p, m, n, kw: n <= 500))
+    with pytest.raises(ValueError, match="max_work"):
+        diffusivity._affordable_n(p, "di", 100_000, {})
+    assert [c[1] for c in calls] == [100_000, 25_000, 6250, 1562, 1000]
+    calls.clear()
+    monkeypatch.setattr(diffusivity, "plan_estimate", _fake_plan(calls, lambda p, m, n, kw: n <= 1000))
+    assert diffusivity._affordable_n(p, "di", 2000, {}) == 1000 and [c[1] for c in calls] == [2000, 1000]
 
 
 def _fake_points(module, monkeypatch, estimate, bruteforce=None):

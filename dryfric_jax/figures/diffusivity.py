@@ -2,8 +2,8 @@ r"""Fig. 3 and Fig. 8 (paper sections 7.1, 7.3): D against Gamma, with 95% CI ba
 
 * Fig. 3: D and the mean excursion duration for tau = 0.125, 0.25, 0.5, 1 s (tau_L = 0.067 s,
   Delta = 3.84, gamma_bar = 0.342): PDMP (delta = 0.125 s^-1/2) dots, DI lines; N = 1e5 (full)
-  or 1e3 (quick), lowered by 4x steps where the run would exceed the default ``max_work`` (the
-  N used is in the JSON);
+  or 1e3 (quick), lowered by 4x steps (not below 1e3) where the run would exceed the default
+  ``max_work`` (the N used is in the JSON);
 * Fig. 8: D for b = 0 and for b = -v/tau_L + gamma_bar, tau = 1e-5 .. 1e-2 s: brute force
   (t = 10 s) dots, long excursions lines, the exact white-noise D as reference, and the local
   exponent d ln D / d ln Gamma (finite differences of the long-excursion D, delta-method CI).
@@ -28,16 +28,23 @@ from .points import Points
 DELTA, TAU_L, GBAR = 3.84, 0.067, 0.342
 
 
+#: smallest N a figure point is lowered to; below it the CI bars would say little
+N_FLOOR = 1000
+
+
 def _affordable_n(p, method, n, kw):
-    """N, divided by 4 until the run fits the default max_work (slow noise at small Gamma makes
-    excursions exponentially long: the paper's tau = 1 s, Gamma = 1 point needs ~6e4 tau0 each)."""
-    while n > 1000:
+    """N, divided by 4 (not below :data:`N_FLOOR`) until the planner accepts the run under the default
+    max_work (slow noise at small Gamma makes excursions exponentially long: the paper's tau = 1 s,
+    Gamma = 1 point needs ~6e4 tau0 each).  Every N used is asked; a point refused even at the floor
+    raises the planner's ``ValueError``, which names max_work and the parameters."""
+    while True:
         try:
             plan_estimate(p, method=method, n_excursions=n, **kw)
             return n
         except ValueError:
-            n //= 4
-    return n
+            if n <= N_FLOOR:
+                raise
+            n = max(n // 4, N_FLOOR)
 
 
 def fig3(out_dir, quick, seed):
