@@ -3,6 +3,7 @@ JSON (:func:`dumps`, :func:`loads`)."""
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import json
 import math
 import os
@@ -198,6 +199,80 @@ def locked(path: str):
     finally:
         if fd is not None:
             os.close(fd)  # releases the lock
+
+
+def claims_dir(path: str) -> str:
+    """The hidden directory of :func:`claim`'s files beside the results file ``path``."""
+    d, base = os.path.split(os.path.realpath(path))
+    return os.path.join(d, f".{base}.claims")
+
+
+class Claim:
+    """What :func:`claim` yields: ``held`` (this process may compute the point) and :meth:`finish`."""
+
+    def __init__(self, held: bool):
+        self.held, self.finished = held, False
+
+    def finish(self) -> None:
+        """The point's record is written: its claim file is removed when the claim is released."""
+        self.finished = True
+
+
+def _claim_fd(name: str):
+    """An open descriptor of the claim file ``name`` (its directory made), or None if it cannot be
+    made (read-only or foreign directory: the point is then computed unclaimed)."""
+    for _ in range(3):  # another process may remove the empty directory between the two calls
+        try:
+            os.makedirs(os.path.dirname(name), exist_ok=True)
+            return os.open(name, os.O_RDWR | os.O_CREAT, 0o600)
+        except FileNotFoundError:
+            continue
+        except OSError:
+            return None
+    return None
+
+
+@contextlib.contextmanager
+def claim(path: str, key: str, wait: bool = False):
+    """Claim the point ``key`` of the results file ``path`` against other processes while it is
+    computed, so that two sweeps sharing a file share the work of the points in both grids.
+
+    The claim is an exclusive ``flock`` on a small file in :func:`claims_dir` (named by a hash of
+    ``key``); the kernel releases it when the process ends, also when it is killed.  Yields a
+    :class:`Claim`: ``held`` is False when another process holds the point and ``wait`` is False
+    (with ``wait`` it blocks until the other releases it).  The holder must read the results file
+    again before computing (the other may have finished the point meanwhile), and call
+    ``finish()`` once the record is written: the claim file is then removed.  An interrupted
+    holder leaves the (empty) file, which the next claimant reuses.  Without ``fcntl`` (Windows)
+    or a directory where the file can be made, every claim is held (no exclusion, as before)."""
+    name = os.path.join(claims_dir(path), hashlib.sha256(key.encode()).hexdigest()[:32])
+    fd = None if fcntl is None else _claim_fd(name)
+    if fd is None:
+        yield Claim(True)
+        return
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | (0 if wait else fcntl.LOCK_NB))
+            held = Claim(True)
+        except BlockingIOError:
+            held = None
+        except OSError:  # no flock on this file system: unclaimed
+            held = Claim(True)
+        if held is None:
+            yield Claim(False)
+            return
+        yield held
+        if held.finished:  # removed while held: a process that opened it meanwhile re-reads the results
+            with contextlib.suppress(OSError):
+                os.unlink(name)
+    finally:
+        os.close(fd)
+
+
+def drop_claims_dir(path: str) -> None:
+    """Remove :func:`claims_dir` if it is empty (no point is being computed)."""
+    with contextlib.suppress(OSError):
+        os.rmdir(claims_dir(path))
 
 
 def put_record(path: str, rec: dict, same, read) -> None:

@@ -40,8 +40,12 @@ code.
 
 Two sweeps may write to one file at once (two GPUs, two shells): each point's record is written
 under a lock (:func:`~dryfric_jax.outfiles.locked`), re-reading the file first, so neither loses
-the other's points.  They share no plan, so both may compute a point that is in both grids; the
-file then keeps one record of it (the same result unless ``max_time`` stopped one).
+the other's points.  A point is claimed while it is computed (:func:`~dryfric_jax.outfiles.claim`, a
+``flock`` the kernel releases when the process ends, even killed), and the file is read again once the
+claim is held: a point of both grids is computed by one sweep only.  The other leaves it for after
+its remaining points, then waits for the claim and takes the record (counted as ``skipped``), or
+computes the point if its holder stopped without one.  On Windows (no ``flock``) both may compute it;
+the file then keeps one record (the same result unless ``max_time`` stopped one).
 """
 from __future__ import annotations
 
@@ -59,7 +63,7 @@ import numpy as np
 from ._version import __version__
 from .api import DryfricWarning, NoEstimateError, ProjectionWarning, check_progress, check_seed, estimate_diffusivity
 from .limits import MAX_WORK
-from .outfiles import check_writable, dumps, locked, put_record, read_records, write_records
+from .outfiles import check_writable, claim, drop_claims_dir, dumps, locked, put_record, read_records, write_records
 from .params import FIG3, Params, plain_number, real_or_none
 from .plan import check_max_time, check_settings, plan_estimate
 
@@ -224,8 +228,9 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
         time_limited=m)``: k points run now (``"ok"`` or ``"failed"``), s found in the file (``"ok"``
         or ``"failed"``, not rerun); r, f, t and m count the grid's distinct points now recorded as
         refused, failed, ``"ok"`` with truncated excursions (a result biased low), or stopped by
-        ``max_time`` (``"ok"`` short of N or rtol, or ``"failed"``).  A Ctrl-C stops after the
-        points already written; the point in progress is not written.
+        ``max_time`` (``"ok"`` short of N or rtol, or ``"failed"``).  A point another sweep
+        finished while this one ran is counted in s.  A Ctrl-C stops after the points already
+        written; the point in progress is not written.
     """
     check_writable(out)
     points = _check_points(points)
@@ -284,43 +289,81 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
     skipped = done - sum(i in have and status(have[i]) == "refused" for i in grid_idents)
     if progress:
         progress(done, total, None)
-    computed, interrupted = 0, False
-    for ident, pt in todo:
-        s = point_seed(seed, pt, settings)
-        try:
-            with warnings.catch_warnings():  # the warnings are kept in the record ...
-                warnings.simplefilter("ignore", DryfricWarning)
-                warnings.simplefilter("always", ProjectionWarning)  # ... except this one, said at once
-                warnings.showwarning = _at_point(warnings.showwarning, pt)
-                r = estimate_diffusivity(Params(**pt), s, method=method, h=h, delta=delta, dtype=dtype,
-                                         n_excursions=n_excursions, rtol=rtol, max_work=max_work, max_time=max_time)
-        except KeyboardInterrupt:
-            interrupted = True
-            break
-        except NoEstimateError as e:  # deterministic (unless max_time stopped it): recorded, not rerun on resume
-            rec = _record(seed, pt, settings, "failed", max_time, reason=str(e), stopped_by=e.stopped_by)
-        else:
-            if r.stopped_by == "interrupted":  # Ctrl-C inside the point: not a finished point
+    computed, interrupted, later = 0, False, []
+    # a point another sweep is computing (claimed) is left for later and waited for after the others:
+    # it is usually finished by then, and is not computed twice
+    for wait, queue in ((False, todo), (True, later)):
+        for ident, pt in list(queue):
+            try:
+                with claim(out, ident, wait=wait) as c:
+                    if not c.held:
+                        later.append((ident, pt))
+                        continue
+                    rec = _finished_elsewhere(out, ident, max_time)
+                    if rec is None:
+                        rec = _compute(out, ident, pt, seed, settings, max_time)
+                        computed += rec is not None
+                    else:
+                        skipped += 1
+                    if rec is None:  # Ctrl-C: the point in progress is not written
+                        interrupted = True
+                        break
+                    c.finish()
+            except KeyboardInterrupt:  # also while waiting for another sweep's point
                 interrupted = True
                 break
-            res = r.to_dict()
-            for k in ("params", "seed"):
-                res.pop(k)
-            rec = _record(seed, pt, settings, "ok", max_time, result=res)
-        # the file read again under its lock: another sweep's records are kept, a record of this point
-        # (a rerun with more time, or the other sweep's) is replaced in place
-        put_record(out, rec, lambda old: _rec_ident(old) == ident, read_results)
-        have[ident] = rec
-        computed += 1
-        done += 1
-        if progress:
-            progress(done, total, rec)
+            have[ident] = rec
+            done += 1
+            if progress:
+                progress(done, total, rec)
+        if interrupted:
+            break
+    drop_claims_dir(out)
     mine = [have[i] for i in dict.fromkeys(grid_idents) if i in have]  # the grid's distinct points
     count = {k: sum(status(r) == k for r in mine) for k in ("refused", "failed")}
     truncated = sum(status(r) == "ok" and r["result"].get("n_truncated", 0) > 0 for r in mine)
     return dict(computed=computed, skipped=skipped, total=total, interrupted=interrupted,
                 refused=count["refused"], failed=count["failed"], truncated=truncated,
                 time_limited=sum(map(_time_limited, mine)))
+
+
+def _finished_elsewhere(out: str, ident: str, max_time) -> dict | None:
+    """The record of the point ``ident`` that another sweep wrote since this one read the file, if
+    it is one this sweep would not rerun (not stopped short of ``max_time``, not of another version)."""
+    with locked(out):
+        recs = read_results(out)
+    rec = next((r for r in recs if _rec_ident(r) == ident), None)
+    if rec is None or status(rec) == "refused" or _more_time(rec, max_time) or _outdated(rec):
+        return None
+    return rec
+
+
+def _compute(out: str, ident: str, pt: dict, seed: int, settings: dict, max_time) -> dict | None:
+    """Run one point and write its record (``"ok"`` or ``"failed"``); None if Ctrl-C stopped it."""
+    method, h, delta, dtype, n_excursions, rtol, max_work = (settings[k] for k in SETTING_KEYS)
+    s = point_seed(seed, pt, settings)
+    try:
+        with warnings.catch_warnings():  # the warnings are kept in the record ...
+            warnings.simplefilter("ignore", DryfricWarning)
+            warnings.simplefilter("always", ProjectionWarning)  # ... except this one, said at once
+            warnings.showwarning = _at_point(warnings.showwarning, pt)
+            r = estimate_diffusivity(Params(**pt), s, method=method, h=h, delta=delta, dtype=dtype,
+                                     n_excursions=n_excursions, rtol=rtol, max_work=max_work, max_time=max_time)
+    except KeyboardInterrupt:
+        return None
+    except NoEstimateError as e:  # deterministic (unless max_time stopped it): recorded, not rerun on resume
+        rec = _record(seed, pt, settings, "failed", max_time, reason=str(e), stopped_by=e.stopped_by)
+    else:
+        if r.stopped_by == "interrupted":  # Ctrl-C inside the point: not a finished point
+            return None
+        res = r.to_dict()
+        for k in ("params", "seed"):
+            res.pop(k)
+        rec = _record(seed, pt, settings, "ok", max_time, result=res)
+    # the file read again under its lock: another sweep's records are kept, a record of this point
+    # (a rerun with more time, or the other sweep's) is replaced in place
+    put_record(out, rec, lambda old: _rec_ident(old) == ident, read_results)
+    return rec
 
 
 def _outdated(rec: dict) -> bool:

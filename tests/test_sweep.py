@@ -89,7 +89,7 @@ def test_two_sweeps_on_one_file_keep_each_others_points(tmp_path):
     first = sweep.run_sweep(sweep.grid(Gamma=[2.0, 3.0]), out, progress=progress, **kw)
     assert first["computed"] == 2 and other[0]["computed"] == 2
     assert [r["params"]["Gamma"] for r in _lines(out)] == [2.0, 6.0, 7.0, 3.0]
-    # a point of both grids, recorded by the other sweep meanwhile, is replaced in place, not doubled
+    # a point of both grids, recorded by the other sweep meanwhile, is kept, not doubled
     alone = str(tmp_path / "alone.jsonl")
     sweep.run_sweep(sweep.grid(Gamma=[2.0, 6.0]), alone, **kw)
     other.clear()
@@ -99,7 +99,9 @@ def test_two_sweeps_on_one_file_keep_each_others_points(tmp_path):
         if rec is not None and not other:
             other.append(sweep.run_sweep(sweep.grid(Gamma=[6.0]), out2, **kw))
 
-    sweep.run_sweep(sweep.grid(Gamma=[2.0, 6.0]), out2, progress=progress2, **kw)
+    r = sweep.run_sweep(sweep.grid(Gamma=[2.0, 6.0]), out2, progress=progress2, **kw)
+    # the point the other sweep finished meanwhile is read again under its claim, not computed twice
+    assert (r["computed"], r["skipped"]) == (1, 1)
     recs = _lines(out2)
     assert [r["params"]["Gamma"] for r in recs] == [2.0, 6.0]
     assert [r["result"]["D"] for r in recs] == [r["result"]["D"] for r in _lines(alone)]
@@ -565,3 +567,60 @@ def test_a_file_that_cannot_be_rewritten_fails_before_any_work(tmp_path, monkeyp
     monkeypatch.setattr(sweep, "estimate_diffusivity", lambda *a, **k: pytest.fail("a point ran"))
     with pytest.raises(OSError, match="No space left"):
         sweep.run_sweep([dict(Gamma=5.0)], str(out), n_excursions=100)
+
+
+_HOLDER = """
+import os, sys, time
+from dryfric_jax.outfiles import claim, put_record, read_records
+from dryfric_jax.sweep import _rec_ident, read_results
+out, ident, ready, record = sys.argv[1:5]
+with claim(out, ident) as c:
+    assert c.held
+    open(ready, "w").close()
+    while not os.path.exists(out) or not read_results(out):  # until the other sweep wrote its own point
+        time.sleep(0.02)
+    if record != "-":  # the point finished here: its record written, then the claim released
+        rec = dict(read_records(record, ("params",), "bad {path} line {line}")[0], by="holder")
+        put_record(out, rec, lambda old: _rec_ident(old) == ident, read_results)
+        c.finish()
+    else:
+        os._exit(9)  # killed while computing: the kernel drops the claim, no record
+"""
+
+
+@pytest.mark.parametrize("finished", [True, False])
+def test_a_point_another_sweep_is_computing_is_not_computed_twice(tmp_path, monkeypatch, finished):
+    """Two sweeps whose grids share a point: while another process holds the point's claim, this
+    sweep computes its other points first, then waits for the claim and takes the other's record
+    (computed once; before, both sweeps computed it).  If the holder dies without a record (killed),
+    the point is computed here.  The estimator is a fake that counts its calls."""
+    import types
+
+    from dryfric_jax.outfiles import claims_dir
+
+    calls = []
+
+    def fake(p, seed, **kw):
+        calls.append(p.Gamma)
+        return types.SimpleNamespace(stopped_by="rtol", to_dict=lambda: dict(_GOOD["result"], params={}, seed=seed))
+
+    monkeypatch.setattr(sweep, "estimate_diffusivity", fake)
+    kw = dict(n_excursions=50, seed=4)
+    alone = str(tmp_path / "alone.jsonl")
+    sweep.run_sweep(sweep.grid(Gamma=[2.0]), alone, **kw)  # the shared point's record, as the other writes it
+    calls.clear()
+    out, ready = str(tmp_path / "s.jsonl"), str(tmp_path / "ready")
+    (rec,) = _lines(alone)
+    ident = sweep._rec_ident(rec)
+    holder = subprocess.Popen([sys.executable, "-c", _HOLDER, out, ident, ready, alone if finished else "-"])
+    while not os.path.exists(ready):
+        assert holder.poll() is None
+        time.sleep(0.02)
+    r = sweep.run_sweep(sweep.grid(Gamma=[2.0, 3.0]), out, **kw)
+    assert holder.wait(timeout=60) == (0 if finished else 9)
+    assert calls == ([3.0] if finished else [3.0, 2.0])
+    assert (r["computed"], r["skipped"], r["total"]) == ((1, 1, 2) if finished else (2, 0, 2))
+    got = {x["params"]["Gamma"]: x for x in _lines(out)}
+    assert sorted(got) == [2.0, 3.0]
+    assert ("by" in got[2.0]) == finished  # the other's record, kept
+    assert not os.path.exists(claims_dir(out))  # its claim files removed once the points were written
