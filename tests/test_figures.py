@@ -162,6 +162,53 @@ def test_two_runs_of_a_scene_into_one_directory_keep_each_others_runs(tmp_path):
     assert [json.loads(x)["result"]["seed"] for x in lines] == [1, 2, 3]
 
 
+_HOLDER = """
+import json, sys, time
+from dryfric_jax.figures.points import _read
+from dryfric_jax.outfiles import claim, put_record
+path, ready, alone = sys.argv[1:4]
+rec = dict(_read(alone)[0])
+rec["result"] = dict(rec["result"], D=-1.0)  # marks the holder's record
+with claim(path, rec["ident"]) as c:
+    open(ready, "w").close()
+    time.sleep(1.0)  # computing, while the other run of the scene waits
+    put_record(path, rec, lambda old: old["ident"] == rec["ident"], _read)
+    c.finish()
+"""
+
+
+def test_a_run_another_process_of_the_scene_is_computing_is_waited_for_and_reused(tmp_path):
+    """Two runs of a scene into one directory share its runs: a run another process holds (claimed
+    while it computes) is waited for and then reused, not computed a second time; and a Points made
+    before another one wrote the file reads it again before computing.  Before, both computed every
+    run (same seeds, same order)."""
+    import os
+    import subprocess
+    import sys
+    import time
+
+    from dryfric_jax.figures import points
+
+    p, kw = Params(**FIG3), dict(n_excursions=64)
+    a, b = points.Points(str(tmp_path), "s"), points.Points(str(tmp_path), "s")
+    ra = a.estimate(p, 1, **kw)
+    assert b.estimate(p, 1, **kw) == ra and (b.reused, b.computed) == (1, 0)
+    alone, shared = tmp_path / "alone", tmp_path / "shared"
+    alone.mkdir(), shared.mkdir()
+    points.Points(str(alone), "s").estimate(p, 2, **kw)
+    ready = str(tmp_path / "ready")
+    path = points.points_path(str(shared), "s")
+    holder = subprocess.Popen([sys.executable, "-c", _HOLDER, path, ready, points.points_path(str(alone), "s")])
+    while not os.path.exists(ready):
+        assert holder.poll() is None
+        time.sleep(0.02)
+    c = points.Points(str(shared), "s")
+    r = c.estimate(p, 2, **kw)
+    assert holder.wait(timeout=60) == 0
+    assert r.D == -1.0 and (c.reused, c.computed) == (1, 0)  # the holder's record
+    assert len((shared / "s.points.jsonl").read_text().splitlines()) == 1
+
+
 def test_a_ctrl_c_before_two_excursions_closed_is_an_interruption(tmp_path, monkeypatch):
     """A run that Ctrl-C stopped before 2 excursions closed has no result: the API lets the
     KeyboardInterrupt go on up, so the scene stops as for any Ctrl-C (the CLI says the finished runs

@@ -6,7 +6,9 @@ call :func:`~dryfric_jax.api.estimate_diffusivity` and
 appended to ``<out_dir>/<scene>.points.jsonl`` (one JSON line per run: what was asked, the
 package version, the result), the whole file re-read under a lock and rewritten atomically
 (:func:`~dryfric_jax.outfiles.put_record`), so a kill at any moment leaves a valid file and two
-runs of a scene into one directory keep each other's runs.
+runs of a scene into one directory keep each other's runs.  Each run is claimed while computed
+(:func:`~dryfric_jax.outfiles.claim`): a second run of the scene waits for it and reuses it, so
+the two share the scene's runs instead of computing each twice.
 Running the same scene again into the same directory reuses every run already there (same
 kind, parameters, seed, settings and package version) instead of computing it: the seeds are
 fixed by the scene, so the resumed figure is bit-identical to an uninterrupted one (tested).
@@ -29,7 +31,7 @@ from .._version import __version__
 from ..api import (
     BruteForceResult, DryfricWarning, EstimateResult, bruteforce_diffusivity, estimate_diffusivity, missing_fields,
 )
-from ..outfiles import put_record, read_records
+from ..outfiles import claim, put_record, read_records
 
 _KINDS = {"estimate": (estimate_diffusivity, EstimateResult), "bruteforce": (bruteforce_diffusivity, BruteForceResult)}
 
@@ -63,6 +65,16 @@ def _read(path: str) -> list[dict]:
                         "not a finished-run record (move the file away)", check=_check_record)
 
 
+def _stamp(path: str):
+    """What identifies a version of the file: every write replaces it (a new inode), so another
+    process's write changes this (None while there is no file)."""
+    try:
+        st = os.stat(path)
+    except OSError:
+        return None
+    return st.st_ino, st.st_mtime_ns, st.st_size
+
+
 def points_path(out_dir: str, scene: str) -> str:
     return os.path.join(out_dir, f"{scene}.points.jsonl")
 
@@ -78,6 +90,7 @@ class Points:
         self.path = points_path(out_dir, scene)
         self.reused, self.computed, self.runs_wall_s = 0, 0, 0.0
         self._done = {rec["ident"]: rec for rec in _read(self.path)}
+        self._seen = _stamp(self.path)
 
     def estimate(self, params, seed: int, **kw) -> EstimateResult:
         """:func:`~dryfric_jax.api.estimate_diffusivity` ``(params, seed, **kw)``, or its kept result."""
@@ -90,25 +103,41 @@ class Points:
     def _run(self, kind, params, seed, kw):
         fn, cls = _KINDS[kind]
         ident = _ident(kind, params, seed, kw)
-        rec = self._done.get(ident)
-        if rec is not None:
-            self.reused += 1
-            names = {f.name for f in dataclasses.fields(cls)}
-            r = cls(**{k: v for k, v in rec["result"].items() if k in names})
-            self.runs_wall_s += r.wall_s
-            return r
-        with warnings.catch_warnings():  # a scene reports its numbers; the notes stay in the record
-            warnings.simplefilter("ignore", DryfricWarning)
-            r = fn(params, seed, **kw)
-        if getattr(r, "stopped_by", None) == "interrupted":  # Ctrl-C inside the run: not a finished point
-            raise KeyboardInterrupt
-        rec = dict(ident=ident, kind=kind, version=__version__, finished_at=time.strftime("%Y-%m-%dT%H:%M:%S"),
-                   result=r.to_dict())
-        put_record(self.path, rec, lambda old: old["ident"] == ident, _read)  # keeps what others wrote there
+        if ident in self._done:
+            return self._reuse(ident, cls)
+        # claimed while computed, so another run of the scene into this directory waits for the run
+        # and reuses it instead of computing it again (the two then share the scene's runs)
+        with claim(self.path, ident, wait=True) as c:
+            if self._changed():  # another process wrote the file since it was read here
+                self._done = {rec["ident"]: rec for rec in _read(self.path)}
+                self._seen = _stamp(self.path)
+                if ident in self._done:
+                    c.finish()
+                    return self._reuse(ident, cls)
+            with warnings.catch_warnings():  # a scene reports its numbers; the notes stay in the record
+                warnings.simplefilter("ignore", DryfricWarning)
+                r = fn(params, seed, **kw)
+            if getattr(r, "stopped_by", None) == "interrupted":  # Ctrl-C inside the run: not a finished point
+                raise KeyboardInterrupt
+            rec = dict(ident=ident, kind=kind, version=__version__, finished_at=time.strftime("%Y-%m-%dT%H:%M:%S"),
+                       result=r.to_dict())
+            put_record(self.path, rec, lambda old: old["ident"] == ident, _read)  # keeps what others wrote there
+            self._seen = _stamp(self.path)
+            c.finish()
         self._done[ident] = rec
         self.computed += 1
         self.runs_wall_s += r.wall_s
         return r
+
+    def _reuse(self, ident, cls):
+        self.reused += 1
+        names = {f.name for f in dataclasses.fields(cls)}
+        r = cls(**{k: v for k, v in self._done[ident]["result"].items() if k in names})
+        self.runs_wall_s += r.wall_s
+        return r
+
+    def _changed(self) -> bool:
+        return _stamp(self.path) != self._seen
 
     def summary(self) -> dict:
         """For the scene's JSON: the file, the runs reused and computed, and the wall time of the
