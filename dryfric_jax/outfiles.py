@@ -242,7 +242,8 @@ def claim(path: str, key: str, wait: bool = False):
     :class:`Claim`: ``held`` is False when another process holds the point and ``wait`` is False
     (with ``wait`` it blocks until the other releases it).  The holder must read the results file
     again before computing (the other may have finished the point meanwhile), and call
-    ``finish()`` once the record is written: the claim file is then removed.  An interrupted
+    ``finish()`` once the record is written: the claim file is then removed (and the directory,
+    if empty).  An interrupted
     holder leaves the (empty) file, which the next claimant reuses.  Without ``fcntl`` (Windows)
     or a directory where the file can be made, every claim is held (no exclusion, as before)."""
     name = os.path.join(claims_dir(path), hashlib.sha256(key.encode()).hexdigest()[:32])
@@ -265,6 +266,7 @@ def claim(path: str, key: str, wait: bool = False):
         if held.finished:  # removed while held: a process that opened it meanwhile re-reads the results
             with contextlib.suppress(OSError):
                 os.unlink(name)
+            drop_claims_dir(path)  # when no other point is claimed (_claim_fd makes it again if needed)
     finally:
         os.close(fd)
 

@@ -207,6 +207,7 @@ def test_a_run_another_process_of_the_scene_is_computing_is_waited_for_and_reuse
     assert holder.wait(timeout=60) == 0
     assert r.D == -1.0 and (c.reused, c.computed) == (1, 0)  # the holder's record
     assert len((shared / "s.points.jsonl").read_text().splitlines()) == 1
+    assert sorted(os.listdir(tmp_path)) == ["alone", "ready", "s.points.jsonl", "shared"]  # no claims left
 
 
 def test_a_ctrl_c_before_two_excursions_closed_is_an_interruption(tmp_path, monkeypatch):
