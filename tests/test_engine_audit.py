@@ -1,0 +1,233 @@
+r"""Mutation audit of the lane engine's round loop (``dryfric_jax.excursions``) on a clock chain.
+
+The clock is a deterministic chain whose regenerations are known in advance: lane ``l`` starts
+at counter ``-OFFSETS[l]``, each step adds 1, and the step onto a counter ``c >= 1`` that is a
+triangular number m(m+1)/2 is a regeneration (on whichever set the lane watches).  Its
+increments are ``dU = c - 40`` (both signs) and, for the PDMP-like variant, ``dt = (1 + c mod 3)/4``
+(exact binary fractions).  So every excursion, its U, t and t_half, the budget rule and the
+work bound can be written down from the definitions (module docstring of ``excursions``) and
+checked lane by lane, exactly up to float64 rounding of sums of integers and quarters.
+"""
+import math
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from dryfric_jax.excursions import STAT_NAMES, Lanes, run_round, simulate_long_excursions, work_per_excursion
+
+OFFSETS = (0, 1, 3, 7, 12, 20, 33, 60)  # extra seek steps of each lane
+H = 0.375  # the DI-like clock's fixed step (t = n h)
+POWERS = dict(n=(0, 0), U=(1, 0), U2=(2, 0), U3=(3, 0), U4=(4, 0), t=(0, 1), t2=(0, 2), t3=(0, 3), t4=(0, 4),
+              Ut=(1, 1), U2t=(2, 1), U3t=(3, 1), Ut2=(1, 2), U2t2=(2, 2), Ut3=(1, 3))
+
+
+def _triangular(c):
+    m = jnp.floor((jnp.sqrt(8.0 * c + 1.0) - 1.0) / 2.0)
+    return (c >= 1) & (m * (m + 1.0) / 2.0 == c)
+
+
+class Clock(eqx.Module):
+    """DI-like clock: fixed step H, the regenerating step belongs to the new cycle, lanes seek."""
+
+    h: jnp.ndarray
+    start_regenerated = False
+    regen_after_step = False
+    coin = None
+    cpu_events = "wait"
+    fused_quiet = False
+
+    @property
+    def fixed_dt(self):
+        return self.h.astype(jnp.float64)
+
+    def init_state(self, n: int):
+        off = np.resize(np.asarray(OFFSETS, float), n)
+        return (-jnp.asarray(off), jnp.zeros((n,)))
+
+    def draw_lanes(self, keys, block: int):
+        return (jnp.zeros((block, keys.shape[0])),)
+
+    def advance(self, state, r, watch_plus):
+        c = state[0] + 1.0
+        return (c, state[1]), c - 40.0, None, _triangular(c)
+
+
+class PClock(Clock):
+    """PDMP-like clock: float64 event times, the regenerating step closes its cycle, lanes start
+    regenerated (in the +HLE)."""
+
+    start_regenerated = True
+    regen_after_step = True
+    cpu_events = "branch"
+
+    @property
+    def fixed_dt(self):
+        return None
+
+    def advance(self, state, r, watch_plus):
+        c = state[0] + 1.0
+        return (c, state[1]), c - 40.0, 0.25 * (1.0 + jnp.mod(c, 3.0)), _triangular(c)
+
+
+def _is_tri(c):
+    m = (math.isqrt(8 * c + 1) - 1) // 2 if c >= 1 else 0
+    return c >= 1 and m * (m + 1) // 2 == c
+
+
+def reference_lane(offset, budget, max_steps, pdmp):
+    """One lane of a fresh final round, step by step from the definitions: a lane opens an
+    excursion at a regeneration in SEEK or -HLE only while its work (steps taken before this one)
+    is below ``budget``; the +HLE ends at the next regeneration (t_half), the -HLE at the one after
+    (closing it); DI: the regenerating step is the new cycle's first, PDMP: the last of the cycle
+    it closes.  The lane stops at the first step after which it seeks with its work spent; an
+    excursion (or a seek) whose step count reaches ``max_steps`` is dropped and the lane seeks
+    again (a truncation only for an excursion).  Returns the closed (U, t, t_half), counted steps,
+    truncations and work."""
+    c, phase, U, t, n, th = -offset, ("plus" if pdmp else "seek"), 0.0, 0.0, 0, 0.0
+    closed, steps, trunc, work = [], 0, 0, 0
+    while True:
+        c += 1
+        dU, dt, heads, spent = c - 40.0, 0.25 * (1 + c % 3), _is_tri(c), work >= budget
+        work += 1
+        old = phase
+        opens = heads and old != "plus" and not spent
+        counted = old != "seek" or (opens and not pdmp)
+        if pdmp and counted:  # the step belongs to the cycle in flight
+            U, t, n, steps = U + dU, t + dt, n + 1, steps + 1
+        if heads and old == "minus":
+            closed.append((U, t if pdmp else n * H, th))
+        if heads and old == "plus":
+            th, phase = (t if pdmp else n * H), "minus"
+        elif heads:
+            phase = "plus" if opens else "seek"
+            U, t, n = 0.0, 0.0, (0 if old != "seek" or opens else n)
+        if not pdmp and counted:  # the step belongs to the cycle it is in after the step
+            U, n, steps = U + dU, n + 1, steps + 1
+        if phase == "seek":
+            n = n + 1 if old == "seek" else 0
+            if spent:
+                return closed, steps, trunc, work
+        if n >= max_steps:
+            trunc += phase != "seek"
+            phase, n = "seek", 0
+
+
+def _expected(budget, max_steps, pdmp):
+    want = np.zeros((len(OFFSETS), len(STAT_NAMES)))
+    steps, trunc, work = [], [], []
+    for lane, off in enumerate(OFFSETS):
+        closed, s, tr, w = reference_lane(off, budget, max_steps, pdmp)
+        steps.append(s), trunc.append(tr), work.append(w)
+        for U, t, th in closed:
+            for k, (a, b) in POWERS.items():
+                want[lane, STAT_NAMES.index(k)] += U**a * t**b
+            want[lane, STAT_NAMES.index("t_half")] += th
+    return want, np.array(steps), np.array(trunc), np.array(work)
+
+
+def _chain(pdmp):
+    return (PClock if pdmp else Clock)(jnp.asarray(H))
+
+
+def _check_final_round(pdmp, events, budget, max_steps, block=8):
+    ln = Lanes(_chain(pdmp), len(OFFSETS), block=block, max_steps=max_steps, events=events)
+    got = ln._round(jax.random.key(0), budget, True)
+    want, steps, trunc, work = _expected(budget, max_steps, pdmp)
+    np.testing.assert_allclose(got.stats, want, rtol=1e-13, atol=0)
+    np.testing.assert_array_equal(got.lane_steps, steps)
+    np.testing.assert_array_equal(np.asarray(ln.lane.n_trunc)[:len(OFFSETS)], trunc)
+    np.testing.assert_array_equal(np.asarray(ln.lane.work)[:len(OFFSETS)], work)
+    assert (got.n_truncated, got.useful_steps, got.n_unfinished, got.n_in_flight) == (trunc.sum(), steps.sum(), 0, 0)
+    return want, trunc
+
+
+@pytest.mark.parametrize("events", ["wait", "branch"])
+@pytest.mark.parametrize("pdmp", [False, True])
+def test_final_round_sums_are_the_clocks_excursions(pdmp, events):
+    """A fresh final round of the clock (budget 300, no work bound): per lane, every one of the 16
+    sums, the counted steps, the work and no truncation, against the step-by-step definition.  The
+    first lanes close ~5-7 excursions of 20-50 steps; lane 7 (60 seek steps) fewer."""
+    want, _ = _check_final_round(pdmp, events, 300, 10**6)
+    assert want[:, 0].min() >= 2 and want[:, 0].sum() >= 30  # the case has excursions to count
+
+
+@pytest.mark.parametrize("events", ["wait", "branch"])
+@pytest.mark.parametrize("pdmp", [False, True])
+def test_work_bound_truncates_excursions_not_seeks(pdmp, events):
+    """max_steps = 30 (excursions grow 4 steps each, from 9 steps): the later excursions are
+    truncated at exactly 30 steps and the lane seeks again; the DI-like lane 7's first seek (60
+    steps) is restarted at 30 steps but is no truncation (the PDMP-like one starts in an excursion)."""
+    want, trunc = _check_final_round(pdmp, events, 500, 30)
+    assert trunc.sum() >= 8 and want[:, 0].sum() >= 20
+
+
+@pytest.mark.parametrize("pdmp", [False, True])
+def test_small_budgets_stop_seeking_lanes(pdmp):
+    """Budgets 0 and 1: a seeking lane stops at its first step with its work spent (1 or 2 steps),
+    and a lane that opened nothing has no sums; lane 0's first regeneration (step 1) opens an
+    excursion only while its work (0 before the step) is below the budget."""
+    for budget in (0, 1, 5):
+        _check_final_round(pdmp, "wait", budget, 10**6)
+
+
+@pytest.mark.parametrize("events", ["wait", "branch"])
+def test_paused_rounds_then_final_round_close_exactly_the_started_excursions(events):
+    """Two paused rounds (budgets 5 and 100) and a final round of budget 0 (what simulate_long_excursions runs) give the
+    sums of one final round whose budget is each lane's paused work, lane by lane (the lanes pause
+    and continue the same chain), and the final round closes every excursion in flight: closed +
+    in flight after the pauses = closed after the final round."""
+    ln = Lanes(_chain(False), len(OFFSETS), block=8, max_steps=10**6, events=events)
+    a = ln.advance(jax.random.key(1), 5)
+    w1 = np.asarray(ln.lane.work)
+    assert w1[7] == 8  # still seeking, no event: a paused round has no budget stop, it runs its block
+    b = ln.advance(jax.random.key(2), 100)
+    paused = w1 + np.asarray(ln.lane.work)
+    assert a.n_unfinished == 0 and b.n_unfinished == 0 and b.n_in_flight > 0
+    if events == "branch":
+        assert np.all(paused == 8 + 104)  # ceil(budget / 8) blocks of 8 steps per round
+    c = ln.finish(jax.random.key(3))
+    for lane, off in enumerate(OFFSETS):
+        closed, steps, _, _ = reference_lane(off, int(paused[lane]), 10**6, False)
+        want = [sum(U**p * t**q for U, t, _ in closed) for p, q in ((0, 0), (1, 0), (2, 0), (0, 1), (1, 1))]
+        got = c.stats[lane, [STAT_NAMES.index(k) for k in ("n", "U", "U2", "t", "Ut")]]
+        np.testing.assert_allclose(got, want, rtol=1e-13, atol=0, err_msg=str(lane))
+        assert c.lane_steps[lane] == steps, lane
+    assert c.n_excursions + c.n_truncated == b.n_excursions + b.n_truncated + b.n_in_flight
+    assert c.n_in_flight == 0 and c.n_unfinished == 0
+
+
+def test_simulate_stops_the_paused_rounds_once_closed_plus_in_flight_reach_n(monkeypatch):
+    """The rounds pause until closed (complete or truncated) plus in-flight excursions reach N, then
+    one final round closes those in flight: every paused round but the last is short of N, and the
+    result has at least N excursions, all closed ("n_excursions")."""
+    seen, real = [], Lanes.advance
+    monkeypatch.setattr(Lanes, "advance", lambda self, k, b: seen.append(real(self, k, b)) or seen[-1])
+    st, stopped = simulate_long_excursions(_chain(False), jax.random.key(0), 40, lanes=8, block=8, pilot_budget=16,
+                                           max_steps=20)
+    reached = [s.n_excursions + s.n_truncated + s.n_in_flight >= 40 for s in seen]
+    assert stopped == "n_excursions" and reached[-1] and not any(reached[:-1]) and len(seen) >= 2
+    assert st.n_truncated > 0 and st.n_excursions + st.n_truncated >= 40 and st.n_in_flight == 0
+
+
+def test_simulate_says_which_bound_stopped_it(monkeypatch):
+    """stopped_by: "work_bound" once the lanes paid max_work, "target" when ``more`` asks for
+    nothing after the final round, "n_excursions" otherwise; a ``more`` that asks for more moves
+    the target to closed + extra."""
+    ch = _chain(False)
+    _, stopped = simulate_long_excursions(ch, jax.random.key(0), 10**6, lanes=8, block=8, max_work=4000)
+    assert stopped == "work_bound"
+    asked = []
+
+    def more(st):
+        asked.append(st.n_excursions + st.n_truncated)
+        return 30 if len(asked) == 1 else 0
+
+    st, stopped = simulate_long_excursions(ch, jax.random.key(0), 20, lanes=8, block=8, more=more)
+    assert stopped == "target" and st.n_excursions >= asked[0] + 30 and st.n_in_flight == 0
+
+
+def test_work_per_excursion_counts_each_in_flight_one_as_one():
+    assert work_per_excursion(120.0, 7, 5) == 10.0 and work_per_excursion(9.0, 0, 3) == 3.0
