@@ -13,8 +13,11 @@ and :math:`\kappa = 1/\tau_L` (:math:`\kappa = 0` for :math:`\tau_L = \infty`, a
     \int_0^s v = v s + (a - \kappa v)\, s^2 \varphi_2(-\kappa s),
 
 with :math:`\varphi_1(z) = (e^z - 1)/z` and :math:`\varphi_2(z) = (e^z - 1 - z)/z^2` evaluated
-stably (``expm1``, series near 0), so nothing cancels as :math:`\kappa s \to 0` or blows up as
-:math:`\kappa s \to \infty` (erratum 4).  The velocity reaches 0 (only when :math:`v a < 0`) at
+stably (``expm1``, series near 0), so nothing blows up as :math:`\kappa s \to 0` or
+:math:`\kappa s \to \infty` (erratum 4).  Just outside its series, :math:`\varphi_2`'s numerator
+:math:`\mathrm{expm1}(z) - z \approx z^2/2` keeps a relative error of about 2 eps/|z|: 5.9e-14 at the
+float64 cut |z| = 0.01 and 4.5e-6 at float32's 0.1 (audit, against 60 digits), far below the
+statistical error of any estimate.  The velocity reaches 0 (only when :math:`v a < 0`) at
 
 .. math::
     T^\star = \frac{\log(1 + \kappa\sigma)}{\kappa}\ \ (\kappa > 0),\qquad T^\star = \sigma\ \ (\kappa = 0),
