@@ -27,6 +27,9 @@ Keys are derived the same way: ``fold_in(key, d)`` and ``split(key)[i]`` are the
 ``threefry2x32(key, (0, d))`` and ``threefry2x32(key, (0, i))``; :func:`fold_in`, :func:`split_at`
 and :func:`uniform` (one number per key) compute them elementwise, where JAX's CPU lowering runs
 one rolled loop per call (the lane engine derives three keys and a coin per lane and block).
+Keys of another generator (``rbg``, ``unsafe_rbg``) go through ``jax.random`` under ``vmap``: for
+those JAX's batched numbers differ from one call per key, so "the same as ``jax.random``" holds
+for threefry keys only (audit).
 """
 from __future__ import annotations
 
