@@ -77,7 +77,7 @@ def _is_tri(c):
     return c >= 1 and m * (m + 1) // 2 == c
 
 
-def reference_lane(offset, budget, max_steps, pdmp):
+def reference_lane(offset, budget, max_steps, pdmp, events=None):
     """One lane of a fresh final round, step by step from the definitions: a lane opens an
     excursion at a regeneration in SEEK or -HLE only while its work (steps taken before this one)
     is below ``budget``; the +HLE ends at the next regeneration (t_half), the -HLE at the one after
@@ -85,12 +85,16 @@ def reference_lane(offset, budget, max_steps, pdmp):
     it closes.  The lane stops at the first step after which it seeks with its work spent; an
     excursion (or a seek) whose step count reaches ``max_steps`` is dropped and the lane seeks
     again (a truncation only for an excursion).  Returns the closed (U, t, t_half), counted steps,
-    truncations and work."""
+    truncations, work and the step count n at the stop (of the seek it stopped in).  ``events``
+    (a list) collects, step by step, whether the step has an event (``_has_event``'s definition: a
+    regeneration, the work bound at this step, or a seek with the work spent)."""
     c, phase, U, t, n, th = -offset, ("plus" if pdmp else "seek"), 0.0, 0.0, 0, 0.0
     closed, steps, trunc, work = [], 0, 0, 0
     while True:
         c += 1
         dU, dt, heads, spent = c - 40.0, 0.25 * (1 + c % 3), _is_tri(c), work >= budget
+        if events is not None:
+            events.append(heads or n + 1 >= max_steps or (spent and phase == "seek"))
         work += 1
         old = phase
         opens = heads and old != "plus" and not spent
@@ -109,7 +113,7 @@ def reference_lane(offset, budget, max_steps, pdmp):
         if phase == "seek":
             n = n + 1 if old == "seek" else 0
             if spent:
-                return closed, steps, trunc, work
+                return closed, steps, trunc, work, n
         if n >= max_steps:
             trunc += phase != "seek"
             phase, n = "seek", 0
@@ -117,15 +121,42 @@ def reference_lane(offset, budget, max_steps, pdmp):
 
 def _expected(budget, max_steps, pdmp):
     want = np.zeros((len(OFFSETS), len(STAT_NAMES)))
-    steps, trunc, work = [], [], []
+    steps, trunc, work, n_stop = [], [], [], []
     for lane, off in enumerate(OFFSETS):
-        closed, s, tr, w = reference_lane(off, budget, max_steps, pdmp)
-        steps.append(s), trunc.append(tr), work.append(w)
+        closed, s, tr, w, n = reference_lane(off, budget, max_steps, pdmp)
+        steps.append(s), trunc.append(tr), work.append(w), n_stop.append(n)
         for U, t, th in closed:
             for k, (a, b) in POWERS.items():
                 want[lane, STAT_NAMES.index(k)] += U**a * t**b
             want[lane, STAT_NAMES.index("t_half")] += th
-    return want, np.array(steps), np.array(trunc), np.array(work)
+    return want, np.array(steps), np.array(trunc), np.array(work), np.array(n_stop)
+
+
+def _lane_blocks(events, block, layout):
+    """Blocks a lane of a final round runs until it stops (its steps' event flags, ``events``):
+    ``"branch"`` takes whole blocks; ``"wait"`` ends a block at its first step with an event and
+    idles the rest of it (``_block``)."""
+    if layout == "branch":
+        return -(-len(events) // block)
+    blocks = taken = 0
+    for ev in events:
+        taken += 1
+        if ev or taken == block:
+            blocks, taken = blocks + 1, 0
+    return blocks + (taken > 0)
+
+
+def _slot_steps(ln, budget, max_steps, pdmp, block):
+    """The slots a fresh final round pays: each device runs blocks until its last lane stopped, a
+    block costing ``block`` steps for each of its lanes (pad lanes included: layout lane i is the
+    clock of offset OFFSETS[i mod 8])."""
+    per_offset = []
+    for off in OFFSETS:
+        events = []
+        reference_lane(off, budget, max_steps, pdmp, events)
+        per_offset.append(_lane_blocks(events, block, ln.events))
+    blocks = np.resize(per_offset, ln.n).reshape(len(ln.devices), -1)
+    return int(blocks.max(axis=1).sum()) * block * blocks.shape[1]
 
 
 def _chain(pdmp):
@@ -135,12 +166,17 @@ def _chain(pdmp):
 def _check_final_round(pdmp, events, budget, max_steps, block=8):
     ln = Lanes(_chain(pdmp), len(OFFSETS), block=block, max_steps=max_steps, events=events)
     got = ln._round(jax.random.key(0), budget, True)
-    want, steps, trunc, work = _expected(budget, max_steps, pdmp)
+    want, steps, trunc, work, n_stop = _expected(budget, max_steps, pdmp)
+    real = lambda a: np.asarray(a)[:len(OFFSETS)]  # noqa: E731
     np.testing.assert_allclose(got.stats, want, rtol=1e-13, atol=0)
     np.testing.assert_array_equal(got.lane_steps, steps)
-    np.testing.assert_array_equal(np.asarray(ln.lane.n_trunc)[:len(OFFSETS)], trunc)
-    np.testing.assert_array_equal(np.asarray(ln.lane.work)[:len(OFFSETS)], work)
+    np.testing.assert_array_equal(real(ln.lane.n_trunc), trunc)
+    np.testing.assert_array_equal(real(ln.lane.work), work)
+    # the clock moved on the lane's own steps only, and the stopped lane's count is its seek's
+    np.testing.assert_array_equal(real(ln.lane.state[0]), work - np.asarray(OFFSETS))
+    np.testing.assert_array_equal(real(ln.lane.n), n_stop)
     assert (got.n_truncated, got.useful_steps, got.n_unfinished, got.n_in_flight) == (trunc.sum(), steps.sum(), 0, 0)
+    assert got.slot_steps == _slot_steps(ln, budget, max_steps, pdmp, block)
     return want, trunc
 
 
@@ -164,13 +200,16 @@ def test_work_bound_truncates_excursions_not_seeks(pdmp, events):
     assert trunc.sum() >= 8 and want[:, 0].sum() >= 20
 
 
+@pytest.mark.parametrize("events", ["wait", "branch"])
 @pytest.mark.parametrize("pdmp", [False, True])
-def test_small_budgets_stop_seeking_lanes(pdmp):
+def test_small_budgets_stop_seeking_lanes(pdmp, events):
     """Budgets 0 and 1: a seeking lane stops at its first step with its work spent (1 or 2 steps),
     and a lane that opened nothing has no sums; lane 0's first regeneration (step 1) opens an
-    excursion only while its work (0 before the step) is below the budget."""
-    for budget in (0, 1, 5):
-        _check_final_round(pdmp, "wait", budget, 10**6)
+    excursion only while its work (0 before the step) is below the budget.  With max_steps 1 a
+    budget-0 lane's one seek step both stops it and reaches the work bound: it stops (its seek
+    count stays 1); max_steps 3 truncates lane 0's first excursion at its third step."""
+    for budget, max_steps in ((0, 10**6), (1, 10**6), (5, 10**6), (0, 1), (2, 3)):
+        _check_final_round(pdmp, events, budget, max_steps)
 
 
 @pytest.mark.parametrize("events", ["wait", "branch"])
@@ -190,7 +229,7 @@ def test_paused_rounds_then_final_round_close_exactly_the_started_excursions(eve
         assert np.all(paused == 8 + 104)  # ceil(budget / 8) blocks of 8 steps per round
     c = ln.finish(jax.random.key(3))
     for lane, off in enumerate(OFFSETS):
-        closed, steps, _, _ = reference_lane(off, int(paused[lane]), 10**6, False)
+        closed, steps, _, _, _ = reference_lane(off, int(paused[lane]), 10**6, False)
         want = [sum(U**p * t**q for U, t, _ in closed) for p, q in ((0, 0), (1, 0), (2, 0), (0, 1), (1, 1))]
         got = c.stats[lane, [STAT_NAMES.index(k) for k in ("n", "U", "U2", "t", "Ut")]]
         np.testing.assert_allclose(got, want, rtol=1e-13, atol=0, err_msg=str(lane))
@@ -231,3 +270,51 @@ def test_simulate_says_which_bound_stopped_it(monkeypatch):
 
 def test_work_per_excursion_counts_each_in_flight_one_as_one():
     assert work_per_excursion(120.0, 7, 5) == 10.0 and work_per_excursion(9.0, 0, 3) == 3.0
+
+
+def test_pad_lanes_are_dropped_from_the_sums_and_the_work():
+    """Seven real lanes: where the device count does not divide them (2 devices: 8 layout lanes,
+    the shape the other tests compiled) pad lanes fill the layout, dropped from the results.  A
+    final round's sums and steps are the 7 lanes' alone, and a paused round's paid work (what
+    max_work sees) counts the real lanes' slots only: ceil(20 / 8) = 3 blocks of 8 steps each."""
+    r = len(OFFSETS) - 1
+    ln = Lanes(_chain(False), r, block=8, max_steps=10**6, events="wait")
+    assert ln.n > r or len(ln.devices) == 1  # one device: 7 lanes, no pad
+    ln.advance(jax.random.key(0), 20)
+    assert ln.paid == 24 * r
+    ln = Lanes(_chain(False), r, block=8, max_steps=10**6, events="branch")
+    got = ln.finish(jax.random.key(0), 300)
+    want, steps, _, work, _ = _expected(300, 10**6, False)
+    np.testing.assert_allclose(got.stats, want[:r], rtol=1e-13, atol=0)
+    assert got.lane_steps.tolist() == steps[:r].tolist() and ln.paid == work[:r].sum()
+
+
+def test_a_stopped_lane_has_no_event():
+    """``_has_event`` (which steps the "branch" layout books): a lane that has stopped needs no
+    bookkeeping, whatever its regeneration flag, step count or budget say; a live one seeking with
+    its budget spent (0) does.  Without the ``done`` test the final round's tail booked every step
+    of a stopped lane at a regeneration (same results, the full bookkeeping each step: audit)."""
+    from dryfric_jax.excursions import _has_event, init_lanes
+
+    lane = init_lanes(_chain(False), 4)
+    done = jnp.asarray([True, False, True, False])
+    lane = eqx.tree_at(lambda l: (l.done, l.n), lane, (done, jnp.full((4,), 10, jnp.int64)))
+    adv = (lane.state, jnp.zeros(4), None, jnp.asarray([True, True, False, False]))
+    for budget, max_steps in ((0, 10**6), (10**6, 11), (0, 11)):
+        has = jax.vmap(lambda l, a: _has_event(budget, max_steps, True, l, a))(lane, adv)
+        assert np.asarray(has).tolist() == [False, True, False, budget == 0 or max_steps == 11]
+
+
+def test_simulate_counts_the_excursions_in_flight_towards_n(monkeypatch):
+    """The paused rounds stop as soon as closed plus in-flight excursions reach N, even with fewer
+    closed: N = the first paused round's closed + in flight (that round run alone, the same key and
+    lanes) gives exactly one paused round, then the final round that closes them all.  Stopping
+    on the closed ones alone ran more paused rounds (mutation audit)."""
+    ch, key = _chain(False), jax.random.key(0)
+    first = Lanes(ch, 8, block=8, max_steps=10**6).advance(jax.random.fold_in(key, 0), 16)
+    n = first.n_excursions + first.n_truncated + first.n_in_flight
+    assert first.n_in_flight > 0
+    seen, real = [], Lanes.advance
+    monkeypatch.setattr(Lanes, "advance", lambda self, k, b: seen.append(real(self, k, b)) or seen[-1])
+    st, stopped = simulate_long_excursions(ch, key, n, lanes=8, block=8, pilot_budget=16, max_steps=10**6)
+    assert len(seen) == 1 and stopped == "n_excursions" and st.n_excursions + st.n_truncated == n
