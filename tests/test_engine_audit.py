@@ -16,7 +16,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from dryfric_jax.excursions import STAT_NAMES, Lanes, run_round, simulate_long_excursions, work_per_excursion
+from dryfric_jax.excursions import STAT_NAMES, Lanes, simulate_long_excursions, work_per_excursion
 
 OFFSETS = (0, 1, 3, 7, 12, 20, 33, 60)  # extra seek steps of each lane
 H = 0.375  # the DI-like clock's fixed step (t = n h)
