@@ -8,6 +8,7 @@ increments are ``dU = c - 40`` (both signs) and, for the PDMP-like variant, ``dt
 work bound can be written down from the definitions (module docstring of ``excursions``) and
 checked lane by lane, exactly up to float64 rounding of sums of integers and quarters.
 """
+import dataclasses
 import math
 
 import equinox as eqx
@@ -16,6 +17,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from dryfric_jax import excursions
 from dryfric_jax.excursions import STAT_NAMES, Lanes, simulate_long_excursions, work_per_excursion
 
 OFFSETS = (0, 1, 3, 7, 12, 20, 33, 60)  # extra seek steps of each lane
@@ -318,3 +320,126 @@ def test_simulate_counts_the_excursions_in_flight_towards_n(monkeypatch):
     monkeypatch.setattr(Lanes, "advance", lambda self, k, b: seen.append(real(self, k, b)) or seen[-1])
     st, stopped = simulate_long_excursions(ch, key, n, lanes=8, block=8, pilot_budget=16, max_steps=10**6)
     assert len(seen) == 1 and stopped == "n_excursions" and st.n_excursions + st.n_truncated == n
+
+
+def test_lanes_for_keeps_at_least_min_lanes_up_to_n():
+    """A power of two near N / per_lane, but at least min(min_lanes, N) (and at most chunk_lanes):
+    N = 1000 gets 512 lanes, not 16 (1000 // 32 = 31); N = 100 gets 64; N = 1e6 gets 2^14 capped
+    at the chunk."""
+    assert excursions.lanes_for(1000, 4096) == 512
+    assert excursions.lanes_for(100, 4096) == 64
+    assert excursions.lanes_for(10**6, 4096) == 4096 and excursions.lanes_for(10**6, 2**20) == 2**14
+    assert excursions.lanes_for(1, 4096) == 1
+
+
+def test_replicates_run_on_a_fresh_key_with_a_5_percent_margin(monkeypatch):
+    """simulate_replicates: the pilot (fold_in(key, 0), discarded) sizes one final round of
+    n_replicates x L fresh lanes on another key (fold_in(key, 1): reusing the pilot's numbers ties
+    the budget to the excursions it measured), with a budget of 1.05 n_per_replicate mean
+    excursions per replicate: ceil(1.05 * 40 * 12.5 / 4) = 132 steps per lane."""
+    keys, calls = [], []
+    monkeypatch.setattr(excursions, "steps_per_excursion", lambda ch, k, **kw: keys.append(k) or 12.5)
+    monkeypatch.setattr(excursions, "run_round", lambda ch, k, lanes, budget, **kw: calls.append((k, lanes, budget)))
+    key = jax.random.key(7)
+    excursions.simulate_replicates(_chain(False), key, 3, 40, lanes_per_replicate=4)
+    ((k, lanes, budget),) = calls
+    assert (lanes, budget) == (12, math.ceil(1.05 * 40 * 12.5 / 4))
+    data = lambda k: np.asarray(jax.random.key_data(k)).tolist()  # noqa: E731
+    assert data(keys[0]) == data(jax.random.fold_in(key, 0)) and data(k) == data(jax.random.fold_in(key, 1))
+
+
+class _Far(Clock):
+    """A clock that never regenerates within the test (every lane starts 1e9 steps before c = 1)."""
+
+    def init_state(self, n: int):
+        return (jnp.full((n,), -1e9), jnp.zeros((n,)))
+
+
+def test_a_run_with_nothing_closed_stops_past_64_max_steps_per_lane(monkeypatch):
+    """No excursion ever opens: the pilot rounds grow x4 until the lanes have paid more than 64
+    max_steps each, then stop with "work_bound".  max_steps 16, 8 lanes: the first pilot round
+    (1024 steps per lane) pays exactly 64 * 16 * 8 = 8192, not more, so a second round runs."""
+    seen, real = [], Lanes.advance
+    monkeypatch.setattr(Lanes, "advance", lambda self, k, b: seen.append((b, real(self, k, b))) or seen[-1][1])
+    st, stopped = simulate_long_excursions(_Far(jnp.asarray(H)), jax.random.key(0), 10, lanes=8, block=8,
+                                           pilot_budget=1024, max_steps=16)
+    assert stopped == "work_bound" and [b for b, _ in seen] == [1024, 4096] and st.n_excursions == 0
+
+
+def test_paused_rounds_never_plan_past_max_work(monkeypatch):
+    """With max_work the paused rounds' budgets are capped at what is left of it (plus a block):
+    the lanes have paid at most max_work + block steps each past it when the rounds stop
+    (max_work = 2000 lane-steps, 8 lanes: N = 1e6 excursions would ask for far more)."""
+    paid, real = [], Lanes.advance
+
+    def advance(self, k, b):
+        out = real(self, k, b)
+        paid.append(self.paid)
+        return out
+
+    monkeypatch.setattr(Lanes, "advance", advance)
+    _, stopped = simulate_long_excursions(_chain(False), jax.random.key(0), 10**6, lanes=8, block=8, pilot_budget=16,
+                                          max_work=2000)
+    assert stopped == "work_bound" and len(paid) >= 2
+    assert paid[-1] <= 2000 + 2 * 8 * 8  # the cap's extra block, and the round's own last block
+
+
+def test_round_budgets_count_the_in_flight_excursions_as_one_each(monkeypatch):
+    """After the pilot, a paused round's budget is the steps still wanted at the measured steps per
+    excursion, the in-flight excursions counted as done: ceil((N - closed - in flight) x per / lanes),
+    between 4 blocks (or per / 4) and a round's lane-steps.  Checked on each round's recorded sums."""
+    seen, real = [], Lanes.advance
+    monkeypatch.setattr(Lanes, "advance", lambda self, k, b: seen.append((b, real(self, k, b))) or seen[-1][1])
+    n, lanes, block, cap = 400, 8, 8, 2**26
+    simulate_long_excursions(_chain(False), jax.random.key(0), n, lanes=lanes, block=block, pilot_budget=16,
+                             max_steps=10**6)
+    assert len(seen) >= 3
+    for (_, st), (b_next, _) in zip(seen, seen[1:]):
+        done = st.n_excursions + st.n_truncated
+        if done == 0:
+            continue
+        per = st.useful_steps / (done + st.n_in_flight)
+        want = math.ceil((n - done - st.n_in_flight) * per / lanes)
+        assert b_next == max(4 * block, int(per) // 4, min(want, cap // lanes))
+
+
+def _interrupting(monkeypatch, finish_raises: bool):
+    """Lanes whose second paused round is interrupted (Ctrl-C) and whose final round is counted,
+    raises Ctrl-C (``finish_raises``) or returns a round that the deadline cut (1 unfinished, the
+    clock past every deadline)."""
+    calls = dict(advance=0, finish=0)
+    real = Lanes.advance
+
+    def advance(self, k, b):
+        calls["advance"] += 1
+        if calls["advance"] == 2:
+            raise KeyboardInterrupt
+        return real(self, k, b)
+
+    def finish(self, k, budget=0, deadline=None):
+        calls["finish"] += 1
+        clock[0] = 1e9  # the final round ran past every deadline
+        st = real(self, k, 16)
+        if finish_raises:
+            raise KeyboardInterrupt
+        return dataclasses.replace(st, n_unfinished=1)
+
+    monkeypatch.setattr(Lanes, "advance", advance)
+    monkeypatch.setattr(Lanes, "finish", finish)
+    clock = [0.0]
+    monkeypatch.setattr(excursions, "_now", lambda: clock[0])
+    return calls
+
+
+def test_a_ctrl_c_during_the_rounds_stays_the_reason_and_a_second_one_ends_the_final_round(monkeypatch):
+    """A Ctrl-C in the paused rounds is the run's first: the final round then finishes the in-flight
+    excursions, and its stop reason stays "interrupted" even where a deadline cut it (max_time
+    would misname why the run ended); a Ctrl-C in that final round is the second, which ends it
+    at once instead of running it again."""
+    calls = _interrupting(monkeypatch, finish_raises=False)
+    _, stopped = simulate_long_excursions(_chain(False), jax.random.key(0), 10**6, lanes=8, block=8,
+                                          pilot_budget=16, max_time=100.0)
+    assert stopped == "interrupted" and calls == dict(advance=2, finish=1)
+    calls = _interrupting(monkeypatch, finish_raises=True)
+    _, stopped = simulate_long_excursions(_chain(False), jax.random.key(0), 10**6, lanes=8, block=8, pilot_budget=16)
+    assert stopped == "interrupted" and calls == dict(advance=2, finish=1)
