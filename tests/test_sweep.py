@@ -577,7 +577,8 @@ out, ident, ready, record = sys.argv[1:5]
 with claim(out, ident) as c:
     assert c.held
     open(ready, "w").close()
-    while not os.path.exists(out) or not read_results(out):  # until the other sweep wrote its own point
+    t0 = time.time()  # until the other sweep wrote its own point (at most 120 s: a regression fails, not hangs)
+    while (not os.path.exists(out) or not read_results(out)) and time.time() < t0 + 120:
         time.sleep(0.02)
     if record != "-":  # the point finished here: its record written, then the claim released
         rec = dict(read_records(record, ("params",), "bad {path} line {line}")[0], by="holder")
