@@ -89,8 +89,9 @@ class Points:
     def __init__(self, out_dir: str, scene: str):
         self.path = points_path(out_dir, scene)
         self.reused, self.computed, self.runs_wall_s = 0, 0, 0.0
-        self._done = {rec["ident"]: rec for rec in _read(self.path)}
+        # the stamp before the read: a write between the two makes the next run read the file again
         self._seen = _stamp(self.path)
+        self._done = {rec["ident"]: rec for rec in _read(self.path)}
 
     def estimate(self, params, seed: int, **kw) -> EstimateResult:
         """:func:`~dryfric_jax.api.estimate_diffusivity` ``(params, seed, **kw)``, or its kept result."""
@@ -109,8 +110,8 @@ class Points:
         # and reuses it instead of computing it again (the two then share the scene's runs)
         with claim(self.path, ident, wait=True) as c:
             if self._changed():  # another process wrote the file since it was read here
-                self._done = {rec["ident"]: rec for rec in _read(self.path)}
                 self._seen = _stamp(self.path)
+                self._done = {rec["ident"]: rec for rec in _read(self.path)}
                 if ident in self._done:
                     c.finish()
                     return self._reuse(ident, cls)
@@ -121,8 +122,9 @@ class Points:
                 raise KeyboardInterrupt
             rec = dict(ident=ident, kind=kind, version=__version__, finished_at=time.strftime("%Y-%m-%dT%H:%M:%S"),
                        result=r.to_dict())
-            put_record(self.path, rec, lambda old: old["ident"] == ident, _read)  # keeps what others wrote there
-            self._seen = _stamp(self.path)
+            # keeps what others wrote there; the stamp is not taken again (another process may write the
+            # file between this write and a stamp), so the next run reads the file once more
+            put_record(self.path, rec, lambda old: old["ident"] == ident, _read)
             c.finish()
         self._done[ident] = rec
         self.computed += 1
