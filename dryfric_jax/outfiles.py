@@ -252,18 +252,15 @@ def claim(path: str, key: str, wait: bool = False):
         yield Claim(True)
         return
     try:
+        c = Claim(True)
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | (0 if wait else fcntl.LOCK_NB))
-            held = Claim(True)
-        except BlockingIOError:
-            held = None
+        except BlockingIOError:  # another process holds it
+            c.held = False
         except OSError:  # no flock on this file system: unclaimed
-            held = Claim(True)
-        if held is None:
-            yield Claim(False)
-            return
-        yield held
-        if held.finished:  # removed while held: a process that opened it meanwhile re-reads the results
+            pass
+        yield c
+        if c.held and c.finished:  # removed while held: a process that opened it meanwhile re-reads the results
             with contextlib.suppress(OSError):
                 os.unlink(name)
             drop_claims_dir(path)  # when no other point is claimed (_claim_fd makes it again if needed)

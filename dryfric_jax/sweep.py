@@ -300,14 +300,14 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
                         later.append((ident, pt))
                         continue
                     rec = _finished_elsewhere(out, ident, max_time)
-                    if rec is None:
-                        rec = _compute(out, ident, pt, seed, settings, max_time)
-                        computed += rec is not None
-                    else:
+                    if rec is not None:
                         skipped += 1
-                    if rec is None:  # Ctrl-C: the point in progress is not written
-                        interrupted = True
-                        break
+                    else:
+                        rec = _compute(out, ident, pt, seed, settings, max_time)
+                        if rec is None:  # Ctrl-C: the point in progress is not written
+                            interrupted = True
+                            break
+                        computed += 1
                     c.finish()
             except KeyboardInterrupt:  # also while waiting for another sweep's point
                 interrupted = True
