@@ -6,7 +6,6 @@ import dataclasses
 import os
 import threading
 
-import jax
 import jax.numpy as jnp
 import pytest
 
@@ -237,34 +236,12 @@ def test_over_lanes_compiles_each_static_value_apart(key):
         assert jnp.array_equal(sharding.over_lanes(_scaled, (x,), (True,), k=k), x * k)
 
 
-def test_padding_lanes_repeat_real_lanes_where_lanes_are_fewer_than_the_padding(monkeypatch):
-    """One lane on 3 devices is padded by 2 copies of it (a lane from ``arange(pad) % n``); padding by
-    the first ``pad`` lanes failed there (``a[:2]`` of one lane is one lane).  The devices are
-    faked as 3 copies of the one the mesh is not built on (the shard count is what is tested)."""
-    seen = []
-
-    def compiled(fn, static, lane_args, devices):
-        return lambda *args: seen.append(args[0].shape[0]) or args[0] * 2
-
-    monkeypatch.setattr(sharding, "_compiled", compiled)
-    monkeypatch.setattr(sharding.jax, "local_devices", lambda: [jax.devices()[0]] * 3)
-    got = sharding.over_lanes(_scaled, (jnp.asarray([7.0]),), (True,), k=1)
-    assert seen == [3] and got.shape == (1,) and float(got[0]) == 14.0
-
-
 def test_an_xla_flag_named_without_a_value_is_the_users(monkeypatch):
     """A flag the user's XLA_FLAGS names in any form (a bare boolean ``--xla_gpu_deterministic_ops``)
     is not added again.  Mutants: the check looking for ``--name=`` only; the flag always added."""
     monkeypatch.setenv("XLA_FLAGS", "--xla_gpu_deterministic_ops")
     xla_flags.request_deterministic_gpu_ops()
     assert os.environ["XLA_FLAGS"] == "--xla_gpu_deterministic_ops"
-
-
-def test_cpu_cores_are_the_ones_this_process_may_use(monkeypatch):
-    """One host device per core this process may run on (its affinity mask, e.g. ``taskset`` or a
-    container's cpuset), not per core of the machine.  Mutant: ``os.cpu_count()``."""
-    monkeypatch.setattr(xla_flags.os, "sched_getaffinity", lambda pid: {5}, raising=False)
-    assert xla_flags.cpu_cores() == 1
 
 
 def test_a_ctrl_c_while_waiting_for_another_sweeps_point_stops_the_sweep(tmp_path, monkeypatch):
