@@ -72,6 +72,31 @@ def test_one_di_step_matches_the_definition_by_hand():
         np.testing.assert_allclose(got, want, rtol=1e-5, atol=1e-6, err_msg=str((x, v, z1, z2)))
 
 
+@pytest.mark.parametrize("dtype", ["float32", "float64"])
+def test_the_soft_threshold_is_the_definition_to_the_last_bit(dtype):
+    r"""``DIModel.step`` computes :math:`\operatorname{sign}(w)\max(|w| - h, 0)` as
+    :math:`w - \operatorname{clip}(w, -h, h)` (3 operations instead of ~6).  The two must be the same
+    number in every rounding, not close: the estimates are kept bit for bit.  Checked against the
+    definition evaluated here, on the predictors w where a rounding could differ (one ulp either side
+    of +-h, +-h itself, tiny, huge, signed zeros and 10^5 random ones), with :math:`\Xi` solved
+    from w so that the model's own predictor is exactly w; equal as numbers (only the sign of a zero
+    may differ: -0 == 0)."""
+    dt = jnp.dtype(dtype)
+    m = make_di_model(dj.Params.from_nondim(TAU, math.inf, 0.0), H * dj.Params.from_nondim(TAU, math.inf, 0.0).tau0,
+                      dtype)
+    assert float(m.inv_tau_L) == 0.0 and float(m.gamma_bar) == 0.0  # w = V + h Xi
+    h = np.asarray(m.h, dt)
+    edge = np.array([h, -h, np.nextafter(h, 0), np.nextafter(h, 2 * h), -np.nextafter(h, 0),
+                     -np.nextafter(h, 2 * h), 0.0, -0.0, np.finfo(dt).tiny, -np.finfo(dt).tiny, 1e30, -1e30,
+                     2 * h, -2 * h, h / 2], dt)
+    rand = (np.random.default_rng(7).standard_normal(100_000) * 3 * h).astype(dt)
+    w = np.concatenate([edge, rand])
+    got = np.asarray(m.step(jnp.asarray(w), jnp.zeros_like(jnp.asarray(w))))  # V = w, Xi = 0: w is the predictor
+    want = np.sign(w) * np.maximum(np.abs(w) - h, dt.type(0))
+    assert got.dtype == dt and np.array_equal(got, want)
+    assert np.array_equal(got[:6], [0, 0, 0, np.nextafter(h, 2 * h) - h, 0, h - np.nextafter(h, 2 * h)])
+
+
 def test_advance_flags_a_candidate_only_for_a_stuck_lane_released_out_of_its_set():
     r"""``advance``'s candidate: stuck (V = 0), X in the watched set (:math:`C_+` when ``watch_plus``,
     else :math:`C_-`) and released towards it (V' > 0, resp. < 0), from the definition; its state
