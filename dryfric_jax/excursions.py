@@ -43,7 +43,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jax.sharding import Mesh, NamedSharding, PartitionSpec
+from jax.sharding import Mesh, NamedSharding, PartitionSpec, SingleDeviceSharding
 
 from . import rng
 
@@ -543,14 +543,16 @@ class Lanes:
         # the final round's tail runs on n / COMPACT lanes (see _compact_tail)
         self.compact = compact and self.n // nd >= COMPACT_MIN_PER_DEVICE
         self.slot_steps, self.paid, self.last = 0, 0, None
-        self._sharding = None
         if nd > 1:
             self._f, self._sharding = _sharded_round(self.devices, block, self.events)
-            # the chain is placed on every device once, the keys once per round, and a call passes the
-            # lanes it got from the last one: a one-block paused round took 4.3 -> 3.1 ms (2 CPU devices,
-            # 512 lanes; the block itself ~0.3 ms; a run of N = 1e4 makes ~8 rounds), the same numbers
             self._rep = NamedSharding(self._sharding.mesh, PartitionSpec())
-            self._chain = jax.device_put(chain, self._rep)
+        else:
+            self._f = partial(_run_round, block=block, events=self.events)
+            self._sharding = self._rep = SingleDeviceSharding(self.devices[0])
+        # the chain is placed on every device once, the keys once per round, and a call passes the
+        # lanes it got from the last one: a one-block paused round took 4.3 -> 3.1 ms (2 CPU devices,
+        # 512 lanes; the block itself ~0.3 ms; a run of N = 1e4 makes ~8 rounds), the same numbers
+        self._chain = jax.device_put(chain, self._rep)
         self.lane = init_lanes(chain, self.n, self._sharding)
 
     def _call(self, lane, keys, b0, budget, finish, min_active, fresh, deadline=None):
@@ -569,8 +571,7 @@ class Lanes:
         cap = max(1, FINAL_CALL_LANE_STEPS // (keys.shape[0] * self.block)) if finish else np.iinfo(np.int64).max
         args = (np.int64(budget), np.int64(self.max_steps), np.bool_(finish), np.int64(min_active))
         b0, total = np.asarray(b0, np.int64), np.zeros(nd, np.int64)
-        if nd > 1:  # placed once per round (the lanes are already on their devices)
-            keys = jax.device_put(keys, self._sharding)
+        keys = jax.device_put(keys, self._sharding)  # once per round (the lanes are already on their devices)
         while True:
             lane, nb = self._call_once(lane, keys, b0, args + (np.bool_(fresh), np.int64(cap)))
             self.slot_steps += int(nb.sum()) * self.block * per_dev
@@ -582,12 +583,8 @@ class Lanes:
     def _call_once(self, lane, keys, b0, args):
         """One call of the jitted round (``args``: budget .. cap of :func:`_round_impl`); returns
         the lanes and the blocks each device ran (on the host)."""
-        if len(self.devices) == 1:
-            lane, nb = _run_round(self.chain, lane, keys, jnp.asarray(b0, jnp.int64), *map(jnp.asarray, args),
-                                  block=self.block, events=self.events)
-        else:
-            b0, args = jax.device_put((np.asarray(b0, np.int64), args), (self._sharding, self._rep))
-            lane, nb = self._f(self._chain, lane, keys, b0, *args)
+        b0, args = jax.device_put((np.asarray(b0, np.int64), args), (self._sharding, self._rep))
+        lane, nb = self._f(self._chain, lane, keys, b0, *args)
         return lane, np.asarray(jax.device_get(nb))
 
     def _round(self, key, budget, finish, deadline=None) -> ExcursionStats:
