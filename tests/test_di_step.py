@@ -82,8 +82,8 @@ def test_the_soft_threshold_is_the_definition_to_the_last_bit(dtype):
     from w so that the model's own predictor is exactly w; equal as numbers (only the sign of a zero
     may differ: -0 == 0)."""
     dt = jnp.dtype(dtype)
-    m = make_di_model(dj.Params.from_nondim(TAU, math.inf, 0.0), H * dj.Params.from_nondim(TAU, math.inf, 0.0).tau0,
-                      dtype)
+    p = dj.Params.from_nondim(TAU, math.inf, 0.0)
+    m = make_di_model(p, H * p.tau0, dtype)
     assert float(m.inv_tau_L) == 0.0 and float(m.gamma_bar) == 0.0  # w = V + h Xi
     h = np.asarray(m.h, dt)
     edge = np.array([h, -h, np.nextafter(h, 0), np.nextafter(h, 2 * h), -np.nextafter(h, 0),
