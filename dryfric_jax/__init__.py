@@ -6,11 +6,21 @@ asks XLA for deterministic GPU reductions, so that the same seed gives bit-ident
 GPU too, and for one host device per CPU core, so that the lanes use every core (the numbers do
 not depend on it; :mod:`dryfric_jax.xla_flags`), and makes sure a Ctrl-C is never swallowed by a
 garbage-collection callback, and that a Ctrl-C while the ``dryfric`` command imports it exits 130
-quietly (:mod:`dryfric_jax.interrupts`).
+quietly (:mod:`dryfric_jax.interrupts`).  Before it imports JAX it checks that the installed JAX,
+jaxlib and equinox are recent enough (:mod:`dryfric_jax.requirements`).
 """
-from .interrupts import keep_ctrl_c, quiet_ctrl_c_while_starting
+from .interrupts import keep_ctrl_c, launched_as_cli, quiet_ctrl_c_while_starting
+from .requirements import requirement_error
 
 quiet_ctrl_c_while_starting()  # first: the imports below take 1-2 s (cli.main ends it)
+_too_old = requirement_error()  # before importing JAX or equinox (dryfric_jax.requirements)
+if _too_old is not None:
+    if launched_as_cli():  # the dryfric command: one line and exit 2, no traceback
+        import sys
+
+        print(f"dryfric: error: {_too_old}", file=sys.stderr)
+        raise SystemExit(2)
+    raise ImportError(_too_old)
 from .xla_flags import request_deterministic_gpu_ops, use_all_cpu_cores  # noqa: E402
 
 keep_ctrl_c()  # before JAX registers its garbage-collection callback
