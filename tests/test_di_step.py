@@ -85,16 +85,20 @@ def test_the_soft_threshold_is_the_definition_to_the_last_bit(dtype):
     p = dj.Params.from_nondim(TAU, math.inf, 0.0)
     m = make_di_model(p, H * p.tau0, dtype)
     assert float(m.inv_tau_L) == 0.0 and float(m.gamma_bar) == 0.0  # w = V + h Xi
-    h = np.asarray(m.h, dt)
-    edge = np.array([h, -h, np.nextafter(h, 0), np.nextafter(h, 2 * h), -np.nextafter(h, 0),
-                     -np.nextafter(h, 2 * h), 0.0, -0.0, np.finfo(dt).tiny, -np.finfo(dt).tiny, 1e30, -1e30,
+    # numpy scalars of dt throughout: under numpy 1.x a 0-d float32 array times 2, or its
+    # nextafter, came out float64, so the "neighbours of h" rounded back to h in the float32 array
+    h = dt.type(m.h)
+    lo, hi = np.nextafter(h, dt.type(0)), np.nextafter(h, dt.type(2) * h)
+    assert lo.dtype == hi.dtype == dt
+    edge = np.array([h, -h, lo, hi, -lo, -hi, 0.0, -0.0, np.finfo(dt).tiny, -np.finfo(dt).tiny, 1e30, -1e30,
                      2 * h, -2 * h, h / 2], dt)
+    assert edge[2] < h < edge[3] and np.array_equal(edge[2:4], [lo, hi])  # one ulp either side, in dt
     rand = (np.random.default_rng(7).standard_normal(100_000) * 3 * h).astype(dt)
     w = np.concatenate([edge, rand])
     got = np.asarray(m.step(jnp.asarray(w), jnp.zeros_like(jnp.asarray(w))))  # V = w, Xi = 0: w is the predictor
     want = np.sign(w) * np.maximum(np.abs(w) - h, dt.type(0))
     assert got.dtype == dt and np.array_equal(got, want)
-    assert np.array_equal(got[:6], [0, 0, 0, np.nextafter(h, 2 * h) - h, 0, h - np.nextafter(h, 2 * h)])
+    assert np.array_equal(got[:6], [0, 0, 0, hi - h, 0, h - hi])
 
 
 def test_advance_flags_a_candidate_only_for_a_stuck_lane_released_out_of_its_set():
