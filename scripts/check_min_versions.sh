@@ -1,0 +1,25 @@
+#!/usr/bin/env bash
+# The test suite on the oldest releases pyproject.toml allows: every ">=" floor of the package's
+# dependencies installed exactly (a pip constraint), in a fresh virtual environment, then the
+# README's test command (extra pytest arguments pass through, e.g. -k requirements).  Not part of
+# CI (it would double its time); run it when a floor changes (dryfric_jax/requirements.py).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+venv="${TMPDIR:-/tmp}/dryfric-min-venv"
+rm -rf "$venv"
+python3 -m venv "$venv"
+. "$venv/bin/activate"
+python -m pip install -q --upgrade pip
+python - > "$venv/floors.txt" <<'PY'
+import pathlib
+import re
+
+text = pathlib.Path("pyproject.toml").read_text()
+deps = re.search(r"^dependencies = \[(.*?)^\]", text, re.S | re.M).group(1)
+for name, version in re.findall(r'"([A-Za-z0-9_.-]+)>=([0-9.]+)"', deps):
+    print(f"{name}=={version}")
+PY
+python -m pip install -q -c "$venv/floors.txt" -e ".[dev]"
+echo "installed (floors: $(tr '\n' ' ' < "$venv/floors.txt"))"
+python -m pip list 2>/dev/null | grep -i -E "^(jax|jaxlib|equinox|numpy|scipy|matplotlib) "
+python -m pytest -n 2 --dist loadfile -ra "$@"
