@@ -3,11 +3,12 @@
 # dependencies installed exactly (a pip constraint), in a fresh virtual environment, then the
 # README's test command (extra pytest arguments pass through, e.g. -k requirements).  Not part of
 # CI (it would double its time); run it when a floor changes (dryfric_jax/requirements.py).
+# PYTHON=python3.10 picks the interpreter (3.10, the oldest Python pyproject allows).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 venv="${TMPDIR:-/tmp}/dryfric-min-venv"
 rm -rf "$venv"
-python3 -m venv "$venv"
+"${PYTHON:-python3}" -m venv "$venv"
 . "$venv/bin/activate"
 python -m pip install -q --upgrade pip
 python - > "$venv/floors.txt" <<'PY'
