@@ -555,11 +555,17 @@ def _coupled_units(keys, block: int):
     ``rng.normals`` / ``rng.uniforms``), each (block, lanes)."""
     kd = jax.random.key_data(keys)
     rows = jnp.arange(block, dtype=jnp.uint32)[:, None]
-    out = []
-    for c in range(2):
-        i = rows * np.uint32(2) + np.uint32(c)
-        out.append(_coupled_unit(*rng.threefry2x32(kd[:, 0][None, :], kd[:, 1][None, :], jnp.zeros_like(i), i)))
-    return tuple(out)
+
+    def units():
+        out = []
+        for c in range(2):
+            i = rows * np.uint32(2) + np.uint32(c)
+            out.append(_coupled_unit(*rng.threefry2x32(kd[:, 0][None, :], kd[:, 1][None, :], jnp.zeros_like(i), i)))
+        return tuple(out)
+
+    # materialised as rng._bits does (a cond whose branches are the same function): unfused, XLA
+    # 0.12 (jax 0.12.0.1) compiled this model's round for > 20 min on 2 CPU cores (0.10.2: ~9 s)
+    return jax.lax.cond(kd[0, 0] > np.uint32(0x7FFFFFFF), units, units)
 
 
 def _coupled_coin_unit(keys):
