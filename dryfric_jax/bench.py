@@ -173,7 +173,8 @@ def run_bench(n_excursions: int = 10_000, numba_excursions: int = 2000, seed: in
     numba_excursions = int(min(numba_excursions, max(20, n_excursions // 5)))
     p = Params(**FIG3)
     out = dict(device=str(jax.devices()[0]), n_devices=jax.device_count(), cpu_count=os.cpu_count(),
-               params=p.as_dict(), n_excursions=n_excursions, repeat=repeat, numba_excursions=numba_excursions)
+               params=p.as_dict(), n_excursions=n_excursions, repeat=repeat, numba_excursions=numba_excursions,
+               jax_version=jax.__version__)
     timers = []  # each returns a dict of this round's numbers
 
     def di_timer(dt, lanes):
@@ -220,6 +221,13 @@ def run_bench(n_excursions: int = 10_000, numba_excursions: int = 2000, seed: in
         except Exception as exc:  # not installed, or broken in this environment: say so, go on
             out["numba"] = f"unavailable ({type(exc).__name__}: {exc}); pip install -e '.[bench]'"
         else:
+            import numba
+
+            # the baseline's speed depends on numba's version: its np.random.standard_normal, which
+            # bounds the loop, drew 6.3e7 normals/s on 0.61.0 and 3.45e7 on 0.62.0 (numpy 1.26, one
+            # thread, this 2-core machine, 2026-11-28), and the 1-thread loop ran 2.65e7 steps/s on
+            # 0.59-0.61 against 1.55e7 on 0.62-0.68.1: the ratios to numba move 1.7x with it
+            out["numba_version"] = numba.__version__
             pm, dm = make_pdmp_model(p, default_delta(p)), make_di_model(p, default_h(p))
 
             def numba_timer():

@@ -476,6 +476,16 @@ def test_bench_json_has_the_side_by_side_numbers(capsys):
                   f"ratio_di_{dt}_to_chain_floor", f"ratio_di_chain_floor_{dt}_to_rng_bound"):
             assert b[k] > 0, k
     assert b["time_to_1pct_ci_s"] > 0
+    # the versions the numbers depend on (numba's moves its baseline 1.7x: bench.py)
+    import jax
+
+    assert b["jax_version"] == jax.__version__
+    try:
+        import numba
+    except ImportError:
+        assert "numba_version" not in b and b["numba"].startswith("unavailable")
+    else:
+        assert b["numba_version"] == numba.__version__
 
 
 def test_bench_layout_sweep(capsys):
