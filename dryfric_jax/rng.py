@@ -63,6 +63,13 @@ def _join(a, b, wide: bool):
     return (a.astype(jnp.uint64) << np.uint64(32)) | b.astype(jnp.uint64) if wide else a ^ b
 
 
+def materialised(compute, kd):
+    """``compute()``, materialised: a ``lax.cond`` on the key data ``kd`` ((lanes, 2)) whose two branches are
+    ``compute`` itself, so XLA:CPU writes its outputs once instead of fusing (and recomputing) the
+    hash into every consumer (module docstring).  The predicate does not matter."""
+    return lax.cond(kd[0, 0] > np.uint32(0x7FFFFFFF), compute, compute)
+
+
 def _bits(kd, block: int, n: int, dtype, start=0, materialise: bool = True):
     """The random bits of counters ``(start + r) n + c`` (row r, column c) of every lane (key
     data ``kd``, (lanes, 2)): one (block, lanes) array per column, materialised by the
@@ -78,7 +85,7 @@ def _bits(kd, block: int, n: int, dtype, start=0, materialise: bool = True):
             out.append(_join(*threefry2x32(k1, k2, jnp.zeros_like(i), i), wide))
         return tuple(out)
 
-    return lax.cond(kd[0, 0] > np.uint32(0x7FFFFFFF), hashes, hashes) if materialise else hashes()
+    return materialised(hashes, kd) if materialise else hashes()
 
 
 def _unit(bits, dtype, lo, hi):

@@ -563,9 +563,9 @@ def _coupled_units(keys, block: int):
             out.append(_coupled_unit(*rng.threefry2x32(kd[:, 0][None, :], kd[:, 1][None, :], jnp.zeros_like(i), i)))
         return tuple(out)
 
-    # materialised as rng._bits does (a cond whose branches are the same function): unfused, XLA
-    # 0.12 (jax 0.12.0.1) compiled this model's round for > 20 min on 2 CPU cores (0.10.2: ~9 s)
-    return jax.lax.cond(kd[0, 0] > np.uint32(0x7FFFFFFF), units, units)
+    # materialised as rng._bits does: unfused, XLA 0.12 (jax 0.12.0.1) compiled this model's round
+    # for > 20 min on 2 CPU cores (0.10.2: ~9 s)
+    return rng.materialised(units, kd)
 
 
 def _coupled_coin_unit(keys):
