@@ -10,17 +10,18 @@ quietly (:mod:`dryfric_jax.interrupts`).  Before it imports JAX it checks that t
 jaxlib and equinox are recent enough (:mod:`dryfric_jax.requirements`).
 """
 from .interrupts import keep_ctrl_c, launched_as_cli, quiet_ctrl_c_while_starting
-from .requirements import requirement_error
+from .requirements import check_requirements
 
 quiet_ctrl_c_while_starting()  # first: the imports below take 1-2 s (cli.main ends it)
-_too_old = requirement_error()  # before importing JAX or equinox (dryfric_jax.requirements)
-if _too_old is not None:
+try:
+    check_requirements()  # before importing JAX or equinox (dryfric_jax.requirements)
+except ImportError as exc:
     if launched_as_cli():  # the dryfric command: one line and exit 2, no traceback
         import sys
 
-        print(f"dryfric: error: {_too_old}", file=sys.stderr)
-        raise SystemExit(2)
-    raise ImportError(_too_old)
+        print(f"dryfric: error: {exc}", file=sys.stderr)
+        raise SystemExit(2) from None
+    raise
 from .xla_flags import request_deterministic_gpu_ops, use_all_cpu_cores  # noqa: E402
 
 keep_ctrl_c()  # before JAX registers its garbage-collection callback
