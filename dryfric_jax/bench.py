@@ -11,7 +11,8 @@ One run, one device, the paper's Fig. 3 point:
   arithmetic (floor / bound) and the engine's (engine / floor);
 * PDMP events/s (default delta), float32 and float64;
 * compiled scalar baselines of the same DI chain and of the same PDMP event loop (numba, 1 and 2
-  threads), if numba is installed;
+  threads, normals from numpy's ``Generator``: :mod:`dryfric_jax.bench_numba`), if numba is
+  installed;
 * the ratios, and the time to a 1% CI on D extrapolated from the measured CI width and rate
   (the CI half-width scales as N^{-1/2}).
 
@@ -155,7 +156,7 @@ def _ratios(m: dict) -> dict:
     return out
 
 
-def run_bench(n_excursions: int = 10_000, numba_excursions: int = 2000, seed: int = 0, repeat: int = 1) -> dict:
+def run_bench(n_excursions: int = 10_000, numba_excursions: int = 10_000, seed: int = 0, repeat: int = 1) -> dict:
     """The side-by-side bench (module docstring), ``repeat`` rounds.
 
     Everything is compiled first; then each round measures every number once, one after the
@@ -168,9 +169,9 @@ def run_bench(n_excursions: int = 10_000, numba_excursions: int = 2000, seed: in
     """
     check_count("repeat", repeat, lo=1)
     # a small bench (the tests) is small throughout: the floors' and numba's work scale with N
-    # below the default N = 1e4 (2**23 lane-steps per timing, 2000 numba excursions)
+    # below the default N = 1e4 (2**23 lane-steps per timing, 1e4 numba excursions: ~1 s per timing)
     floor_n = int(min(1 << 23, max(1 << 20, 840 * n_excursions)))
-    numba_excursions = int(min(numba_excursions, max(20, n_excursions // 5)))
+    numba_excursions = int(min(numba_excursions, max(20, n_excursions)))
     p = Params(**FIG3)
     out = dict(device=str(jax.devices()[0]), n_devices=jax.device_count(), cpu_count=os.cpu_count(),
                params=p.as_dict(), n_excursions=n_excursions, repeat=repeat, numba_excursions=numba_excursions,
@@ -223,10 +224,8 @@ def run_bench(n_excursions: int = 10_000, numba_excursions: int = 2000, seed: in
         else:
             import numba
 
-            # the baseline's speed depends on numba's version: its np.random.standard_normal, which
-            # bounds the loop, drew 6.3e7 normals/s on 0.61.0 and 3.45e7 on 0.62.0 (numpy 1.26, one
-            # thread, this 2-core machine, 2026-11-28), and the 1-thread loop ran 2.65e7 steps/s on
-            # 0.59-0.61 against 1.55e7 on 0.62-0.68.1: the ratios to numba move 1.7x with it
+            # recorded with the numbers: the baseline draws from numpy's Generator (bench_numba), whose
+            # speed did not move between numba 0.61 and 0.68; numba's legacy np.random did (1.8x)
             out["numba_version"] = numba.__version__
             pm, dm = make_pdmp_model(p, default_delta(p)), make_di_model(p, default_h(p))
 
@@ -253,7 +252,7 @@ def run_bench(n_excursions: int = 10_000, numba_excursions: int = 2000, seed: in
 
 
 def tune_layout(lanes_list, blocks, dtype: str = "float32", n_excursions: int = 10_000, seed: int = 0,
-                numba_excursions: int = 2000, repeat: int = 1, *, unrolls=None, events=None,
+                numba_excursions: int = 10_000, repeat: int = 1, *, unrolls=None, events=None,
                 budget_s: float | None = None, on_layout=None, bound_n: int = 1 << 23) -> dict:
     """DI useful lane-steps/s at the Fig. 3 point for every engine layout (lanes, block K) in
     ``lanes_list`` x ``blocks`` (``dryfric bench --lanes ... --block ...``): the sweep that

@@ -1,0 +1,70 @@
+"""The numba baseline of ``dryfric bench`` is the same algorithm as the engine: its own estimates
+of D and M0 (from the sums it accumulates) against the exact white-noise values (DI), and its
+PDMP against its DI at the paper's Fig. 3 point (two independent methods).  A baseline that
+skipped work or drew the wrong noise would run faster and fail here.
+
+numba is the ``bench`` extra: without it these tests are skipped (CI installs it).
+Tolerance: z = 2.81 on each comparison (as ``test_di_exact``), fixed seeds.
+"""
+import math
+
+import numpy as np
+import pytest
+
+import dryfric_jax as dj
+from dryfric_jax.di import make_di_model
+from dryfric_jax.estimators import long_excursion_estimates
+from dryfric_jax.params import FIG3
+from dryfric_jax.pdmp import make_pdmp_model
+from dryfric_jax.plan import default_delta, default_h
+
+numba_bench = pytest.importorskip("dryfric_jax.bench_numba", reason="numba not installed: pip install -e '.[bench]'")
+Z = 2.81
+
+
+def _estimates(run, model, n, threads, seed):
+    out, steps = run(model, n, threads, seed)
+    assert steps == int(out[:, -1].sum()) > 0
+    return long_excursion_estimates(numba_bench.sums(out))
+
+
+def test_di_baseline_against_the_exact_white_noise_values():
+    """tau' = 1e-5 at the paper's Gamma, Delta, tau_L, gamma_bar (test_di_exact's point), the DI at
+    the engine's default h; 1e5 excursions (~0.7 s on 2 threads).  Seeds 1-3 at 3e4 excursions gave
+    z(D) = -0.52, +0.30, +0.77 and z(M0) = -0.18, -0.19, +0.17."""
+    G, Dl = 5.0, 3.84
+    p = dj.Params(G, Dl, 1e-5 * G / Dl**2, 0.067, 0.342)
+    e = _estimates(numba_bench.run_numba, make_di_model(p, default_h(p)), 100_000, 2, 4)
+    assert e["n_excursions"] == 100_000
+    D, M0 = dj.theory.exact_D(p) / p.D0, dj.theory.exact_M0(p) / p.v0  # the sums are nondimensional
+    assert e["D_ci"] <= 0.02 * e["D"]
+    assert abs(e["D"] - D) <= Z / 1.96 * e["D_ci"], (e["D"], e["D_ci"], D)
+    assert abs(e["M0"] - M0) <= Z / 1.96 * e["M0_ci"], (e["M0"], e["M0_ci"], M0)
+
+
+def test_pdmp_baseline_agrees_with_the_di_baseline_at_the_fig3_point():
+    """Both at their default h and delta, 4e4 excursions each (the engine's PDMP and DI agree there,
+    test_pdmp); measured (seed 11): D = 4.596e-3 +- 1.3e-4 (PDMP), 4.541e-3 +- 1.0e-4 (DI)."""
+    p = dj.Params(**FIG3)
+    a = _estimates(numba_bench.run_numba_pdmp, make_pdmp_model(p, default_delta(p)), 40_000, 2, 11)
+    b = _estimates(numba_bench.run_numba, make_di_model(p, default_h(p)), 40_000, 2, 11)
+    for k in ("D", "M0"):
+        assert abs(a[k] - b[k]) <= Z / 1.96 * math.hypot(a[k + "_ci"], b[k + "_ci"]), (k, a, b)
+
+
+@pytest.mark.parametrize("name", ["run_numba", "run_numba_pdmp"])
+def test_same_seed_same_sums_and_every_thread_does_its_share(name):
+    """One ``Generator`` per worker from ``SeedSequence(seed).spawn(threads)``: the same seed and
+    threads give the same sums to the last bit, another seed other sums, and each of the 2 workers
+    runs ceil(n / 2) excursions (the rows are the workers)."""
+    p = dj.Params(**FIG3)
+    model = make_pdmp_model(p, default_delta(p)) if name.endswith("pdmp") else make_di_model(p, default_h(p))
+    run = getattr(numba_bench, name)
+    a, sa = run(model, 301, 2, 5)
+    b, sb = run(model, 301, 2, 5)
+    c, _ = run(model, 301, 2, 6)
+    assert np.array_equal(a, b) and sa == sb
+    assert not np.array_equal(a[:, 1], c[:, 1])
+    assert a.shape == (2, len(numba_bench.SUMS) + 1)
+    assert list(a[:, 0]) == [151.0, 151.0]
+    assert numba_bench.sums(a)["n"] == 302.0
