@@ -476,7 +476,7 @@ def test_bench_json_has_the_side_by_side_numbers(capsys):
                   f"ratio_di_{dt}_to_chain_floor", f"ratio_di_chain_floor_{dt}_to_rng_bound"):
             assert b[k] > 0, k
     assert b["time_to_1pct_ci_s"] > 0
-    # the versions the numbers depend on (numba's moves its baseline 1.7x: bench.py)
+    # the versions the numbers depend on (numba 0.61 -> 0.62 slowed its legacy np.random 1.8x: bench_numba)
     import jax
 
     assert b["jax_version"] == jax.__version__
