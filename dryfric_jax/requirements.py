@@ -27,6 +27,16 @@ from importlib import metadata
 MINIMUM = {"jax": "0.6.2", "jaxlib": "0.6.2", "equinox": "0.12.2"}
 
 
+def pyproject_floors(text: str) -> dict:
+    """Every ``name>=version`` floor of the ``dependencies = [...]`` list of a ``pyproject.toml``'s
+    ``text``, as name -> version (the test that pyproject agrees with :data:`MINIMUM`, and
+    ``scripts/check_min_versions.sh``, which loads this file before the package is installed)."""
+    deps = re.search(r"^dependencies = \[(.*?)^\]", text, re.S | re.M)
+    if deps is None:
+        raise ValueError("no 'dependencies = [...]' list in the pyproject text")
+    return dict(re.findall(r'"([A-Za-z0-9_.-]+)>=([0-9.]+)"', deps.group(1)))
+
+
 def release(version: str) -> tuple[int, ...]:
     """The release numbers at the start of a version string: ``"0.6.1"`` -> (0, 6, 1),
     ``"0.10.2rc1"`` and ``"0.6.1.dev20250601"`` -> (0, 10, 2) and (0, 6, 1) (a pre-release or

@@ -12,12 +12,14 @@ rm -rf "$venv"
 . "$venv/bin/activate"
 python -m pip install -q --upgrade pip
 python - > "$venv/floors.txt" <<'PY'
+import importlib.util
 import pathlib
-import re
 
-text = pathlib.Path("pyproject.toml").read_text()
-deps = re.search(r"^dependencies = \[(.*?)^\]", text, re.S | re.M).group(1)
-for name, version in re.findall(r'"([A-Za-z0-9_.-]+)>=([0-9.]+)"', deps):
+# the package is not installed yet: load its requirements module (no imports beyond the stdlib) by path
+spec = importlib.util.spec_from_file_location("requirements", "dryfric_jax/requirements.py")
+rq = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(rq)
+for name, version in rq.pyproject_floors(pathlib.Path("pyproject.toml").read_text()).items():
     print(f"{name}=={version}")
 PY
 python -m pip install -q -c "$venv/floors.txt" -e ".[dev]"

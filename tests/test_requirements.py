@@ -2,7 +2,6 @@
 pyproject.toml and in the import check are the same, a too-old install is named with the command
 that upgrades it (ImportError from Python, one line and exit 2 from the dryfric command), and the
 installed versions pass."""
-import re
 import subprocess
 import sys
 from pathlib import Path
@@ -15,11 +14,27 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def test_the_floors_in_pyproject_are_the_ones_checked_at_import():
-    text = (ROOT / "pyproject.toml").read_text()
-    deps = re.search(r"^dependencies = \[(.*?)^\]", text, re.S | re.M).group(1)
-    floors = dict(re.findall(r'"([a-z_]+)>=([0-9.]+)"', deps))
+    floors = rq.pyproject_floors((ROOT / "pyproject.toml").read_text())
     for name, v in rq.MINIMUM.items():
         assert floors[name] == v, (name, floors.get(name), v)
+    # every dependency has a floor (check_min_versions.sh installs exactly these)
+    assert set(floors) == {"jax", "jaxlib", "numpy", "equinox", "matplotlib", "scipy"}, floors
+
+
+def test_pyproject_floors_reads_the_dependencies_list_only():
+    text = """[project]
+dependencies = [
+    "jax>=0.6.2",
+    "numpy>=1.26",  # a comment
+    "typing-extensions>=4.0",
+    "nofloor",
+]
+[project.optional-dependencies]
+dev = ["pytest>=7"]
+"""
+    assert rq.pyproject_floors(text) == {"jax": "0.6.2", "numpy": "1.26", "typing-extensions": "4.0"}
+    with pytest.raises(ValueError, match="dependencies"):
+        rq.pyproject_floors("[project]\nname = 'x'\n")
 
 
 @pytest.mark.parametrize("version, expected", [
