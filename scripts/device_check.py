@@ -9,7 +9,8 @@ keeps what it printed), at the paper's Fig. 3 point:
 * ``tune``: per dtype, :func:`dryfric_jax.bench.tune_layout`'s summary: the best layout, the RNG
   bound and the chain floor there (the engine's generator alone, and the chain without the
   excursion bookkeeping), and how far the layouts' D agree;
-* ``numba``: the compiled CPU loop of the same DI chain with 1, 2 and all host threads;
+* ``numba``: the compiled CPU loop of the same DI chain (numpy ``Generator`` normals,
+  :mod:`dryfric_jax.bench_numba`) with 1, 2 and all host threads, 16000 excursions per timing;
 * ``bench``: the side-by-side ``dryfric bench`` (the plan's own lanes), when --bench-n > 0.
 
     python scripts/device_check.py --lanes 65536,262144 --block 256,1024 --unroll 1,4 --n 200000
@@ -62,7 +63,7 @@ def main(argv=None) -> int:
                     "device's; 'fused' is the DI's quiet loop as one Pallas kernel, dryfric_jax.fused)")
     ap.add_argument("--dtypes", default="float32,float64")
     ap.add_argument("--n", type=amount, default=2e5, help="excursions per layout (at least 8 per lane)")
-    ap.add_argument("--numba-n", type=int, default=4000, help="excursions per numba timing (0: skip)")
+    ap.add_argument("--numba-n", type=int, default=16000, help="excursions per numba timing (0: skip)")
     ap.add_argument("--bench-n", type=amount, default=0, help="N of the side-by-side bench (0: skip)")
     ap.add_argument("--bound-n", type=amount, default=2**30, help="lane-steps per RNG-bound timing")
     ap.add_argument("--budget-s", type=amount, default=240)

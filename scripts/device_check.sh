@@ -37,7 +37,7 @@ stage() {  # name limit command...
 }
 # the DI's quiet loop as one Pallas kernel (dryfric_jax.fused), every layout
 stage layouts32 "${T[0]}" $PY scripts/device_check.py --dtypes float32 --lanes $LANES --block $BLOCKS \
-  --events $EVENTS --n $N --bound-n $BOUND --numba-n 4000 --budget-s $(( ${T[0]} - 50 ))
+  --events $EVENTS --n $N --bound-n $BOUND --numba-n 16000 --budget-s $(( ${T[0]} - 50 ))
 stage tests "${T[1]}" $PY -m pytest -q -p no:cacheprovider -rfE --durations=8 $TESTS
 stage layouts64_bench "${T[2]}" $PY scripts/device_check.py --dtypes float64 --lanes $BIG --block 256,1024 \
   --events $EVENTS --n $N --bound-n $BOUND --numba-n 0 --bench-n $BENCH --budget-s $(( ${T[2]} - 80 ))
