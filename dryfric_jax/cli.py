@@ -586,7 +586,10 @@ def main(argv=None) -> int:
         interrupts.started()  # from here a Ctrl-C is the KeyboardInterrupt below, not "while starting"
         parser = build_parser()
         a = parser.parse_args(_join_negative_values(parser, list(sys.argv[1:] if argv is None else argv)))
-        return _run(a)
+        rc = _run(a)
+        if rc == 130:  # a sweep or figures run stopped by Ctrl-C (its results kept): no timer holds the exit
+            interrupts.cancel_timers()
+        return rc
     except (_UserError, ValueError) as exc:
         print(f"dryfric: error: {exc}", file=sys.stderr)
         return 2
@@ -595,6 +598,7 @@ def main(argv=None) -> int:
         return 1
     except KeyboardInterrupt as exc:  # with its reason when the API gave one (before 2 excursions closed)
         print("dryfric: interrupted" + (f": {exc}" if str(exc) else ""), file=sys.stderr)
+        interrupts.cancel_timers()  # one JAX left running would hold the exit for 60 s (interrupts.cancel_timers)
         return 130
     except BrokenPipeError:  # the reader of stdout left (`dryfric estimate | head -1`): stop as SIGPIPE would
         _drop_stdout()

@@ -93,3 +93,22 @@ def quiet_ctrl_c_while_starting() -> None:
             and signal.getsignal(signal.SIGINT) is signal.default_int_handler):
         return
     signal.signal(signal.SIGINT, _stop_while_starting)
+
+
+def cancel_timers() -> int:
+    """Cancel every ``threading.Timer`` still waiting to fire; returns how many.  Called by
+    ``cli.main`` when a Ctrl-C ends the command (exit 130).
+
+    JAX probes for a TPU when its backends first start (``jax.devices()``, the first computation):
+    ``xla_bridge.tpu_client_timer_callback`` starts a 60 s, non-daemon ``threading.Timer`` that
+    warns "TPU backend initialization is taking more than 60 seconds", and cancels it in a
+    ``finally`` entered only after ``Timer.start()`` returns.  A Ctrl-C that lands inside that
+    ``start()`` (it waits for the new thread) skips the ``finally``: the interpreter then waited
+    60 s at exit for the timer, which printed its warning (seen once in CI, 2026-11-28, jax
+    0.10.2: ``dryfric estimate`` interrupted at 1.0 s took 61 s to exit 130)."""
+    n = 0
+    for t in threading.enumerate():
+        if isinstance(t, threading.Timer) and t.is_alive() and not t.finished.is_set():
+            t.cancel()
+            n += 1
+    return n

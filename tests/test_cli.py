@@ -316,6 +316,34 @@ def test_ctrl_c_while_the_command_imports_jax_exits_130_without_a_traceback(tmp_
     assert "while starting" in said[0]  # the 0.25 s one reached the import
 
 
+@pytest.mark.parametrize("how", ["raised", "returned"])
+def test_a_timer_left_running_does_not_hold_the_exit_after_ctrl_c(tmp_path, how):
+    """JAX's TPU probe starts a 60 s non-daemon timer and cancels it in a ``finally`` that a Ctrl-C
+    landing in ``Timer.start()`` skips; CI saw ``dryfric estimate`` interrupted at 1.0 s take 61 s to
+    exit, with JAX's warning on stderr (interrupts.cancel_timers).  Here the command's run starts
+    such a timer and is interrupted (a KeyboardInterrupt, or a sweep's own exit 130): it exits 130
+    at once, with its one line.  Without the cancel: 60 s, then the timer's line."""
+    import os
+    import pathlib
+    import time
+
+    root = pathlib.Path(__file__).parent.parent
+    script = tmp_path / "run.py"
+    script.write_text(
+        "import sys, threading\nimport dryfric_jax.cli as cli\n"
+        "def run(a):\n"
+        "    threading.Timer(60.0, lambda: print('the timer fired', file=sys.stderr)).start()\n"
+        + ("    raise KeyboardInterrupt\n" if how == "raised" else
+           "    print('dryfric: interrupted: 1 point kept', file=sys.stderr)\n    return 130\n")
+        + "cli._run = run\nsys.exit(cli.main(['theory']))\n")
+    t0 = time.perf_counter()
+    p = subprocess.run([sys.executable, str(script)], cwd=root, env={**os.environ, "PYTHONPATH": str(root)},
+                       capture_output=True, text=True, timeout=50)
+    assert p.returncode == 130 and time.perf_counter() - t0 < 30, (p.returncode, p.stderr)
+    assert p.stderr.startswith("dryfric: interrupted") and p.stderr.count("\n") == 1, p.stderr
+    assert "timer" not in p.stderr
+
+
 def test_ctrl_c_between_the_import_and_main_exits_130_quietly(tmp_path):
     """The window after the package's import (where its quiet handler was removed) and before
     ``main``'s try (importing ``cli.py``): a SIGINT there printed a KeyboardInterrupt traceback.  The
