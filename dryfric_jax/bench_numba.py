@@ -8,7 +8,9 @@ worker, seeded from ``SeedSequence(seed).spawn(threads)``.  Not numba's ``np.ran
 (the legacy Mersenne-Twister state): measured on one core of the 2-core CI-class machine (numpy
 1.26 / 2.4), those drew 6.2e7 normals/s on numba 0.61 and 3.5e7 on 0.62-0.68, where a
 ``Generator`` draws 2.6-2.7e8 on both; a baseline bound by them was 5x slower than this one on
-numba 0.68 and its speed moved 1.7x with numba's version.
+numba 0.68 and its speed moved 1.7x with numba's version.  The loops run in float64 for both of
+the engine's dtypes: a ``Generator``'s float32 normals are slower in numba (1.25e8/s, one core,
+numba 0.68.1), so a float32 loop would be a weaker baseline.
 
 numba is an optional extra (``pip install -e ".[bench]"``); it is never imported by the package.
 """
