@@ -218,7 +218,7 @@ def run_bench(n_excursions: int = 10_000, numba_excursions: int = 10_000, seed: 
                        named(f"pdmp_event_floor_{dt}_events_per_s",
                              chain_floor_timer(make_pdmp_model(p, default_delta(p), dt), pdmp_lanes, n=floor_n))]
         try:
-            from .bench_numba import run_numba, run_numba_pdmp
+            from .bench_numba import RNG, run_numba, run_numba_pdmp
         except Exception as exc:  # not installed, or broken in this environment: say so, go on
             out["numba"] = f"unavailable ({type(exc).__name__}: {exc}); pip install -e '.[bench]'"
         else:
@@ -227,6 +227,7 @@ def run_bench(n_excursions: int = 10_000, numba_excursions: int = 10_000, seed: 
             # recorded with the numbers: the baseline draws from numpy's Generator (bench_numba), whose
             # speed did not move between numba 0.61 and 0.68; numba's legacy np.random did (1.8x)
             out["numba_version"] = numba.__version__
+            out["numba_rng"] = RNG
             pm, dm = make_pdmp_model(p, default_delta(p)), make_di_model(p, default_h(p))
 
             def numba_timer():

@@ -23,6 +23,8 @@ import numba
 import numpy as np
 
 SEEK, PLUS, MINUS = 0, 1, 2
+#: what the loops draw from (``dryfric bench`` records it with the numbers)
+RNG = "numpy.random.Generator(PCG64), one per worker; normals by the ziggurat method"
 #: the sums each worker returns, in this order, then its steps (events); ``t_half`` is not tracked
 SUMS = ("n", "U", "U2", "U3", "U4", "t", "t2", "t3", "t4", "Ut", "U2t", "U3t", "Ut2", "U2t2", "Ut3")
 

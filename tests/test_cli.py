@@ -511,9 +511,10 @@ def test_bench_json_has_the_side_by_side_numbers(capsys):
     try:
         import numba
     except ImportError:
-        assert "numba_version" not in b and b["numba"].startswith("unavailable")
+        assert "numba_version" not in b and "numba_rng" not in b and b["numba"].startswith("unavailable")
     else:
         assert b["numba_version"] == numba.__version__
+        assert b["numba_rng"].startswith("numpy.random.Generator(PCG64)")
 
 
 def test_bench_layout_sweep(capsys):
