@@ -206,12 +206,13 @@ def test_final_round_in_many_calls_equals_one_call(method, events, monkeypatch):
 
     p = dj.Params.from_nondim(0.5, 1.0, 0.2)
     chain = make_di_model(p, 0.02) if method == "di" else make_pdmp_model(p, 0.3)
-    one = run_round(chain, jax.random.key(4), 128, 600, block=8, events=events)
+    # a small work bound: a wrong block count between calls could otherwise run ~max_steps calls (a hang)
+    one = run_round(chain, jax.random.key(4), 128, 600, block=8, events=events, max_steps=5000)
     calls = []
     real = Lanes._call_once
     monkeypatch.setattr(Lanes, "_call_once", lambda *a: calls.append(1) or real(*a))
     monkeypatch.setattr(excursions, "FINAL_CALL_LANE_STEPS", 1)  # one block per call
-    many = run_round(chain, jax.random.key(4), 128, 600, block=8, events=events)
+    many = run_round(chain, jax.random.key(4), 128, 600, block=8, events=events, max_steps=5000)
     assert len(calls) > 50  # the round really was split
     assert np.array_equal(one.stats, many.stats) and np.array_equal(one.lane_steps, many.lane_steps)
     assert (one.slot_steps, one.n_truncated, one.n_unfinished) == (many.slot_steps, many.n_truncated,
