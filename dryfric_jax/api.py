@@ -19,6 +19,7 @@ from .bruteforce import simulate_bruteforce
 from .di import make_di_model
 from .estimators import (
     MIN_PATHS, MIN_RELIABLE_N, MIN_RELIABLE_PATHS, WEAK_DAMPING_TAU_L, bruteforce_estimates, long_excursion_estimates,
+    rounding_note,
 )
 from .excursions import BLOCK, FINAL_DEADLINE, simulate_long_excursions, work_per_excursion
 from .limits import MAX_WORK
@@ -424,6 +425,8 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
     if params.tau_L_nd > WEAK_DAMPING_TAU_L:
         notes.append(f"tau_L/tau0 = {params.tau_L_nd:.3g} > {WEAK_DAMPING_TAU_L:g} (weak or no viscous damping): "
                      "the 95% CI for D covers only ~90% (measured), misses are on the low side")
+    if rounding := rounding_note(sim.total()):
+        notes.append(rounding)
     for n in notes:
         warnings.warn(n, DryfricWarning, stacklevel=2)
     e = long_excursion_estimates(sim.total())

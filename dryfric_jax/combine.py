@@ -23,7 +23,7 @@ from typing import Sequence
 import numpy as np
 
 from .api import MAX_SEED, DryfricWarning, EstimateResult, missing_fields, small_n_note
-from .estimators import MIN_RELIABLE_N, long_excursion_estimates
+from .estimators import MIN_RELIABLE_N, long_excursion_estimates, rounding_note
 from .excursions import STAT_NAMES
 from .params import Params
 from .plan import DTYPES, MAX_COUNT
@@ -207,10 +207,13 @@ def _result(first: EstimateResult, rs, total: dict, seeds) -> EstimateResult:
     wall = math.fsum(r.wall_s for r in rs)
     useful = math.fsum(r.lane_steps_per_s * r.wall_s for r in rs)
     slots = math.fsum(r.lane_steps_per_s * r.wall_s / r.lane_utilization if r.lane_utilization else 0.0 for r in rs)
-    # the runs' notes once each, but the small-N note for the pool's N, not each run's
-    notes = list(dict.fromkeys(w for r in rs for w in r.warnings if w != small_n_note(r.n_excursions)))
+    # the runs' notes once each, but the small-N and rounding notes for the pool's sums, not each run's
+    notes = list(dict.fromkeys(w for r in rs for w in r.warnings
+                               if w != small_n_note(r.n_excursions) and w != rounding_note(r.sums)))
     if e["n_excursions"] < MIN_RELIABLE_N:
         notes.append(small_n_note(e["n_excursions"]))
+    if rounding := rounding_note(total):
+        notes.append(rounding)
     rate = useful / wall if wall > 0 else 0.0
     return dataclasses.replace(
         first, D=float(e["D"] * p.D0), D_ci=float(e["D_ci"] * p.D0), M0=float(e["M0"] * p.v0),

@@ -300,3 +300,27 @@ def test_sums_that_give_a_negative_d_are_refused(runs):
     bad = dataclasses.replace(runs[0], sums={**runs[0].sums, "U2": 0.0})
     with pytest.raises(ValueError, match=r"^results must hold consistent excursion sums: they give D = -"):
         combine_estimates([bad])
+
+
+def test_the_rounding_note_is_the_pools_and_an_estimate_carries_it(runs, monkeypatch):
+    """A D interval that rounding has spoiled (drift per excursion far above its spread:
+    ``estimators.rounding_note``) is flagged on the pool, once, for the pool's sums (a run's own note
+    is not repeated); real runs at the white-noise point carry no such note.  ``estimate_diffusivity``
+    appends the note of its sums to its warnings and warns."""
+    import numpy as np
+
+    from dryfric_jax import api
+    from dryfric_jax.estimators import rounding_note, sums_from_samples
+
+    rng = np.random.default_rng(0)
+    t = rng.gamma(2.0, 1.0, 100_000)
+    drifted = sums_from_samples(3e3 * t + np.sqrt(t) * rng.normal(0.0, 1.5, t.size), t, t / 2)
+    note = rounding_note(drifted)
+    assert note is not None and all(rounding_note(r.sums) is None for r in runs)
+    bad = dataclasses.replace(runs[0], sums=drifted, warnings=[note])
+    assert [w for w in combine_estimates([bad]).warnings if "not reliable" in w] == [note]
+    assert not [w for w in combine_estimates(runs).warnings if "not reliable" in w]
+    monkeypatch.setattr(api, "rounding_note", lambda T: "rounding note of N = %d" % T["n"])
+    with pytest.warns(dj.DryfricWarning, match="rounding note of N"):
+        r = dj.estimate_diffusivity(P, 7, n_excursions=2_000)
+    assert f"rounding note of N = {r.n_excursions}" in r.warnings
