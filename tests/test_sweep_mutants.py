@@ -1,0 +1,165 @@
+"""Sweep bookkeeping, from a mutation audit of dryfric_jax/sweep.py and the parts of outfiles.py it uses.
+
+The estimator is replaced by a cheap deterministic stand-in that records each call (the point's
+parameters and the seed it was given): the tests check which points a sweep runs, with which seed,
+and what its file and tables then hold, not the numbers.  The mutants named in each docstring are
+single edits of the package that the test fails on (and that the other sweep tests let through)."""
+import json
+import os
+import types
+
+import pytest
+
+import dryfric_jax as dj
+from dryfric_jax import outfiles, sweep
+from dryfric_jax.api import NoEstimateError
+from dryfric_jax.params import FIG3
+
+KW = dict(n_excursions=50)
+
+
+def _lines(path):
+    with open(path) as f:
+        return [json.loads(x) for x in f if x.strip()]
+
+
+@pytest.fixture
+def calls(monkeypatch):
+    """The stand-in estimator: each call's (parameters, seed) is appended; a point with Gamma = 3 ends
+    without an estimate (NoEstimateError), as a point past its work bounds does."""
+    got = []
+
+    def estimate(p, seed, **kw):
+        got.append((p.as_dict(), seed))
+        if p.Gamma == 3.0:
+            raise NoEstimateError("fewer than 2 complete excursions within the work bounds (stand-in)")
+        res = dict(D=1.0 + seed / 2**31, D_ci=0.1, M0=0.5, M0_ci=0.05, mean_duration=1.0, n_truncated=0,
+                   n_excursions=kw["n_excursions"], method=kw["method"], stopped_by="n_excursions",
+                   params={}, seed=seed)
+        return types.SimpleNamespace(stopped_by="n_excursions", to_dict=lambda: dict(res))
+
+    monkeypatch.setattr(sweep, "estimate_diffusivity", estimate)
+    return got
+
+
+def test_every_parameter_to_full_precision_is_part_of_a_points_identity_and_seed(tmp_path, calls):
+    """Six points, the Fig. 3 one and five that each differ from it in one parameter, in the 10th
+    significant digit: six points run, each with its own seed (the one its record names), and a
+    resumed sweep runs none.  Another sweep seed gives six other seeds.
+    Mutants: gamma_bar left out of a point's identity (the gamma_bar point was taken for the Fig. 3
+    one, its record reused); parameters compared to 6 significant digits (all six one point);
+    the estimator given the sweep seed instead of the point's (every point the same random stream,
+    the records naming seeds that were not used); point_seed not depending on the point."""
+    out = str(tmp_path / "s.jsonl")
+    pts = [dict(FIG3)] + [{**FIG3, k: FIG3[k] * (1 + 1e-9)} for k in sweep.PARAM_KEYS]
+    r = sweep.run_sweep(pts, out, seed=0, **KW)
+    assert (r["computed"], r["skipped"], r["total"]) == (6, 0, 6)
+    assert [p for p, _ in calls] == pts
+    seeds = [s for _, s in calls]
+    assert len(set(seeds)) == 6
+    recs = _lines(out)
+    assert [(x["params"], x["seed"]) for x in recs] == list(zip(pts, seeds))
+    calls.clear()
+    r = sweep.run_sweep(pts, out, seed=0, **KW)
+    assert (r["computed"], r["skipped"], calls) == (0, 6, [])
+    r = sweep.run_sweep(pts, out, seed=1, **KW)
+    assert r["computed"] == 6 and len({s for _, s in calls}) == 6 and not {s for _, s in calls} & set(seeds)
+
+
+def test_a_record_of_another_patch_version_or_of_no_version_is_rerun_in_place(tmp_path, calls):
+    """The version is raised with every change to the numbers a seed gives (dryfric_jax._version),
+    the patch number too; a record without a version predates versions.  Both are rerun and replaced
+    in place (not reused, not doubled).  Mutants: _outdated comparing major.minor only; a record
+    without a version taken as this version's; _outdated ignoring the version."""
+    out = str(tmp_path / "s.jsonl")
+    pts = sweep.grid(Gamma=[2.0, 4.0])
+    sweep.run_sweep(pts, out, **KW)
+    first = _lines(out)
+    major, minor, patch = dj.__version__.split(".")[:3]
+    old = [dict(first[0], version=f"{major}.{minor}.{int(patch) + 1}"), {k: v for k, v in first[1].items()
+                                                                          if k != "version"}]
+    outfiles.write_records(out, old)
+    calls.clear()
+    r = sweep.run_sweep(pts, out, **KW)
+    assert (r["computed"], r["skipped"]) == (2, 0) and len(calls) == 2
+    again = _lines(out)
+    assert [x["params"]["Gamma"] for x in again] == [2.0, 4.0]
+    assert [x["version"] for x in again] == [dj.__version__] * 2
+    assert [x["seed"] for x in again] == [x["seed"] for x in first]  # the same points, the same seeds
+
+
+def test_a_record_without_a_status_is_a_finished_point(tmp_path, calls):
+    """Records written before statuses existed are "ok" (module docstring): read, tabled as "ok", not
+    listed by failures() and not rerun.  Mutant: status() defaulting to "failed" (the file was then
+    refused as not a sweep file: a "failed" record needs a reason)."""
+    out = str(tmp_path / "s.jsonl")
+    sweep.run_sweep(sweep.grid(Gamma=[2.0]), out, **KW)
+    (rec,) = _lines(out)
+    rec.pop("status")
+    outfiles.write_records(out, [rec])
+    assert [x["status"] for x in sweep.rows(out)] == ["ok"] and sweep.failures(out) == []
+    calls.clear()
+    r = sweep.run_sweep(sweep.grid(Gamma=[2.0]), out, **KW)
+    assert (r["computed"], r["skipped"], calls) == (0, 1, [])
+
+
+def test_rows_keep_the_asked_seed_and_every_asked_setting_sorted_by_all_parameters(tmp_path, calls):
+    """One file, three sweeps of the same 2 x 2 grid: seed 0 and seed 1 at n_excursions = 50 (float64),
+    and seed 0 at n_excursions = 60 in float32.  rows(seed=0) is the 8 records of seed 0 (seed 0 is a
+    seed, not "any"); two settings keep the records matching both; the rows are sorted by Gamma, then
+    tau.  Mutants: ``seed and ...`` for ``seed is not None and ...`` (rows(seed=0) returned every seed);
+    ``all`` for ``any`` in the settings filter (a record matching one asked setting of two was kept);
+    rows sorted by Gamma alone (tau in file order)."""
+    out = str(tmp_path / "s.jsonl")
+    pts = sweep.grid(Gamma=[2.0, 1.0], tau=[0.5, 0.25])
+    for seed, kw in ((0, KW), (1, KW), (0, dict(n_excursions=60, dtype="float32"))):
+        sweep.run_sweep(pts, out, seed=seed, **kw)
+    assert len(_lines(out)) == 12
+    assert len(sweep.rows(out, seed=0)) == 8 and len(sweep.rows(out, seed=1)) == 4
+    assert sweep.rows(out, n_excursions=50, dtype="float32") == []
+    both = sweep.rows(out, n_excursions=60, dtype="float32")
+    assert len(both) == 4 and {x["n_excursions"] for x in both} == {60}
+    assert [(x["Gamma"], x["tau"]) for x in sweep.rows(out, seed=1)] == [(1.0, 0.25), (1.0, 0.5), (2.0, 0.25),
+                                                                         (2.0, 0.5)]
+
+
+def test_progress_counts_the_points_already_in_the_file(tmp_path, calls):
+    """A resumed sweep of 3 points, 2 of them in the file: progress says 2 of 3 at the start and 3 of 3
+    after the new point (the bar ends full).  Mutants: the points computed now passed as done (1 of 3 at
+    the end); done counted from 0 (also caught by test_sweep.py, through the skipped count)."""
+    out = str(tmp_path / "s.jsonl")
+    sweep.run_sweep(sweep.grid(Gamma=[2.0, 4.0]), out, **KW)
+    seen = []
+    sweep.run_sweep(sweep.grid(Gamma=[2.0, 4.0, 5.0]), out, progress=lambda d, t, rec: seen.append((d, t)), **KW)
+    assert seen == [(2, 3), (3, 3)]
+
+
+def test_a_point_listed_twice_is_one_point_in_the_counts(tmp_path, calls):
+    """A failed point listed twice in the grid runs once and is one failed point (the CLI says
+    "1 point failed"), on the first run and on a resume.  Mutant: the counts over the grid's
+    entries instead of its distinct points (2 failed)."""
+    out = str(tmp_path / "s.jsonl")
+    pts = sweep.grid(Gamma=[3.0, 3.0, 2.0])
+    r = sweep.run_sweep(pts, out, **KW)
+    assert (r["computed"], r["failed"], len(calls)) == (2, 1, 2)
+    assert [x["status"] for x in _lines(out)] == ["failed", "ok"]
+    assert sweep.run_sweep(pts, out, **KW)["failed"] == 1
+
+
+@pytest.mark.parametrize("fail", ["fsync", "replace"])
+def test_a_write_that_fails_leaves_the_old_file_whole_and_no_temporary_file(tmp_path, monkeypatch, fail):
+    """A results file rewritten when the disk is full (fsync fails) or the rename fails: the old file
+    is left as it was, and the temporary file is removed.  Mutants: write_atomic writing into the
+    file itself (a kill or a full disk left it truncated or torn); the temporary file not removed
+    after a failure (a .dryfric-*.tmp left beside the results on every failed write)."""
+    out = tmp_path / "s.jsonl"
+    out.write_text("old\n")
+
+    def boom(*a, **k):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(outfiles.os, fail, boom)
+    with pytest.raises(OSError, match="No space left"):
+        outfiles.write_atomic(str(out), "new\n")
+    monkeypatch.undo()
+    assert out.read_text() == "old\n" and os.listdir(tmp_path) == ["s.jsonl"]
