@@ -164,9 +164,9 @@ def ci_rounding(T: dict) -> float:
         \boldsymbol S^T|)\,|\nabla\Psi|}{\hat\sigma^2}
 
     (``inf`` if :math:`\hat\sigma^2 \le 0`, where the half-width came out 0).  On synthetic excursions
-    (t ~ Gamma(2), U = mu t + sqrt(t) Z, N = 1e5) rho was 10-100x the actual error of sigma^2: 5e-6, 4e-4,
-    5e-2 and 2.2 at mu = 100, 300, 1e3 and 3e3 (half-width off by 3e-7, 5e-5, 4e-4 and 29%; at mu = 1e4 the
-    variance came out negative).  The runs measured reach kappa = 1.6e4 (rho ~ 1e-6: gamma_bar = 3 Delta,
+    (t ~ Gamma(2), U = mu t + sqrt(t) Z, N = 1e5, seed 0) rho was 3-50x the actual error of sigma^2: 5e-6,
+    4e-4, 5e-2 and 2.2 at mu = 100, 300, 1e3 and 3e3 (half-width off by 3e-7, 5e-5, 4e-4 and 29%; at mu = 1e4
+    the variance came out negative).  The runs measured reach kappa = 1.6e4 (rho ~ 1e-6: gamma_bar = 3 Delta,
     tau_L = 1 s, white noise); the default max_work refuses the points beyond.
     """
     n = T["n"]
