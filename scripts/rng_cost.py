@@ -1,36 +1,44 @@
-"""Where a normal's cost lies, on one CPU core: the engine's threefry hash alone, the hash plus
-``jax.random``'s inverse-erf transform (the engine's normals, ``dryfric_jax.rng``), and numpy's
-``Generator`` (PCG64, ziggurat) inside a numba loop, the bench's compiled baseline
-(``dryfric_jax.bench_numba``).  Run it pinned to one core::
+"""Where a normal's cost lies: the engine's threefry hash alone, the hash plus ``jax.random``'s
+inverse-erf transform (the engine's normals: the bench's RNG bound, ``bench.rng_bound_timer``),
+and numpy's ``Generator`` (PCG64, ziggurat) inside a numba loop, the bench's compiled baseline
+(``dryfric_jax.bench_numba``).  Both engine rates are timed the way the bench times its RNG bound
+(``bench._device_timer``: every lane draws a block from ``fold_in(lane_key, block)`` and reads it
+row by row), with the CLI's XLA flags.  Run it pinned to one core (one XLA device)::
 
     taskset -c 1 python scripts/rng_cost.py
 
-It prints numbers per second (best of 5 timings) and their ratios to numba's normals.  The
-engine draws a block of 256 lanes x 128 rows x 2 columns per call, the way the lane engine does;
-numba draws 1e7 normals in one loop.  Needs the ``bench`` extra (numba).
+It prints numbers per second (best of 5 timings) and their ratios to numba's normals; numba draws
+1e7 normals in one loop.  Needs the ``bench`` extra (numba).
 """
 import time
 
-import jax
-import numba
-import numpy as np
+from dryfric_jax.xla_flags import use_all_cpu_cores
 
-from dryfric_jax import rng
+use_all_cpu_cores(vector_width=True)  # as the CLI (dryfric bench), before JAX starts
 
-LANES, BLOCK = 256, 128
+import jax  # noqa: E402
+import numba  # noqa: E402
+import numpy as np  # noqa: E402
+
+from dryfric_jax import rng  # noqa: E402
+from dryfric_jax.bench import _device_timer, rng_bound_timer  # noqa: E402
+from dryfric_jax.excursions import BLOCK, block_keys  # noqa: E402
+
+LANES, N = 512, 1 << 23  # the bench's RNG-bound defaults
 
 
-def _best(f, *args, reps: int = 100) -> float:
-    """The best of 5 timings of ``reps`` calls, per call (seconds)."""
-    jax.block_until_ready(f(*args))
-    times = []
-    for _ in range(5):
-        t0 = time.perf_counter()
-        for _ in range(reps):
-            out = f(*args)
-        jax.block_until_ready(out)
-        times.append((time.perf_counter() - t0) / reps)
-    return min(times)
+def hash_timer(dtype):
+    """A timer of the hash alone: lane-steps/s if drawing a step's two words of bits (``rng._bits``,
+    what :func:`rng.normals` transforms) were all the lanes did."""
+    def body(keys, b, acc):
+        w1, w2 = rng._bits(jax.random.key_data(block_keys(keys, b)), BLOCK, 2, dtype)
+        return jax.lax.fori_loop(0, BLOCK, lambda i, a: a + w1[i] + w2[i], acc)
+
+    return _device_timer(body, lambda m: jax.numpy.zeros((m,), w_dtype(dtype)), LANES, BLOCK, N, 5)
+
+
+def w_dtype(dtype):
+    return np.uint64 if np.dtype(dtype).itemsize == 8 else np.uint32
 
 
 @numba.njit(nogil=True)
@@ -41,27 +49,27 @@ def _numba_normals(gen, n):
     return s
 
 
-def main() -> None:
-    jax.config.update("jax_enable_x64", True)
+def _numba_rate(n: int = 10**7) -> float:
     gen = np.random.Generator(np.random.PCG64(1))
     _numba_normals(gen, 10)  # compile
-    n = 10**7
-    nb = n / min(_timed(lambda: _numba_normals(gen, n)) for _ in range(5))
-    print(f"numba Generator(PCG64) normals: {nb:.3e}/s")
-    kd = jax.random.key_data(jax.random.split(jax.random.key(0), LANES))
-    per_call = LANES * BLOCK * 2
-    for dtype in (np.dtype(np.float32), np.dtype(np.float64)):
-        bits = jax.jit(lambda kd, dt=dtype: rng._bits(kd, BLOCK, 2, dt))
-        normals = jax.jit(lambda kd, dt=dtype: tuple(rng._normal(b, dt) for b in rng._bits(kd, BLOCK, 2, dt)))
-        b, z = per_call / _best(bits, kd), per_call / _best(normals, kd)
-        print(f"{dtype.name}: hash words {b:.3e}/s ({b / nb:.2f}x numba's normals), "
+    best = float("inf")
+    for _ in range(5):
+        t0 = time.perf_counter()
+        _numba_normals(gen, n)
+        best = min(best, time.perf_counter() - t0)
+    return n / best
+
+
+def main() -> None:
+    jax.config.update("jax_enable_x64", True)
+    nb = _numba_rate()
+    print(f"{jax.device_count()} XLA device(s); numba Generator(PCG64) normals: {nb:.3e}/s")
+    for dtype in (np.float32, np.float64):
+        # two numbers per lane-step; the best of 5 timings of each
+        timers = hash_timer(dtype), rng_bound_timer(dtype, LANES, BLOCK, N)
+        b, z = (2 * max(t() for _ in range(5)) for t in timers)
+        print(f"{np.dtype(dtype).name}: hash words {b:.3e}/s ({b / nb:.2f}x numba's normals), "
               f"normals {z:.3e}/s ({z / nb:.2f}x)")
-
-
-def _timed(f) -> float:
-    t0 = time.perf_counter()
-    f()
-    return time.perf_counter() - t0
 
 
 if __name__ == "__main__":
