@@ -425,11 +425,12 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
     if params.tau_L_nd > WEAK_DAMPING_TAU_L:
         notes.append(f"tau_L/tau0 = {params.tau_L_nd:.3g} > {WEAK_DAMPING_TAU_L:g} (weak or no viscous damping): "
                      "the 95% CI for D covers only ~90% (measured), misses are on the low side")
-    if rounding := rounding_note(sim.total()):
+    total = sim.total()
+    if rounding := rounding_note(total):
         notes.append(rounding)
     for n in notes:
         warnings.warn(n, DryfricWarning, stacklevel=2)
-    e = long_excursion_estimates(sim.total())
+    e = long_excursion_estimates(total)
     return EstimateResult(
         D=float(e["D"] * params.D0), D_ci=float(e["D_ci"] * params.D0), M0=float(e["M0"] * params.v0),
         M0_ci=float(e["M0_ci"] * params.v0),

@@ -23,7 +23,7 @@ from typing import Sequence
 import numpy as np
 
 from .api import MAX_SEED, DryfricWarning, EstimateResult, missing_fields, small_n_note
-from .estimators import MIN_RELIABLE_N, long_excursion_estimates, rounding_note
+from .estimators import MIN_RELIABLE_N, ROUNDING_NOTE, long_excursion_estimates, rounding_note
 from .excursions import STAT_NAMES
 from .params import Params
 from .plan import DTYPES, MAX_COUNT
@@ -209,7 +209,7 @@ def _result(first: EstimateResult, rs, total: dict, seeds) -> EstimateResult:
     slots = math.fsum(r.lane_steps_per_s * r.wall_s / r.lane_utilization if r.lane_utilization else 0.0 for r in rs)
     # the runs' notes once each, but the small-N and rounding notes for the pool's sums, not each run's
     notes = list(dict.fromkeys(w for r in rs for w in r.warnings
-                               if w != small_n_note(r.n_excursions) and w != rounding_note(r.sums)))
+                               if w != small_n_note(r.n_excursions) and not w.startswith(ROUNDING_NOTE)))
     if e["n_excursions"] < MIN_RELIABLE_N:
         notes.append(small_n_note(e["n_excursions"]))
     if rounding := rounding_note(total):

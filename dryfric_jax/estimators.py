@@ -169,15 +169,18 @@ def ci_rounding(T: dict) -> float:
     the variance came out negative).  The runs measured reach kappa = 1.6e4 (rho ~ 1e-6: gamma_bar = 3 Delta,
     tau_L = 1 s, white noise); the default max_work refuses the points beyond.
     """
-    n = T["n"]
     S, C = moments_from_sums(T)
-    E2 = np.array([[T[k] for k in row] for row in _PRODUCTS]) / n
     g = np.asarray(_grad_psi_D()(jnp.asarray(S, jnp.float64)))
     var = float(g @ C @ g)
-    size = float(np.abs(g) @ (np.abs(E2) + np.abs(np.outer(S, S))) @ np.abs(g))
+    SS = np.outer(S, S)
+    size = float(np.abs(g) @ (np.abs(C + SS) + np.abs(SS)) @ np.abs(g))  # C + SS = E[X X^T], the raw moments
     if not var > 0:
         return float("inf")
     return float(np.finfo(np.float64).eps) * size / var
+
+
+#: how :func:`rounding_note`'s warning begins (a pool recomputes it for its own sums)
+ROUNDING_NOTE = "the CI of D is not reliable"
 
 
 def rounding_note(T: dict) -> str | None:
@@ -188,7 +191,7 @@ def rounding_note(T: dict) -> str | None:
         return None
     what = ("its variance came out <= 0 by rounding, so the half-width is 0 and means nothing" if rho == float("inf")
             else f"rounding may move its half-width by up to ~{50 * rho:.2g}%")
-    return ("the CI of D is not reliable: the drift of each excursion dominates its spread, and the delta method's "
+    return (f"{ROUNDING_NOTE}: the drift of each excursion dominates its spread, and the delta method's "
             f"variance, a difference of moment sums, cancels: {what} (D and M0 themselves are not affected)")
 
 
