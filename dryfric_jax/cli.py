@@ -555,8 +555,9 @@ def _sweep(a) -> int:
     else:
         extra = "".join(f", {out[k]} {k}" for k in ("refused", "failed", "truncated") if out[k]) + (
             f", {out['time_limited']} stopped by --max-time" if out["time_limited"] else "")
+        twice = f" (and {out['duplicates']} repeated, run once)" if out["duplicates"] else ""
         print(f"{_points(out['computed'])} computed, {out['skipped']} already in {a.out}, {out['total']} in the grid"
-              + extra)
+              + twice + extra)
     if out["interrupted"]:
         print(f"dryfric: interrupted: {_points(out['computed'])} newly written to {a.out}; run the same command "
               "again to resume", file=sys.stderr)

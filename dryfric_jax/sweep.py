@@ -153,7 +153,12 @@ def _check_points(points) -> list[dict]:
         unknown = sorted(set(pt) - set(PARAM_KEYS))
         if unknown:
             raise ValueError(f"points[{i}] has unknown parameters {unknown} (known: {list(PARAM_KEYS)})")
-    return [{k: plain_number(v) for k, v in pt.items()} for pt in points]
+    # -0.0 as 0.0 (gamma_bar = -0.0 was another point, with its own seed and record, of the same physics)
+    return [{k: _no_negative_zero(plain_number(v)) for k, v in pt.items()} for pt in points]
+
+
+def _no_negative_zero(x):
+    return 0.0 if isinstance(x, float) and x == 0.0 else x
 
 
 def status(record: dict) -> str:
@@ -224,9 +229,10 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
     (module docstring) and the sweep goes on.
 
     Returns:
-        ``dict(computed=k, skipped=s, total=n, interrupted=bool, refused=r, failed=f, truncated=t,
-        time_limited=m)``: k points run now (``"ok"`` or ``"failed"``), s found in the file (``"ok"``
-        or ``"failed"``, not rerun); r, f, t and m count the grid's distinct points now recorded as
+        ``dict(computed=k, skipped=s, total=n, duplicates=d, interrupted=bool, refused=r, failed=f,
+        truncated=t, time_limited=m)``: n distinct points (d more entries repeat one of them: a point
+        listed twice runs once; -0.0 is 0.0), k run now (``"ok"`` or ``"failed"``), s found in the
+        file (``"ok"`` or ``"failed"``, not rerun); r, f, t and m count the grid's points now recorded as
         refused, failed, ``"ok"`` with truncated excursions (a result biased low), or stopped by
         ``max_time`` (``"ok"`` short of N or rtol, or ``"failed"``).  A point another sweep
         finished while this one ran is counted in s.  A Ctrl-C stops after the points already
@@ -284,9 +290,11 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
         if ident not in seen:
             todo.append((ident, pt))
             seen.add(ident)  # a point listed twice runs once
-    total = len(full)
+    # the counts are over the grid's distinct points: a point listed twice was counted as "already in the file"
+    distinct = list(dict.fromkeys(grid_idents))
+    total = len(distinct)
     done = total - len(todo)
-    skipped = done - sum(i in have and status(have[i]) == "refused" for i in grid_idents)
+    skipped = done - sum(i in have and status(have[i]) == "refused" for i in distinct)
     if progress:
         progress(done, total, None)
     computed, interrupted, later = 0, False, []
@@ -319,11 +327,11 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
         if interrupted:
             break
     drop_claims_dir(out)
-    mine = [have[i] for i in dict.fromkeys(grid_idents) if i in have]  # the grid's distinct points
+    mine = [have[i] for i in distinct if i in have]
     count = {k: sum(status(r) == k for r in mine) for k in ("refused", "failed")}
     truncated = sum(status(r) == "ok" and r["result"].get("n_truncated", 0) > 0 for r in mine)
-    return dict(computed=computed, skipped=skipped, total=total, interrupted=interrupted,
-                refused=count["refused"], failed=count["failed"], truncated=truncated,
+    return dict(computed=computed, skipped=skipped, total=total, duplicates=len(full) - total,
+                interrupted=interrupted, refused=count["refused"], failed=count["failed"], truncated=truncated,
                 time_limited=sum(map(_time_limited, mine)))
 
 

@@ -5,6 +5,7 @@ parameters and the seed it was given): the tests check which points a sweep runs
 and what its file and tables then hold, not the numbers.  The mutants named in each docstring are
 single edits of the package that the test fails on (and that the other sweep tests let through)."""
 import json
+import math
 import os
 import types
 
@@ -13,6 +14,7 @@ import pytest
 import dryfric_jax as dj
 from dryfric_jax import outfiles, sweep
 from dryfric_jax.api import NoEstimateError
+from dryfric_jax.cli import main
 from dryfric_jax.params import FIG3
 
 KW = dict(n_excursions=50)
@@ -144,6 +146,37 @@ def test_a_point_listed_twice_is_one_point_in_the_counts(tmp_path, calls):
     assert (r["computed"], r["failed"], len(calls)) == (2, 1, 2)
     assert [x["status"] for x in _lines(out)] == ["failed", "ok"]
     assert sweep.run_sweep(pts, out, **KW)["failed"] == 1
+
+
+def test_a_repeated_point_is_not_counted_as_already_in_the_file(tmp_path, calls, capsys):
+    """A fresh file and the grid Gamma = 2, 4, 4, 4: two points run, none was in the file, two
+    distinct points and two repeated entries; the CLI's summary line says so.  Before, the repeats
+    were counted as points "already in" the file and in the grid's size (2 computed, 2 already in,
+    4 in the grid, on a file that did not exist)."""
+    out = str(tmp_path / "s.jsonl")
+    seen = []
+    r = sweep.run_sweep(sweep.grid(Gamma=[2.0, 4.0, 4.0, 4.0]), out, progress=lambda d, t, rec: seen.append((d, t)),
+                        **KW)
+    assert (r["computed"], r["skipped"], r["total"], r["duplicates"], len(calls)) == (2, 0, 2, 2, 2)
+    assert seen == [(0, 2), (1, 2), (2, 2)]
+    r = sweep.run_sweep(sweep.grid(Gamma=[4.0, 2.0, 2.0]), out, **KW)
+    assert (r["computed"], r["skipped"], r["total"], r["duplicates"], len(calls)) == (0, 2, 2, 1, 2)
+    assert main(["sweep", "--Gamma", "2,2,6", "--n-excursions", "50", "--out", out]) == 0
+    said = capsys.readouterr().out
+    assert f"1 point computed, 1 already in {out}, 2 in the grid (and 1 repeated, run once)" in said
+
+
+def test_minus_zero_is_the_point_zero(tmp_path, calls):
+    """gamma_bar = -0.0 is the point gamma_bar = 0: one run, one record (written as 0.0), one seed,
+    and a resume with +0.0 finds it.  Before, -0.0 and 0.0 were two points of the same physics, each
+    run with its own seed."""
+    out = str(tmp_path / "s.jsonl")
+    r = sweep.run_sweep(sweep.grid(gamma_bar=[-0.0, 0.0]), out, **KW)
+    assert (r["computed"], r["total"], r["duplicates"], len(calls)) == (1, 1, 1, 1)
+    (rec,) = _lines(out)
+    assert math.copysign(1.0, rec["params"]["gamma_bar"]) == 1.0
+    assert rec["seed"] == sweep.point_seed(0, {**FIG3, "gamma_bar": 0.0}, rec["settings"]) == calls[0][1]
+    assert sweep.run_sweep(sweep.grid(gamma_bar=[0.0]), out, **KW)["skipped"] == 1 and len(calls) == 1
 
 
 @pytest.mark.parametrize("fail", ["fsync", "replace"])
