@@ -1,7 +1,8 @@
 """Where a normal's cost lies: the engine's threefry hash alone, the hash plus ``jax.random``'s
 inverse-erf transform (the engine's normals: the bench's RNG bound, ``bench.rng_bound_timer``),
-and numpy's ``Generator`` (PCG64, ziggurat) inside a numba loop, the bench's compiled baseline
-(``dryfric_jax.bench_numba``).  Both engine rates are timed the way the bench times its RNG bound
+Box-Muller normals from the same bits (for comparison only), and numpy's ``Generator`` (PCG64,
+ziggurat) inside a numba loop, the bench's compiled baseline
+(``dryfric_jax.bench_numba``).  The three JAX rates are timed the way the bench times its RNG bound
 (``bench._device_timer``: every lane draws a block from ``fold_in(lane_key, block)`` and reads it
 row by row), with the CLI's XLA flags.  Run it pinned to one core (one XLA device)::
 
@@ -17,6 +18,7 @@ from dryfric_jax.xla_flags import use_all_cpu_cores
 use_all_cpu_cores(vector_width=True)  # as the CLI (dryfric bench), before JAX starts
 
 import jax  # noqa: E402
+import jax.numpy as jnp  # noqa: E402
 import numba  # noqa: E402
 import numpy as np  # noqa: E402
 
@@ -34,7 +36,22 @@ def hash_timer(dtype):
         w1, w2 = rng._bits(jax.random.key_data(block_keys(keys, b)), BLOCK, 2, dtype)
         return jax.lax.fori_loop(0, BLOCK, lambda i, a: a + w1[i] + w2[i], acc)
 
-    return _device_timer(body, lambda m: jax.numpy.zeros((m,), w_dtype(dtype)), LANES, BLOCK, N, 5)
+    return _device_timer(body, lambda m: jnp.zeros((m,), w_dtype(dtype)), LANES, BLOCK, N, 5)
+
+
+def box_muller_timer(dtype):
+    """A timer of Box-Muller normals from the same bits (not the engine's: for comparison), a step's
+    pair :math:`\sqrt{-2\ln u_1}\,(\cos 2\pi u_2, \sin 2\pi u_2)` with :math:`u_1 \in (0, 1]`: one log,
+    sqrt, cos and sin per two normals, where the inverse erf takes a log, a sqrt and polynomials per normal."""
+    def body(keys, b, acc):
+        w1, w2 = rng._bits(jax.random.key_data(block_keys(keys, b)), BLOCK, 2, dtype)
+        u1 = np.array(1.0, dtype) - rng._unit(w1, dtype, 0.0, 1.0)
+        r = jnp.sqrt(np.array(-2.0, dtype) * jnp.log(u1))
+        th = np.array(2 * np.pi, dtype) * rng._unit(w2, dtype, 0.0, 1.0)
+        z1, z2 = r * jnp.cos(th), r * jnp.sin(th)
+        return jax.lax.fori_loop(0, BLOCK, lambda i, a: a + z1[i] + z2[i], acc)
+
+    return _device_timer(body, lambda m: jnp.zeros((m,), dtype), LANES, BLOCK, N, 5)
 
 
 def w_dtype(dtype):
@@ -66,10 +83,10 @@ def main() -> None:
     print(f"{jax.device_count()} XLA device(s); numba Generator(PCG64) normals: {nb:.3e}/s")
     for dtype in (np.float32, np.float64):
         # two numbers per lane-step; the best of 5 timings of each
-        timers = hash_timer(dtype), rng_bound_timer(dtype, LANES, BLOCK, N)
-        b, z = (2 * max(t() for _ in range(5)) for t in timers)
+        timers = hash_timer(dtype), rng_bound_timer(dtype, LANES, BLOCK, N), box_muller_timer(dtype)
+        b, z, bm = (2 * max(t() for _ in range(5)) for t in timers)
         print(f"{np.dtype(dtype).name}: hash words {b:.3e}/s ({b / nb:.2f}x numba's normals), "
-              f"normals {z:.3e}/s ({z / nb:.2f}x)")
+              f"normals {z:.3e}/s ({z / nb:.2f}x); Box-Muller from the same bits {bm:.3e}/s ({bm / nb:.2f}x)")
 
 
 if __name__ == "__main__":
