@@ -113,8 +113,11 @@ def test_a_huge_integer_is_refused_in_one_short_line():
 
 
 @pytest.mark.parametrize("kw,name", [
-    (dict(tau=True), "tau"), (dict(tau="1"), "tau"), (dict(tau=None), "tau"), (dict(tau=1.0, tau_L=[1.0]), "tau_L"),
-    (dict(tau=1.0, gamma_bar="0"), "gamma_bar"),
+    # the numbers given, by their own names (tau', not the tau = tau' tau0 they would make)
+    (dict(tau=True), "tau'"), (dict(tau="1"), "tau'"), (dict(tau=None), "tau'"), (dict(tau=1.0, tau_L=[1.0]), "tau_L'"),
+    (dict(tau=1.0, gamma_bar="0"), "gamma_bar'"), (dict(tau=-1.0, Gamma=2.0, Delta=3.0), "tau'"),
+    (dict(tau=1.0, tau_L=0.0, Gamma=2.0, Delta=3.0), "tau_L'"),
+    (dict(tau=1.0, gamma_bar=math.nan, Delta=3.0), "gamma_bar'"),
     # tau_L' = 1e300 in a tau0 of 1e10 s overflowed to tau_L = inf, then was refused as
     # "|gamma_bar| >= Delta with tau_L = inf"
     (dict(tau=1.0, tau_L=1e300, gamma_bar=2.0, Gamma=1e10), "tau_L"),
@@ -122,8 +125,19 @@ def test_a_huge_integer_is_refused_in_one_short_line():
     (dict(tau=1.0, Gamma=1e-200, Delta=1e200), "Gamma and Delta"),
 ])
 def test_from_nondim_refuses_by_name(kw, name):
-    with pytest.raises(ValueError, match=f"^{name} must"):
+    with pytest.raises(ValueError, match=f"^{name} must") as e:
         Params.from_nondim(**kw)
+    if name.endswith("'") and isinstance(kw[name[:-1]], float):
+        assert str(e.value).endswith(f"(got {kw[name[:-1]]!r})")  # the value given, not tau' tau0 = -0.222
+
+
+def test_from_nondim_under_jit():
+    """tau', tau_L' and gamma_bar' traced (jit): the physical parameters are tau' tau0, tau_L' tau0 and
+    gamma_bar' Delta, with tau0 = Gamma/Delta^2 = 2/9 s and Delta = 3 (a TypeError before: the tracer was
+    taken for a number to check)."""
+    fields = lambda q: (q.Gamma, q.Delta, q.tau, q.tau_L, q.gamma_bar)
+    got = jax.jit(lambda t, tl, g: fields(Params.from_nondim(t, tl, g, Gamma=2.0, Delta=3.0)))(4.5, 9.0, 0.5)
+    assert [float(x) for x in got] == pytest.approx([2.0, 3.0, 1.0, 2.0, 1.5], rel=1e-15)
 
 
 @pytest.mark.parametrize("G,D,tau0", [(1e300, 1e155, 1e-10), (1e-170, 1e-160, 1e150), (1e-300, 1e-300, 1e300)])
