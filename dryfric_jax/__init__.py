@@ -10,9 +10,11 @@ quietly (:mod:`dryfric_jax.interrupts`).  Before it imports JAX it checks that t
 jaxlib and equinox are recent enough (:mod:`dryfric_jax.requirements`).
 """
 from .interrupts import keep_ctrl_c, launched_as_cli, quiet_ctrl_c_while_starting
-from .requirements import check_requirements
 
 quiet_ctrl_c_while_starting()  # first: the imports below take 1-2 s (cli.main ends it)
+# after it: importlib.metadata alone took > 0.25 s on a loaded 2-core CI machine, and a Ctrl-C there was a traceback
+from .requirements import check_requirements  # noqa: E402
+
 try:
     check_requirements()  # before importing JAX or equinox (dryfric_jax.requirements)
 except ImportError as exc:
