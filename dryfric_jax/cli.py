@@ -220,6 +220,9 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--t", type=_number("t"), required=True, help="horizon, s")
     b.add_argument("--n-paths", type=_int_at_least("n-paths", MIN_PATHS, 2**62, "2^62"), required=True)
     b.add_argument("--burn-in", type=_number("burn-in"), default=0.0, help="uncounted warm-up, s")
+    b.add_argument("--max-events", type=_int_at_least("max-events", 1, 2**62, "2^62"), default=None,
+                   help="PDMP only: events per path before t (default 10x the expected count + 1000); a path "
+                        "that reaches it fails the run, which says so")
     th = sub.add_parser("theory", parents=[model], help="exact white-noise D and M0")
     th.add_argument("--h", type=_number("h"), default=None,
                     help="also the exact white-noise D, M0 and E[V^2] of the DI chain at this step, s (its "
@@ -474,7 +477,8 @@ def _run(a) -> int:
     if a.cmd == "bruteforce":
         with _warnings_kept_in_result():
             r = api.bruteforce_diffusivity(params, a.seed, t=a.t, n_paths=a.n_paths, method=a.method, h=a.h,
-                                           delta=a.delta, burn_in=a.burn_in, dtype=a.dtype, **_work_options(a))
+                                           delta=a.delta, burn_in=a.burn_in, dtype=a.dtype, max_events=a.max_events,
+                                           **_work_options(a))
         _report(a, r, _print_bruteforce)
         return 0
     raise _UserError(f"unknown command {a.cmd!r}")

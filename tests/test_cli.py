@@ -421,6 +421,18 @@ def test_estimate_json(capsys):
     assert abs(lay["D"] - out["D"]) < 3 * math.hypot(lay["D_ci"], out["D_ci"]) / 1.96
 
 
+def test_bruteforce_max_events(capsys):
+    """--max-events bounds the PDMP's events per path: at 3 (far below the expected count for t = 0.5 s) every
+    path reaches it and the run fails (exit 1) saying how many did and what to raise; with the DI, which
+    has no events, it is refused by name (exit 2).  The refusal told a CLI user to raise max_events,
+    which the CLI did not offer."""
+    assert main(["bruteforce", "--method", "pdmp", "--t", "0.5", "--n-paths", "8", "--max-events", "3"]) == 1
+    err = capsys.readouterr().err.splitlines()
+    assert err == ["dryfric: error: 8 of 8 PDMP paths hit max_events = 3 before t; raise max_events"], err
+    assert main(["bruteforce", "--t", "0.5", "--n-paths", "8", "--max-events", "3"]) == 2
+    assert capsys.readouterr().err.startswith("dryfric: error: max_events must not be given with method 'di'")
+
+
 def test_bruteforce_and_theory_json(capsys, solve_rounding):
     assert main(["bruteforce", "--t", "1", "--n-paths", "50", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)

@@ -188,16 +188,18 @@ def test_a_run_failure_is_exit_1(calls, capsys, monkeypatch):
 
 def test_every_bruteforce_option_reaches_the_estimator(calls, capsys):
     """Mutants: bruteforce_diffusivity given seed 0, method 'di', h=None, delta=None, burn_in=0, dtype
-    'float64', no max_work, or more paths than --n-paths."""
+    'float64', no max_work, more paths than --n-paths, or no max_events (--max-events: the PDMP's
+    event bound, which its refusal says to raise)."""
     assert main(["bruteforce", "--t", "2.5", "--n-paths", "40", "--seed", "9", "--method", "pdmp", "--delta", "0.2",
-                 "--burn-in", "0.5", "--dtype", "float32", "--max-work", "4e9", "--json"]) == 0
+                 "--burn-in", "0.5", "--dtype", "float32", "--max-work", "4e9", "--max-events", "12345", "--json"]) == 0
     (p, seed), kw = _only(calls, "bruteforce")
     assert seed == 9 and p == Params(**FIG3)
     assert kw == dict(t=2.5, n_paths=40, method="pdmp", h=None, delta=0.2, burn_in=0.5, dtype="float32",
-                      max_work=4e9)
+                      max_events=12345, max_work=4e9)
     calls.list.clear()
     assert main(["bruteforce", "--t", "1", "--n-paths", "40", "--h", "0.0005", "--json"]) == 0
     assert _only(calls, "bruteforce")[1]["h"] == 0.0005
+    assert _only(calls, "bruteforce")[1]["max_events"] is None  # the API's default bound
     capsys.readouterr()
 
 
