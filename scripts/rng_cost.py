@@ -36,11 +36,11 @@ def hash_timer(dtype):
         w1, w2 = rng._bits(jax.random.key_data(block_keys(keys, b)), BLOCK, 2, dtype)
         return jax.lax.fori_loop(0, BLOCK, lambda i, a: a + w1[i] + w2[i], acc)
 
-    return _device_timer(body, lambda m: jnp.zeros((m,), w_dtype(dtype)), LANES, BLOCK, N, 5)
+    return _device_timer(body, lambda m: jnp.zeros((m,), rng._uint(dtype)), LANES, BLOCK, N, 5)
 
 
 def box_muller_timer(dtype):
-    """A timer of Box-Muller normals from the same bits (not the engine's: for comparison), a step's
+    r"""A timer of Box-Muller normals from the same bits (not the engine's: for comparison), a step's
     pair :math:`\sqrt{-2\ln u_1}\,(\cos 2\pi u_2, \sin 2\pi u_2)` with :math:`u_1 \in (0, 1]`: one log,
     sqrt, cos and sin per two normals, where the inverse erf takes a log, a sqrt and polynomials per normal."""
     def body(keys, b, acc):
@@ -52,10 +52,6 @@ def box_muller_timer(dtype):
         return jax.lax.fori_loop(0, BLOCK, lambda i, a: a + z1[i] + z2[i], acc)
 
     return _device_timer(body, lambda m: jnp.zeros((m,), dtype), LANES, BLOCK, N, 5)
-
-
-def w_dtype(dtype):
-    return np.uint64 if np.dtype(dtype).itemsize == 8 else np.uint32
 
 
 @numba.njit(nogil=True)
