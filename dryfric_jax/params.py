@@ -221,13 +221,10 @@ class Params(eqx.Module):
         check_positive("Gamma", Gamma)
         check_positive("Delta", Delta)
         # the numbers as given are checked by their own names (tau' = -1 was refused as "tau ... (got -0.222)", a
-        # value the user never gave); a tracer (under jit) is kept and checked through Params on the concrete call
-        # (it was None here: a TypeError)
+        # value the user never gave)
         check_positive("tau'", tau)
         check_positive("tau_L'", tau_L, allow_inf=True)
         check_finite("gamma_bar'", gamma_bar)
-        nd = {k: (v, _concrete(k, v)) for k, v in (("tau", tau), ("tau_L", tau_L), ("gamma_bar", gamma_bar))}
-        tau, tau_L, gamma_bar = (v if c is None else c for v, c in nd.values())
         Gamma, Delta = float(Gamma), float(Delta)
         tau0 = _tau0(Gamma, Delta)
         lo, hi = SCALE_RANGE
@@ -235,10 +232,14 @@ class Params(eqx.Module):
             raise ValueError(f"Gamma and Delta must keep tau0 = Gamma/Delta^2 in [{lo:g}, {hi:g}] (got {tau0:.3g} from "
                              f"Gamma = {Gamma!r}, Delta = {Delta!r}): out of floating-point range, express the "
                              "parameters in other units")
-        for (name, (_, v)), unit in zip(nd.items(), (tau0, tau0, Delta)):
-            if v is not None and math.isfinite(v) and not math.isfinite(v * unit):  # 1e300 tau0: tau_L = inf
-                raise ValueError(f"{name} must keep {name}' x its unit finite (got {name}' = {v!r} with unit "
+        nd = []
+        for name, v, unit in (("tau", tau, tau0), ("tau_L", tau_L, tau0), ("gamma_bar", gamma_bar, Delta)):
+            c = _concrete(name, v)  # a Python float; None for a tracer, kept (Params checks it on the concrete call)
+            if c is not None and math.isfinite(c) and not math.isfinite(c * unit):  # 1e300 tau0: tau_L = inf
+                raise ValueError(f"{name} must keep {name}' x its unit finite (got {name}' = {c!r} with unit "
                                  f"{unit:.3g}): choose a smaller Gamma or Delta")
+            nd.append(v if c is None else c)
+        tau, tau_L, gamma_bar = nd
         return cls(Gamma=Gamma, Delta=Delta, tau=tau * tau0, tau_L=tau_L * tau0,
                    gamma_bar=gamma_bar * Delta)
 
