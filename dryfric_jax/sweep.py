@@ -285,13 +285,10 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
     # (skip_refused): the refusal, raised by estimate_diffusivity, ended the sweep; its record is kept
     rerun = {i for i in grid_idents if i in have and i not in refused
              and (_more_time(have[i], max_time) or _outdated(have[i]))}
-    todo, seen = [], set(have) - rerun
-    for ident, pt in zip(grid_idents, full):
-        if ident not in seen:
-            todo.append((ident, pt))
-            seen.add(ident)  # a point listed twice runs once
-    # the counts are over the grid's distinct points: a point listed twice was counted as "already in the file"
-    distinct = list(dict.fromkeys(grid_idents))
+    # the grid's distinct points, in order: a point listed twice runs once, and is counted once (it was
+    # counted as "already in the file")
+    distinct = dict(zip(grid_idents, full))
+    todo = [(i, pt) for i, pt in distinct.items() if i not in have or i in rerun]
     total = len(distinct)
     done = total - len(todo)
     skipped = done - sum(i in have and status(have[i]) == "refused" for i in distinct)
