@@ -40,6 +40,23 @@ def test_exact_steps_refuses_a_near_miss_at_every_scale(t, h):
         exact_steps(t, h)
 
 
+@pytest.mark.parametrize("t,h,n", [(np.float32(0.5), 0.125, 4), (np.int64(3), 0.25, 12), (1, np.float32(0.125), 8),
+                                   (np.float64(0.3), np.float64(0.1), 3), (0.5, np.array(0.125), 4)])
+def test_exact_steps_takes_numpy_scalars(t, h, n):
+    """A numpy float32 or int64 (a value read from an array) is the number it holds: 0.5 and 0.125
+    are exact in float32, so 4 steps.  Was refused as "t and h must be finite numbers" (the check
+    asked for a Python int or float)."""
+    got = exact_steps(t, h)
+    assert got == n and type(got) is int
+
+
+@pytest.mark.parametrize("t,h", [(True, 0.5), (1.0, True), (np.bool_(True), 0.5), ("1", 0.5), (None, 0.5)])
+def test_exact_steps_refuses_what_is_no_time(t, h):
+    """A bool is no time (True was taken as t = 1: 2 steps of 0.5), nor a string or None."""
+    with pytest.raises(ValueError, match="must be finite numbers > 0"):
+        exact_steps(t, h)
+
+
 def test_split_set_is_closed():
     """C = [c1, c2] (module docstring): both ends belong to it, their float neighbours outside do
     not.  Kills strict inequalities in ``SplitSet.contains`` (``x > c1`` and ``x < c2``)."""
