@@ -24,7 +24,7 @@ import numpy as np  # noqa: E402
 
 from dryfric_jax import rng  # noqa: E402
 from dryfric_jax.bench import _device_timer, rng_bound_timer  # noqa: E402
-from dryfric_jax.excursions import BLOCK, block_keys  # noqa: E402
+from dryfric_jax.excursions import BLOCK, UNROLL, block_keys  # noqa: E402
 
 LANES, N = 512, 1 << 23  # the bench's RNG-bound defaults
 
@@ -34,7 +34,7 @@ def hash_timer(dtype):
     what :func:`rng.normals` transforms) were all the lanes did."""
     def body(keys, b, acc):
         w1, w2 = rng._bits(jax.random.key_data(block_keys(keys, b)), BLOCK, 2, dtype)
-        return jax.lax.fori_loop(0, BLOCK, lambda i, a: a + w1[i] + w2[i], acc)
+        return jax.lax.fori_loop(0, BLOCK, lambda i, a: a + w1[i] + w2[i], acc, unroll=UNROLL)
 
     return _device_timer(body, lambda m: jnp.zeros((m,), rng._uint(dtype)), LANES, BLOCK, N, 5)
 
@@ -49,7 +49,7 @@ def box_muller_timer(dtype):
         r = jnp.sqrt(np.array(-2.0, dtype) * jnp.log(u1))
         th = np.array(2 * np.pi, dtype) * rng._unit(w2, dtype, 0.0, 1.0)
         z1, z2 = r * jnp.cos(th), r * jnp.sin(th)
-        return jax.lax.fori_loop(0, BLOCK, lambda i, a: a + z1[i] + z2[i], acc)
+        return jax.lax.fori_loop(0, BLOCK, lambda i, a: a + z1[i] + z2[i], acc, unroll=UNROLL)
 
     return _device_timer(body, lambda m: jnp.zeros((m,), dtype), LANES, BLOCK, N, 5)
 
