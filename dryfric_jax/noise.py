@@ -64,7 +64,7 @@ def grid_size(delta: float, tau: float, gamma_bar: float = 0.0) -> int:
     """N, the grid is x_k = k delta for |k| <= N (nondimensional delta, tau, gamma_bar)."""
     check_delta(delta, tau, gamma_bar)
     n = required_reach(tau, gamma_bar) / delta  # may be inf
-    if not n < 2**30 - 2:
+    if not n <= 2**30 - 2:  # 2 ceil(n) + 3 <= 2**31 - 1 points
         raise ValueError(f"delta = {delta!r} is too small: the noise grid would have {2.0 * n + 3:.3g} points "
                          f"(at most {2**31 - 1}); for these parameters use method 'di'")
     N = math.ceil(n) + 1

@@ -154,9 +154,15 @@ def split_at(keys, i: int):
     return _hashed(keys, i, _key, lambda ks: _each(lambda k: jax.random.split(k)[i], ks))
 
 
+def _check_dtype(dtype) -> None:
+    if np.dtype(dtype) not in (np.dtype(np.float32), np.dtype(np.float64)):
+        raise ValueError(f"dtype must be float32 or float64 (got {np.dtype(dtype).name})")
+
+
 def uniform(keys, dtype, minval: float = 0.0, maxval: float = 1.0):
     """``jax.random.uniform(key, (), dtype, minval, maxval)`` of every key, elementwise (so it also
     runs under ``vmap``): counter 0's bits, transformed as in :func:`uniforms`."""
+    _check_dtype(dtype)
     wide = np.dtype(dtype).itemsize == 8
     return _hashed(keys, 0, lambda a, b: _unit(_join(a, b, wide), dtype, minval, maxval),
                    lambda ks: _each(lambda k: jax.random.uniform(k, (), dtype, minval, maxval), ks))
@@ -168,8 +174,7 @@ def _draw(keys, block: int, n: int, dtype, sample, transform, start=None):
     ``[start, start + block)`` of the per-lane array (``sample`` is then not used): the fused
     hash on every platform, materialised on a CPU only (a GPU would read the ``lax.cond``'s
     predicate back to the host)."""
-    if np.dtype(dtype) not in (np.dtype(np.float32), np.dtype(np.float64)):
-        raise ValueError(f"dtype must be float32 or float64 (got {np.dtype(dtype).name})")
+    _check_dtype(dtype)
     via_jax = lambda ks: per_lane(sample, ks, n)
     if not is_threefry(keys):
         if start is not None:
