@@ -22,10 +22,11 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
 import os
 import time
 import warnings
+
+import numpy as np
 
 from .._version import __version__
 from ..api import (
@@ -37,8 +38,12 @@ _KINDS = {"estimate": (estimate_diffusivity, EstimateResult), "bruteforce": (bru
 
 
 def _canon(x):
-    if isinstance(x, float):
-        return "inf" if math.isinf(x) else repr(x)
+    """``x`` as JSON that names its value, not its type: a numpy float64 or int64 setting is the run of
+    the Python number it holds (numpy 2's repr of a float64 is ``np.float64(0.1)``)."""
+    if isinstance(x, (float, np.floating)):
+        return repr(float(x))  # 'inf', '-inf', 'nan' as JSON text
+    if isinstance(x, (int, np.integer)) and not isinstance(x, (bool, np.bool_)):
+        return int(x)
     if isinstance(x, dict):
         return {k: _canon(v) for k, v in x.items()}
     if isinstance(x, (list, tuple)):
