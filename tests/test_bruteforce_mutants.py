@@ -10,10 +10,10 @@ a fake ``_on_threads`` / ``over_lanes`` that records what it is given.
 Each test's docstring names the mutants it kills.  Mutants tried: 94 (36 of bruteforce.py, 58 of
 bench_numba.py); the other tests (the brute-force tests of test_di_step, test_stopping_rule, test_cli,
 test_reproducibility; all of test_bench_numba) killed 55 (27 and 28; 7 of those only by hanging test_bench_numba
-past a time limit); 5 are equivalent: one block more than needed (its steps are not counted), the redundant
-``[:n_paths]`` and ``np.asarray`` of the concatenated U, ``sums`` slicing one column more (``zip`` stops at
-SUMS), and the baseline's displacement ``h V_{n+1}`` for the trapezoid (equal: every cycle starts and ends at
-V = 0).  A few killed here change no distribution but the stream or an edge of probability 0 (the draw order,
+past a time limit: the tests here kill each of the 7 in seconds); 5 are equivalent: one block more than needed
+(its steps are not counted), the redundant ``[:n_paths]`` and ``np.asarray`` of the concatenated U, ``sums``
+slicing one column more (``zip`` stops at SUMS), and the baseline's displacement ``h V_{n+1}`` for the
+trapezoid (equal: every cycle starts and ends at V = 0).  A few killed here change no distribution but the stream or an edge of probability 0 (the draw order,
 the clock from u for 1 - u, the closed edge of C_+, u = 0, the start at -x_Delta): they pin what the same seed
 gives and the engine's conventions.
 """
@@ -297,6 +297,32 @@ def test_the_di_worker_runs_two_excursions_by_hand():
     want = _sums_by_hand([(-0.75, 3.0), (-0.25, 2.0)])
     assert got == pytest.approx(want, rel=1e-15, abs=1e-15) and got["n"] == 2
     assert useful == 11
+
+
+# The scripted DI worker with the viscous term 1/tau_L = 1 (the script above has none): the same trivial OU pair
+# and sets, h = 1/2, so w = V + (z1 - V)/2.  (X, V at the start; U, n after the step; U += (V + V')/4.)
+#  s1 X=1  V=0     z1=4: V'=1.5 in C_+: log r = -2.5, u=.05: heads, a cycle starts: U = .375, n = 1
+#  s2 X=1  V=1.5   z1=0: w = .75, V'=.25 (the damping; without it w = 1.5: V' = 1): U = .8125, n = 2
+#  s3 X=1  V=.25   z1=0: w = .125, V'=0 (stuck): U = .875, n = 3
+#  s4 X=-1 V=0     z1=-5: V'=-2 in C_-: log r = min(2, -3) = -3, u=.04 (log -3.22): heads: U = .375, n = 4
+#  s5 X=-1 V=-2    z1=0: w = -1, V'=-.5: U = -.25, n = 5
+#  s6 X=-1 V=-.5   z1=0: w = -.25, V'=-0 (stuck): U = -.375, n = 6
+#  s7 X=1  V=-0    z1=4: V'=1.5 in C_+: log r = -2.5, u=.05: heads: (U, t) = (-.375, 6 h = 3) closes; 7 useful.
+# With the damping's sign flipped (w = V + (z1 + V)/2) the velocity grows (1.5, 1.75, 2.125, ...), never sticks,
+# and the script runs out (IndexError) where the real baseline ran for ever.
+_Z_VISCOUS = [(4, 1.0), (0, 1.0), (0, -1.0), (-5, -1.0), (0, -1.0), (0, 1.0), (4, 1.0)]
+
+
+def test_the_di_worker_damps_the_velocity_by_hand():
+    """The scripted run above with 1/tau_L = 1: one excursion (-0.375, 3), 7 useful steps, every number drawn.
+    Kills the viscous term's sign flipped (``gb + V itl``), which the other tests saw only as test_bench_numba
+    hanging, and the term dropped."""
+    g = _Script([float(z) for zz in _Z_VISCOUS for z in zz], [0.05, 0.04, 0.05])
+    acc = nb._worker.py_func(g, 1, 100, **dict(_DI, itl=1.0))
+    assert g.z == [] and g.u == []
+    got = dict(zip(nb.SUMS, acc[:len(nb.SUMS)]))
+    assert got == pytest.approx(_sums_by_hand([(-0.375, 3.0)]), rel=1e-15, abs=1e-15) and got["n"] == 1
+    assert acc[len(nb.SUMS)] == 7
 
 
 def test_the_di_worker_drops_an_excursion_at_max_steps_and_seeks_again():
