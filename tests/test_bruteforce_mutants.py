@@ -7,15 +7,15 @@ Python (``_worker.py_func``) on a scripted generator whose normals and uniforms 
 calculation (below); the sums :math:`\sum U^p t^q` written out by hand; numpy's own ``Generator`` recipe;
 a fake ``_on_threads`` / ``over_lanes`` that records what it is given.
 
-Each test's docstring names the mutants it kills.  Mutants tried: 94 (36 of bruteforce.py, 58 of
-bench_numba.py); the other tests (the brute-force tests of test_di_step, test_stopping_rule, test_cli,
-test_reproducibility; all of test_bench_numba) killed 55 (27 and 28; 7 of those only by hanging test_bench_numba
-past a time limit: the tests here kill each of the 7 in seconds); 5 are equivalent: one block more than needed
-(its steps are not counted), the redundant ``[:n_paths]`` and ``np.asarray`` of the concatenated U, ``sums``
-slicing one column more (``zip`` stops at SUMS), and the baseline's displacement ``h V_{n+1}`` for the
-trapezoid (equal: every cycle starts and ends at V = 0).  A few killed here change no distribution but the stream or an edge of probability 0 (the draw order,
-the clock from u for 1 - u, the closed edge of C_+, u = 0, the start at -x_Delta): they pin what the same seed
-gives and the engine's conventions.
+Each test's docstring names the mutants it kills. Mutants tried: 94 (36 of bruteforce.py, 58 of bench_numba.py); the
+other tests (the brute-force tests of test_di_step, test_stopping_rule, test_cli, test_reproducibility; all of
+test_bench_numba) killed 55 (27 and 28; 7 of those only by hanging test_bench_numba past a time limit: the tests
+here kill each of the 7 in seconds); 5 are equivalent: one block more than needed (its steps are not counted), the
+redundant ``[:n_paths]`` and ``np.asarray`` of the concatenated U, ``sums`` slicing one column more (``zip`` stops
+at SUMS), and the baseline's displacement ``h V_{n+1}`` for the trapezoid (equal: every cycle starts and ends at V =
+0). A few killed here change no distribution but the stream or an edge of probability 0 (the draw order, the clock
+from u for 1 - u, the closed edge of C_+, u = 0, the start at -x_Delta): they pin what the same seed gives and the
+engine's conventions.
 """
 import inspect
 import math
