@@ -91,7 +91,10 @@ def grid(**axes) -> list[dict]:
 
 
 def _canon(x):
-    return "inf" if isinstance(x, float) and math.isinf(x) else repr(float(x)) if isinstance(x, (int, float)) else x
+    """A number as the repr of its float ('inf' for tau_L = inf, as before); anything else as is.  The
+    old special case for infinities wrote -inf as 'inf' too (as figures.points did); Params refuses
+    -inf before any identity is made, so no point's identity or seed changes."""
+    return repr(float(x)) if isinstance(x, (int, float)) else x
 
 
 def _ident(seed: int, params: dict, settings: dict) -> str:

@@ -196,3 +196,12 @@ def test_a_write_that_fails_leaves_the_old_file_whole_and_no_temporary_file(tmp_
         outfiles.write_atomic(str(out), "new\n")
     monkeypatch.undo()
     assert out.read_text() == "old\n" and os.listdir(tmp_path) == ["s.jsonl"]
+
+
+def test_an_identity_tells_minus_inf_from_inf():
+    """A point's identity writes a number as the repr of its float, so tau_L = -inf (refused by Params
+    before any identity is made) can never share the identity, and so the seed and record, of tau_L =
+    inf.  The old special case wrote both 'inf'."""
+    ident = lambda tau_L: sweep._ident(0, {**FIG3, "tau_L": tau_L}, {})  # noqa: E731
+    assert ident(-math.inf) != ident(math.inf)
+    assert json.loads(ident(math.inf))[1]["tau_L"] == "inf"
