@@ -218,7 +218,7 @@ def run_bench(n_excursions: int = 10_000, numba_excursions: int = 10_000, seed: 
                        named(f"pdmp_event_floor_{dt}_events_per_s",
                              chain_floor_timer(make_pdmp_model(p, default_delta(p), dt), pdmp_lanes, n=floor_n))]
         try:
-            from .bench_numba import RNG, run_numba, run_numba_pdmp
+            from .bench_numba import RNG, BaselineIncomplete, run_numba, run_numba_pdmp
         except Exception as exc:  # not installed, or broken in this environment: say so, go on
             out["numba"] = f"unavailable ({type(exc).__name__}: {exc}); pip install -e '.[bench]'"
         else:
@@ -230,13 +230,8 @@ def run_bench(n_excursions: int = 10_000, numba_excursions: int = 10_000, seed: 
             out["numba_rng"] = RNG
             pm, dm = make_pdmp_model(p, default_delta(p)), make_di_model(p, default_h(p))
 
-            def numba_timer():
-                m = {f"numba_pdmp_{k}t_events_per_s": v
-                     for k, v in _numba_rates(run_numba_pdmp, pm, numba_excursions, seed).items()}
-                m.update({f"numba_{k}t_steps_per_s": v for k, v in _numba_rates(run_numba, dm, numba_excursions,
-                                                                                seed).items()})
-                return m
-            timers.append(numba_timer)
+            timers.append(lambda: _numba_round(out, (run_numba_pdmp, pm), (run_numba, dm), numba_excursions, seed,
+                                               BaselineIncomplete))
         rounds = []
         for _ in range(repeat):
             m = {}
@@ -244,10 +239,33 @@ def run_bench(n_excursions: int = 10_000, numba_excursions: int = 10_000, seed: 
                 m.update(f())
             m.update(_ratios(m))
             rounds.append(m)
-    for k in rounds[0]:
+    return _medians(out, rounds)
+
+
+def _numba_round(out: dict, pdmp, di, n_excursions: int, seed: int, stopped=()) -> dict:
+    """One round's numba rates: ``pdmp`` and ``di`` are (run, model).  A baseline that stops at its work
+    bound (the exception ``stopped``: it is broken) is said in ``out["numba"]`` and gives no rates, in
+    this round and the later ones; the other numbers are kept."""
+    if "numba" in out:
+        return {}
+    try:
+        m = {f"numba_pdmp_{k}t_events_per_s": v for k, v in _numba_rates(*pdmp, n_excursions, seed).items()}
+        m.update({f"numba_{k}t_steps_per_s": v for k, v in _numba_rates(*di, n_excursions, seed).items()})
+    except stopped as exc:
+        out["numba"] = f"stopped ({exc})"
+        return {}
+    return m
+
+
+def _medians(out: dict, rounds: list) -> dict:
+    """``out`` with each number of the rounds as its median over them, taken over the numbers every round
+    has (a baseline that stopped in a later round has none); with several rounds, also ``ranges`` and
+    ``rounds``."""
+    keys = [k for k in rounds[0] if all(k in r for r in rounds)]
+    for k in keys:
         out[k] = float(np.median([r[k] for r in rounds]))
-    if repeat > 1:
-        out["ranges"] = {k: [min(r[k] for r in rounds), max(r[k] for r in rounds)] for k in rounds[0]}
+    if len(rounds) > 1:
+        out["ranges"] = {k: [min(r[k] for r in rounds), max(r[k] for r in rounds)] for k in keys}
         out["rounds"] = rounds
     return out
 
@@ -344,12 +362,16 @@ def tune_layout(lanes_list, blocks, dtype: str = "float32", n_excursions: int = 
                    ratio_best_to_chain_floor=best["lane_steps_per_s"] / floor)
     if numba_excursions > 0:
         try:
-            from .bench_numba import run_numba
+            from .bench_numba import BaselineIncomplete, run_numba
         except Exception as exc:
             out["numba"] = f"unavailable ({type(exc).__name__}: {exc}); pip install -e '.[bench]'"
         else:
-            rate = _numba_rates(run_numba, make_di_model(p, default_h(p)), numba_excursions, seed, (2,))[2]
-            out.update(numba_2t_steps_per_s=rate, ratio_best_to_numba_2t=best["lane_steps_per_s"] / rate)
+            try:
+                rate = _numba_rates(run_numba, make_di_model(p, default_h(p)), numba_excursions, seed, (2,))[2]
+            except BaselineIncomplete as exc:
+                out["numba"] = f"stopped ({exc})"
+            else:
+                out.update(numba_2t_steps_per_s=rate, ratio_best_to_numba_2t=best["lane_steps_per_s"] / rate)
     return out
 
 

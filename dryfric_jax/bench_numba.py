@@ -17,16 +17,33 @@ numba is an optional extra (``pip install -e ".[bench]"``); it is never imported
 from __future__ import annotations
 
 import math
+import numbers
+import warnings
 from concurrent.futures import ThreadPoolExecutor
 
 import numba
 import numpy as np
 
+from .limits import MAX_WORK
+
 SEEK, PLUS, MINUS = 0, 1, 2
 #: what the loops draw from (``dryfric bench`` records it with the numbers)
 RNG = "numpy.random.Generator(PCG64), one per worker; normals by the ziggurat method"
-#: the sums each worker returns, in this order, then its steps (events); ``t_half`` is not tracked
+#: the sums each worker returns, in this order, then :data:`TAIL`; ``t_half`` is not tracked
 SUMS = ("n", "U", "U2", "U3", "U4", "t", "t2", "t3", "t4", "Ut", "U2t", "U3t", "Ut2", "U2t2", "Ut3")
+#: after the sums, each worker's useful steps (events: those in an excursion), its excursions that reached
+#: ``max_steps`` (closed, not in the sums) and its work (every step or event, seeks included)
+TAIL = ("steps", "n_truncated", "work")
+STEPS, TRUNC, WORK = (len(SUMS) + i for i in range(len(TAIL)))
+
+
+class BaselineIncomplete(RuntimeError):
+    """A worker reached its work bound before its excursions were done.  ``rows`` holds what every
+    worker had (the sums of its complete excursions, then :data:`TAIL`)."""
+
+    def __init__(self, message: str, rows):
+        super().__init__(message)
+        self.rows = rows
 
 
 @numba.njit(nogil=True, cache=False)
@@ -57,11 +74,42 @@ def generators(seed: int, threads: int):
 
 def _on_threads(worker, seed: int, threads: int, n_excursions: int, args):
     """``worker(generator, n_each, *args)`` on ``threads`` threads (numba releases the GIL: nogil),
-    ``n_each = ceil(n_excursions / threads)``; one row per worker: the sums, then the steps."""
+    ``n_each = ceil(n_excursions / threads)``; one row per worker: the sums, then :data:`TAIL`."""
     n_each = -(-n_excursions // threads)
     with ThreadPoolExecutor(threads) as ex:
         rows = list(ex.map(lambda g: worker(g, n_each, *args), generators(seed, threads)))
     return np.array(rows)
+
+
+def _bounds(threads: int, max_steps, max_work) -> tuple:
+    """The worker's bounds as integers: ``max_steps`` per excursion and ``max_work / threads`` steps
+    (events) in all, each at least 1; ``ValueError`` names the one out of range."""
+    if isinstance(threads, bool) or not isinstance(threads, numbers.Integral) or threads < 1:
+        raise ValueError(f"threads must be an integer >= 1, got {threads!r}")
+    for name, v in (("max_steps", max_steps), ("max_work", max_work)):
+        if isinstance(v, bool) or not isinstance(v, numbers.Real) or not 1 <= v <= 2.0**62:
+            raise ValueError(f"{name} must be a number in [1, 2**62], got {v!r}")
+    return int(max_steps), max(1, math.ceil(max_work / threads))
+
+
+def _finished(out, n_excursions: int, threads: int, each: int, what: str, unit: str):
+    """``out`` and its useful steps (events), after the checks: every worker ran its excursions (else
+    :class:`BaselineIncomplete`, the rows kept), and the truncated ones are reported (a warning)."""
+    n_each = -(-n_excursions // threads)
+    short = [i for i in range(len(out)) if out[i, 0] < n_each]
+    if short:
+        i = short[0]
+        raise BaselineIncomplete(
+            f"numba {what} baseline: worker {i} reached its work bound of {each} {unit} after "
+            f"{int(out[i, 0])} of its {n_each} excursions ({len(short)} of {len(out)} workers stopped short; "
+            f"raise max_work, or the baseline is broken)", out)
+    n_trunc = int(out[:, TRUNC].sum())
+    if n_trunc:
+        from .api import DryfricWarning
+
+        warnings.warn(f"numba {what} baseline: {n_trunc} excursions reached max_steps and were closed without "
+                      f"entering the sums", DryfricWarning, stacklevel=3)
+    return out, int(out[:, STEPS].sum())
 
 
 def sums(out) -> dict:
@@ -72,17 +120,19 @@ def sums(out) -> dict:
 
 
 @numba.njit(nogil=True, cache=False)
-def _worker(g, n_exc, max_steps, h, gb, itl, m1, m2, L11, L21, L22, P, M, x0):
-    """``n_exc`` long excursions drawn from the Generator ``g``; returns the sums (:data:`SUMS`)
-    and the useful steps.
+def _worker(g, n_exc, max_steps, max_work, h, gb, itl, m1, m2, L11, L21, L22, P, M, x0):
+    """``n_exc`` long excursions drawn from the Generator ``g``, in at most ``max_work`` steps; returns
+    the sums (:data:`SUMS`), then :data:`TAIL`.  An excursion reaching ``max_steps`` steps is closed,
+    counted and left out of the sums, and the worker seeks again (as the engine does).
 
     P, M: (c1, c2, a1, a2, a_sq) of C_+ and C_-.
     """
     X, V, U, n, phase = x0, 0.0, 0.0, 0, SEEK
     cnt = 0
-    acc = np.zeros(len(SUMS) + 1)
-    useful = 0
-    while cnt < n_exc:
+    acc = np.zeros(len(SUMS) + len(TAIL))
+    useful = trunc = work = 0
+    while cnt < n_exc and work < max_work:
+        work += 1
         z1 = g.standard_normal()
         z2 = g.standard_normal()
         Xi = X * m1 + L11 * z1
@@ -112,34 +162,41 @@ def _worker(g, n_exc, max_steps, h, gb, itl, m1, m2, L11, L21, L22, P, M, x0):
             useful += 1
         X, V = Xn, Vn
         if n >= max_steps:
+            trunc += 1
             U, n, phase = 0.0, 0, SEEK
-    acc[len(SUMS)] = useful
+    acc[STEPS], acc[TRUNC], acc[WORK] = useful, trunc, work
     return acc
 
 
-def run_numba(model, n_excursions: int, threads: int, seed: int = 0, max_steps: int = 10**9):
-    """Run the DI baseline on ``threads`` threads, ``ceil(n_excursions / threads)`` excursions each;
-    returns (one row per worker: :data:`SUMS` then useful steps, useful steps)."""
+def run_numba(model, n_excursions: int, threads: int, seed: int = 0, max_steps: int = 10**9,
+              max_work: float = MAX_WORK):
+    """Run the DI baseline on ``threads`` threads, ``ceil(n_excursions / threads)`` excursions each, in
+    at most ``max_work`` steps in all (``max_work / threads`` each; the engine's default bound);
+    returns (one row per worker: :data:`SUMS` then :data:`TAIL`, useful steps).  Raises
+    :class:`BaselineIncomplete` where a worker reached its bound first."""
+    max_steps, each = _bounds(threads, max_steps, max_work)
     f = lambda v: float(np.asarray(v))
     sset = lambda s: np.array([f(s.c1), f(s.c2), f(s.a1), f(s.a2), f(s.a_sq)])
     o = model.ou
     out = _on_threads(_worker, seed, threads, n_excursions,
-                      (max_steps, f(model.h), f(model.gamma_bar), f(model.inv_tau_L), f(o.m1), f(o.m2), f(o.L11),
-                       f(o.L21), f(o.L22), sset(model.plus), sset(model.minus), f(model.x_plus)))
-    return out, int(out[:, -1].sum())
+                      (max_steps, each, f(model.h), f(model.gamma_bar), f(model.inv_tau_L), f(o.m1), f(o.m2),
+                       f(o.L11), f(o.L21), f(o.L22), sset(model.plus), sset(model.minus), f(model.x_plus)))
+    return _finished(out, n_excursions, threads, each, "DI", "steps")
 
 
 # ---- PDMP: the same event algorithm as dryfric_jax.pdmp, long excursions s+ -> s- -> s+ ----
 @numba.njit(nogil=True, cache=False)
-def _pdmp_worker(g, n_exc, N, kp, km, delta, c_alpha, rate, kappa, r_p, r_m):
-    """``n_exc`` long excursions drawn from the Generator ``g``; returns the sums (:data:`SUMS`)
-    and the events."""
+def _pdmp_worker(g, n_exc, max_work, N, kp, km, delta, c_alpha, rate, kappa, r_p, r_m):
+    """``n_exc`` long excursions drawn from the Generator ``g``, in at most ``max_work`` events;
+    returns the sums (:data:`SUMS`), then :data:`TAIL`.  It starts on s_+ and seeks nothing, so every
+    event is in an excursion (the events are the work) and none is truncated: the work bound is the
+    only one (a per-excursion bound cost ~10% of its speed, one core)."""
     k, y, v = kp + 1, 1, 0.0
     U, T, phase = 0.0, 0.0, PLUS
     cnt = 0
-    acc = np.zeros(len(SUMS) + 1)
+    acc = np.zeros(len(SUMS) + len(TAIL))
     events = 0
-    while cnt < n_exc:
+    while cnt < n_exc and events < max_work:
         u1 = 1.0 - g.random()
         u2 = g.random()
         a = 0.0
@@ -184,15 +241,17 @@ def _pdmp_worker(g, n_exc, N, kp, km, delta, c_alpha, rate, kappa, r_p, r_m):
             cnt += 1
             _add(acc, U, T)
             U, T, phase = 0.0, 0.0, PLUS
-    acc[len(SUMS)] = events
+    acc[STEPS], acc[WORK] = events, events
     return acc
 
 
-def run_numba_pdmp(model, n_excursions: int, threads: int, seed: int = 0):
-    """The PDMP baseline on ``threads`` threads; returns (rows as in :func:`run_numba`, events)."""
+def run_numba_pdmp(model, n_excursions: int, threads: int, seed: int = 0, max_work: float = MAX_WORK):
+    """The PDMP baseline on ``threads`` threads, in at most ``max_work`` events in all, as
+    :func:`run_numba`; returns (rows as in :func:`run_numba`, events)."""
+    _, each = _bounds(threads, 1, max_work)
     f = lambda v: float(np.asarray(v))
     i = lambda v: int(np.asarray(v))
     out = _on_threads(_pdmp_worker, seed, threads, n_excursions,
-                      (i(model.N), i(model.kp), i(model.km), f(model.delta), f(model.c_alpha), f(model.rate),
-                       f(model.inv_tau_L), f(model.r_p), f(model.r_m)))
-    return out, int(out[:, -1].sum())
+                      (each, i(model.N), i(model.kp), i(model.km), f(model.delta), f(model.c_alpha),
+                       f(model.rate), f(model.inv_tau_L), f(model.r_p), f(model.r_m)))
+    return _finished(out, n_excursions, threads, each, "PDMP", "events")

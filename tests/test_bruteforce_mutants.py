@@ -9,13 +9,13 @@ a fake ``_on_threads`` / ``over_lanes`` that records what it is given.
 
 Each test's docstring names the mutants it kills. Mutants tried: 94 (36 of bruteforce.py, 58 of bench_numba.py); the
 other tests (the brute-force tests of test_di_step, test_stopping_rule, test_cli, test_reproducibility; all of
-test_bench_numba) killed 55 (27 and 28; 7 of those only by hanging test_bench_numba past a time limit: the tests
-here kill each of the 7 in seconds); 5 are equivalent: one block more than needed (its steps are not counted), the
-redundant ``[:n_paths]`` and ``np.asarray`` of the concatenated U, ``sums`` slicing one column more (``zip`` stops
-at SUMS), and the baseline's displacement ``h V_{n+1}`` for the trapezoid (equal: every cycle starts and ends at V =
-0). A few killed here change no distribution but the stream or an edge of probability 0 (the draw order, the clock
-from u for 1 - u, the closed edge of C_+, u = 0, the start at -x_Delta): they pin what the same seed gives and the
-engine's conventions.
+test_bench_numba) killed 55 (27 and 28; 7 of those only by hanging test_bench_numba past a time limit: the tests here
+kill each of the 7 in seconds, and since the workers' work bound test_bench_numba stops them too); 5 are equivalent:
+one block more than needed (its steps are not counted), the redundant ``[:n_paths]`` and ``np.asarray`` of the
+concatenated U, ``sums`` slicing one column more (``zip`` stops at SUMS), and the baseline's displacement ``h
+V_{n+1}`` for the trapezoid (equal: every cycle starts and ends at V = 0). A few killed here change no distribution
+but the stream or an edge of probability 0 (the draw order, the clock from u for 1 - u, the closed edge of C_+, u = 0,
+the start at -x_Delta): they pin what the same seed gives and the engine's conventions.
 """
 import inspect
 import math
@@ -30,6 +30,7 @@ import dryfric_jax as dj
 from dryfric_jax import bruteforce
 from dryfric_jax.di import make_di_model
 from dryfric_jax.excursions import BLOCK
+from dryfric_jax.limits import MAX_WORK
 from dryfric_jax.ou import ou_moments_reference
 from dryfric_jax.pdmp import make_pdmp_model
 from dryfric_jax.plan import default_delta, default_h
@@ -152,10 +153,10 @@ def test_add_and_sums_are_the_power_sums_by_name():
     every :math:`\\sum U^p t^q` under its name (exact in binary), ``t_half`` = 0, and not the steps.  Kills
     wrong powers in ``_add`` (U^4 for U^3, U^3 for U^4, t^3 for t^4, U^2 t for U t^2, U t^2 for U t^3), the
     names U2t and Ut2 swapped in SUMS, and the ``t_half`` entry dropped."""
-    rows = np.zeros((2, len(nb.SUMS) + 1))
+    rows = np.zeros((2, len(nb.SUMS) + len(nb.TAIL)))
     nb._add(rows[0], 2.0, 3.0)
     nb._add(rows[1], -1.0, 0.5)
-    rows[:, -1] = [11.0, 7.0]
+    rows[:, len(nb.SUMS):] = [[11.0, 2.0, 13.0], [7.0, 1.0, 9.0]]
     got = nb.sums(rows)
     assert got == {**_sums_by_hand([(2.0, 3.0), (-1.0, 0.5)]), "t_half": 0.0}
     assert set(nb.SUMS) == set(POWERS)
@@ -192,11 +193,13 @@ def _recorded(monkeypatch, run, model):
 
     def fake(worker, seed, threads, n, args):
         rec.append((worker, seed, threads, n, args))
-        return np.array([[0.0] * len(nb.SUMS) + [7.0], [0.0] * len(nb.SUMS) + [5.0]])
+        # each of the 2 workers ran its 5 excursions; the steps, then no truncation, then the work
+        return np.array([[5.0] + [0.0] * (len(nb.SUMS) - 1) + [7.0, 0.0, 8.0],
+                         [5.0] + [0.0] * (len(nb.SUMS) - 1) + [5.0, 0.0, 9.0]])
 
     monkeypatch.setattr(nb, "_on_threads", fake)
     out, steps = run(model, 10, 2, 3)
-    assert steps == 12 and out.shape == (2, len(nb.SUMS) + 1)  # the steps: the last column's sum
+    assert steps == 12 and out.shape == (2, len(nb.SUMS) + 3)  # the steps: their column's sum (not the work's)
     (worker, seed, threads, n, args), = rec
     assert (seed, threads, n) == (3, 2, 10)
     return worker, dict(zip(list(inspect.signature(worker.py_func).parameters)[2:], args))
@@ -204,9 +207,10 @@ def _recorded(monkeypatch, run, model):
 
 def test_run_numba_passes_the_models_numbers_to_the_worker_by_name(monkeypatch):
     """``run_numba`` hands ``_worker`` the model's numbers in the worker's parameter order (its signature is
-    the oracle: P, M are (c1, c2, a1, a2, a_sq) of C_+ and C_-), max_steps 1e9 unless told.  Kills m1 and m2
-    swapped, L21 and L22 swapped, C_+ and C_- swapped, gamma_bar and 1/tau_L swapped, -x_Delta for the start,
-    a default max_steps of 1e3."""
+    the oracle: P, M are (c1, c2, a1, a2, a_sq) of C_+ and C_-), max_steps 1e9 unless told, and each of the 2
+    workers half the engine's default work bound (limits.MAX_WORK).  Kills m1 and m2 swapped, L21 and L22
+    swapped, C_+ and C_- swapped, gamma_bar and 1/tau_L swapped, -x_Delta for the start, a default max_steps
+    of 1e3, each worker given the whole work bound."""
     p = dj.Params(**dj.FIG3)
     m = make_di_model(p, default_h(p))
     worker, got = _recorded(monkeypatch, nb.run_numba, m)
@@ -214,8 +218,9 @@ def test_run_numba_passes_the_models_numbers_to_the_worker_by_name(monkeypatch):
     f = lambda a: float(np.asarray(a))
     sset = lambda s: [f(s.c1), f(s.c2), f(s.a1), f(s.a2), f(s.a_sq)]
     o = m.ou
-    want = dict(max_steps=10**9, h=f(m.h), gb=f(m.gamma_bar), itl=f(m.inv_tau_L), m1=f(o.m1), m2=f(o.m2),
-                L11=f(o.L11), L21=f(o.L21), L22=f(o.L22), P=sset(m.plus), M=sset(m.minus), x0=f(m.x_plus))
+    want = dict(max_steps=10**9, max_work=MAX_WORK / 2, h=f(m.h), gb=f(m.gamma_bar), itl=f(m.inv_tau_L),
+                m1=f(o.m1), m2=f(o.m2), L11=f(o.L11), L21=f(o.L21), L22=f(o.L22), P=sset(m.plus), M=sset(m.minus),
+                x0=f(m.x_plus))
     assert set(got) == set(want)
     for k in want:
         assert np.array_equal(got[k], want[k]), k
@@ -231,9 +236,9 @@ def test_run_numba_pdmp_passes_the_models_numbers_to_the_worker_by_name(monkeypa
     assert worker is nb._pdmp_worker
     f = lambda a: float(np.asarray(a))
     i = lambda a: int(np.asarray(a))
-    want = dict(N=i(m.N), kp=i(m.kp), km=i(m.km), delta=f(m.delta), c_alpha=f(m.c_alpha), rate=f(m.rate),
-                kappa=f(m.inv_tau_L), r_p=f(m.r_p), r_m=f(m.r_m))
-    assert got == want and type(got["N"]) is int and want["r_p"] != want["r_m"]
+    want = dict(max_work=MAX_WORK / 2, N=i(m.N), kp=i(m.kp), km=i(m.km), delta=f(m.delta), c_alpha=f(m.c_alpha),
+                rate=f(m.rate), kappa=f(m.inv_tau_L), r_p=f(m.r_p), r_m=f(m.r_m))
+    assert got == want and type(got["N"]) is int and type(got["max_work"]) is int and want["r_p"] != want["r_m"]
 
 
 class _Script:
@@ -278,11 +283,11 @@ _DI = dict(h=0.5, gb=0.0, itl=0.0, m1=0.0, m2=0.0, L11=1.0, L21=0.0, L22=1.0,
            P=np.array([0.5, 1.5, 1.0, 0.0, 4.0]), M=np.array([-1.5, -0.5, 1.0, 0.0, 4.0]), x0=1.0)
 
 
-def _scripted(n_exc, max_steps):
+def _scripted(n_exc, max_steps, max_work=100):
     g = _Script([float(z) for zz in _Z for z in zz], _U)
-    acc = nb._worker.py_func(g, n_exc, max_steps, **_DI)
+    acc = nb._worker.py_func(g, n_exc, max_steps, max_work, **_DI)
     assert g.z == [] and g.u == []  # every number drawn, no more
-    return dict(zip(nb.SUMS, acc[:len(nb.SUMS)])), acc[len(nb.SUMS)]
+    return dict(zip(nb.SUMS, acc[:len(nb.SUMS)])), dict(zip(nb.TAIL, acc[len(nb.SUMS):]))
 
 
 def test_the_di_worker_runs_two_excursions_by_hand():
@@ -293,10 +298,24 @@ def test_the_di_worker_runs_two_excursions_by_hand():
     (``phase == SEEK``); the seek's regeneration counted as an excursion; U doubled; ``useful += 2``; the
     count of excursions for the steps; seek steps counted as useful; the coin asked when V' = 0 (not V); C_+
     and C_- swapped; the two normals drawn in the other order; L21 z2 + L22 z1 for the next X."""
-    got, useful = _scripted(2, 7)
+    got, tail = _scripted(2, 7)
     want = _sums_by_hand([(-0.75, 3.0), (-0.25, 2.0)])
     assert got == pytest.approx(want, rel=1e-15, abs=1e-15) and got["n"] == 2
-    assert useful == 11
+    assert tail == {"steps": 11, "n_truncated": 0, "work": 13}  # the work: the 2 seek steps too
+
+
+def test_the_di_worker_stops_at_its_work_bound():
+    """The scripted run needs 13 steps in all: a bound of 13 lets it finish, 12 stops it before s11 (one
+    excursion of the two, every number but s11's drawn), 5 after s3 (none; 3 useful steps).  Kills the bound
+    dropped (a run that never ends on a broken chain), ``work <= max_work`` (12 finishes) and the work
+    counted only in excursions (seeks are work: 12 finishes)."""
+    assert _scripted(2, 7, max_work=13)[1]["work"] == 13
+    for bound, n, steps, left in ((12, 1, 10, 2), (5, 0, 3, 16)):
+        g = _Script([float(z) for zz in _Z for z in zz], _U)
+        acc = nb._worker.py_func(g, 2, 7, bound, **_DI)
+        tail = dict(zip(nb.TAIL, acc[len(nb.SUMS):]))
+        assert acc[0] == n and tail == {"steps": steps, "n_truncated": 0, "work": bound}, (bound, acc)
+        assert len(g.z) == left
 
 
 # The scripted DI worker with the viscous term 1/tau_L = 1 (the script above has none): the same trivial OU pair
@@ -318,21 +337,22 @@ def test_the_di_worker_damps_the_velocity_by_hand():
     Kills the viscous term's sign flipped (``gb + V itl``), which the other tests saw only as test_bench_numba
     hanging, and the term dropped."""
     g = _Script([float(z) for zz in _Z_VISCOUS for z in zz], [0.05, 0.04, 0.05])
-    acc = nb._worker.py_func(g, 1, 100, **dict(_DI, itl=1.0))
+    acc = nb._worker.py_func(g, 1, 100, 100, **dict(_DI, itl=1.0))
     assert g.z == [] and g.u == []
     got = dict(zip(nb.SUMS, acc[:len(nb.SUMS)]))
     assert got == pytest.approx(_sums_by_hand([(-0.375, 3.0)]), rel=1e-15, abs=1e-15) and got["n"] == 1
-    assert acc[len(nb.SUMS)] == 7
+    assert acc[nb.STEPS] == 7
 
 
-def test_the_di_worker_drops_an_excursion_at_max_steps_and_seeks_again():
-    """The same script with max_steps = 6: the first excursion reaches n = 6 at s6 and is dropped, the lane
-    seeks, s7 regenerates (not an excursion end), and the second one, 4 steps, is the only one counted; its
-    6 dropped steps were useful work.  Kills ``n > max_steps`` (the first one closes, numbers left over) and a
-    truncation that keeps the minus phase (a (0, 0) excursion at s7)."""
-    got, useful = _scripted(1, 6)
+def test_the_di_worker_closes_an_excursion_at_max_steps_counts_it_and_seeks_again():
+    """The same script with max_steps = 6: the first excursion reaches n = 6 at s6, is closed without entering
+    the sums and counted as truncated, the lane seeks, s7 regenerates (not an excursion end), and the second
+    one, 4 steps, is the only one in the sums; its 6 truncated steps were useful work.  Kills ``n > max_steps``
+    (the first one closes, numbers left over), a truncation that keeps the minus phase (a (0, 0) excursion at
+    s7) and a truncation not counted (the rule of the engine: reported, never silently dropped)."""
+    got, tail = _scripted(1, 6)
     assert got == pytest.approx(_sums_by_hand([(-0.25, 2.0)]), rel=1e-15, abs=1e-15)
-    assert useful == 11
+    assert tail == {"steps": 11, "n_truncated": 1, "work": 13}
 
 
 # The scripted PDMP worker: grid x_k = k (delta = 1), k_+ = k_- = 0 (stuck only at k = 0), r_+ = -1/2, r_- = 1/2,
@@ -391,9 +411,19 @@ def test_the_pdmp_worker_runs_one_excursion_by_hand(kappa, N):
     ``run_numba_pdmp`` is killed above.)"""
     r, U, T = _pdmp_by_hand(kappa)
     g = _Script([], [x for pair in zip(r, _U2[N]) for x in pair])
-    acc = nb._pdmp_worker.py_func(g, 1, N, 0, 0, 1.0, 0.1, 2.0, kappa, -0.5, 0.5)
+    acc = nb._pdmp_worker.py_func(g, 1, 100, N, 0, 0, 1.0, 0.1, 2.0, kappa, -0.5, 0.5)
     assert g.u == []
     got = dict(zip(nb.SUMS, acc[:len(nb.SUMS)]))
-    assert got["n"] == 1 and acc[len(nb.SUMS)] == 6
+    assert got["n"] == 1 and dict(zip(nb.TAIL, acc[len(nb.SUMS):])) == {"steps": 6, "n_truncated": 0, "work": 6}
     assert got["U"] == pytest.approx(U, rel=1e-12) and got["t"] == pytest.approx(T, rel=1e-12)
     assert abs(U) > 0.01 and got["Ut3"] == pytest.approx(U * T**3, rel=1e-12)
+
+
+def test_the_pdmp_worker_stops_at_its_work_bound():
+    """The scripted PDMP run (kappa = 0.01, N = 2) needs 6 events: a bound of 6 lets it finish, 5 stops it
+    before E6 (no excursion, E6's two uniforms not drawn).  Kills the bound dropped and ``events <= max_work``."""
+    r, _, _ = _pdmp_by_hand(0.01)
+    for bound, n, left in ((6, 1, 0), (5, 0, 2)):
+        g = _Script([], [x for pair in zip(r, _U2[2]) for x in pair])
+        acc = nb._pdmp_worker.py_func(g, 1, bound, 2, 0, 0, 1.0, 0.1, 2.0, 0.01, -0.5, 0.5)
+        assert acc[0] == n and acc[nb.STEPS] == acc[nb.WORK] == bound and len(g.u) == left, (bound, acc)

@@ -615,6 +615,35 @@ def test_numba_rates_are_the_steps_of_a_timed_run_per_second(monkeypatch):
     assert calls == [("m", 20, 1, None), ("m", 40, 1, 7), ("m", 40, 2, 7)]
 
 
+def test_a_numba_baseline_that_stops_is_said_and_the_other_rounds_numbers_kept():
+    """A baseline that reaches its work bound (``BaselineIncomplete``: broken) in the second round: that
+    round and the later ones have no numba rates, ``out["numba"]`` says why, and the medians are over the
+    numbers every round has (the first round's numba rates are not reported as if measured throughout)."""
+    from dryfric_jax import bench
+
+    class Stop(RuntimeError):
+        pass
+
+    def ok(model, n, threads, seed=None):
+        return None, 100
+
+    def broken(model, n, threads, seed=None):
+        if n != 20:  # the compile run passes
+            raise Stop("worker 0 reached its work bound")
+        return None, 1
+
+    out = {}
+    first = bench._numba_round(out, (ok, "p"), (ok, "d"), 40, 0, Stop)
+    assert set(first) == {f"numba_{w}{k}t_{u}_per_s" for k in (1, 2) for w, u in (("pdmp_", "events"), ("", "steps"))}
+    assert bench._numba_round(out, (ok, "p"), (broken, "d"), 40, 0, Stop) == {}
+    assert out == {"numba": "stopped (worker 0 reached its work bound)"}
+    assert bench._numba_round(out, (ok, "p"), (ok, "d"), 40, 0, Stop) == {}  # not measured again
+    got = bench._medians({"numba": out["numba"]}, [dict(first, x=1.0), dict(x=3.0), dict(x=8.0)])
+    assert got["x"] == 3.0 and not any(k.startswith("numba_") for k in got) and got["ranges"] == {"x": [1.0, 8.0]}
+    assert got["numba"].startswith("stopped") and len(got["rounds"]) == 3
+    assert "ranges" not in bench._medians({}, [dict(x=2.0)])
+
+
 def test_bench_tables_show_the_numbers_they_are_given():
     """format_table: one number a line (4 significant digits), with the rounds' [min-max] where they
     differ; format_layouts: the best layout and its ratios, and the layouts' agreement."""
