@@ -30,11 +30,22 @@ MINIMUM = {"jax": "0.6.2", "jaxlib": "0.6.2", "equinox": "0.12.2"}
 def pyproject_floors(text: str) -> dict:
     """Every ``name>=version`` floor of the ``dependencies = [...]`` list of a ``pyproject.toml``'s
     ``text``, as name -> version (the test that pyproject agrees with :data:`MINIMUM`, and
-    ``scripts/check_min_versions.sh``, which loads this file before the package is installed)."""
+    ``scripts/check_min_versions.sh``, which loads this file before the package is installed).
+
+    A requirement is a quoted PEP 508 string: its floor is the ``>=`` among its specifiers, also
+    beside others (``"numpy>=1.26,<3"``), with spaces, extras or a marker (``"a[x] >= 2; ..."``).
+    One without a floor is not listed; a comment is not read (``# jax's own floor``)."""
     deps = re.search(r"^dependencies = \[(.*?)^\]", text, re.S | re.M)
     if deps is None:
         raise ValueError("no 'dependencies = [...]' list in the pyproject text")
-    return dict(re.findall(r'"([A-Za-z0-9_.-]+)>=([0-9.]+)"', deps.group(1)))
+    floors = {}
+    body = re.sub(r"#[^\n]*", "", deps.group(1))  # comments (no requirement with a floor holds a '#')
+    for req in re.findall(r"\"([^\"]*)\"|'([^']*)'", body):
+        m = re.match(r"\s*([A-Za-z0-9_.-]+)\s*(?:\[[^\]]*\])?([^;]*)", req[0] or req[1])
+        floor = re.search(r">=\s*([0-9][0-9.]*)", m.group(2)) if m else None
+        if floor:
+            floors[m.group(1)] = floor.group(1).rstrip(".")
+    return floors
 
 
 def release(version: str) -> tuple[int, ...]:

@@ -28,11 +28,18 @@ dependencies = [
     "numpy>=1.26",  # a comment
     "typing-extensions>=4.0",
     "nofloor",
+    "capped<3",
+    "scipy>=1.12,<2",  # jax's own floor: 'quoted>=9' in a comment is not read
+    "matplotlib <4, >= 3.7",
+    'equinox>=0.12.2',
+    "rich[jupyter] >=13.1; python_version >= '3.9'",
+    "tqdm~=4.6",
 ]
 [project.optional-dependencies]
 dev = ["pytest>=7"]
 """
-    assert rq.pyproject_floors(text) == {"jax": "0.6.2", "numpy": "1.26", "typing-extensions": "4.0"}
+    assert rq.pyproject_floors(text) == {"jax": "0.6.2", "numpy": "1.26", "typing-extensions": "4.0", "scipy": "1.12",
+                                         "matplotlib": "3.7", "equinox": "0.12.2", "rich": "13.1"}
     with pytest.raises(ValueError, match="dependencies"):
         rq.pyproject_floors("[project]\nname = 'x'\n")
 
