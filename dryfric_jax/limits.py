@@ -183,7 +183,8 @@ def check_work(tau: float, tau_L: float, gamma_bar: float, steps_per_tau0: float
             f"{steps_per_tau0:.3g} {unit} per tau0 (tau' = {tau:.3g}, tau_L' = {tau_L:.3g}, "
             f"gamma_bar' = {gamma_bar:.3g}); {why}.  " + ("Coarsen" if beyond else "Raise --max-work, coarsen")
             + " h or delta, lower N, or use the white-noise theory when tau << tau0")
-    return min(math.exp(min(log_w, 700.0)), max_work)  # accepted: log_w <= log(max_work), up to rounding
+    # accepted: log_w <= log(max_work) <= log(largest float), up to rounding, so exp cannot overflow
+    return min(math.exp(min(log_w, math.log(max_work))), max_work)
 
 
 def _exp10(log_x: float) -> str:
