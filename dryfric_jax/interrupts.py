@@ -105,10 +105,13 @@ def cancel_timers() -> int:
     ``finally`` entered only after ``Timer.start()`` returns.  A Ctrl-C that lands inside that
     ``start()`` (it waits for the new thread) skips the ``finally``: the interpreter then waited
     60 s at exit for the timer, which printed its warning (seen once in CI, 2026-11-28, jax
-    0.10.2: ``dryfric estimate`` interrupted at 1.0 s took 61 s to exit 130)."""
+    0.10.2: ``dryfric estimate`` interrupted at 1.0 s took 61 s to exit 130).
+
+    Such a timer's thread may be created and not yet running (``threading.enumerate`` lists it,
+    ``is_alive()`` is still False): it is cancelled too, and its ``run`` then returns at once."""
     n = 0
     for t in threading.enumerate():
-        if isinstance(t, threading.Timer) and t.is_alive() and not t.finished.is_set():
+        if isinstance(t, threading.Timer) and not t.finished.is_set():
             t.cancel()
             n += 1
     return n
