@@ -32,7 +32,8 @@ downwards :math:`s_- = (x_{k_--1}, -1, 0)` (the kernel :math:`\mathcal Q` of app
 
 Thresholds (section 3.3): :math:`x_{k_+} \le 1 - \bar\gamma < x_{k_++1}` and
 :math:`x_{k_--1} < -1 - \bar\gamma \le x_{k_-}`.  The offsets :math:`r_\pm` of the thresholds from
-the grid are computed once in float64; a threshold within 1e-9 grid steps of a grid point is
+the grid are computed once in float64; a threshold within :math:`10^{-9}\max(1, |q|)` grid steps of
+a grid point (:math:`q` its position in grid steps, whose own rounding grows with :math:`|q|`) is
 taken *on* it (:math:`r = 0`, the point is stuck, :math:`a = 0` there).  In the step the force is
 :math:`a = (k - k_\pm)\delta + r_\pm`, an exact multiple plus the offset, so its sign (which
 decides whether :math:`T^\star` is finite) is never a rounding accident.
@@ -196,7 +197,8 @@ class PDMPModel(eqx.Module):
 
 def grid_offsets(delta: float, gamma_bar: float) -> tuple[int, int, float, float]:
     """k_+, k_- and the offsets r_+ = x_{k+} + gamma_bar - 1, r_- = x_{k-} + gamma_bar + 1 (float64);
-    thresholds within ON_GRID_TOL grid steps of a grid point are on it (r = 0)."""
+    a threshold q grid steps from 0 and within ON_GRID_TOL * max(1, |q|) steps of a grid point is on it
+    (r = 0): the tolerance is relative beyond one step, as q's own float64 rounding is."""
     qp, qm = (1.0 - gamma_bar) / delta, (-1.0 - gamma_bar) / delta
     if abs(qp - round(qp)) < ON_GRID_TOL * max(1.0, abs(qp)):
         kp, r_p = int(round(qp)), 0.0
@@ -292,10 +294,11 @@ def simulate_pdmp_bruteforce(model: PDMPModel, key, n_paths: int, t: float, *, b
         U, n, fin = _bruteforce_paths(model, keys, jnp.asarray(burn_in, jnp.float64),
                                       jnp.asarray(burn_in + t, jnp.float64), jnp.asarray(max_events, jnp.int64),
                                       block=block)
-        Us.append(np.asarray(U))
-        ev += int(np.asarray(n).sum())
-        unf += int((~np.asarray(fin)).sum())
-    return np.concatenate(Us)[:n_paths], ev, unf
+        used = min(lanes, n_paths - c * lanes)  # a last chunk's extra lanes are run and discarded, not counted
+        Us.append(np.asarray(U)[:used])
+        ev += int(np.asarray(n)[:used].sum())
+        unf += int((~np.asarray(fin))[:used].sum())
+    return np.concatenate(Us), ev, unf
 
 
 # ---------------------------------------------------------------------------------------------
