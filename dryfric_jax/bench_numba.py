@@ -17,7 +17,6 @@ numba is an optional extra (``pip install -e ".[bench]"``); it is never imported
 from __future__ import annotations
 
 import math
-import numbers
 import warnings
 from concurrent.futures import ThreadPoolExecutor
 
@@ -25,6 +24,7 @@ import numba
 import numpy as np
 
 from .limits import MAX_WORK
+from .plan import MAX_STEPS, check_count, check_max_work
 
 SEEK, PLUS, MINUS = 0, 1, 2
 #: what the loops draw from (``dryfric bench`` records it with the numbers)
@@ -81,15 +81,16 @@ def _on_threads(worker, seed: int, threads: int, n_excursions: int, args):
     return np.array(rows)
 
 
-def _bounds(threads: int, max_steps, max_work) -> tuple:
-    """The worker's bounds as integers: ``max_steps`` per excursion and ``max_work / threads`` steps
-    (events) in all, each at least 1; ``ValueError`` names the one out of range."""
-    if isinstance(threads, bool) or not isinstance(threads, numbers.Integral) or threads < 1:
-        raise ValueError(f"threads must be an integer >= 1, got {threads!r}")
-    for name, v in (("max_steps", max_steps), ("max_work", max_work)):
-        if isinstance(v, bool) or not isinstance(v, numbers.Real) or not 1 <= v <= 2.0**62:
-            raise ValueError(f"{name} must be a number in [1, 2**62], got {v!r}")
-    return int(max_steps), max(1, math.ceil(max_work / threads))
+def _work_each(threads, max_work) -> int:
+    """Each worker's work bound, ``ceil(max_work / threads)``, after the planner's checks of ``threads``
+    (an integer >= 1) and ``max_work`` (a finite number >= 1e3), and at most 2^62 here: a worker counts
+    its steps in an int64.  ``ValueError`` names the one out of range."""
+    threads = check_count("threads", threads, 1)
+    max_work = check_max_work(max_work)
+    if max_work > 2.0**62:
+        raise ValueError(f"max_work must be <= 2^62 for the numba baseline (its workers count in int64) "
+                         f"(got {max_work:.3g})")
+    return math.ceil(max_work / threads)
 
 
 def _finished(out, n_excursions: int, threads: int, each: int, what: str, unit: str):
@@ -174,7 +175,8 @@ def run_numba(model, n_excursions: int, threads: int, seed: int = 0, max_steps: 
     at most ``max_work`` steps in all (``max_work / threads`` each; the engine's default bound);
     returns (one row per worker: :data:`SUMS` then :data:`TAIL`, useful steps).  Raises
     :class:`BaselineIncomplete` where a worker reached its bound first."""
-    max_steps, each = _bounds(threads, max_steps, max_work)
+    max_steps = check_count("max_steps", max_steps, 1, hi=MAX_STEPS)
+    each = _work_each(threads, max_work)
     f = lambda v: float(np.asarray(v))
     sset = lambda s: np.array([f(s.c1), f(s.c2), f(s.a1), f(s.a2), f(s.a_sq)])
     o = model.ou
@@ -248,7 +250,7 @@ def _pdmp_worker(g, n_exc, max_work, N, kp, km, delta, c_alpha, rate, kappa, r_p
 def run_numba_pdmp(model, n_excursions: int, threads: int, seed: int = 0, max_work: float = MAX_WORK):
     """The PDMP baseline on ``threads`` threads, in at most ``max_work`` events in all, as
     :func:`run_numba`; returns (rows as in :func:`run_numba`, events)."""
-    _, each = _bounds(threads, 1, max_work)
+    each = _work_each(threads, max_work)
     f = lambda v: float(np.asarray(v))
     i = lambda v: int(np.asarray(v))
     out = _on_threads(_pdmp_worker, seed, threads, n_excursions,
