@@ -142,9 +142,10 @@ def time_left(elapsed: float, work: float, closed: int, in_flight: int, target: 
             return None, None
         need, to = max(need, min(closed * _ratio(rel, rtol) ** 2, float(MAX_COUNT))), "target"
     left = max(need - closed - in_flight, 0.0) * per_exc / rate
-    if max_work is not None and (max_work - work) / rate < left:
+    # a limit already passed ends the run now (0 s), not before a target it reaches now: the engine checks N first
+    if max_work is not None and max(max_work - work, 0.0) / rate < left:
         left, to = max(max_work - work, 0.0) / rate, "max_work"
-    if max_time is not None and max_time - elapsed < left:
+    if max_time is not None and max(max_time - elapsed, 0.0) < left:
         left, to = max(max_time - elapsed, 0.0), "max_time"
     return left, to
 
@@ -500,7 +501,7 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
         warnings.warn(n, DryfricWarning, stacklevel=2)
     key, seed = _key(key)
     t0 = time.perf_counter()
-    unfinished, events = 0, None
+    unfinished = 0
     if method == "di":
         U, t_nd = simulate_bruteforce(model, key, int(n_paths), round(t / h), burn_in_steps=round(burn_in / h),
                                       block=block, chunk_lanes=chunk_lanes)
