@@ -7,7 +7,8 @@ factored by hand), never from the code under test.  The other fast DI tests comp
 Mutants that passed them (mutation audit): a doubled viscous rate, the bias left in physical units
 (:math:`\bar\gamma` for :math:`\bar\gamma/\Delta`), the velocity's sign taken from :math:`V_n + w`, a
 right-point displacement; in brute force, a window of counted steps one step early, every chunk of paths on the first
-chunk's keys, and the two normals of a step swapped.  Each fails here.
+chunk's keys, and the two normals of a step swapped; the splitting coin's key equal to the normals' key.  Each
+fails here.
 """
 import math
 
@@ -146,3 +147,22 @@ def test_a_bruteforce_path_is_the_chain_by_hand():
             if i >= burn:
                 u, scale = u + du, scale + abs(du)
         assert scale > 0 and abs(U[p] - u) <= 1e-12 * scale, (p, U[p], u)
+
+
+@pytest.mark.parametrize("dtype", [jnp.float64, jnp.float32])
+def test_the_coin_and_the_normals_come_from_the_two_halves_of_the_block_key(dtype):
+    """A block key k gives the step's normals from ``jax.random.split(k)[0]`` and the splitting coin's key from
+    ``split(k)[1]`` (``DIModel.draw`` and ``coin_key``; regeneration's coin must be independent of the step's
+    y).  The engine's own rebuild (test_engine) calls ``coin_key`` itself, so a coin key equal to the normals'
+    key (the "wait" layout then draws the coin's uniform from the bits of the block's first normal) passed
+    every other test (mutation audit).  The expected keys and normals are ``jax.random``'s own."""
+    m = make_di_model(dj.Params.from_nondim(TAU, TAU_L, GBAR, Gamma=GAMMA, Delta=DELTA), H * GAMMA / DELTA**2,
+                      dtype)
+    k = jax.random.fold_in(jax.random.key(7), 3)
+    k0, k1 = jax.random.split(k)
+    data = jax.random.key_data
+    assert np.array_equal(data(m.coin_key(k)), data(k1))
+    assert not np.array_equal(data(m.coin_key(k)), data(k0))
+    z1, z2 = m.draw(k, 4)
+    zs = jax.random.normal(k0, (4, 2), dtype)
+    assert np.array_equal(np.asarray(z1), np.asarray(zs[:, 0])) and np.array_equal(np.asarray(z2), np.asarray(zs[:, 1]))
