@@ -37,15 +37,11 @@ from dryfric_jax.api import (
     MAX_FIGURE_SEED, MAX_SEED, BruteForceResult, EstimateResult, _fmt, _key, _ratio, check_progress, check_seed,
     duration_text, missing_fields, time_left,
 )
-from dryfric_jax.estimators import sums_from_samples
-from dryfric_jax.excursions import STAT_NAMES, ExcursionStats
 from dryfric_jax.plan import check_h, dtype_name
 
-P = dj.Params.from_nondim(0.3, 0.5, 0.1, Gamma=2.0, Delta=3.0)  # viscous: no weak-damping warning
+from test_api_audit import P, T40, U40, _stats  # the audit's point, its 40 excursions and their engine record
+
 H = 0.02 * P.tau0
-_rng = np.random.default_rng(11)
-T40 = np.round(_rng.exponential(1.0, 40) + 0.1, 3)
-U40 = np.round(0.3 * T40 + np.sqrt(T40) * _rng.normal(size=40), 3)  # D's CI is 39% of D (test_api_audit)
 
 
 # ---- seeds, keys, progress ----------------------------------------------------------------------------------------
@@ -245,11 +241,6 @@ def test_ratio_is_capped_at_2_to_the_32():
 
 
 # ---- estimate_diffusivity: reports, the ProjectionWarning, the result's record ---------------------------------------
-
-def _stats(U, t, *, truncated=0, slot=1000, in_flight=0):
-    s = sums_from_samples(U, t)
-    return ExcursionStats(np.array([[s[k] for k in STAT_NAMES]]), truncated, 600, slot, 0, in_flight)
-
 
 def _fake(monkeypatch, rounds, stopped, clock=None):
     """The engine reports each round to ``progress`` itself (as the real one does: the warning's stack depth is
