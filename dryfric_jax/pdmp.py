@@ -290,14 +290,14 @@ def simulate_pdmp_bruteforce(model: PDMPModel, key, n_paths: int, t: float, *, b
     lanes = min(chunk_lanes, n_paths)
     Us, ev, unf = [], 0, 0
     for c in range(-(-n_paths // lanes)):
-        keys = jax.random.split(jax.random.fold_in(key, c), lanes)
+        # the last chunk runs only its paths, with the keys of a full chunk (as the DI's brute force does)
+        keys = jax.random.split(jax.random.fold_in(key, c), lanes)[: n_paths - c * lanes]
         U, n, fin = _bruteforce_paths(model, keys, jnp.asarray(burn_in, jnp.float64),
                                       jnp.asarray(burn_in + t, jnp.float64), jnp.asarray(max_events, jnp.int64),
                                       block=block)
-        used = min(lanes, n_paths - c * lanes)  # a last chunk's extra lanes are run and discarded, not counted
-        Us.append(np.asarray(U)[:used])
-        ev += int(np.asarray(n)[:used].sum())
-        unf += int((~np.asarray(fin))[:used].sum())
+        Us.append(np.asarray(U))
+        ev += int(np.asarray(n).sum())
+        unf += int((~np.asarray(fin)).sum())
     return np.concatenate(Us), ev, unf
 
 
