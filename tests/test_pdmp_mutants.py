@@ -184,7 +184,7 @@ def test_bruteforce_chunks_and_work_bound_by_hand():
     Lambda = 800 noise jumps, so no path gets there in 4 events): every path runs exactly one block, 4 x 4 = 16
     events, all 4 unfinished (reported, never hidden), and the chunks draw from their own keys (fold_in(key,
     chunk)), so no two paths are equal.  5 paths (the last chunk partly used) give 5 displacements, 5 x 4 = 20
-    events and 5 unfinished: the last chunk's extra lane is run and discarded, not counted.  Kills P69 (the partial
+    events and 5 unfinished: the last chunk runs only its path, and no padding lane is counted.  Kills P69 (the partial
     last chunk dropped: 4 paths), P70 (unfinished paths not counted), P71 (lanes counted for events), P72 (every
     chunk on the same keys: path 2 = path 0), P73 (the work bound ignored: ~800 events, all finished), and the
     defect the audit found: the padding lane counted (24 events, 6 of 5 paths unfinished)."""
