@@ -125,6 +125,8 @@ def _check_record(rec: dict) -> None:
     :func:`rows` read.  A hand-edited line used to fail with a KeyError after new points had run."""
     ok = (isinstance(rec["params"], dict) and all(_is_real(rec["params"].get(k)) for k in PARAM_KEYS)
           and isinstance(rec["settings"], dict) and isinstance(rec["sweep_seed"], int)
+          # a setting is part of the point's identity too: an integer beyond float range was the same traceback
+          and all(_is_real(v) for v in map(rec["settings"].get, SETTING_KEYS) if type(v) is int)
           and not isinstance(rec["sweep_seed"], bool) and status(rec) in ("ok", "refused", "failed"))
     if ok and status(rec) == "ok":
         res = rec.get("result")
