@@ -240,7 +240,8 @@ def _excursion(model: DIModel, key, *, max_steps: int):
 
     def cond(c):
         i, n, phase, *_ = c
-        return (i < 50 * max_steps) & (n < max_steps) & (phase < 3)
+        # at n = max_steps the buffers are full, but one more coin may still end the -HLE there
+        return (i < 50 * max_steps) & ((n < max_steps) | ((n == max_steps) & (phase == 2))) & (phase < 3)
 
     def body(c):
         i, n, phase, n_half, X, V, U, b = c
@@ -249,18 +250,21 @@ def _excursion(model: DIModel, key, *, max_steps: int):
         r = (z1[0], z2[0])
         (Xn, Vn), dU, _, candidate = model.advance((X, V), r, phase != 1)
         heads = candidate & model.coin((X, V), r, phase != 1, jax.random.fold_in(model.coin_key(kb), 0))
-        # phase 0: seeking a regeneration on C_+; 1: +HLE (until C_-); 2: -HLE (until C_+); 3: done
+        # phase 0: seeking a regeneration on C_+; 1: +HLE (until C_-); 2: -HLE (until C_+); 3: done; 4: max_steps
         start = (phase == 0) & heads
         U = jnp.where(start, 0.0, U)
         put = lambda bb, j, vals: {k: bb[k].at[j].set(vals[k]) for k in bb}  # noqa: E731
         b = jax.lax.cond(start, lambda bb: put(bb, 0, dict(X=X, V=V, U=0.0)), lambda bb: bb, b)
         ends = (phase == 2) & heads  # the regenerating step belongs to the next excursion
         rec = ((phase == 1) | (phase == 2) | start) & ~ends
+        full = rec & (n == max_steps)  # a state past the buffers: stopped by max_steps, not complete
+        rec = rec & ~full
         U = U + jnp.where(rec, dU, 0.0)
         n = n + rec
         b = jax.lax.cond(rec, lambda bb: put(bb, n, dict(X=Xn, V=Vn, U=U)), lambda bb: bb, b)
         n_half = jnp.where((phase == 1) & heads, n - 1, n_half)
         phase = jnp.where(start, 1, jnp.where(heads & (phase == 1), 2, jnp.where(ends, 3, phase)))
+        phase = jnp.where(full, 4, phase)
         return i + 1, n, phase, n_half, Xn, Vn, U, b
 
     init = (jnp.asarray(0), jnp.asarray(0), jnp.asarray(0), jnp.asarray(-1), jnp.asarray(model.x_plus, dt),
