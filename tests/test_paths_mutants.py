@@ -20,22 +20,29 @@ TAU = 0.05  # tau' (pure dry friction: Gamma = Delta = 1, b = 0)
 H = 2e-3  # h'
 
 
-def _numpy_paths(model, x0, v0, keys, segments):
-    """V after each segment, every path stepped on its own in numpy float64: segment i of the path
-    with key k uses ``jax.random.normal(fold_in(k, i), (n_i, 2))`` (the documented numbers); one
-    step is X -> (Xi, X') from the OU coefficients, w = V + h Xi, V' = sign(w) max(|w| - h, 0)."""
+def _numpy_run(model, x, v, z):
+    """(X, V, U) after the steps of the rows of z, in numpy float64: X -> (Xi, X') from the OU
+    coefficients, w = V + h Xi, V' = sign(w) max(|w| - h, 0), U += h (V + V') / 2 (trapezoid)."""
     ou = model.ou
     m1, l11, m2, l21, l22 = (float(a) for a in (ou.m1, ou.L11, ou.m2, ou.L21, ou.L22))
-    h = float(model.h)
+    h, u = float(model.h), 0.0
+    for z1, z2 in np.asarray(z):
+        xi, x = x * m1 + l11 * z1, x * m2 + l21 * z1 + l22 * z2
+        w = v + h * xi
+        vn = math.copysign(max(abs(w) - h, 0.0), w)
+        u, v = u + 0.5 * h * (v + vn), vn
+    return x, v, u
+
+
+def _numpy_paths(model, x0, v0, keys, segments):
+    """V after each segment, every path stepped on its own (:func:`_numpy_run`): segment i of the
+    path with key k uses ``jax.random.normal(fold_in(k, i), (n_i, 2))`` (the documented numbers)."""
     out = np.empty((len(keys), len(segments)))
     for p, k in enumerate(keys):
         x, v = float(x0[p]), v0
         for i, n in enumerate(segments):
             z = np.asarray(jax.random.normal(jax.random.fold_in(k, i), (n, 2), jnp.float64)) if n else []
-            for z1, z2 in z:
-                xi, x = x * m1 + l11 * z1, x * m2 + l21 * z1 + l22 * z2
-                w = v + h * xi
-                v = math.copysign(max(abs(w) - h, 0.0), w)
+            x, v, _ = _numpy_run(model, x, v, z)
             out[p, i] = v
     return out
 

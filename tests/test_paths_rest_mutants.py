@@ -27,21 +27,7 @@ from dryfric_jax.params import FIG3, Params
 from dryfric_jax.paths import (_record_steps, autocorrelation, autocovariance, di_excursion, di_stationary,
                                pdmp_stationary)
 from dryfric_jax.pdmp import make_pdmp_model
-from test_paths_mutants import H, TAU
-
-
-def _numpy_run(model, x, v, z):
-    """(X, V, U) after the steps of the rows of z, in numpy float64: X -> (Xi, X') from the OU
-    coefficients, w = V + h Xi, V' = sign(w) max(|w| - h, 0), U += h (V + V') / 2 (trapezoid)."""
-    ou = model.ou
-    m1, l11, m2, l21, l22 = (float(a) for a in (ou.m1, ou.L11, ou.m2, ou.L21, ou.L22))
-    h, u = float(model.h), 0.0
-    for z1, z2 in np.asarray(z):
-        xi, x = x * m1 + l11 * z1, x * m2 + l21 * z1 + l22 * z2
-        w = v + h * xi
-        vn = math.copysign(max(abs(w) - h, 0.0), w)
-        u, v = u + 0.5 * h * (v + vn), vn
-    return x, v, u
+from test_paths_mutants import H, TAU, _numpy_run
 
 
 def test_record_steps_refuses_negative_step_counts():
