@@ -112,17 +112,38 @@ def test_center_may_be_a_numpy_bool():
             np.testing.assert_array_equal(a, b)
 
 
+def _first_regeneration(model, key, limit):
+    """The index of the first seek step whose coin is heads on C_+, from x_+ at rest, drawn as the
+    documented stream (step i from ``fold_in(key, i)``: its normals by ``model.draw``, its coin from
+    ``fold_in(coin_key, 0)``) and stepped by the DI model's own ``advance`` and ``coin`` one call at a
+    time (not paths.py's loop), and the position X before that step (the excursion's first state);
+    (None, None) if none of the first ``limit`` steps regenerates."""
+    adv, coin = jax.jit(lambda *a: model.advance(*a)), jax.jit(lambda *a: model.coin(*a))
+    state, plus = (jnp.asarray(model.x_plus, model.h.dtype), jnp.asarray(0.0, model.h.dtype)), jnp.bool_(True)
+    for i in range(limit):
+        kb = jax.random.fold_in(key, i)
+        z1, z2 = model.draw(kb, 1)
+        r = (z1[0], z2[0])
+        new, _, _, candidate = adv(state, r, plus)
+        if bool(candidate) and bool(coin(state, r, plus, jax.random.fold_in(model.coin_key(kb), 0))):
+            return i, float(state[0])
+        state = new
+    return None, None
+
+
 def test_di_excursion_seek_is_bounded_by_50_max_steps_and_reported_as_incomplete():
     """'The seek before the first regeneration is bounded by 50 max_steps steps'.  Seed 0 of this
-    model regenerates after between 50 and 100 seek steps: with max_steps = 2 (bound 100) the run
-    finds that regeneration (its first state is the long run's, and it stops at max_steps: 3
-    states, not complete); with max_steps = 1 (bound 50) it finds none and returns the one empty
-    state, incomplete, with no half (i_half = -1).  Kills a bound of 5 max_steps."""
+    model regenerates after between 50 and 100 seek steps (checked here by a step-by-step seek): with
+    max_steps = 2 (bound 100) the run finds that regeneration (its first state is the long run's, and
+    it stops at max_steps: 3 states, not complete); with max_steps = 1 (bound 50) it finds none and
+    returns the one empty state, incomplete, with no half (i_half = -1).  Kills a bound of 5 max_steps."""
     model = make_di_model(Params.from_nondim(TAU), H)
+    first, x0 = _first_regeneration(model, jax.random.key(0), 100)
+    assert first is not None and 50 <= first < 100
     full = di_excursion(model, 0, 20_000)
     assert full["complete"]
     two = di_excursion(model, 0, 2)
-    assert len(two["t"]) == 3 and not two["complete"] and two["x"][0] == full["x"][0]
+    assert len(two["t"]) == 3 and not two["complete"] and two["x"][0] == full["x"][0] == x0
     np.testing.assert_array_equal(two["v"], full["v"][:3])
     one = di_excursion(model, 0, 1)
     assert len(one["t"]) == 1 and not one["complete"] and one["i_half"] == -1 and one["x"][0] != full["x"][0]
