@@ -217,11 +217,13 @@ def pdmp_grid_info(params: Params, delta: float) -> dict:
     """The noise grid for physical ``delta`` (s^-1/2): delta, delta', L_X (s^-1/2), N and the jump
     rate per tau0; ValueError if delta is outside its admissible range (:mod:`dryfric_jax.noise`)."""
     nd = params.nondim()
-    scale = math.sqrt(params.Gamma) / params.Delta  # delta' = delta sqrt(Gamma) / Delta
-    check_delta(delta, nd.tau, nd.gamma_bar, scale=1.0 / scale)
-    d = float(delta) * scale
+    scale = params.Delta / math.sqrt(params.Gamma)  # delta = delta' Delta / sqrt(Gamma)
+    # delta' = delta / scale, the very number check_delta tests: a delta within an ulp of the bound is
+    # refused here in physical units, not by grid_size's check of a delta' rounded the other way
+    check_delta(delta, nd.tau, nd.gamma_bar, scale=scale)
+    d = float(delta) / scale
     N = grid_size(d, nd.tau, nd.gamma_bar)
-    return dict(delta=float(delta), delta_nd=d, L_X=N * d / scale, N=N, rate_nd=2.0 / (nd.tau * d) ** 2)
+    return dict(delta=float(delta), delta_nd=d, L_X=N * d * scale, N=N, rate_nd=2.0 / (nd.tau * d) ** 2)
 
 
 def make_pdmp_model(params: Params, delta: float, dtype=jnp.float64) -> PDMPModel:

@@ -18,7 +18,7 @@ from scipy.special import erfinv
 import dryfric_jax as dj
 from dryfric_jax import rng
 from dryfric_jax.combine import combine_estimates
-from dryfric_jax.noise import check_delta, grid_size, stationary_law, up_probability
+from dryfric_jax.noise import check_delta, delta_max, grid_size, stationary_law, up_probability
 from dryfric_jax.ou import OUStep
 from dryfric_jax.pdmp import grid_offsets, hitting_time, make_pdmp_model, pdmp_grid_info, phi1, phi2
 from dryfric_jax.regeneration import split_set
@@ -142,6 +142,35 @@ def test_pdmp_grid_info_in_physical_units():
         pdmp_grid_info(p, delta / 0.9 * 1.1)
     m = make_pdmp_model(p, delta)
     assert float(m.c_alpha) == pytest.approx(tau_nd * (4 * delta) ** 2 / 4, rel=1e-15)
+
+
+def test_a_delta_within_ulps_of_its_bound_is_refused_in_physical_units():
+    """DEFECT (fixed in pdmp.pdmp_grid_info): the physical delta was checked as delta / (Delta/sqrt(Gamma))
+    but used as delta' = delta * (sqrt(Gamma)/Delta), which can round an ulp higher; a delta accepted by the
+    first check was then refused by grid_size's check of delta', whose message gave the nondimensional range
+    and value ("delta must be in (0, 0.003214) ... (got 0.0032138...)" for a delta of 0.0871 s^-1/2).  Here
+    (2000 seeded parameter points, the bound and the 5 floats below it) 254 of the old code's 2258 refusals
+    named the wrong range.  Now every delta is accepted with its grid or refused with the physical range
+    delta_max' Delta / sqrt(Gamma) (noise.delta_max, checked against its closed form in
+    test_grid_size_is_ceil_of_the_reach_plus_one; 4 significant digits) and the delta as given."""
+    rs = np.random.default_rng(7)
+    refused = 0
+    for _ in range(2000):
+        G, D = 10 ** rs.uniform(-2, 2), 10 ** rs.uniform(-1, 1)
+        tau_nd, gb = 10 ** rs.uniform(-2, 3), rs.uniform(-0.99, 0.99)
+        p = dj.Params(G, D, tau_nd * G / D**2, math.inf, gb * D)
+        nd = p.nondim()
+        dm = delta_max(nd.tau, nd.gamma_bar) * D / math.sqrt(G)
+        x = dm
+        for _ in range(6):
+            try:
+                g = pdmp_grid_info(p, x)
+                assert g["N"] >= 2 and nd.tau * g["delta_nd"] ** 2 * g["N"] < 2 * (1 + 1e-12)
+            except ValueError as e:
+                refused += 1
+                assert str(e).startswith(f"delta must be in (0, {dm:.4g}) for these parameters (got {x!r})"), str(e)
+            x = float(np.nextafter(x, 0))
+    assert refused > 100  # the bound itself and rounding next to it are exercised
 
 
 def test_draw_lanes_keeps_the_waiting_time_uniform_above_zero(monkeypatch):
