@@ -35,11 +35,14 @@ The delta-method CI under-covers for small N because U per excursion is heavy-ta
 from __future__ import annotations
 
 import functools
+import math
 from statistics import NormalDist
 
 import jax
 import jax.numpy as jnp
 import numpy as np
+
+from .params import real_or_none, shown
 
 #: Below this many excursions the 95% delta-method CI for D is not trusted.  Measured coverage
 #: (README "Confidence intervals", scripts/ci_calibration.py): with viscous damping (paper's tau_L) it
@@ -90,8 +93,12 @@ def phi_bf(y):
 
 
 def z_quantile(level: float) -> float:
-    """:math:`q_{1-\\alpha/2}` of the standard normal for a two-sided ``level`` = 1 - alpha."""
-    return NormalDist().inv_cdf(0.5 + level / 2)
+    """:math:`q_{1-\\alpha/2}` of the standard normal for a two-sided ``level`` = 1 - alpha, in (0, 1)."""
+    v = real_or_none(level)
+    if v is None or not 0 < v < 1:
+        # 0 gave a CI of 0, NaN a NaN one, < 0 a negative half-width, >= 1 NormalDist's error about its p
+        raise ValueError(f"level must be a confidence level in (0, 1) (got {shown(level)})")
+    return -NormalDist().inv_cdf((1 - v) / 2)  # the lower tail: 0.5 + level / 2 rounded to 1 near level = 1
 
 
 def delta_method(psi, mean, cov, n: int, level: float = 0.95):
@@ -229,6 +236,9 @@ def bruteforce_estimates(U, t: float, level: float = 0.95) -> dict:
         U: displacements :math:`U^{(k)}(t)` of N' independent paths.
         t: the horizon.
     """
+    horizon = real_or_none(t)
+    if horizon is None or not 0 < horizon < math.inf:  # t <= 0 gave NaN and inf estimates
+        raise ValueError(f"t must be a horizon > 0 and finite (got {shown(t)})")
     U = np.asarray(U, np.float64)
     n = U.size
     if n < MIN_PATHS:

@@ -30,7 +30,7 @@ Gamma points, 2000 brute-force paths of 10 s, 88 points), the docstrings (local_
 D_ci >= 0; _affordable_n retries the planner's ValueError; noise: 8 SD and tau delta L_X < 2), fake runs with
 known numbers (each curve checked against them), hand counts of bins and grid points, ``fractions``.
 
-One defect, fixed in noise.grid_size (fix.patch; the last test): a delta that check_delta accepts, an ulp or two
+One defect, fixed in noise.grid_size (the last test): a delta that check_delta accepts, an ulp or two
 below delta_max with L_req / delta just above an integer, met ``assert tau * delta * N * delta < 2.0`` as a bare
 AssertionError (also through pdmp.make_pdmp_model): the exact product is 2 - 2e-16, float64 rounds it to 2.0.
 The assert now allows a relative 1e-12.  The whole file runs in about 2 s.

@@ -24,7 +24,7 @@ default-delta caveat, auto), plan_estimate's layout and bounds, and split_set's 
   ``jnp.asarray(x_threshold, dt)``: c -+ w takes w's dtype, the step's, from a Python float threshold, the only
   kind di.py passes), 1 killed only here (``dt = jnp.float64``: a float64 set around a float32 step), 0 alive.
 
-No defect was found (no source change, no fix.patch).
+No defect was found.
 
 Oracles, all independent of the code under test: the documented ranges and messages (plan's and limits'
 docstrings: counts in [lo, 2^62], lanes * K <= 2^28, tau_L' < 1e-25 and h/tau < 1e-4 for the float32 fallbacks,
