@@ -9,7 +9,7 @@ test_cli_mutants, test_bad_input, test_combine, test_interrupts_mutants and test
 those tests, 6 are equivalent (a non-dict params or result, or a missing sweep_seed, is refused anyway through the
 AttributeError or KeyError that read_records turns into the refusal; _no_negative_zero sees numbers only as floats;
 _outdated is never asked about a refused record; _finished_elsewhere's read needs no lock, every write being an atomic
-rename), 27 are killed only by this file, none is left.  One defect was found (the last test; fix.patch).
+rename), 27 are killed only by this file, none is left.  One defect was found (the last test; fixed in sweep._check_record).
 
 The estimator is the stand-in of test_sweep_mutants.py (``calls``); records are made with ``sweep._record`` and
 hand-edited.  Expected values come from the docstrings and the README, worked out by hand."""
@@ -212,7 +212,7 @@ def test_the_progress_bar_lines(capsys, monkeypatch):
 
 
 def test_a_setting_beyond_float_range_refuses_the_file_by_line(tmp_path, capsys):
-    """DEFECT (fix.patch): a hand-edited setting that is an integer beyond float range (n_excursions = 10**400)
+    """DEFECT (fixed in sweep._check_record): a hand-edited setting that is an integer beyond float range (n_excursions = 10**400)
     was read as a sweep record, then made an OverflowError traceback where the point's identity is made (the
     case _is_real was written for, for the parameters only).  It is the file's refusal now, exit 2, the file
     left as it is, nothing run."""
