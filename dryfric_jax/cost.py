@@ -76,7 +76,8 @@ def pdmp_events_per_tau0(params: Params, delta: float) -> float:
 
 
 def choose_method(params: Params, h: float, delta: float) -> tuple[str, str]:
-    """``(method, reason)`` for ``method="auto"`` with physical step h and grid step delta."""
+    """``(method, reason)`` for ``method="auto"`` with physical step h and grid step delta: the PDMP only
+    if it is strictly cheaper per tau0; at an exact tie the DI (the default method, no grid to choose)."""
     pdmp = EVENT_COST * pdmp_events_per_tau0(params, delta)
     di = params.tau0 / h
     pick = "pdmp" if pdmp < di else "di"

@@ -16,9 +16,12 @@ cost.py: 47 mutants run against test_plan_audit.py, test_pdmp.py's two default-d
 test_cli.py::test_pdmp_and_auto_json, test_stress.py's plan matrix and test_api_rest_mutants.py; 37
 killed there, 4 equivalent (EVENT_COST = 1.0 makes ``*`` and ``/`` by it, and ``pdmp / EVENT_COST``
 and ``pdmp``, the same; ``f"{4.2:g}" == str(4.2)``; ``delta_max`` takes ``|gamma_bar|`` itself), 5
-killed only here, 1 alive (``pdmp <= di`` for ``pdmp < di``: it differs only at an exact tie of the
-two costs, for which no rule is documented, README "picks the cheaper"; not pinned).
+killed only here, and 1 (``pdmp <= di`` for ``pdmp < di``: it differs only at an exact tie of the two
+costs) killed since by test_choose_method_keeps_the_di_at_an_exact_tie, after choose_method's docstring
+gave the rule (the DI: the default method, with no grid to choose).
 """
+
+import math
 
 import jax
 import jax.numpy as jnp
@@ -73,6 +76,16 @@ def test_choose_method_reason_written_out(h, delta, expected):
     p = dj.Params(1.0, 1.0, 1.0, 10.0, 0.0)
     method, why = choose_method(p, h, delta)
     assert why == expected and method == expected.rsplit(" ", 1)[1]
+
+
+def test_choose_method_keeps_the_di_at_an_exact_tie():
+    """choose_method: 'the PDMP only if it is strictly cheaper'.  Gamma = Delta = tau = 1: PDMP 2/(2^-3)^2 =
+    128 events x 1, DI 1/2^-7 = 128 steps, an exact tie in binary; one ulp of h either way breaks it.
+    Kills ``pdmp <= di`` for ``pdmp < di``."""
+    p = dj.Params(1.0, 1.0, 1.0, 10.0, 0.0)
+    assert choose_method(p, 2.0**-7, 2.0**-3)[0] == "di"
+    assert choose_method(p, math.nextafter(2.0**-7, 0), 2.0**-3)[0] == "pdmp"  # a shorter h: the DI dearer
+    assert choose_method(p, math.nextafter(2.0**-7, 1), 2.0**-3)[0] == "di"
 
 
 # ---------------------------------------------------------------- fused.py
