@@ -35,14 +35,13 @@ The delta-method CI under-covers for small N because U per excursion is heavy-ta
 from __future__ import annotations
 
 import functools
-import math
 from statistics import NormalDist
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .params import real_or_none, shown
+from .params import check_positive, real_or_none, shown
 
 #: Below this many excursions the 95% delta-method CI for D is not trusted.  Measured coverage
 #: (README "Confidence intervals", scripts/ci_calibration.py): with viscous damping (paper's tau_L) it
@@ -236,9 +235,7 @@ def bruteforce_estimates(U, t: float, level: float = 0.95) -> dict:
         U: displacements :math:`U^{(k)}(t)` of N' independent paths.
         t: the horizon.
     """
-    horizon = real_or_none(t)
-    if horizon is None or not 0 < horizon < math.inf:  # t <= 0 gave NaN and inf estimates
-        raise ValueError(f"t must be a horizon > 0 and finite (got {shown(t)})")
+    check_positive("t", t)  # t <= 0 gave NaN and inf estimates
     U = np.asarray(U, np.float64)
     n = U.size
     if n < MIN_PATHS:
