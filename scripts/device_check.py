@@ -11,7 +11,12 @@ keeps what it printed), at the paper's Fig. 3 point:
   excursion bookkeeping), and how far the layouts' D agree;
 * ``numba``: the compiled CPU loop of the same DI chain (numpy ``Generator`` normals,
   :mod:`dryfric_jax.bench_numba`) with 1, 2 and all host threads, 16000 excursions per timing;
-* ``bench``: the side-by-side ``dryfric bench`` (the plan's own lanes), when --bench-n > 0.
+* ``bench``: the side-by-side ``dryfric bench`` (the plan's own lanes), when --bench-n > 0;
+* ``kernel`` (``--kernel-tiles``, first): the fused quiet loop alone (:func:`dryfric_jax.fused.quiet_steps`
+  on fixed inputs, the first --lanes and --block), slot-steps/s for each Triton tile (lanes per program,
+  ``fused.TILE``) and ``--kernel-warps`` (``fused.NUM_WARPS``), beside the draw of the same block's normals;
+  neither changes a number, so the layouts then run at the default tile and again at the fastest one,
+  which must give the same D bit for bit (``tile_check``).
 
     python scripts/device_check.py --lanes 65536,262144 --block 256,1024 --unroll 1,4 --n 200000
 
@@ -67,6 +72,9 @@ def main(argv=None) -> int:
     ap.add_argument("--bench-n", type=amount, default=0, help="N of the side-by-side bench (0: skip)")
     ap.add_argument("--bound-n", type=amount, default=2**30, help="lane-steps per RNG-bound timing")
     ap.add_argument("--budget-s", type=amount, default=240)
+    ap.add_argument("--kernel-tiles", type=ints, default="", help="Triton tiles of the fused kernel to time "
+                    "alone first, e.g. 128,256,512 (default: none)")
+    ap.add_argument("--kernel-warps", type=ints, default="4", help="Triton warps per program to time with them")
     a = ap.parse_args(argv)
     bad = [d for d in a.dtypes.split(",") if d not in ("float32", "float64")]
     bad += [e for e in (a.events.split(",") if a.events else []) if e not in ("wait", "fused", "branch")]
@@ -83,22 +91,41 @@ def main(argv=None) -> int:
     from dryfric_jax.params import FIG3
 
     emit(kind="device", devices=[str(d) for d in jax.devices()], jax=jax.__version__, cpu_count=os.cpu_count())
-    for dt in a.dtypes.split(","):
+    from dryfric_jax import fused
+
+    default_tile = (fused.TILE, fused.NUM_WARPS)
+    runs = [(dt, default_tile) for dt in a.dtypes.split(",")]
+    if a.kernel_tiles:
+        best = kernel_sweep(a.dtypes.split(",")[0], a.lanes[0], a.block[0], a.kernel_tiles, a.kernel_warps)
+        if best != default_tile:
+            runs.insert(1, (a.dtypes.split(",")[0], best))
+    d_at = {}  # (dtype, lanes, block, events) -> D at the default tile, to compare bit for bit
+    for dt, (tile_, warps_) in runs:
+        fused.TILE, fused.NUM_WARPS = tile_, warps_
+        jax.clear_caches()  # the tile and warps are read when a kernel is traced
         left = a.budget_s - (time.perf_counter() - t0)
         if left <= 0:
-            emit(kind="skipped", dtype=dt, reason="budget")
+            emit(kind="skipped", dtype=dt, tile=fused.TILE, warps=fused.NUM_WARPS, reason="budget")
             continue
+        tile = dict(tile=fused.TILE, warps=fused.NUM_WARPS)
         try:
             b = tune_layout(a.lanes, a.block, dt, n_excursions=int(a.n), numba_excursions=0,
                             unrolls=a.unroll, events=a.events.split(",") if a.events else None, budget_s=left,
-                            bound_n=int(a.bound_n), on_layout=lambda row: emit(kind="layout", dtype=dt, **row))
+                            bound_n=int(a.bound_n), on_layout=lambda row: emit(kind="layout", dtype=dt, **tile, **row))
         except ValueError as e:  # a layout or size the engine refuses (--lanes 5000000): named, exit 2
             ap.error(str(e))
         for row in b["skipped"]:
             emit(kind="skipped", dtype=dt, **{"reason": "budget", **row})  # or past the layout bound
         for row in b["failed"]:
             emit(kind="failed", dtype=dt, **row)
-        emit(kind="tune", **{k: v for k, v in b.items() if k not in ("layouts", "skipped", "failed", "params")})
+        emit(kind="tune", **tile, **{k: v for k, v in b.items() if k not in ("layouts", "skipped", "failed", "params")})
+        for row in b["layouts"]:
+            at = (dt, row["lanes"], row["block"], row["events"])
+            if at in d_at:
+                emit(kind="tile_check", dtype=dt, **tile, lanes=row["lanes"], block=row["block"],
+                     events=row["events"], same_D=row["D"] == d_at[at], D=row["D"], D_default_tile=d_at[at])
+            d_at.setdefault(at, row["D"])
+    fused.TILE, fused.NUM_WARPS = default_tile
     if a.numba_n > 0:
         try:
             from dryfric_jax.bench_numba import BaselineIncomplete, run_numba
@@ -118,6 +145,52 @@ def main(argv=None) -> int:
         emit(kind="bench", **run_bench(n_excursions=int(a.bench_n), repeat=1))
     emit(kind="done", elapsed_s=time.perf_counter() - t0)
     return 0
+
+
+def kernel_sweep(dtype, lanes, block, tiles, warps, reps=5):
+    """Slot-steps/s of the fused kernel alone for each (tile, warps), and of drawing its normals;
+    returns the fastest (tile, warps).  The inputs are fixed (every lane starts free; a lane that
+    meets a coin candidate idles for the rest of the block, as in the engine, at the same cost)."""
+    import jax
+    import jax.numpy as jnp
+
+    import dryfric_jax as dj
+    from dryfric_jax import fused
+    from dryfric_jax.api import default_h
+    from dryfric_jax.di import make_di_model
+    from dryfric_jax.params import FIG3
+
+    dt = jnp.dtype(dtype)
+    chain = make_di_model(dj.Params(**FIG3), default_h(dj.Params(**FIG3)), dtype)
+    state = chain.init_state(lanes)
+    draw = jax.jit(lambda k: tuple(jax.random.normal(k, (2, block, lanes), dt)))
+    rs = jax.block_until_ready(draw(jax.random.key(0)))
+    fixed = (jnp.zeros(lanes, dt), jnp.full(lanes, block, dt), jnp.full(lanes, block, dt),
+             jnp.ones(lanes, bool), jnp.ones(lanes, bool))
+
+    def timed(f, *args):
+        jax.block_until_ready(f(*args))  # compile
+        t = time.perf_counter()
+        for _ in range(reps):
+            jax.block_until_ready(f(*args))
+        return lanes * block * reps / (time.perf_counter() - t)
+
+    draw_rate = timed(draw, jax.random.key(1))
+    rates = {}
+    for tile in tiles:
+        for w in warps:
+            fused.TILE, fused.NUM_WARPS = tile, w
+            jax.clear_caches()
+            f = jax.jit(lambda s, r: fused.quiet_steps(chain, block, s, *fixed, r))
+            try:
+                rates[tile, w] = timed(f, state, rs)
+            except Exception as exc:  # a tile the device cannot build: said, the sweep goes on
+                emit(kind="kernel", dtype=dtype, lanes=lanes, block=block, tile=tile, warps=w,
+                     error=f"{type(exc).__name__}: {exc}"[:1000])
+                continue
+            emit(kind="kernel", dtype=dtype, lanes=lanes, block=block, tile=tile, warps=w,
+                 slot_steps_per_s=rates[tile, w], draw_slot_steps_per_s=draw_rate)
+    return max(rates, key=rates.get) if rates else (fused.TILE, fused.NUM_WARPS)
 
 
 if __name__ == "__main__":
