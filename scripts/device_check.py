@@ -16,7 +16,12 @@ keeps what it printed), at the paper's Fig. 3 point:
   on fixed inputs, the first --lanes and --block), slot-steps/s for each Triton tile (lanes per program,
   ``fused.TILE``) and ``--kernel-warps`` (``fused.NUM_WARPS``), beside the draw of the same block's normals;
   neither changes a number, so the layouts then run at the default tile and again at the fastest one,
-  which must give the same D bit for bit (``tile_check``).
+  which must give the same D bit for bit (``tile_check``);
+* ``breakdown`` (``--breakdown``, first): where one engine block goes, at the first --lanes and --block:
+  the block's draw (materialised, as the kernel reads it), its quiet loop (the fused kernel, or the wait
+  loop), and the whole block (:func:`dryfric_jax.excursions._block`: draw, loop, the pending step's
+  bookkeeping); each timed alone, compile excluded.  On the H200 (2026-11-30) the kernel and a direct
+  draw took ~1 and ~3 ms of a ~27 ms block (2^18 lanes, K = 1024, float32): this splits the rest.
 
     python scripts/device_check.py --lanes 65536,262144 --block 256,1024 --unroll 1,4 --n 200000
 
@@ -75,6 +80,7 @@ def main(argv=None) -> int:
     ap.add_argument("--kernel-tiles", type=ints, default="", help="Triton tiles of the fused kernel to time "
                     "alone first, e.g. 128,256,512 (default: none)")
     ap.add_argument("--kernel-warps", type=ints, default="4", help="Triton warps per program to time with them")
+    ap.add_argument("--breakdown", action="store_true", help="time one engine block's parts first")
     a = ap.parse_args(argv)
     bad = [d for d in a.dtypes.split(",") if d not in ("float32", "float64")]
     bad += [e for e in (a.events.split(",") if a.events else []) if e not in ("wait", "fused", "branch")]
@@ -95,6 +101,9 @@ def main(argv=None) -> int:
 
     default_tile = (fused.TILE, fused.NUM_WARPS)
     runs = [(dt, default_tile) for dt in a.dtypes.split(",")]
+    if a.breakdown:
+        for dt in a.dtypes.split(","):
+            block_breakdown(dt, a.lanes[0], a.block[0], a.events.split(",")[0] if a.events else None)
     if a.kernel_tiles:
         best = kernel_sweep(a.dtypes.split(",")[0], a.lanes[0], a.block[0], a.kernel_tiles, a.kernel_warps)
         if best != default_tile:
@@ -191,6 +200,45 @@ def kernel_sweep(dtype, lanes, block, tiles, warps, reps=5):
             emit(kind="kernel", dtype=dtype, lanes=lanes, block=block, tile=tile, warps=w,
                  slot_steps_per_s=rates[tile, w], draw_slot_steps_per_s=draw_rate)
     return max(rates, key=rates.get) if rates else (fused.TILE, fused.NUM_WARPS)
+
+
+def block_breakdown(dtype, lanes, block, events, reps=5):
+    """Seconds per call of one engine block and of its parts (module docstring), from fresh lanes
+    (seeking their first regeneration, as a run starts), and their share of the block."""
+    import jax
+    import jax.numpy as jnp
+    import numpy as np
+
+    import dryfric_jax as dj
+    from dryfric_jax import excursions as ex
+    from dryfric_jax.api import default_h
+    from dryfric_jax.di import make_di_model
+    from dryfric_jax.params import FIG3
+
+    p = dj.Params(**FIG3)
+    chain = make_di_model(p, default_h(p), dtype)
+    events = ex._events_layout(jax.devices(), chain, events or None)
+    lane = jax.device_put(ex.init_lanes(chain, lanes))
+    keys = jax.random.split(jax.random.key(0), lanes)
+    b = jnp.zeros(lanes, jnp.int64)
+    big = np.int64(2**40)
+    draw = jax.jit(lambda k, b: ex.draw_block(chain, k, b, block))
+    rs = jax.block_until_ready(draw(keys, b))
+    quiet = jax.jit(lambda ln, rs: ex._quiet_steps(chain, big, big, False, block, ln, rs, events == "fused"))
+    whole = jax.jit(lambda ln, k, b: ex._block(chain, big, big, False, block, events, ln, k, b))
+
+    def timed(f, *args):
+        jax.block_until_ready(f(*args))  # compile
+        t = time.perf_counter()
+        for _ in range(reps):
+            jax.block_until_ready(f(*args))
+        return (time.perf_counter() - t) / reps
+
+    s = dict(draw=timed(draw, keys, b), quiet=timed(quiet, lane, rs), block=timed(whole, lane, keys, b))
+    s["rest"] = s["block"] - s["draw"] - s["quiet"]
+    emit(kind="breakdown", dtype=dtype, lanes=lanes, block=block, events=events,
+         **{f"{k}_s": v for k, v in s.items()}, **{f"{k}_share": v / s["block"] for k, v in s.items()},
+         block_slot_steps_per_s=lanes * block / s["block"])
 
 
 if __name__ == "__main__":

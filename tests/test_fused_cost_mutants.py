@@ -156,3 +156,25 @@ def test_fused_kernel_against_the_documented_step_lane_by_lane():
     np.testing.assert_allclose(np.asarray(gX), eX, rtol=1e-12, atol=1e-15)
     np.testing.assert_allclose(np.asarray(gV), eV, rtol=1e-12, atol=1e-15)
     np.testing.assert_allclose(np.asarray(gU), eU, rtol=1e-12, atol=1e-15)
+
+
+@pytest.mark.parametrize("tile", [1, 2, 8])
+def test_fused_kernel_tile_changes_no_number(monkeypatch, tile):
+    """``scripts/device_check.py --kernel-tiles`` times the kernel at other Triton tiles (lanes per
+    program, ``fused.TILE``) and reruns the layouts at the fastest: a tile only splits the lanes
+    between programs, each lane's arithmetic and numbers are its own.  Here 12 lanes in 12, 6 or 3
+    tiles (8 does not divide 12: ``tile_for`` takes 4) against the 3 tiles of the default (Pallas
+    interpreter, float64): the same pending steps, and X, V, U to rounding (XLA:CPU compiles each
+    tile shape apart: at tiles of 1 and 2 one lane's U moved by an ulp)."""
+    from dryfric_jax import fused
+
+    m = make_di_model(dj.Params.from_nondim(0.5, 1.0, 0.2), 0.02)
+    args = list(map(jnp.asarray, _inputs(m)))
+    run = lambda: jax.jit(lambda *a: fused.quiet_steps(m, K, (a[0], a[1]), *a[2:7], (a[7], a[8])))(*args)
+    ref = run()
+    monkeypatch.setattr(fused, "TILE", tile)
+    assert fused.tile_for(N) == min(tile, 4)
+    (X, V), U, at = run()
+    np.testing.assert_array_equal(np.asarray(at), np.asarray(ref[2]))
+    for a, b in ((X, ref[0][0]), (V, ref[0][1]), (U, ref[1])):
+        np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-14, atol=1e-16)
