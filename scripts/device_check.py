@@ -20,7 +20,9 @@ keeps what it printed), at the paper's Fig. 3 point:
 * ``breakdown`` (``--breakdown``, first): where one engine block goes, at the first --lanes and --block:
   the block's draw (materialised, as the kernel reads it), its quiet loop (the fused kernel, or the wait
   loop), and the whole block (:func:`dryfric_jax.excursions._block`: draw, loop, the pending step's
-  bookkeeping); each timed alone, compile excluded.  On the H200 (2026-11-30) the kernel and a direct
+  bookkeeping); each timed alone, compile excluded; then paused rounds of 1, 4 and 16 blocks, whose fit
+  gives a block's time in the engine and what a round costs besides (its call, the host's reading of the
+  lanes' sums; on 2 CPU cores at 2^15 lanes and K = 1024 a round cost about one block more).  On the H200 (2026-11-30) the kernel and a direct
   draw took ~1 and ~3 ms of a ~27 ms block (2^18 lanes, K = 1024, float32): this splits the rest.
 
     python scripts/device_check.py --lanes 65536,262144 --block 256,1024 --unroll 1,4 --n 200000
@@ -236,9 +238,20 @@ def block_breakdown(dtype, lanes, block, events, reps=5):
 
     s = dict(draw=timed(draw, keys, b), quiet=timed(quiet, lane, rs), block=timed(whole, lane, keys, b))
     s["rest"] = s["block"] - s["draw"] - s["quiet"]
+    # in situ: paused rounds of 1, 4 and 16 blocks (a run's rounds are >= 4 blocks; a final round's calls
+    # can be 1 block each): the slope is a block in the engine, the intercept what a round costs besides
+    ln = ex.Lanes(chain, lanes, block=block, events=events)
+    ln.advance(jax.random.key(1), block)  # compile
+    nbs, secs = [1, 4, 16, 1, 4, 16], []
+    for i, nb in enumerate(nbs):
+        t = time.perf_counter()
+        ln.advance(jax.random.key(2 + i), nb * block)
+        secs.append(time.perf_counter() - t)
+    slope, icpt = np.polyfit(nbs, secs, 1)
     emit(kind="breakdown", dtype=dtype, lanes=lanes, block=block, events=events,
          **{f"{k}_s": v for k, v in s.items()}, **{f"{k}_share": v / s["block"] for k, v in s.items()},
-         block_slot_steps_per_s=lanes * block / s["block"])
+         block_slot_steps_per_s=lanes * block / s["block"], round_blocks=nbs, round_s=secs,
+         round_block_s=slope, round_overhead_s=icpt)
 
 
 if __name__ == "__main__":
