@@ -22,8 +22,9 @@ keeps what it printed), at the paper's Fig. 3 point:
   loop), and the whole block (:func:`dryfric_jax.excursions._block`: draw, loop, the pending step's
   bookkeeping); each timed alone, compile excluded; then paused rounds of 1, 4 and 16 blocks, whose fit
   gives a block's time in the engine and what a round costs besides (its call, the host's reading of the
-  lanes' sums; on 2 CPU cores at 2^15 lanes and K = 1024 a round cost about one block more).  On the H200 (2026-11-30) the kernel and a direct
-  draw took ~1 and ~3 ms of a ~27 ms block (2^18 lanes, K = 1024, float32): this splits the rest.
+  lanes' sums; on 2 CPU cores at 2^15 lanes and K = 1024 a round cost about one block more).  On the
+  H200 (2026-11-30) the kernel and a direct draw took ~1 and ~3 ms of a ~27 ms block (2^18 lanes,
+  K = 1024, float32; the run's wall time over its slot-steps): this splits the rest.
 
     python scripts/device_check.py --lanes 65536,262144 --block 256,1024 --unroll 1,4 --n 200000
 
