@@ -695,6 +695,41 @@ def test_layout_sweep_over_unrolls_streams_rows_and_keeps_to_its_budget():
     assert b["skipped"] == [dict(lanes=64, block=64, unroll=unroll0, events=None)]
 
 
+def test_device_check_runs_its_new_stages_end_to_end():
+    """``scripts/device_check.py`` is run only on a lent GPU, minutes a session: a crash there loses the
+    lease.  Its kernel sweep, block breakdown and tile rerun on a CPU, tiny (16 lanes, K = 8, the fused
+    layout in Pallas's interpreter): every JSON line parses; the kernel is timed at both tiles; the
+    breakdown's parts are positive and its rounds of 1, 4 and 16 blocks were timed; the layouts ran at
+    the default tile and again at the fastest (tiles 4 and 8 are not the default 256), with D equal to
+    rounding (a tile splits lanes between programs, not their numbers)."""
+    import os
+    import pathlib
+
+    root = pathlib.Path(__file__).parent.parent
+    env = {**os.environ, "PYTHONPATH": str(root)}
+    argv = ["scripts/device_check.py", "--dtypes", "float64", "--lanes", "16", "--block", "8", "--events", "fused",
+            "--n", "64", "--bound-n", "4096", "--numba-n", "0", "--budget-s", "120", "--kernel-tiles", "4,8",
+            "--kernel-warps", "1", "--breakdown"]
+    p = subprocess.run([sys.executable, *argv], cwd=root, env=env, capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0, p.stderr[-2000:]
+    rows = [json.loads(line) for line in p.stdout.splitlines()]
+    kinds = [r["kind"] for r in rows]
+    assert kinds[0] == "device" and kinds[-1] == "done" and "failed" not in kinds and "skipped" not in kinds
+    kernel = [r for r in rows if r["kind"] == "kernel"]
+    assert [(r["tile"], r["warps"]) for r in kernel] == [(4, 1), (8, 1)]
+    assert all(r["slot_steps_per_s"] > 0 and r["draw_slot_steps_per_s"] > 0 for r in kernel)
+    (bd,) = [r for r in rows if r["kind"] == "breakdown"]
+    assert bd["events"] == "fused" and min(bd["draw_s"], bd["quiet_s"], bd["block_s"]) > 0
+    assert bd["round_blocks"] == [1, 4, 16, 1, 4, 16] and min(bd["round_s"]) > 0 and bd["round_block_s"] > 0
+    lay = [r for r in rows if r["kind"] == "layout"]
+    best = max(kernel, key=lambda r: r["slot_steps_per_s"])
+    assert [(r["tile"], r["warps"]) for r in lay] == [(256, 4), (best["tile"], 1)]
+    (tc,) = [r for r in rows if r["kind"] == "tile_check"]
+    assert math.isclose(tc["D"], tc["D_default_tile"], rel_tol=1e-12)
+    assert tc["same_D"] == (tc["D"] == tc["D_default_tile"])
+    assert [r["tile"] for r in rows if r["kind"] == "tune"] == [256, best["tile"]]
+
+
 def test_layout_sweep_lists_a_layout_that_fails_and_goes_on(monkeypatch):
     """A layout whose compile run raises (a kernel a device cannot build) is listed under
     ``failed`` with its error, and the sweep measures the others."""
