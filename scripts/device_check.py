@@ -15,8 +15,9 @@ keeps what it printed), at the paper's Fig. 3 point:
 * ``kernel`` (``--kernel-tiles``, first): the fused quiet loop alone (:func:`dryfric_jax.fused.quiet_steps`
   on fixed inputs, the first --lanes and --block), slot-steps/s for each Triton tile (lanes per program,
   ``fused.TILE``) and ``--kernel-warps`` (``fused.NUM_WARPS``), beside the draw of the same block's normals;
-  neither changes a number, so the layouts then run at the default tile and again at the fastest one,
-  which must give the same D bit for bit (``tile_check``);
+  neither changes a lane's numbers or arithmetic, so the layouts then run at the default tile and again
+  at the fastest one, and ``tile_check`` says whether D came out the same bit for bit (on a CPU, where
+  XLA compiles each tile shape apart, a tile can move a lane's U by an ulp: tests/test_fused_cost_mutants);
 * ``breakdown`` (``--breakdown``, first): where one engine block goes, at the first --lanes and --block:
   the block's draw (materialised, as the kernel reads it), its quiet loop (the fused kernel, or the wait
   loop), and the whole block (:func:`dryfric_jax.excursions._block`: draw, loop, the pending step's
@@ -38,6 +39,7 @@ import math
 import os
 import sys
 import time
+from functools import partial
 
 
 def emit(**kw):
@@ -159,6 +161,17 @@ def main(argv=None) -> int:
     return 0
 
 
+def seconds_per_call(f, *args, reps=5):
+    """Wall seconds per call of ``f(*args)`` (a jitted function), compile excluded, over ``reps`` calls."""
+    import jax
+
+    jax.block_until_ready(f(*args))  # compile
+    t = time.perf_counter()
+    for _ in range(reps):
+        jax.block_until_ready(f(*args))
+    return (time.perf_counter() - t) / reps
+
+
 def kernel_sweep(dtype, lanes, block, tiles, warps, reps=5):
     """Slot-steps/s of the fused kernel alone for each (tile, warps), and of drawing its normals;
     returns the fastest (tile, warps).  The inputs are fixed (every lane starts free; a lane that
@@ -172,21 +185,15 @@ def kernel_sweep(dtype, lanes, block, tiles, warps, reps=5):
     from dryfric_jax.di import make_di_model
     from dryfric_jax.params import FIG3
 
-    dt = jnp.dtype(dtype)
-    chain = make_di_model(dj.Params(**FIG3), default_h(dj.Params(**FIG3)), dtype)
+    dt, p = jnp.dtype(dtype), dj.Params(**FIG3)
+    chain = make_di_model(p, default_h(p), dtype)
     state = chain.init_state(lanes)
     draw = jax.jit(lambda k: tuple(jax.random.normal(k, (2, block, lanes), dt)))
     rs = jax.block_until_ready(draw(jax.random.key(0)))
     fixed = (jnp.zeros(lanes, dt), jnp.full(lanes, block, dt), jnp.full(lanes, block, dt),
              jnp.ones(lanes, bool), jnp.ones(lanes, bool))
 
-    def timed(f, *args):
-        jax.block_until_ready(f(*args))  # compile
-        t = time.perf_counter()
-        for _ in range(reps):
-            jax.block_until_ready(f(*args))
-        return lanes * block * reps / (time.perf_counter() - t)
-
+    timed = lambda f, *args: lanes * block / seconds_per_call(f, *args, reps=reps)
     draw_rate = timed(draw, jax.random.key(1))
     rates = {}
     for tile in tiles:
@@ -230,13 +237,7 @@ def block_breakdown(dtype, lanes, block, events, reps=5):
     quiet = jax.jit(lambda ln, rs: ex._quiet_steps(chain, big, big, False, block, ln, rs, events == "fused"))
     whole = jax.jit(lambda ln, k, b: ex._block(chain, big, big, False, block, events, ln, k, b))
 
-    def timed(f, *args):
-        jax.block_until_ready(f(*args))  # compile
-        t = time.perf_counter()
-        for _ in range(reps):
-            jax.block_until_ready(f(*args))
-        return (time.perf_counter() - t) / reps
-
+    timed = partial(seconds_per_call, reps=reps)
     s = dict(draw=timed(draw, keys, b), quiet=timed(quiet, lane, rs), block=timed(whole, lane, keys, b))
     s["rest"] = s["block"] - s["draw"] - s["quiet"]
     # in situ: paused rounds of 1, 4 and 16 blocks (a run's rounds are >= 4 blocks; a final round's calls
