@@ -699,7 +699,7 @@ def test_device_check_runs_its_new_stages_end_to_end():
     """``scripts/device_check.py`` is run only on a lent GPU, minutes a session: a crash there loses the
     lease.  Its kernel sweep, block breakdown and tile rerun on a CPU, tiny (16 lanes, K = 8, the fused
     layout in Pallas's interpreter): every JSON line parses; the kernel is timed at both tiles; the
-    breakdown's parts are positive and its rounds of 1, 4 and 16 blocks were timed; the layouts ran at
+    breakdown's parts are positive and its rounds of 1, 4 and 16 blocks were timed and fitted; the layouts ran at
     the default tile and again at the fastest (tiles 4 and 8 are not the default 256), with D equal to
     rounding (a tile splits lanes between programs, not their numbers)."""
     import os
@@ -720,7 +720,8 @@ def test_device_check_runs_its_new_stages_end_to_end():
     assert all(r["slot_steps_per_s"] > 0 and r["draw_slot_steps_per_s"] > 0 for r in kernel)
     (bd,) = [r for r in rows if r["kind"] == "breakdown"]
     assert bd["events"] == "fused" and min(bd["draw_s"], bd["quiet_s"], bd["block_s"]) > 0
-    assert bd["round_blocks"] == [1, 4, 16, 1, 4, 16] and min(bd["round_s"]) > 0 and bd["round_block_s"] > 0
+    # (a fit, not checked for sign: at 16 lanes a block is ~50 us, below the jitter of a round's call)
+    assert bd["round_blocks"] == [1, 4, 16, 1, 4, 16] and min(bd["round_s"]) > 0 and math.isfinite(bd["round_block_s"])
     lay = [r for r in rows if r["kind"] == "layout"]
     best = max(kernel, key=lambda r: r["slot_steps_per_s"])
     assert [(r["tile"], r["warps"]) for r in lay] == [(256, 4), (best["tile"], 1)]
