@@ -63,6 +63,10 @@ COMPACT = 8
 COMPACT_MIN_PER_DEVICE = 64
 # lane-steps (idle lanes included) of one call of a final round (Lanes._call): ~4 s on 2 CPU cores
 FINAL_CALL_LANE_STEPS = 2**27
+# lane-steps of a paused round at most (simulate_long_excursions; a few seconds on a CPU, never below 4
+# blocks): progress, max_time and Ctrl-C act between rounds.  On an H200 2^26 is ~7 ms of work, so a run
+# at 2^18 lanes and K = 1024 makes rounds of 4 blocks (README "On an H200"; device_check --round-steps)
+ROUND_LANE_STEPS = 2**26
 #: with ``max_time``, the final round is cut at this multiple of it (:func:`simulate_long_excursions`)
 FINAL_DEADLINE = 2.0
 # steps per iteration of the block's loop: best of 5 runs against 1, DI +1-7%, PDMP +10-14% on 2 CPU
@@ -708,17 +712,18 @@ def work_per_excursion(work: float, closed: int, in_flight: int) -> float:
 def simulate_long_excursions(chain, key, n_excursions: int, *, lanes: int | None = None,
                              chunk_lanes: int | None = None, block: int = BLOCK, max_steps: int = 10**8,
                              pilot_budget: int = 1024, more=None, max_time: float | None = None,
-                             max_work: float | None = None, round_lane_steps: int = 2**26, progress=None):
+                             max_work: float | None = None, round_lane_steps: int | None = None, progress=None):
     """Long excursions of ``chain`` (DI or PDMP) in rounds of persistent lanes, until enough.
 
     Round r uses ``fold_in(key, r)``.  Paused rounds (:class:`Lanes`) run every lane for the
     same number of steps, so no lane idles; the first has a small pilot budget, later ones size
     the budget from the measured steps per excursion, capped at ``round_lane_steps`` lane-steps
-    per round (a few seconds on a CPU) so that progress, ``max_time`` and Ctrl-C act between
-    rounds.  Once the closed plus in-flight excursions reach the target, a final round finishes
-    every in-flight excursion and starts none (unbiased: the number of excursions a lane starts
-    is a stopping time).  The cap is a step count, not a time, so the same seed and settings
-    give bit-identical results (except when ``max_time`` stops the run).
+    per round (default ``ROUND_LANE_STEPS``, a few seconds on a CPU) so that progress,
+    ``max_time`` and Ctrl-C act between rounds.  Once the closed plus in-flight excursions reach
+    the target, a final round finishes every in-flight excursion and starts none (unbiased: the
+    number of excursions a lane starts is a stopping time).  The cap is a step count, not a
+    time, so the same seed and settings give bit-identical results (except when ``max_time``
+    stops the run).
 
     Args:
         chain: a :class:`~dryfric_jax.di.DIModel` or :class:`~dryfric_jax.pdmp.PDMPModel`.
@@ -748,6 +753,7 @@ def simulate_long_excursions(chain, key, n_excursions: int, *, lanes: int | None
     if n_excursions < 1:
         raise ValueError(f"n_excursions must be >= 1 (got {n_excursions})")
     lanes = lanes or lanes_for(n_excursions, chunk_lanes)
+    round_lane_steps = ROUND_LANE_STEPS if round_lane_steps is None else round_lane_steps
     ln = Lanes(chain, lanes, block=block, max_steps=max_steps)
     closed = lambda st: st.n_excursions + st.n_truncated  # truncated count too: work stays bounded
     total, budget, r, want, stopped = None, pilot_budget, 0, n_excursions, "n_excursions"

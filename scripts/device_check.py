@@ -25,7 +25,11 @@ keeps what it printed), at the paper's Fig. 3 point:
   gives a block's time in the engine and what a round costs besides (its call, the host's reading of the
   lanes' sums; on 2 CPU cores at 2^15 lanes and K = 1024 a round cost about one block more).  On the
   H200 (2026-11-30) the kernel and a direct draw took ~1 and ~3 ms of a ~27 ms block (2^18 lanes,
-  K = 1024, float32; the run's wall time over its slot-steps): this splits the rest.
+  K = 1024, float32; the run's wall time over its slot-steps): this splits the rest;
+* ``rounds`` (``--round-steps``, ``--final-call-steps``, after the breakdown): the DI at the first --lanes
+  and --block for each cap of a paused round's lane-steps (``excursions.ROUND_LANE_STEPS``; it changes
+  the random streams, not the law) and of a final round's call (``FINAL_CALL_LANE_STEPS``; it changes
+  no number), the CPU-sized defaults first: whether GPU-sized rounds and calls pay.
 
     python scripts/device_check.py --lanes 65536,262144 --block 256,1024 --unroll 1,4 --n 200000
 
@@ -86,6 +90,8 @@ def main(argv=None) -> int:
                     "alone first, e.g. 128,256,512 (default: none)")
     ap.add_argument("--kernel-warps", type=ints, default="4", help="Triton warps per program to time with them")
     ap.add_argument("--breakdown", action="store_true", help="time one engine block's parts first")
+    ap.add_argument("--round-steps", type=ints, default="", help="caps of a paused round's lane-steps to time")
+    ap.add_argument("--final-call-steps", type=ints, default="", help="caps of a final round's call to time")
     a = ap.parse_args(argv)
     bad = [d for d in a.dtypes.split(",") if d not in ("float32", "float64")]
     bad += [e for e in (a.events.split(",") if a.events else []) if e not in ("wait", "fused", "branch")]
@@ -109,6 +115,9 @@ def main(argv=None) -> int:
     if a.breakdown:
         for dt in a.dtypes.split(","):
             block_breakdown(dt, a.lanes[0], a.block[0], a.events.split(",")[0] if a.events else None)
+    if a.round_steps or a.final_call_steps:
+        round_sweep(a.dtypes.split(",")[0], a.lanes[0], a.block[0], a.events.split(",")[0] if a.events else None,
+                    a.round_steps, a.final_call_steps, int(a.n))
     if a.kernel_tiles:
         best = kernel_sweep(a.dtypes.split(",")[0], a.lanes[0], a.block[0], a.kernel_tiles, a.kernel_warps)
         if best != default_tile:
@@ -210,6 +219,30 @@ def kernel_sweep(dtype, lanes, block, tiles, warps, reps=5):
             emit(kind="kernel", dtype=dtype, lanes=lanes, block=block, tile=tile, warps=w,
                  slot_steps_per_s=rates[tile, w], draw_slot_steps_per_s=draw_rate)
     return max(rates, key=rates.get) if rates else (fused.TILE, fused.NUM_WARPS)
+
+
+def round_sweep(dtype, lanes, block, events, rounds, finals, n):
+    """The DI's useful lane-steps/s for each (paused round cap, final call cap); the engine's caps are
+    restored after.  One compile run first; each run on max(n, 8 lanes) excursions, seed 1."""
+    import dryfric_jax as dj
+    from dryfric_jax import excursions as ex
+    from dryfric_jax.params import FIG3
+
+    p = dj.Params(**FIG3)
+    saved = ex.ROUND_LANE_STEPS, ex.FINAL_CALL_LANE_STEPS, ex.DEFAULT_EVENTS
+    ex.DEFAULT_EVENTS = events or ex.DEFAULT_EVENTS
+    try:
+        dj.estimate_diffusivity(p, 1, dtype=dtype, lanes=lanes, block=block, n_excursions=200)  # compile
+        for r in rounds or [saved[0]]:
+            for f in finals or [saved[1]]:
+                ex.ROUND_LANE_STEPS, ex.FINAL_CALL_LANE_STEPS = r, f
+                res = dj.estimate_diffusivity(p, 1, dtype=dtype, lanes=lanes, block=block,
+                                              n_excursions=max(n, 8 * lanes))
+                emit(kind="rounds", dtype=dtype, lanes=lanes, block=block, round_lane_steps=r, final_call_lane_steps=f,
+                     lane_steps_per_s=res.lane_steps_per_s, wall_s=res.wall_s, utilization=res.lane_utilization,
+                     n_excursions=res.n_excursions, D=res.D, D_ci=res.D_ci)
+    finally:
+        ex.ROUND_LANE_STEPS, ex.FINAL_CALL_LANE_STEPS, ex.DEFAULT_EVENTS = saved
 
 
 def block_breakdown(dtype, lanes, block, events, reps=5):

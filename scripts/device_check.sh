@@ -9,16 +9,18 @@ export PYTHONUNBUFFERED=1 XLA_PYTHON_CLIENT_PREALLOCATE=false PYTHONPATH=$PWD
 PY=${PY:-python3}
 if [ "${SMALL:-0}" = 1 ]; then
   LANES=512,1024; BLOCKS=128; BIG=1024; N=2000; BOUND=8388608; BENCH=1000; T=(150 60 120 60 60 90); NDT=20000
-  KT=128,256; KW=2,4
+  KT=128,256; KW=2,4; RS=65536,1048576; FS=134217728
   FIGS="5"; FIGQ=--quick; EVENTS=${EVENTS:-wait,fused}
   TESTS=tests/test_di_exact.py::test_float32_at_paper_values
 else  # the H200 of 2026-11-30 (README "On an H200"): the fused kernel alone ran 2.8e11 slot-steps/s (tile 256,
   # 4 warps: the best of 12) and a direct draw 8.3e10, yet a whole block ran ~1e10: first --breakdown splits
-  # one block (draw, loop, bookkeeping); then the layouts, float64 and the bench, and the full-setting GPU
-  # times of the scenes no lease timed (Figs. 9, 8, 5, 1); the GPU tests all passed there, so only the
-  # closed forms run again
+  # one block (draw, loop, bookkeeping) and tries GPU-sized rounds and final calls (README "On an H200":
+  # a run there made 30 rounds of <= 4 blocks and 20 one-block calls); then the layouts, float64 and the
+  # bench, and the full-setting GPU times of the scenes no lease timed (Figs. 9, 8, 5, 1); the GPU tests
+  # all passed there, so only the closed forms run again
   LANES=262144,131072; BLOCKS=1024,512; BIG=262144; N=200000; BOUND=1073741824; BENCH=100000
-  T=(150 60 110 0 0 220); NDT=4000000; FIGS="9 8 5 1"; FIGQ=""; KT=256; KW=4
+  T=(190 60 110 0 0 180); NDT=4000000; FIGS="9 8 5 1"; FIGQ=""; KT=256; KW=4
+  RS=67108864,4294967296; FS=134217728,8589934592  # rounds of 2^26 (4 blocks here) and 2^32; calls 2^27, 2^33
   TESTS=tests/test_di_exact.py
 fi
 EVENTS=${EVENTS:-fused}  # the DI's default on an NVIDIA GPU; EVENTS=wait,fused compares them
@@ -38,7 +40,7 @@ stage() {  # name limit command...
 # the DI's quiet loop as one Pallas kernel (dryfric_jax.fused), every layout
 stage layouts32 "${T[0]}" $PY scripts/device_check.py --dtypes float32 --lanes $LANES --block $BLOCKS \
   --events $EVENTS --n $N --bound-n $BOUND --numba-n 16000 --budget-s $(( ${T[0]} - 60 )) --kernel-tiles $KT \
-  --kernel-warps $KW --breakdown
+  --kernel-warps $KW --breakdown --round-steps $RS --final-call-steps $FS
 [ "${T[1]}" -gt 0 ] && stage tests "${T[1]}" $PY -m pytest -q -p no:cacheprovider -rfE --durations=8 $TESTS
 stage layouts64_bench "${T[2]}" $PY scripts/device_check.py --dtypes float64 --lanes $BIG --block 256,1024 \
   --events $EVENTS --n $N --bound-n $BOUND --numba-n 0 --bench-n $BENCH --budget-s $(( ${T[2]} - 80 )) \

@@ -701,7 +701,8 @@ def test_device_check_runs_its_new_stages_end_to_end():
     layout in Pallas's interpreter): every JSON line parses; the kernel is timed at both tiles; the
     breakdown's parts are positive and its rounds of 1, 4 and 16 blocks were timed and fitted; the layouts ran at
     the default tile and again at the fastest (tiles 4 and 8 are not the default 256), with D equal to
-    rounding (a tile splits lanes between programs, not their numbers)."""
+    rounding (a tile splits lanes between programs, not their numbers); the round and final-call caps
+    each ran, and only the round's changed D."""
     import os
     import pathlib
 
@@ -709,7 +710,7 @@ def test_device_check_runs_its_new_stages_end_to_end():
     env = {**os.environ, "PYTHONPATH": str(root)}
     argv = ["scripts/device_check.py", "--dtypes", "float64", "--lanes", "16", "--block", "8", "--events", "fused",
             "--n", "64", "--bound-n", "4096", "--numba-n", "0", "--budget-s", "120", "--kernel-tiles", "4,8",
-            "--kernel-warps", "1", "--breakdown"]
+            "--kernel-warps", "1", "--breakdown", "--round-steps", "1024,1048576", "--final-call-steps", "1,134217728"]
     p = subprocess.run([sys.executable, *argv], cwd=root, env=env, capture_output=True, text=True, timeout=600)
     assert p.returncode == 0, p.stderr[-2000:]
     rows = [json.loads(line) for line in p.stdout.splitlines()]
@@ -722,6 +723,11 @@ def test_device_check_runs_its_new_stages_end_to_end():
     assert bd["events"] == "fused" and min(bd["draw_s"], bd["quiet_s"], bd["block_s"]) > 0
     # (a fit, not checked for sign: at 16 lanes a block is ~50 us, below the jitter of a round's call)
     assert bd["round_blocks"] == [1, 4, 16, 1, 4, 16] and min(bd["round_s"]) > 0 and math.isfinite(bd["round_block_s"])
+    rounds = [r for r in rows if r["kind"] == "rounds"]
+    assert [(r["round_lane_steps"], r["final_call_lane_steps"]) for r in rounds] == [
+        (1024, 1), (1024, 134217728), (1048576, 1), (1048576, 134217728)]
+    # a final call's size changes no number; a round's size changes the streams (the same law)
+    assert rounds[0]["D"] == rounds[1]["D"] and rounds[2]["D"] == rounds[3]["D"] and rounds[0]["D"] != rounds[2]["D"]
     lay = [r for r in rows if r["kind"] == "layout"]
     best = max(kernel, key=lambda r: r["slot_steps_per_s"])
     assert [(r["tile"], r["warps"]) for r in lay] == [(256, 4), (best["tile"], 1)]

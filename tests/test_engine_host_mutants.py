@@ -385,6 +385,23 @@ def test_pilot_budgets_grow_within_a_rounds_lane_steps_and_stop_past_64_max_step
     assert stopped == "work_bound" and s.budgets == [16, 32, 32]
 
 
+def test_the_round_cap_defaults_to_the_engine_constant(monkeypatch):
+    """``round_lane_steps`` left out is ``excursions.ROUND_LANE_STEPS`` (read per run, so that
+    ``scripts/device_check.py --round-steps`` can try GPU-sized rounds): set to 4000, the second round of
+    the case below is capped at 4000 / 8 = 500, as with the argument; at the default 2^26 it is
+    ceil(92 x 100 / 8) = 1150."""
+    import dryfric_jax.excursions as ex
+
+    assert ex.ROUND_LANE_STEPS == 2**26
+    s = _Script(monkeypatch, [(_stats(closed=4, in_flight=4, useful=800), 0), (_stats(closed=100), 0)])
+    _run(100)
+    assert s.budgets == [16, 1150]
+    monkeypatch.setattr(ex, "ROUND_LANE_STEPS", 4000)
+    s = _Script(monkeypatch, [(_stats(closed=4, in_flight=4, useful=800), 0), (_stats(closed=100), 0)])
+    _run(100)
+    assert s.budgets == [16, 500]
+
+
 def test_round_budget_is_at_least_a_quarter_excursion_and_at_most_a_rounds_lane_steps(monkeypatch):
     """After a round with 4 closed + 4 in flight and 8000 useful steps (1000 per excursion), N = 9
     leaves 1 excursion: ceil(1 x 1000 / 8) = 125 < 1000 // 4 = 250, so 250.  With 800 useful steps
