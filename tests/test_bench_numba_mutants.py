@@ -42,6 +42,7 @@ import dryfric_jax as dj
 from dryfric_jax.di import make_di_model
 from dryfric_jax.params import FIG3
 from dryfric_jax.plan import default_h
+from test_bruteforce_mutants import _Script  # a scripted Generator: the numbers given, in order
 
 nb = pytest.importorskip("dryfric_jax.bench_numba", reason="numba not installed: pip install -e '.[bench]'")
 NS = len(nb.SUMS)
@@ -115,19 +116,6 @@ def test_max_steps_out_of_range_is_named(max_steps):
 
 
 # ---------------------------------------------------------------- the DI worker's splitting coin, one step
-class _Script:
-    """A stand-in for numpy's Generator: the normals and uniforms given, in order (running out: IndexError)."""
-
-    def __init__(self, z, u):
-        self.z, self.u = list(z), list(u)
-
-    def standard_normal(self):
-        return self.z.pop(0)
-
-    def random(self):
-        return self.u.pop(0)
-
-
 def _first_step_regenerates(x0, z1, z2, u, P):
     r"""One step of the DI worker (max_work = 1) from (x0, V = 0), seeking: h = 1/2, no bias, no viscous term, the
     OU pair trivial (m1 = m2 = 0, L = I), so Xi = z1 and w = z1/2.  With z1 > 1, V' > 0: released upwards, so

@@ -66,15 +66,9 @@ import pytest
 import dryfric_jax as dj
 from dryfric_jax.pdmp import grid_offsets, make_pdmp_model, pdmp_grid_info
 
+from test_pdmp_mutants import DELTA, F64, GBAR, KM, KP, TAU, TAU_L, _D, _step  # the first pass's point and step
+
 getcontext().prec = 60
-
-TAU, TAU_L, GBAR, DELTA = 0.5, 2.0, 0.13, 0.1
-KP, KM = 8, -11  # floor((1 - 0.13)/0.1) = floor(8.7), ceil((-1 - 0.13)/0.1) = ceil(-11.3)
-F64 = jnp.float64
-
-
-def _D(x):
-    return Decimal(float(x))
 
 
 class Replay:
@@ -121,14 +115,6 @@ def _model(dtype=F64):
     m = make_pdmp_model(dj.Params.from_nondim(TAU, TAU_L, GBAR), DELTA, dtype)
     assert (int(m.kp), int(m.km)) == (KP, KM)
     return m
-
-
-def _step(m, k, y, v, u1, u2, watch_plus):
-    state = (jnp.int32(k), jnp.int32(y), F64(v))
-    r = (F64(u1), F64(u2))
-    _, _, _, to_plus, to_minus = m.event(state, r)
-    (kn, yn, vn), dU, dt, heads = m.advance(state, r, watch_plus)
-    return (int(kn), int(yn), float(vn)), float(dU), float(dt), bool(to_plus), bool(to_minus), bool(heads)
 
 
 def test_a_stuck_lane_that_steps_inwards_is_not_regenerated():
