@@ -26,8 +26,8 @@ H100 (jax 0.11.2, Fig. 3 point, 2026-11-27; README "On an H100") its estimates e
 float32 and float64), and it ran 3.0x (2^16 lanes, K = 256), 1.6x (2^18, 256) and 1.9x (2^18,
 1024) faster in float32, up to 8.8e9 useful lane-steps/s; in float64 it ran as fast as ``"wait"``.
 On an H200 (2026-11-30) the kernel alone ran 2.8e11 slot-steps/s (2^18 lanes, K = 1024, float32;
-:data:`TILE` 256 with 4 warps the fastest of 12 pairs), a block's whole engine step only ~1e10: the
-rest of the block, not this kernel, is where the time goes (README "On an H200").
+:data:`TILE` 256 with 4 warps the fastest of 12 pairs), while the engine's run made ~1e10 slot-steps/s
+in all: the rest of the block, not this kernel, is where the time goes (README "On an H200").
 """
 from __future__ import annotations
 
