@@ -93,35 +93,32 @@ def main(argv=None) -> int:
     ap.add_argument("--round-steps", type=ints, default="", help="caps of a paused round's lane-steps to time")
     ap.add_argument("--final-call-steps", type=ints, default="", help="caps of a final round's call to time")
     a = ap.parse_args(argv)
-    bad = [d for d in a.dtypes.split(",") if d not in ("float32", "float64")]
-    bad += [e for e in (a.events.split(",") if a.events else []) if e not in ("wait", "fused", "branch")]
+    dtypes, events = a.dtypes.split(","), a.events.split(",") if a.events else None
+    bad = [d for d in dtypes if d not in ("float32", "float64")]
+    bad += [e for e in events or [] if e not in ("wait", "fused", "branch")]
     if bad:
         ap.error(f"--dtypes must be among float32,float64 and --events among wait,fused,branch (got {bad})")
     t0 = time.perf_counter()
 
     import jax
     jax.config.update("jax_enable_x64", True)
-    import dryfric_jax as dj
-    from dryfric_jax.api import default_h
     from dryfric_jax.bench import _numba_rates, run_bench, tune_layout
-    from dryfric_jax.di import make_di_model
-    from dryfric_jax.params import FIG3
 
     emit(kind="device", devices=[str(d) for d in jax.devices()], jax=jax.__version__, cpu_count=os.cpu_count())
     from dryfric_jax import fused
 
     default_tile = (fused.TILE, fused.NUM_WARPS)
-    runs = [(dt, default_tile) for dt in a.dtypes.split(",")]
+    runs = [(dt, default_tile) for dt in dtypes]
+    first_events = events[0] if events else None  # the stages before the layouts run one layout
     if a.breakdown:
-        for dt in a.dtypes.split(","):
-            block_breakdown(dt, a.lanes[0], a.block[0], a.events.split(",")[0] if a.events else None)
+        for dt in dtypes:
+            block_breakdown(dt, a.lanes[0], a.block[0], first_events)
     if a.round_steps or a.final_call_steps:
-        round_sweep(a.dtypes.split(",")[0], a.lanes[0], a.block[0], a.events.split(",")[0] if a.events else None,
-                    a.round_steps, a.final_call_steps, int(a.n))
+        round_sweep(dtypes[0], a.lanes[0], a.block[0], first_events, a.round_steps, a.final_call_steps, int(a.n))
     if a.kernel_tiles:
-        best = kernel_sweep(a.dtypes.split(",")[0], a.lanes[0], a.block[0], a.kernel_tiles, a.kernel_warps)
+        best = kernel_sweep(dtypes[0], a.lanes[0], a.block[0], a.kernel_tiles, a.kernel_warps)
         if best != default_tile:
-            runs.insert(1, (a.dtypes.split(",")[0], best))
+            runs.insert(1, (dtypes[0], best))
     d_at = {}  # (dtype, lanes, block, events) -> D at the default tile, to compare bit for bit
     for dt, (tile_, warps_) in runs:
         fused.TILE, fused.NUM_WARPS = tile_, warps_
@@ -133,7 +130,7 @@ def main(argv=None) -> int:
         tile = dict(tile=fused.TILE, warps=fused.NUM_WARPS)
         try:
             b = tune_layout(a.lanes, a.block, dt, n_excursions=int(a.n), numba_excursions=0,
-                            unrolls=a.unroll, events=a.events.split(",") if a.events else None, budget_s=left,
+                            unrolls=a.unroll, events=events, budget_s=left,
                             bound_n=int(a.bound_n), on_layout=lambda row: emit(kind="layout", dtype=dt, **tile, **row))
         except ValueError as e:  # a layout or size the engine refuses (--lanes 5000000): named, exit 2
             ap.error(str(e))
@@ -155,9 +152,8 @@ def main(argv=None) -> int:
         except Exception as exc:
             emit(kind="numba", error=f"{type(exc).__name__}: {exc}")
         else:
-            p = dj.Params(**FIG3)
             try:
-                rates = _numba_rates(run_numba, make_di_model(p, default_h(p)), a.numba_n, 0,
+                rates = _numba_rates(run_numba, fig3_di("float64")[1], a.numba_n, 0,
                                      sorted({1, 2, os.cpu_count() or 1}))
             except BaselineIncomplete as exc:  # said; the layouts above are kept
                 emit(kind="numba", error=f"BaselineIncomplete: {exc}")
@@ -168,6 +164,17 @@ def main(argv=None) -> int:
         emit(kind="bench", **run_bench(n_excursions=int(a.bench_n), repeat=1))
     emit(kind="done", elapsed_s=time.perf_counter() - t0)
     return 0
+
+
+def fig3_di(dtype):
+    """``(params, chain)``: the paper's Fig. 3 point and its DI chain at the default h, in ``dtype``."""
+    import dryfric_jax as dj
+    from dryfric_jax.api import default_h
+    from dryfric_jax.di import make_di_model
+    from dryfric_jax.params import FIG3
+
+    p = dj.Params(**FIG3)
+    return p, make_di_model(p, default_h(p), dtype)
 
 
 def seconds_per_call(f, *args, reps=5):
@@ -183,19 +190,15 @@ def seconds_per_call(f, *args, reps=5):
 
 def kernel_sweep(dtype, lanes, block, tiles, warps, reps=5):
     """Slot-steps/s of the fused kernel alone for each (tile, warps), and of drawing its normals;
-    returns the fastest (tile, warps).  The inputs are fixed (every lane starts free; a lane that
-    meets a coin candidate idles for the rest of the block, as in the engine, at the same cost)."""
+    returns the fastest (tile, warps), the default if none built; the kernel's settings are restored
+    after.  The inputs are fixed (every lane starts free; a lane that meets a coin candidate idles for
+    the rest of the block, as in the engine, at the same cost)."""
     import jax
     import jax.numpy as jnp
 
-    import dryfric_jax as dj
     from dryfric_jax import fused
-    from dryfric_jax.api import default_h
-    from dryfric_jax.di import make_di_model
-    from dryfric_jax.params import FIG3
 
-    dt, p = jnp.dtype(dtype), dj.Params(**FIG3)
-    chain = make_di_model(p, default_h(p), dtype)
+    dt, chain = jnp.dtype(dtype), fig3_di(dtype)[1]
     state = chain.init_state(lanes)
     draw = jax.jit(lambda k: tuple(jax.random.normal(k, (2, block, lanes), dt)))
     rs = jax.block_until_ready(draw(jax.random.key(0)))
@@ -204,21 +207,24 @@ def kernel_sweep(dtype, lanes, block, tiles, warps, reps=5):
 
     timed = lambda f, *args: lanes * block / seconds_per_call(f, *args, reps=reps)
     draw_rate = timed(draw, jax.random.key(1))
-    rates = {}
-    for tile in tiles:
-        for w in warps:
-            fused.TILE, fused.NUM_WARPS = tile, w
-            jax.clear_caches()
-            f = jax.jit(lambda s, r: fused.quiet_steps(chain, block, s, *fixed, r))
-            try:
-                rates[tile, w] = timed(f, state, rs)
-            except Exception as exc:  # a tile the device cannot build: said, the sweep goes on
+    rates, default = {}, (fused.TILE, fused.NUM_WARPS)
+    try:
+        for tile in tiles:
+            for w in warps:
+                fused.TILE, fused.NUM_WARPS = tile, w
+                jax.clear_caches()
+                f = jax.jit(lambda s, r: fused.quiet_steps(chain, block, s, *fixed, r))
+                try:
+                    rates[tile, w] = timed(f, state, rs)
+                except Exception as exc:  # a tile the device cannot build: said, the sweep goes on
+                    emit(kind="kernel", dtype=dtype, lanes=lanes, block=block, tile=tile, warps=w,
+                         error=f"{type(exc).__name__}: {exc}"[:1000])
+                    continue
                 emit(kind="kernel", dtype=dtype, lanes=lanes, block=block, tile=tile, warps=w,
-                     error=f"{type(exc).__name__}: {exc}"[:1000])
-                continue
-            emit(kind="kernel", dtype=dtype, lanes=lanes, block=block, tile=tile, warps=w,
-                 slot_steps_per_s=rates[tile, w], draw_slot_steps_per_s=draw_rate)
-    return max(rates, key=rates.get) if rates else (fused.TILE, fused.NUM_WARPS)
+                     slot_steps_per_s=rates[tile, w], draw_slot_steps_per_s=draw_rate)
+    finally:
+        fused.TILE, fused.NUM_WARPS = default
+    return max(rates, key=rates.get) if rates else default
 
 
 def round_sweep(dtype, lanes, block, events, rounds, finals, n):
@@ -226,9 +232,8 @@ def round_sweep(dtype, lanes, block, events, rounds, finals, n):
     restored after.  One compile run first; each run on max(n, 8 lanes) excursions, seed 1."""
     import dryfric_jax as dj
     from dryfric_jax import excursions as ex
-    from dryfric_jax.params import FIG3
 
-    p = dj.Params(**FIG3)
+    p = fig3_di(dtype)[0]
     saved = ex.ROUND_LANE_STEPS, ex.FINAL_CALL_LANE_STEPS, ex.DEFAULT_EVENTS
     ex.DEFAULT_EVENTS = events or ex.DEFAULT_EVENTS
     try:
@@ -252,15 +257,10 @@ def block_breakdown(dtype, lanes, block, events, reps=5):
     import jax.numpy as jnp
     import numpy as np
 
-    import dryfric_jax as dj
     from dryfric_jax import excursions as ex
-    from dryfric_jax.api import default_h
-    from dryfric_jax.di import make_di_model
-    from dryfric_jax.params import FIG3
 
-    p = dj.Params(**FIG3)
-    chain = make_di_model(p, default_h(p), dtype)
-    events = ex._events_layout(jax.devices(), chain, events or None)
+    chain = fig3_di(dtype)[1]
+    events = ex._events_layout(jax.devices(), chain, events)
     lane = jax.device_put(ex.init_lanes(chain, lanes))
     keys = jax.random.split(jax.random.key(0), lanes)
     b = jnp.zeros(lanes, jnp.int64)
