@@ -21,8 +21,8 @@ from .sharding import over_lanes
 def _run_paths(model: DIModel, keys, burn_in_steps, n_steps, *, block: int):
     """U of every lane over steps ``[burn_in_steps, burn_in_steps + n_steps)`` of its chain, run
     in whole blocks (the steps after them are run and not counted); lane l's block b draws
-    ``jax.random.normal(fold_in(keys[l], b), (block, 2))`` (through :mod:`dryfric_jax.rng`, the same
-    numbers, all lanes at once)."""
+    ``rng.normal(fold_in(keys[l], b), (block, 2))`` (through :func:`dryfric_jax.rng.normals`, the
+    same numbers, all lanes at once)."""
     dt = model.h.dtype
     n = keys.shape[0]
 

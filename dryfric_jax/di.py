@@ -84,7 +84,7 @@ class DIModel(eqx.Module):
     def draw(self, key, block: int):
         """The block's random numbers: 2 normals per step (exact OU step).  The splitting coin's
         uniform is not drawn here but only at the steps that flip a coin (:meth:`coin`)."""
-        zs = jax.random.normal(jax.random.split(key)[0], (block, 2), self.random_dtype).astype(self.h.dtype)
+        zs = rng.normal(jax.random.split(key)[0], (block, 2), self.random_dtype).astype(self.h.dtype)
         return zs[:, 0], zs[:, 1]
 
     def draw_lanes(self, keys, block: int):

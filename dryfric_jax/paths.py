@@ -60,7 +60,7 @@ SEGMENT_WHY = " (steps between records: their normals are counted in 32 bits)"
 
 def _segment(model: DIModel, carry, keys, n_steps: int, block: int = BLOCK):
     """``n_steps`` DI steps of every lane (``carry = (X, V, U)``, arrays over lanes; U in float64,
-    trapezoid).  Lane l's step j uses row j of ``jax.random.normal(keys[l], (n_steps, 2))``,
+    trapezoid).  Lane l's step j uses row j of ``rng.normal(keys[l], (n_steps, 2))``,
     drawn a block of rows at a time for all lanes (:func:`dryfric_jax.rng.normals` with
     ``start``): the numbers of the per-path definition, without holding a segment's numbers
     in memory.  Keys of another generator draw the segment at once."""
@@ -110,7 +110,7 @@ def di_transient(model: DIModel, key, n_paths: int, record_steps, v0: float = 1.
     :math:`(X_0, V_0) = (\\mathcal N(0, 1/\\tau'), v_0)`.  Returns ``(n_paths, len(record_steps))``.
 
     Path p of chunk c has key ``split(fold_in(key, c)[1])[p]``; its segment i (up to
-    ``record_steps[i]``) uses ``jax.random.normal(fold_in(path_key, i), (steps, 2))``.  ``key`` is
+    ``record_steps[i]``) uses ``rng.normal(fold_in(path_key, i), (steps, 2))``.  ``key`` is
     a ``jax.random`` key or an integer seed in [0, 2^62] (as :func:`~dryfric_jax.estimate_diffusivity`
     takes it); ``n_paths`` and ``chunk`` are integers >= 1.  ``ValueError`` naming the argument."""
     _check_model(model)
@@ -154,7 +154,7 @@ def di_stationary(model: DIModel, key, n_paths: int, n_records: int, every: int 
     """V and U (from the end of the burn-in) every ``every`` steps: two ``(n_paths, n_records)``
     arrays.  The noise starts stationary; ``burn_steps`` lets the velocity relax too.
 
-    Path p has key ``split(key)[p]``; its burn-in uses ``jax.random.normal(fold_in(path_key,
+    Path p has key ``split(key)[p]``; its burn-in uses ``rng.normal(fold_in(path_key,
     n_records), (burn_steps, 2))``, record i the numbers of ``fold_in(path_key, i)``.  ``key`` is a
     ``jax.random`` key or an integer seed in [0, 2^62]; ``n_paths``, ``n_records`` and ``every`` are
     integers >= 1 (``every`` and ``burn_steps`` <= 2^31 - 1, :data:`MAX_SEGMENT`; ``burn_steps`` >= 0).

@@ -1,42 +1,52 @@
 r"""Where the random numbers come from: a block of every lane's numbers, drawn at once.
 
-The numbers are exactly ``jax.random.normal`` / ``jax.random.uniform`` of each lane's key (the
-threefry2x32 generator, JAX's default, with ``jax_threefry_partitionable``, JAX's default): the
-module only compiles them differently on a CPU.  JAX lowers threefry's 20 rounds there as a
-rolled loop of 5 iterations (for compile time), which writes both 32-bit words of every counter
-to memory and reads them back at each iteration.  Here the rounds are unrolled, so a block's
-hashes are one fused kernel, and the bits are materialised by a ``lax.cond`` whose branches
-are the same function (its predicate does not matter): without it XLA:CPU would fuse the hash
-into every consumer of the bits and recompute it there (the float64 normal transform has three).
+The bits are exactly ``jax.random.bits`` of each lane's key (the threefry2x32 generator, JAX's
+default, with ``jax_threefry_partitionable``, JAX's default), and the uniforms exactly
+``jax.random.uniform``'s; the normals are the inverse normal CDF of the bits' uniforms
+(:mod:`dryfric_jax.icdf`), not ``jax.random.normal``'s inverse error function, which XLA:CPU
+evaluates with a scalar float64 logarithm (the engine's float64 normals were 2.3x, float32 1.5x
+slower that way).  JAX lowers threefry's 20 rounds on a CPU as a rolled loop of 5 iterations
+(for compile time), which writes both 32-bit words of every counter to memory and reads them
+back at each iteration.  Here the rounds are unrolled, so a block's hashes are one fused
+kernel, and the bits are materialised by a ``lax.cond`` whose branches are the same function
+(its predicate does not matter): without it XLA:CPU would fuse the hash into every consumer of
+the bits and recompute it there.
 
 For counter :math:`i` of a lane with key :math:`(k_1, k_2)`, ``(a, b) = threefry2x32(k, (0, i))``
-and the bits are :math:`a \,\|\, b` (64-bit numbers) or :math:`a \oplus b` (32-bit); the mantissa
-bits give :math:`f \in [0, 1)`, and
+and the bits are :math:`a \,\|\, b` (64-bit numbers) or :math:`a \oplus b` (32-bit).  Their top
+:math:`m` bits (m = 52, 23: the mantissa) are an integer :math:`k`, and
 
 .. math::
-    U = \max(lo, f\,(hi - lo) + lo), \qquad Z = \sqrt2\,\operatorname{erf}^{-1}(U)
-    \ \text{with}\ (lo, hi) = (\operatorname{nextafter}(-1, 0), 1),
+    U = \max(lo, k 2^{-m} (hi - lo) + lo), \qquad
+    Z = \Phi^{-1}\big((k + \tfrac12)\, 2^{-m}\big),
 
-as in ``jax.random``.  Measured, 256 lanes x 128 steps x 2 normals per block, one CPU device:
-float64 3.6e7 -> 7.6e7 lane-steps/s, float32 4.7e7 -> 2.7e8 (``tests/test_rng.py`` checks the
-numbers are bit-identical to ``jax.random``).  On other platforms (a GPU, whose lowering is
-already unrolled) :func:`normals` and :func:`uniforms` call ``jax.random`` itself, except for
-rows of a longer stream (``start``), which they hash the same way without the ``lax.cond``.
+U as in ``jax.random.uniform`` and Z the normal of :func:`normal`: the midpoints of the
+:math:`2^m` equally likely cells, so :math:`1 - u` is exact and the law exactly symmetric, with
+:math:`|Z| \le 8.2` (float64) and :math:`5.3` (float32).  Z differs from
+``jax.random.normal``'s number of the same bits, :math:`\sqrt2\,\operatorname{erf}^{-1}(2 k 2^{-m}
+- 1 + 2^{-m-1})`, only by the quarter cell between the two arguments and by rounding
+(``tests/test_rng.py``), so a run's paths are those ``jax.random.normal`` would give, to
+rounding.  The numbers are the same on every platform: on a CPU the fused hash, elsewhere (a
+GPU, whose lowering is already unrolled) ``jax.random.bits`` and the same transform.
 
 Keys are derived the same way: ``fold_in(key, d)`` and ``split(key)[i]`` are the keys
 ``threefry2x32(key, (0, d))`` and ``threefry2x32(key, (0, i))``; :func:`fold_in`, :func:`split_at`
 and :func:`uniform` (one number per key) compute them elementwise, where JAX's CPU lowering runs
 one rolled loop per call (the lane engine derives three keys and a coin per lane and block).
 Keys of another generator (``rbg``, ``unsafe_rbg``) go through ``jax.random`` under ``vmap``: for
-those JAX's batched numbers differ from one call per key, so "the same as ``jax.random``" holds
+those JAX's batched numbers differ from one call per key, so "one lane as drawn alone" holds
 for threefry keys only (audit).
 """
 from __future__ import annotations
+
+import functools
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 from jax import lax
+
+from . import icdf
 
 _ROTATIONS = ((13, 15, 26, 6), (17, 29, 16, 24))
 
@@ -98,15 +108,34 @@ def _unit(bits, dtype, lo, hi):
     return lax.max(lo, (f - np.array(1.0, dtype)) * (hi - lo) + lo)
 
 
+@functools.partial(jax.jit, static_argnums=1)
 def _normal(bits, dtype):
+    r""":func:`normal`'s transform of the bits: :math:`\Phi^{-1}((k + 1/2) 2^{-m})`, k the top m bits,
+    the argument made exactly as :math:`(2k + 1) 2^{-m-1}` from the integer.  (Written as
+    :math:`(f - 1) + 2^{-m-1}` from the bits' float f in [1, 2), XLA's simplifier folds the
+    constants of :math:`((f - 1) + 2^{-m-1}) - 1/2` into one rounded constant, -3/2.)"""
     dtype = np.dtype(dtype)
-    lo = np.nextafter(np.array(-1.0, dtype), np.array(0.0, dtype), dtype=dtype)
-    return np.array(np.sqrt(2), dtype) * lax.erf_inv(_unit(bits, dtype, lo, 1.0))
+    ut = _uint(dtype)
+    m = np.finfo(dtype).nmant
+    k = bits >> ut(8 * dtype.itemsize - m)
+    u = (k * ut(2) + ut(1)).astype(dtype) * np.array(2.0 ** -(m + 1), dtype)
+    return icdf.ndtri(u)
+    # jitted so that a call outside jit rounds as inside one: XLA:CPU contracts a * b + c to a
+    # fused multiply-add within a fusion, which op-by-op execution does not
+
+
+def normal(key, shape, dtype):
+    r"""The engine's standard normals of one key: ``jax.random.bits(key, shape)`` (64- or 32-bit
+    as ``dtype``, float64 or float32) through :math:`\Phi^{-1}` (module docstring), the per-key
+    definition that :func:`normals` computes for every lane at once.  Close to, but not,
+    ``jax.random.normal(key, shape, dtype)``."""
+    _check_dtype(dtype)
+    return _normal(jax.random.bits(key, shape, _uint(dtype)), dtype)
 
 
 def per_lane(sample, keys, n: int):
-    """``jax.random`` itself: ``sample(key)`` (an array of shape (block, n)) for every lane, as n
-    arrays of shape (block, lanes).  The path off a CPU, and the reference."""
+    """``sample(key)`` (an array of shape (block, n), e.g. :func:`normal` of the key) for every
+    lane under ``vmap``, as n arrays of shape (block, lanes).  The path off a CPU, and the reference."""
     zs = jax.vmap(sample, out_axes=2)(keys)
     return tuple(zs[:, c] for c in range(n))
 
@@ -170,7 +199,7 @@ def uniform(keys, dtype, minval: float = 0.0, maxval: float = 1.0):
 
 def _draw(keys, block: int, n: int, dtype, sample, transform, start=None):
     """``per_lane(sample, keys, n)``; on a CPU, for threefry keys, the same numbers as
-    ``transform`` of the fused hash's bits (module docstring).  With ``start``, rows
+    ``transform`` of the fused hash's bits (module docstring), elsewhere ``sample`` itself.  With ``start``, rows
     ``[start, start + block)`` of the per-lane array (``sample`` is then not used): the fused
     hash on every platform, materialised on a CPU only (a GPU would read the ``lax.cond``'s
     predicate back to the host)."""
@@ -186,7 +215,7 @@ def _draw(keys, block: int, n: int, dtype, sample, transform, start=None):
 
 
 def normals(keys, block: int, n: int, dtype, start=None):
-    """Every lane's ``jax.random.normal(key, (block, n), dtype)``, as n arrays of shape
+    """Every lane's :func:`normal` ``(key, (block, n), dtype)``, as n arrays of shape
     (block, lanes) (column c of lane l is ``out[c][:, l]``): a step reads one contiguous row.
 
     Args:
@@ -194,11 +223,11 @@ def normals(keys, block: int, n: int, dtype, start=None):
         block, n: numbers per lane, (block, n).
         dtype: float32 or float64.
         start: if given (an int or a traced integer), rows ``[start, start + block)`` of every
-            lane's ``jax.random.normal(key, (rows, n), dtype)`` for any ``rows >= start + block``
+            lane's :func:`normal` ``(key, (rows, n), dtype)`` for any ``rows >= start + block``
             with ``rows * n < 2**32``: a long stream drawn a block at a time, the same numbers
             as drawn at once (threefry keys only).
     """
-    return _draw(keys, block, n, dtype, lambda k: jax.random.normal(k, (block, n), dtype),
+    return _draw(keys, block, n, dtype, lambda k: normal(k, (block, n), dtype),
                  lambda b: _normal(b, dtype), start)
 
 

@@ -1,10 +1,12 @@
-"""Where a normal's cost lies: the engine's threefry hash alone, the hash plus ``jax.random``'s
-inverse-erf transform (the engine's normals: the bench's RNG bound, ``bench.rng_bound_timer``),
-Box-Muller normals from the same bits (for comparison only), and numpy's ``Generator`` (PCG64,
-ziggurat) inside a numba loop, the bench's compiled baseline
-(``dryfric_jax.bench_numba``).  The three JAX rates are timed the way the bench times its RNG bound
-(``bench._device_timer``: every lane draws a block from ``fold_in(lane_key, block)`` and reads it
-row by row), with the CLI's XLA flags.  Run it pinned to one core (one XLA device)::
+"""Where a normal's cost lies: the engine's threefry hash alone, the hash plus the engine's
+inverse-CDF transform (the engine's normals: the bench's RNG bound, ``bench.rng_bound_timer``),
+``jax.random.normal`` (the same bits through the inverse error function, with XLA:CPU's scalar
+float64 logarithm: the engine's transform before version 0.2.4), Box-Muller normals from the same
+bits (for comparison only), and numpy's ``Generator`` (PCG64, ziggurat) inside a numba loop, the
+bench's compiled baseline (``dryfric_jax.bench_numba``).  The JAX rates are timed the way the bench
+times its RNG bound (``bench._device_timer``: every lane draws a block from
+``fold_in(lane_key, block)`` and reads it row by row), with the CLI's XLA flags.  Run it pinned to
+one core (one XLA device)::
 
     taskset -c 1 python scripts/rng_cost.py
 
@@ -79,10 +81,12 @@ def main() -> None:
     print(f"{jax.device_count()} XLA device(s); numba Generator(PCG64) normals: {nb:.3e}/s")
     for dtype in (np.float32, np.float64):
         # two numbers per lane-step; the best of 5 timings of each
-        timers = hash_timer(dtype), rng_bound_timer(dtype, LANES, BLOCK, N), box_muller_timer(dtype)
-        b, z, bm = (2 * max(t() for _ in range(5)) for t in timers)
+        timers = (hash_timer(dtype), rng_bound_timer(dtype, LANES, BLOCK, N),
+                  rng_bound_timer(dtype, LANES, BLOCK, N, via="jax"), box_muller_timer(dtype))
+        b, z, zj, bm = (2 * max(t() for _ in range(5)) for t in timers)
         print(f"{np.dtype(dtype).name}: hash words {b:.3e}/s ({b / nb:.2f}x numba's normals), "
-              f"normals {z:.3e}/s ({z / nb:.2f}x); Box-Muller from the same bits {bm:.3e}/s ({bm / nb:.2f}x)")
+              f"normals {z:.3e}/s ({z / nb:.2f}x), jax.random.normal {zj:.3e}/s ({zj / nb:.2f}x); "
+              f"Box-Muller from the same bits {bm:.3e}/s ({bm / nb:.2f}x)")
 
 
 if __name__ == "__main__":

@@ -27,7 +27,7 @@ import numpy as np
 import pytest
 
 import dryfric_jax as dj
-from dryfric_jax import bruteforce
+from dryfric_jax import bruteforce, rng
 from dryfric_jax.di import make_di_model
 from dryfric_jax.excursions import BLOCK
 from dryfric_jax.limits import MAX_WORK
@@ -68,9 +68,9 @@ def _path_by_hand(x0, z, burn, n):
 
 def _normals(key, chunk, c, lane, n_blocks, block, dtype):
     """The documented numbers of path ``lane`` of chunk ``c``: block b draws
-    ``jax.random.normal(fold_in(split(fold_in(key, c), chunk)[lane], b), (block, 2), dtype)``."""
+    ``rng.normal(fold_in(split(fold_in(key, c), chunk)[lane], b), (block, 2), dtype)``."""
     pkey = jax.random.split(jax.random.fold_in(key, c), chunk)[lane]
-    return np.concatenate([np.asarray(jax.random.normal(jax.random.fold_in(pkey, b), (block, 2), dtype), np.float64)
+    return np.concatenate([np.asarray(rng.normal(jax.random.fold_in(pkey, b), (block, 2), dtype), np.float64)
                            for b in range(n_blocks)])
 
 

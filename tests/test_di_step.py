@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 
 import dryfric_jax as dj
+from dryfric_jax import rng
 from dryfric_jax.di import make_di_model
 from dryfric_jax.ou import ou_moments_reference
 
@@ -126,7 +127,7 @@ def test_advance_flags_a_candidate_only_for_a_stuck_lane_released_out_of_its_set
 def test_a_bruteforce_path_is_the_chain_by_hand():
     r"""``simulate_bruteforce``'s U of each path, rebuilt here from its documented numbers (path l of
     chunk c: key ``split(fold_in(key, c), chunk_lanes)[l]``, block b's normals
-    ``jax.random.normal(fold_in(path_key, b), (block, 2))``) and the by-hand step: from
+    ``rng.normal(fold_in(path_key, b), (block, 2))``) and the by-hand step: from
     :math:`(x_\Delta, 0)`, steps ``[burn, burn + n)`` counted, with a burn-in and horizon that end
     inside blocks and two chunks, the last one short.  float64, to 1e-12 of the sum of :math:`|dU|`."""
     from dryfric_jax.bruteforce import simulate_bruteforce
@@ -138,7 +139,7 @@ def test_a_bruteforce_path_is_the_chain_by_hand():
     for p in range(n_paths):
         c, l = divmod(p, chunk)
         pkey = jax.random.split(jax.random.fold_in(key, c), chunk)[l]
-        z = np.concatenate([np.asarray(jax.random.normal(jax.random.fold_in(pkey, b), (block, 2), jnp.float64))
+        z = np.concatenate([np.asarray(rng.normal(jax.random.fold_in(pkey, b), (block, 2), jnp.float64))
                             for b in range(-(-(burn + n_steps) // block))])
         x, v, u, scale = float(m.x_plus), 0.0, 0.0, 0.0
         for i in range(burn + n_steps):
@@ -155,7 +156,7 @@ def test_the_coin_and_the_normals_come_from_the_two_halves_of_the_block_key(dtyp
     ``split(k)[1]`` (``DIModel.draw`` and ``coin_key``; regeneration's coin must be independent of the step's
     y).  The engine's own rebuild (test_engine) calls ``coin_key`` itself, so a coin key equal to the normals'
     key (the "wait" layout then draws the coin's uniform from the bits of the block's first normal) passed
-    every other test (mutation audit).  The expected keys and normals are ``jax.random``'s own."""
+    every other test (mutation audit).  The expected keys are ``jax.random``'s own, the normals :func:`rng.normal`'s."""
     m = make_di_model(dj.Params.from_nondim(TAU, TAU_L, GBAR, Gamma=GAMMA, Delta=DELTA), H * GAMMA / DELTA**2,
                       dtype)
     k = jax.random.fold_in(jax.random.key(7), 3)
@@ -164,5 +165,5 @@ def test_the_coin_and_the_normals_come_from_the_two_halves_of_the_block_key(dtyp
     assert np.array_equal(data(m.coin_key(k)), data(k1))
     assert not np.array_equal(data(m.coin_key(k)), data(k0))
     z1, z2 = m.draw(k, 4)
-    zs = jax.random.normal(k0, (4, 2), dtype)
+    zs = rng.normal(k0, (4, 2), dtype)
     assert np.array_equal(np.asarray(z1), np.asarray(zs[:, 0])) and np.array_equal(np.asarray(z2), np.asarray(zs[:, 1]))

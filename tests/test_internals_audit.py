@@ -189,8 +189,8 @@ def test_draw_lanes_keeps_the_waiting_time_uniform_above_zero(monkeypatch):
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
 def test_unit_and_normal_bit_mapping(dtype):
     """The top mantissa bits give f = (bits >> (w - nmant)) 2^-nmant exactly, [lo, hi) scales it;
-    the extreme bits give finite normals: sqrt 2 erfinv(nextafter(-1, 0)) for bits 0 (-1 itself
-    would be -inf) and sqrt 2 erfinv of the largest U below 1 for all ones."""
+    the extreme bits give finite normals, the normal quantiles of the first and last cell
+    midpoints, Phi^-1(2^-(nmant+1)) for bits 0 and Phi^-1(1 - 2^-(nmant+1)) for all ones."""
     ut, nm = rng._uint(dtype), np.finfo(dtype).nmant
     w = 8 * np.dtype(dtype).itemsize
     top = (1 << w) - 1
@@ -203,10 +203,10 @@ def test_unit_and_normal_bit_mapping(dtype):
     ref = np.array([float(x * Fraction(hi - lo) + Fraction(lo)) for x in f])
     assert np.all(np.abs(got - ref) <= 2 * np.finfo(dtype).eps * ref) and np.all((got >= lo) & (got < hi))
     z = np.asarray(rng._normal(bits[np.array([0, 4])], dtype)).astype(float)
-    lo1 = np.nextafter(np.array(-1.0, dtype), np.array(0.0, dtype))
-    u = np.maximum(lo1, np.array([float(f[0]), float(f[4])], dtype) * (dtype(1) - lo1) + lo1)  # in dtype
-    ref_z = np.sqrt(2) * erfinv(u.astype(float))
+    u = np.array([float(f[0]), float(f[4])]) + 2.0 ** -(nm + 1)  # the cells' midpoints, exact
+    ref_z = np.sqrt(2) * erfinv(2 * u - 1)
     assert np.all(np.isfinite(z)) and np.allclose(z, ref_z, rtol=1e-5 if dtype == np.float32 else 1e-12)
+    assert z[0] == -z[1]
 
 
 def test_streams_have_the_right_moments_and_no_cross_correlation():
@@ -311,11 +311,11 @@ def test_combine_pools_every_field_by_its_own_rule():
 
 
 def test_keys_of_any_other_generator_take_jax_random():
-    """unsafe_rbg keys (not only rbg) are not threefry: their draws are jax.random's own (a check
-    'not rbg' hashed them as threefry, other numbers entirely).  (Their derived keys are not
+    """unsafe_rbg keys (not only rbg) are not threefry: their draws are of jax.random's own bits (a
+    check 'not rbg' hashed them as threefry, other numbers entirely).  (Their derived keys are not
     compared: unsafe_rbg's fold_in and split under vmap differ from one key at a time in JAX itself.)"""
     keys = jax.random.split(jax.random.key(9, impl="unsafe_rbg"), 4)
-    ref = jax.vmap(lambda k: jax.random.normal(k, (3, 2), jnp.float64))(keys)
+    ref = jax.vmap(lambda k: rng.normal(k, (3, 2), jnp.float64))(keys)
     got = rng.normals(keys, 3, 2, jnp.float64)
     for c in range(2):
         np.testing.assert_array_equal(np.asarray(got[c]), np.asarray(ref[:, :, c]).T)

@@ -7,6 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from dryfric_jax import rng
 from dryfric_jax.params import FIG3, Params
 from dryfric_jax.paths import (autocorrelation, autocovariance, di_excursion, di_stationary, di_transient,
                                pdmp_stationary)
@@ -99,8 +100,8 @@ def test_pdmp_recorder_refuses_bad_input_by_name(kw, match):
 # --- the DI path recorders against the per-path definition of their random numbers ---
 
 def _di_reference(model, carry, key, n_steps):
-    """One path's segment as its definition reads: ``jax.random.normal(key, (n_steps, 2))``, step by step."""
-    z = jax.random.normal(key, (n_steps, 2), model.h.dtype)
+    """One path's segment as its definition reads: ``rng.normal(key, (n_steps, 2))``, step by step."""
+    z = rng.normal(key, (n_steps, 2), model.h.dtype)
 
     def step(c, zz):
         X, V, U = c

@@ -12,6 +12,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from dryfric_jax import rng
 from dryfric_jax.di import make_di_model
 from dryfric_jax.params import Params
 from dryfric_jax.paths import _stationary_sd, di_transient
@@ -36,12 +37,12 @@ def _numpy_run(model, x, v, z):
 
 def _numpy_paths(model, x0, v0, keys, segments):
     """V after each segment, every path stepped on its own (:func:`_numpy_run`): segment i of the
-    path with key k uses ``jax.random.normal(fold_in(k, i), (n_i, 2))`` (the documented numbers)."""
+    path with key k uses ``rng.normal(fold_in(k, i), (n_i, 2))`` (the documented numbers)."""
     out = np.empty((len(keys), len(segments)))
     for p, k in enumerate(keys):
         x, v = float(x0[p]), v0
         for i, n in enumerate(segments):
-            z = np.asarray(jax.random.normal(jax.random.fold_in(k, i), (n, 2), jnp.float64)) if n else []
+            z = np.asarray(rng.normal(jax.random.fold_in(k, i), (n, 2), jnp.float64)) if n else []
             x, v, _ = _numpy_run(model, x, v, z)
             out[p, i] = v
     return out

@@ -22,6 +22,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from dryfric_jax import rng
 from dryfric_jax.di import make_di_model
 from dryfric_jax.params import FIG3, Params
 from dryfric_jax.paths import (_record_steps, autocorrelation, autocovariance, di_excursion, di_stationary,
@@ -50,10 +51,10 @@ def test_di_stationary_with_a_one_step_burn_in_and_a_one_row_remainder():
     V, U = di_stationary(model, key, 2, n_rec, every=every, burn_steps=1)
     for p, k in enumerate(jax.random.split(key, 2)):
         x = float(jax.random.normal(jax.random.fold_in(k, n_rec + 1), (), jnp.float64)) / math.sqrt(TAU)
-        x, v, _ = _numpy_run(model, x, 0.0, jax.random.normal(jax.random.fold_in(k, n_rec), (1, 2), jnp.float64))
+        x, v, _ = _numpy_run(model, x, 0.0, rng.normal(jax.random.fold_in(k, n_rec), (1, 2), jnp.float64))
         u_tot = 0.0
         for i in range(n_rec):
-            x, v, u = _numpy_run(model, x, v, jax.random.normal(jax.random.fold_in(k, i), (every, 2), jnp.float64))
+            x, v, u = _numpy_run(model, x, v, rng.normal(jax.random.fold_in(k, i), (every, 2), jnp.float64))
             u_tot += u
             assert V[p, i] == pytest.approx(v, rel=1e-12, abs=1e-13)
             assert U[p, i] == pytest.approx(u_tot, rel=1e-12, abs=1e-13)

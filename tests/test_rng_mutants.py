@@ -63,7 +63,7 @@ def test_non_partitionable_threefry_is_left_to_jax_random(dtype):
     row offsets.  Kills R35 (``is_threefry`` without the partitionable check: other numbers entirely)."""
     keys = _keys()
     with jax.threefry_partitionable(False):
-        ref_n = jax.vmap(lambda k: jax.random.normal(k, (4, 2), dtype))(keys)
+        ref_n = jax.vmap(lambda k: rng.normal(k, (4, 2), dtype))(keys)
         ref_u = jax.vmap(lambda k: jax.random.uniform(k, (4, 2), dtype, 0.25, 3.0))(keys)
         _same_columns(rng.normals(keys, 4, 2, dtype), ref_n)
         _same_columns(rng.uniforms(keys, 4, 2, dtype, 0.25, 3.0), ref_u)
