@@ -4,7 +4,7 @@ The bits are exactly ``jax.random.bits`` of each lane's key (the threefry2x32 ge
 default, with ``jax_threefry_partitionable``, JAX's default), and the uniforms exactly
 ``jax.random.uniform``'s; the normals are the inverse normal CDF of the bits' uniforms
 (:mod:`dryfric_jax.icdf`), not ``jax.random.normal``'s inverse error function, which XLA:CPU
-evaluates with a scalar float64 logarithm (the engine's float64 normals were 2.3x, float32 1.5x
+evaluates with a scalar float64 logarithm (the engine's float64 normals were 2.2x, float32 1.6x
 slower that way).  JAX lowers threefry's 20 rounds on a CPU as a rolled loop of 5 iterations
 (for compile time), which writes both 32-bit words of every counter to memory and reads them
 back at each iteration.  Here the rounds are unrolled, so a block's hashes are one fused
@@ -108,6 +108,8 @@ def _unit(bits, dtype, lo, hi):
     return lax.max(lo, (f - np.array(1.0, dtype)) * (hi - lo) + lo)
 
 
+# jitted so that a call outside jit rounds as inside one: XLA:CPU contracts a * b + c into a fused
+# multiply-add within a fusion, which op-by-op execution does not (the numbers differed in the last bit)
 @functools.partial(jax.jit, static_argnums=1)
 def _normal(bits, dtype):
     r""":func:`normal`'s transform of the bits: :math:`\Phi^{-1}((k + 1/2) 2^{-m})`, k the top m bits,
@@ -120,8 +122,6 @@ def _normal(bits, dtype):
     k = bits >> ut(8 * dtype.itemsize - m)
     u = (k * ut(2) + ut(1)).astype(dtype) * np.array(2.0 ** -(m + 1), dtype)
     return icdf.ndtri(u)
-    # jitted so that a call outside jit rounds as inside one: XLA:CPU contracts a * b + c to a
-    # fused multiply-add within a fusion, which op-by-op execution does not
 
 
 def normal(key, shape, dtype):

@@ -189,18 +189,19 @@ def seconds_per_call(f, *args, reps=5):
 
 
 def kernel_sweep(dtype, lanes, block, tiles, warps, reps=5):
-    """Slot-steps/s of the fused kernel alone for each (tile, warps), and of drawing its normals;
+    """Slot-steps/s of the fused kernel alone for each (tile, warps), and of drawing its normals (the
+    engine's generator, ``rng.normals``, one key per lane);
     returns the fastest (tile, warps), the default if none built; the kernel's settings are restored
     after.  The inputs are fixed (every lane starts free; a lane that meets a coin candidate idles for
     the rest of the block, as in the engine, at the same cost)."""
     import jax
     import jax.numpy as jnp
 
-    from dryfric_jax import fused
+    from dryfric_jax import fused, rng
 
     dt, chain = jnp.dtype(dtype), fig3_di(dtype)[1]
     state = chain.init_state(lanes)
-    draw = jax.jit(lambda k: tuple(jax.random.normal(k, (2, block, lanes), dt)))
+    draw = jax.jit(lambda k: rng.normals(jax.random.split(k, lanes), block, 2, dt))
     rs = jax.block_until_ready(draw(jax.random.key(0)))
     fixed = (jnp.zeros(lanes, dt), jnp.full(lanes, block, dt), jnp.full(lanes, block, dt),
              jnp.ones(lanes, bool), jnp.ones(lanes, bool))
