@@ -55,6 +55,14 @@ _LN2_HI, _LN2_LO = 6.93147180369123816490e-01, 1.90821492927058770002e-10  # ln 
 _LOG_TERMS = {8: 12, 4: 5}  # terms of the atanh series (itemsize -> terms): error < 2^-60 / 2^-30
 
 
+def _float_dtype(x, fn: str):
+    """``x``'s dtype, float32 or float64, else ``ValueError`` naming the function ``fn``."""
+    dt = np.dtype(x.dtype)
+    if dt not in (np.dtype(np.float32), np.dtype(np.float64)):
+        raise ValueError(f"{fn}: dtype must be float32 or float64 (got {dt.name})")
+    return dt
+
+
 def _horner(coeffs, x):
     """:math:`\\sum_k c_k x^k` (``coeffs`` lowest degree first) in ``x``'s dtype."""
     dt = x.dtype
@@ -87,9 +95,7 @@ def log(x):
     the series cut where its next term is below the dtype's rounding.  Within 4 ulp of
     ``numpy.log`` (``tests/test_icdf.py``)."""
     x = jnp.asarray(x)
-    dt = np.dtype(x.dtype)
-    if dt not in (np.dtype(np.float32), np.dtype(np.float64)):
-        raise ValueError(f"log: dtype must be float32 or float64 (got {dt.name})")
+    dt = _float_dtype(x, "log")
     wide = dt.itemsize == 8
     ut, it = (np.uint64, np.int64) if wide else (np.uint32, np.int32)
     nm, bias = (52, 1023) if wide else (23, 127)
@@ -112,9 +118,7 @@ def ndtri(u):
     exact (every argument of the generator: :math:`u = (k + 1/2) 2^{-m}`).  Arguments must
     satisfy :math:`\min(u, 1-u) \ge 2^{-53}` (float64) or :math:`2^{-24}` (float32)."""
     u = jnp.asarray(u)
-    dt = np.dtype(u.dtype)
-    if dt not in (np.dtype(np.float32), np.dtype(np.float64)):
-        raise ValueError(f"ndtri: dtype must be float32 or float64 (got {dt.name})")
+    dt = _float_dtype(u, "ndtri")
     wide = dt.itemsize == 8
     half = np.array(0.5, dt)
     q = u - half

@@ -199,10 +199,10 @@ def uniform(keys, dtype, minval: float = 0.0, maxval: float = 1.0):
 
 def _draw(keys, block: int, n: int, dtype, sample, transform, start=None):
     """``per_lane(sample, keys, n)``; on a CPU, for threefry keys, the same numbers as
-    ``transform`` of the fused hash's bits (module docstring), elsewhere ``sample`` itself.  With ``start``, rows
-    ``[start, start + block)`` of the per-lane array (``sample`` is then not used): the fused
-    hash on every platform, materialised on a CPU only (a GPU would read the ``lax.cond``'s
-    predicate back to the host)."""
+    ``transform`` of the fused hash's bits (module docstring), elsewhere ``sample`` itself.  With
+    ``start``, rows ``[start, start + block)`` of the per-lane array (``sample`` is then not used):
+    the fused hash on every platform, materialised on a CPU only (a GPU would read the
+    ``lax.cond``'s predicate back to the host)."""
     _check_dtype(dtype)
     via_jax = lambda ks: per_lane(sample, ks, n)
     if not is_threefry(keys):

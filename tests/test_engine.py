@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import dryfric_jax as dj
-from dryfric_jax import icdf, rng
+from dryfric_jax import rng
 from dryfric_jax.di import DIModel, make_di_model
 from dryfric_jax.estimators import long_excursion_estimates
 from dryfric_jax.pdmp import PDMPModel, make_pdmp_model
@@ -556,10 +556,10 @@ def _coupled_unit(a, b):
     return jax.lax.bitcast_convert_type(_coupled_bits(a, b) | np.array(1.0).view(np.uint64), jnp.float64) - 1.0
 
 
-def _coupled_units(keys, block: int, midpoints: bool = False):
+def _coupled_units(keys, block: int, normals: bool = False):
     """Every lane's two columns of coupled uniforms (counter ``2 row + column``, the layout of
-    ``rng.normals`` / ``rng.uniforms``), each (block, lanes); with ``midpoints``, the midpoint
-    (2k + 1) 2^-53 of each one's 52-bit cell, the argument of ``rng._normal``'s inverse CDF (in the
+    ``rng.normals`` / ``rng.uniforms``), each (block, lanes); with ``normals``, ``rng._normal`` of
+    the coupled bits instead (the inverse CDF of their 52-bit cell's midpoint, which lies in the
     float32 cell whose midpoint is float32's argument)."""
     kd = jax.random.key_data(keys)
     rows = jnp.arange(block, dtype=jnp.uint32)[:, None]
@@ -569,8 +569,8 @@ def _coupled_units(keys, block: int, midpoints: bool = False):
         for c in range(2):
             i = rows * np.uint32(2) + np.uint32(c)
             ab = rng.threefry2x32(kd[:, 0][None, :], kd[:, 1][None, :], jnp.zeros_like(i), i)
-            if midpoints:
-                out.append((_coupled_bits(*ab) * np.uint64(2) + np.uint64(1)).astype(jnp.float64) * 2.0**-53)
+            if normals:  # the 52 bits on top, where rng._normal reads them
+                out.append(rng._normal(_coupled_bits(*ab) << np.uint64(12), jnp.float64))
             else:
                 out.append(_coupled_unit(*ab))
         return tuple(out)
@@ -596,13 +596,12 @@ def _twin(cls, model):
 
 class _DI64OnCoupledNumbers(DIModel):
     r"""The DI in float64 on float64 random numbers coupled to the float32 chain's: each normal
-    is :math:`\Phi^{-1}(u)` of a coupled cell midpoint u (:func:`_coupled_units`), as
-    ``rng._normal`` makes float64's, and each coin :math:`f` of a :func:`_coupled_unit` ``f``, both
-    from the same hash as float32's.  Against :class:`_DI64OnFloat32Numbers` it isolates the
-    float32 generator's coarser numbers."""
+    is ``rng._normal`` of coupled bits (:func:`_coupled_units`), as float64's own are made, and
+    each coin :math:`f` of a :func:`_coupled_unit` ``f``, both from the same hash as float32's.
+    Against :class:`_DI64OnFloat32Numbers` it isolates the float32 generator's coarser numbers."""
 
     def draw_lanes(self, keys, block: int):
-        return tuple(icdf.ndtri(u) for u in _coupled_units(rng.split_at(keys, 0), block, midpoints=True))
+        return _coupled_units(rng.split_at(keys, 0), block, normals=True)
 
     def coin(self, state, r, watch_plus, key):
         u = jnp.maximum(np.finfo(np.float64).tiny, _coupled_coin_unit(key))
@@ -626,25 +625,30 @@ def _fig3_paired_round(numbers: str):
     return np.asarray(run_round(model, jax.random.key(7), 2048, budget).stats)
 
 
-def _paired_difference(sa, sb, groups: int = 64):
-    r"""D(sa) - D(sb) and its jackknife SE over ``groups`` lane groups (the lanes are paired); D is
-    the point estimate :math:`\Psi_D` of the mean moments (``long_excursion_estimates``' D,
-    without its CI's gradient, which would cost a trace per group)."""
+def _D(s):
+    r"""The point estimate :math:`\Psi_D` of the mean moments of the lanes' sums ``s`` (``long_excursion_estimates``'
+    D, without its CI's gradient, which would cost a trace per jackknife group)."""
     from dryfric_jax.estimators import moments_from_sums, psi_D
-    D = lambda s: float(psi_D(moments_from_sums(dict(zip(STAT_NAMES, s.sum(0))))[0]))
-    g = np.arange(len(sa)) % groups
-    jk = np.array([D(sa[g != k]) - D(sb[g != k]) for k in range(groups)])
-    return D(sa) - D(sb), math.sqrt((groups - 1) / groups * np.sum((jk - jk.mean()) ** 2)), D(sb)
+    return float(psi_D(moments_from_sums(dict(zip(STAT_NAMES, s.sum(0))))[0]))
+
+
+def _jackknife_se(stat, n_lanes: int, groups: int = 64):
+    """The delete-a-group jackknife SE of ``stat(mask)`` (a function of the kept lanes) over
+    ``groups`` lane groups (lane l in group l mod groups)."""
+    g = np.arange(n_lanes) % groups
+    jk = np.array([stat(g != k) for k in range(groups)])
+    return math.sqrt((groups - 1) / groups * np.sum((jk - jk.mean()) ** 2))
+
+
+def _paired_difference(sa, sb, groups: int = 64):
+    """D(sa) - D(sb) and its jackknife SE over ``groups`` lane groups (the lanes are paired), and D(sb)."""
+    return _D(sa) - _D(sb), _jackknife_se(lambda m: _D(sa[m]) - _D(sb[m]), len(sa), groups), _D(sb)
 
 
 def _unpaired_se(s, groups: int = 64):
     """The jackknife SE of D(s) alone over the same lane groups as :func:`_paired_difference`: what
     the paired SE is compared with."""
-    from dryfric_jax.estimators import moments_from_sums, psi_D
-    D = lambda x: float(psi_D(moments_from_sums(dict(zip(STAT_NAMES, x.sum(0))))[0]))
-    g = np.arange(len(s)) % groups
-    jk = np.array([D(s[g != k]) for k in range(groups)])
-    return math.sqrt((groups - 1) / groups * np.sum((jk - jk.mean()) ** 2))
+    return _jackknife_se(lambda m: _D(s[m]), len(s), groups)
 
 
 def test_a_float32_chains_excursion_displacement_is_summed_in_float64():
