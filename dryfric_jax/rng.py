@@ -2,32 +2,36 @@ r"""Where the random numbers come from: a block of every lane's numbers, drawn a
 
 The bits are exactly ``jax.random.bits`` of each lane's key (the threefry2x32 generator, JAX's
 default, with ``jax_threefry_partitionable``, JAX's default), and the uniforms exactly
-``jax.random.uniform``'s; the normals are the inverse normal CDF of the bits' uniforms
-(:mod:`dryfric_jax.icdf`), not ``jax.random.normal``'s inverse error function, which XLA:CPU
-evaluates with a scalar float64 logarithm (the engine's float64 normals were 2.2x, float32 1.6x
-slower that way).  JAX lowers threefry's 20 rounds on a CPU as a rolled loop of 5 iterations
-(for compile time), which writes both 32-bit words of every counter to memory and reads them
-back at each iteration.  Here the rounds are unrolled, so a block's hashes are one fused
-kernel, and the bits are materialised by a ``lax.cond`` whose branches are the same function
-(its predicate does not matter): without it XLA:CPU would fuse the hash into every consumer of
-the bits and recompute it there.
+``jax.random.uniform``'s; the normals are Box-Muller pairs of the bits' uniforms
+(:mod:`dryfric_jax.boxmuller`), not ``jax.random.normal``'s inverse error function, which XLA:CPU
+evaluates with a scalar float64 logarithm.  JAX lowers threefry's 20 rounds on a CPU as a rolled
+loop of 5 iterations (for compile time), which writes both 32-bit words of every counter to
+memory and reads them back at each iteration.  Here the rounds are unrolled, so a block's hashes
+are one fused kernel, and the bits are materialised by a ``lax.cond`` whose branches are the
+same function (its predicate does not matter): without it XLA:CPU would fuse the hash into every
+consumer of the bits and recompute it there.
 
 For counter :math:`i` of a lane with key :math:`(k_1, k_2)`, ``(a, b) = threefry2x32(k, (0, i))``
 and the bits are :math:`a \,\|\, b` (64-bit numbers) or :math:`a \oplus b` (32-bit).  Their top
-:math:`m` bits (m = 52, 23: the mantissa) are an integer :math:`k`, and
+:math:`m` bits (m = 52, 23: the mantissa) are an integer :math:`k`.  The uniform is
 
 .. math::
-    U = \max(lo, k 2^{-m} (hi - lo) + lo), \qquad
-    Z = \Phi^{-1}\big((k + \tfrac12)\, 2^{-m}\big),
+    U = \max(lo, k 2^{-m} (hi - lo) + lo),
 
-U as in ``jax.random.uniform`` and Z the normal of :func:`normal`: the midpoints of the
-:math:`2^m` equally likely cells, so :math:`1 - u` is exact and the law exactly symmetric, with
-:math:`|Z| \le 8.2` (float64) and :math:`5.3` (float32).  Z differs from
-``jax.random.normal``'s number of the same bits, :math:`\sqrt2\,\operatorname{erf}^{-1}(2 k 2^{-m}
-- 1 + 2^{-m-1})`, only by the quarter cell between the two arguments and by rounding
-(``tests/test_rng.py``), so a run's paths are those ``jax.random.normal`` would give, to
-rounding.  The numbers are the same on every platform: on a CPU the fused hash, elsewhere (a
-GPU, whose lowering is already unrolled) ``jax.random.bits`` and the same transform.
+as in ``jax.random.uniform``, and the normals come in pairs: numbers :math:`2j` and :math:`2j + 1`
+of the last axis (of ``jax.random.bits(key, shape)``, ``shape[-1]`` even), with integers
+:math:`k, k'`, are
+
+.. math::
+    (Z_{2j}, Z_{2j+1}) = \sqrt{-2 \ln u}\,(\cos 2\pi t, \sin 2\pi t), \qquad
+    u = (k + \tfrac12)\, 2^{-m}, \quad t = k' 2^{-m}:
+
+u is the midpoint of one of :math:`2^m` equally likely cells (never 0 or 1) and t is
+``jax.random.uniform``'s number, so the pair's law is exactly invariant under the reflections
+:math:`t \to 1 - t`, :math:`t \to t + 1/2`, with :math:`|Z| \le \sqrt{2 (m + 1) \ln 2}`, 8.57
+(float64) and 5.77 (float32).  A DI step's two normals are one pair.  The numbers are the same
+on every platform: on a CPU the fused hash, elsewhere (a GPU, whose lowering is already
+unrolled) ``jax.random.bits`` and the same transform.
 
 Keys are derived the same way: ``fold_in(key, d)`` and ``split(key)[i]`` are the keys
 ``threefry2x32(key, (0, d))`` and ``threefry2x32(key, (0, i))``; :func:`fold_in`, :func:`split_at`
@@ -46,7 +50,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax import lax
 
-from . import icdf
+from . import boxmuller
 
 _ROTATIONS = ((13, 15, 26, 6), (17, 29, 16, 24))
 
@@ -110,27 +114,37 @@ def _unit(bits, dtype, lo, hi):
 
 # jitted so that a call outside jit rounds as inside one: XLA:CPU contracts a * b + c into a fused
 # multiply-add within a fusion, which op-by-op execution does not (the numbers differed in the last bit)
-@functools.partial(jax.jit, static_argnums=1)
-def _normal(bits, dtype):
-    r""":func:`normal`'s transform of the bits: :math:`\Phi^{-1}((k + 1/2) 2^{-m})`, k the top m bits,
-    the argument made exactly as :math:`(2k + 1) 2^{-m-1}` from the integer.  (Written as
-    :math:`(f - 1) + 2^{-m-1}` from the bits' float f in [1, 2), XLA's simplifier folds the
-    constants of :math:`((f - 1) + 2^{-m-1}) - 1/2` into one rounded constant, -3/2.)"""
+@functools.partial(jax.jit, static_argnums=2)
+def _normal(bits_u, bits_t, dtype):
+    r""":func:`normal`'s transform of a pair's bits: :func:`boxmuller.pair` of
+    :math:`u = (k + 1/2) 2^{-m}` and :math:`t = k' 2^{-m}`, k and k' the top m bits of ``bits_u``
+    and ``bits_t``; u made exactly as :math:`(2k + 1) 2^{-m-1}` from the integer.  (Written as
+    :math:`(f - 1) + 2^{-m-1}` from the bits' float f in [1, 2), XLA's simplifier may fold the
+    constants into one rounded constant, as it did to 0.2.4's :math:`((f - 1) + 2^{-m-1}) - 1/2`.)"""
     dtype = np.dtype(dtype)
     ut = _uint(dtype)
     m = np.finfo(dtype).nmant
-    k = bits >> ut(8 * dtype.itemsize - m)
-    u = (k * ut(2) + ut(1)).astype(dtype) * np.array(2.0 ** -(m + 1), dtype)
-    return icdf.ndtri(u)
+    shift = ut(8 * dtype.itemsize - m)
+    cell = np.array(2.0 ** -m, dtype)
+    u = ((bits_u >> shift) * ut(2) + ut(1)).astype(dtype) * np.array(2.0 ** -(m + 1), dtype)
+    return boxmuller.pair(u, (bits_t >> shift).astype(dtype) * cell)
+
+
+def _pairs(shape) -> None:
+    if not shape or shape[-1] % 2:
+        raise ValueError(f"normals come in Box-Muller pairs: the last dimension must be even (got shape {tuple(shape)})")
 
 
 def normal(key, shape, dtype):
     r"""The engine's standard normals of one key: ``jax.random.bits(key, shape)`` (64- or 32-bit
-    as ``dtype``, float64 or float32) through :math:`\Phi^{-1}` (module docstring), the per-key
-    definition that :func:`normals` computes for every lane at once.  Close to, but not,
-    ``jax.random.normal(key, shape, dtype)``."""
+    as ``dtype``, float64 or float32) through Box-Muller, numbers 2j and 2j + 1 of the last axis
+    a pair (module docstring; ``shape[-1]`` must be even): the per-key definition that
+    :func:`normals` computes for every lane at once.  Not ``jax.random.normal(key, shape, dtype)``."""
     _check_dtype(dtype)
-    return _normal(jax.random.bits(key, shape, _uint(dtype)), dtype)
+    shape = tuple(shape)
+    _pairs(shape)
+    b = jax.random.bits(key, shape, _uint(dtype))
+    return jnp.stack(_normal(b[..., 0::2], b[..., 1::2], dtype), -1).reshape(shape)
 
 
 def per_lane(sample, keys, n: int):
@@ -199,7 +213,7 @@ def uniform(keys, dtype, minval: float = 0.0, maxval: float = 1.0):
 
 def _draw(keys, block: int, n: int, dtype, sample, transform, start=None):
     """``per_lane(sample, keys, n)``; on a CPU, for threefry keys, the same numbers as
-    ``transform`` of the fused hash's bits (module docstring), elsewhere ``sample`` itself.  With
+    ``transform`` of the fused hash's bits (all n columns; module docstring), elsewhere ``sample`` itself.  With
     ``start``, rows ``[start, start + block)`` of the per-lane array (``sample`` is then not used):
     the fused hash on every platform, materialised on a CPU only (a GPU would read the
     ``lax.cond``'s predicate back to the host)."""
@@ -210,7 +224,7 @@ def _draw(keys, block: int, n: int, dtype, sample, transform, start=None):
             raise ValueError("row offsets (start) need threefry keys, JAX's default generator")
         return via_jax(keys)
     s = 0 if start is None else start
-    fused = lambda m: lambda ks: tuple(transform(b) for b in _bits(jax.random.key_data(ks), block, n, dtype, s, m))
+    fused = lambda m: lambda ks: transform(_bits(jax.random.key_data(ks), block, n, dtype, s, m))
     return lax.platform_dependent(keys, cpu=fused(True), default=via_jax if start is None else fused(False))
 
 
@@ -220,19 +234,20 @@ def normals(keys, block: int, n: int, dtype, start=None):
 
     Args:
         keys: typed keys, one per lane (shape (lanes,)).
-        block, n: numbers per lane, (block, n).
+        block, n: numbers per lane, (block, n); n even (Box-Muller pairs of columns).
         dtype: float32 or float64.
         start: if given (an int or a traced integer), rows ``[start, start + block)`` of every
             lane's :func:`normal` ``(key, (rows, n), dtype)`` for any ``rows >= start + block``
             with ``rows * n < 2**32``: a long stream drawn a block at a time, the same numbers
             as drawn at once (threefry keys only).
     """
+    _pairs((n,))
     return _draw(keys, block, n, dtype, lambda k: normal(k, (block, n), dtype),
-                 lambda b: _normal(b, dtype), start)
+                 lambda bs: sum((_normal(bs[c], bs[c + 1], dtype) for c in range(0, n, 2)), ()), start)
 
 
 def uniforms(keys, block: int, n: int, dtype, minval: float = 0.0, maxval: float = 1.0):
     """Every lane's ``jax.random.uniform(key, (block, n), dtype, minval, maxval)``, laid out as
     :func:`normals`."""
     return _draw(keys, block, n, dtype, lambda k: jax.random.uniform(k, (block, n), dtype, minval, maxval),
-                 lambda b: _unit(b, dtype, minval, maxval))
+                 lambda bs: tuple(_unit(b, dtype, minval, maxval) for b in bs))

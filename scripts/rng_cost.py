@@ -1,9 +1,10 @@
 """Where a normal's cost lies: the engine's threefry hash alone, the hash plus the engine's
-inverse-CDF transform (the engine's normals: the bench's RNG bound, ``bench.rng_bound_timer``),
-``jax.random.normal`` (the same bits through the inverse error function, with XLA:CPU's scalar
-float64 logarithm: the engine's transform before version 0.2.4), Box-Muller normals from the same
-bits (for comparison only), and numpy's ``Generator`` (PCG64, ziggurat) inside a numba loop, the
-bench's compiled baseline (``dryfric_jax.bench_numba``).  The JAX rates are timed the way the bench
+Box-Muller transform with its vectorised log, cosine and sine (the engine's normals: the bench's
+RNG bound, ``bench.rng_bound_timer``), ``jax.random.normal`` (the same bits through the inverse
+error function, with XLA:CPU's scalar float64 logarithm: the engine's transform up to version
+0.2.3), the same Box-Muller pairs with XLA's ``jnp.log``, ``jnp.cos`` and ``jnp.sin`` (for
+comparison: why the engine evaluates its own), and numpy's ``Generator`` (PCG64, ziggurat)
+inside a numba loop, the bench's compiled baseline (``dryfric_jax.bench_numba``).  The JAX rates are timed the way the bench
 times its RNG bound (``bench._device_timer``: every lane draws a block from
 ``fold_in(lane_key, block)`` and reads it row by row), with the CLI's XLA flags.  Run it pinned to
 one core (one XLA device)::
@@ -42,9 +43,9 @@ def hash_timer(dtype):
 
 
 def box_muller_timer(dtype):
-    r"""A timer of Box-Muller normals from the same bits (not the engine's: for comparison), a step's
-    pair :math:`\sqrt{-2\ln u_1}\,(\cos 2\pi u_2, \sin 2\pi u_2)` with :math:`u_1 \in (0, 1]`: one log,
-    sqrt, cos and sin per two normals, where the inverse erf takes a log, a sqrt and polynomials per normal."""
+    r"""A timer of Box-Muller normals from the same bits through XLA's ``jnp.log``, ``jnp.cos`` and
+    ``jnp.sin`` (for comparison with the engine's, which evaluates its own), a step's pair
+    :math:`\sqrt{-2\ln u_1}\,(\cos 2\pi u_2, \sin 2\pi u_2)` with :math:`u_1 \in (0, 1]`."""
     def body(keys, b, acc):
         w1, w2 = rng._bits(jax.random.key_data(block_keys(keys, b)), BLOCK, 2, dtype)
         u1 = np.array(1.0, dtype) - rng._unit(w1, dtype, 0.0, 1.0)
@@ -86,7 +87,7 @@ def main() -> None:
         b, z, zj, bm = (2 * max(t() for _ in range(5)) for t in timers)
         print(f"{np.dtype(dtype).name}: hash words {b:.3e}/s ({b / nb:.2f}x numba's normals), "
               f"normals {z:.3e}/s ({z / nb:.2f}x), jax.random.normal {zj:.3e}/s ({zj / nb:.2f}x); "
-              f"Box-Muller from the same bits {bm:.3e}/s ({bm / nb:.2f}x)")
+              f"Box-Muller with XLA's log, cos, sin {bm:.3e}/s ({bm / nb:.2f}x)")
 
 
 if __name__ == "__main__":

@@ -28,6 +28,7 @@ import numpy as np
 import pytest
 
 from dryfric_jax import bench, excursions
+from dryfric_jax import rng as real_rng
 
 
 # ---------------------------------------------------------------- fakes
@@ -145,7 +146,7 @@ def spy_rng(monkeypatch):
 def test_rng_bound_block_sums_two_normals_per_step_of_each_lanes_block_key(monkeypatch, via):
     """The RNG bound's block: each lane draws (K, 2) normals from fold_in(lane key, b), in the run's dtype, through
     the engine's generator (``via="engine"``) or jax.random.normal (``via="jax"``), and adds both to its float
-    accumulator, every row.  Expected: jax.random.normal's numbers themselves.  Kills: rng_bound passing lanes and
+    accumulator, every row.  Expected: the per-key numbers of the path (rng.normal, jax.random.normal).  Kills: rng_bound passing lanes and
     block swapped or dropping ``via``; the two paths swapped; the engine path drawing float64; one column read
     twice; the row loop from 1."""
     got, used = capture_device_timer(monkeypatch), spy_rng(monkeypatch)
@@ -156,7 +157,8 @@ def test_rng_bound_block_sums_two_normals_per_step_of_each_lanes_block_key(monke
     assert acc.dtype == jnp.float32 and not acc.any()
     out = got["body"](keys, 5, acc)
     assert used == ([("normals", jnp.dtype("float32"))] if via == "engine" else [("per_lane", None)])
-    want = [float(jnp.sum(jax.random.normal(jax.random.fold_in(k, 5), (16, 2), jnp.float32))) for k in keys]
+    normal = real_rng.normal if via == "engine" else jax.random.normal
+    want = [float(jnp.sum(normal(jax.random.fold_in(k, 5), (16, 2), jnp.float32))) for k in keys]
     assert out.dtype == jnp.float32 and np.allclose(out, want, rtol=1e-5, atol=1e-5)
 
 

@@ -559,8 +559,8 @@ def _coupled_unit(a, b):
 def _coupled_units(keys, block: int, normals: bool = False):
     """Every lane's two columns of coupled uniforms (counter ``2 row + column``, the layout of
     ``rng.normals`` / ``rng.uniforms``), each (block, lanes); with ``normals``, ``rng._normal`` of
-    the coupled bits instead (the inverse CDF of their 52-bit cell's midpoint, which lies in the
-    float32 cell whose midpoint is float32's argument)."""
+    the two columns' coupled bits instead (Box-Muller of their 52-bit cells, which lie in the
+    float32 cells of float32's u and t)."""
     kd = jax.random.key_data(keys)
     rows = jnp.arange(block, dtype=jnp.uint32)[:, None]
 
@@ -569,11 +569,9 @@ def _coupled_units(keys, block: int, normals: bool = False):
         for c in range(2):
             i = rows * np.uint32(2) + np.uint32(c)
             ab = rng.threefry2x32(kd[:, 0][None, :], kd[:, 1][None, :], jnp.zeros_like(i), i)
-            if normals:  # the 52 bits on top, where rng._normal reads them
-                out.append(rng._normal(_coupled_bits(*ab) << np.uint64(12), jnp.float64))
-            else:
-                out.append(_coupled_unit(*ab))
-        return tuple(out)
+            # the 52 bits on top, where rng._normal reads them
+            out.append(_coupled_bits(*ab) << np.uint64(12) if normals else _coupled_unit(*ab))
+        return rng._normal(*out, jnp.float64) if normals else tuple(out)
 
     # materialised as rng._bits does: unfused, XLA 0.12 (jax 0.12.0.1) compiled this model's round
     # for > 20 min on 2 CPU cores (0.10.2: ~9 s)
@@ -693,15 +691,20 @@ def test_float32_arithmetic_matches_float64_on_the_same_numbers():
 
 def test_coupled_float64_numbers_are_normal_and_within_float32s_resolution():
     """The coupled generator of the next test: its uniforms lie in [u32, u32 + 2^-23) of the
-    float32 chain's, its normals within the float32 lattice's spacing of float32's, and 2^20 of
+    float32 chain's, its normal pairs' radii and angles within a float32 cell's of float32's, and 2^20 of
     them have the normal law's mean and variance (5 SE)."""
     p = dj.Params(**dj.FIG3)
     m64 = make_di_model(p, dj.default_h(p), "float64")
     keys = jax.random.split(jax.random.key(3), 1024)
     z32 = np.stack(_twin(_DI64OnFloat32Numbers, m64).draw_lanes(keys, 512))
     z64 = np.stack(_twin(_DI64OnCoupledNumbers, m64).draw_lanes(keys, 512))
-    slope = math.sqrt(2 * math.pi) * np.exp(z64**2 / 2)  # dZ/dU: the coupled U is within half a float32 cell
-    assert np.all(np.abs(z64 - z32) <= 2.0**-24 * slope + 1e-6 * (1 + np.abs(z64)))
+    # a pair's radius^2 is -2 ln u, with the coupled u within half a float32 cell (2^-24) of float32's,
+    # and its angle 2 pi t, with the coupled t in [t32, t32 + 2^-23)
+    r32, r64 = (np.sum(z.astype(np.float64) ** 2, 0) for z in (z32, z64))
+    u_lo = np.exp(-np.maximum(r32, r64) / 2) - 2.0**-24
+    assert np.all(np.abs(r64 - r32) <= 2 * 2.0**-24 / u_lo + 1e-6 * (1 + r64))
+    turn = np.arctan2(z64[1] * z32[0] - z64[0] * z32[1], z64[0] * z32[0] + z64[1] * z32[1])
+    assert np.all((turn >= -1e-6) & (turn <= 2 * math.pi * 2.0**-23 + 1e-6))
     assert np.mean(z64 != z32) > 0.99  # the low bits are there
     n = z64.size
     assert abs(z64.mean()) < 5 / math.sqrt(n) and abs(z64.var() - 1) < 5 * math.sqrt(2 / n)

@@ -13,7 +13,6 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 from scipy import stats
-from scipy.special import erfinv
 
 import dryfric_jax as dj
 from dryfric_jax import rng
@@ -189,8 +188,8 @@ def test_draw_lanes_keeps_the_waiting_time_uniform_above_zero(monkeypatch):
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
 def test_unit_and_normal_bit_mapping(dtype):
     """The top mantissa bits give f = (bits >> (w - nmant)) 2^-nmant exactly, [lo, hi) scales it;
-    the extreme bits give finite normals, the normal quantiles of the first and last cell
-    midpoints, Phi^-1(2^-(nmant+1)) for bits 0 and Phi^-1(1 - 2^-(nmant+1)) for all ones."""
+    the extreme bits give finite normals: radius sqrt(-2 ln u) at the first and last cell midpoints
+    u = 2^-(nmant+1) (bits 0) and 1 - 2^-(nmant+1) (all ones), on the angle's axes."""
     ut, nm = rng._uint(dtype), np.finfo(dtype).nmant
     w = 8 * np.dtype(dtype).itemsize
     top = (1 << w) - 1
@@ -202,11 +201,15 @@ def test_unit_and_normal_bit_mapping(dtype):
     got = np.asarray(rng._unit(bits, dtype, lo, hi)).astype(float)
     ref = np.array([float(x * Fraction(hi - lo) + Fraction(lo)) for x in f])
     assert np.all(np.abs(got - ref) <= 2 * np.finfo(dtype).eps * ref) and np.all((got >= lo) & (got < hi))
-    z = np.asarray(rng._normal(bits[np.array([0, 4])], dtype)).astype(float)
+    # u from bits 0 / all ones: the first and last cells' midpoints, t from bits 0: angle 0
+    z1, z2 = (np.asarray(a).astype(float) for a in rng._normal(bits[np.array([0, 4])], bits[np.array([0, 0])], dtype))
     u = np.array([float(f[0]), float(f[4])]) + 2.0 ** -(nm + 1)  # the cells' midpoints, exact
-    ref_z = np.sqrt(2) * erfinv(2 * u - 1)
-    assert np.all(np.isfinite(z)) and np.allclose(z, ref_z, rtol=1e-5 if dtype == np.float32 else 1e-12)
-    assert z[0] == -z[1]
+    assert np.all(np.isfinite(z1)) and np.allclose(z1, np.sqrt(-2 * np.log(u)), rtol=1e-6 if dtype == np.float32 else 1e-13)
+    assert np.all(z2 == 0)
+    # t from the quarter-turn bits: the radius moves to the sine, exactly
+    quarter = jnp.asarray(np.array([1 << (w - 2)] * 2, dtype=ut))
+    c, s_ = (np.asarray(a).astype(float) for a in rng._normal(bits[np.array([0, 4])], quarter, dtype))
+    assert np.all(c == 0) and np.all(s_ == z1)
 
 
 def test_streams_have_the_right_moments_and_no_cross_correlation():

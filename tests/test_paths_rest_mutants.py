@@ -133,21 +133,27 @@ def _first_regeneration(model, key, limit):
 
 
 def test_di_excursion_seek_is_bounded_by_50_max_steps_and_reported_as_incomplete():
-    """'The seek before the first regeneration is bounded by 50 max_steps steps'.  Seed 0 of this
-    model regenerates after between 50 and 100 seek steps (checked here by a step-by-step seek): with
-    max_steps = 2 (bound 100) the run finds that regeneration (its first state is the long run's, and
-    it stops at max_steps: 3 states, not complete); with max_steps = 1 (bound 50) it finds none and
-    returns the one empty state, incomplete, with no half (i_half = -1).  Kills a bound of 5 max_steps."""
+    """'The seek before the first regeneration is bounded by 50 max_steps steps'.  The first seed of
+    this model whose first regeneration comes after f seek steps, 50 <= f < 400 (found by a
+    step-by-step seek; most seeds regenerate within a few steps or after thousands): with
+    max_steps = m = f // 50 + 1 (bound 50 m > f) the run finds that regeneration (its first state is
+    the long run's, and it stops at max_steps: m + 1 states, not complete); with max_steps = m - 1
+    (bound 50 (m - 1) <= f) it finds none and returns the one empty state, incomplete, with no half
+    (i_half = -1).  Kills a bound of 5 max_steps."""
     model = make_di_model(Params.from_nondim(TAU), H)
-    first, x0 = _first_regeneration(model, jax.random.key(0), 100)
-    assert first is not None and 50 <= first < 100
-    full = di_excursion(model, 0, 20_000)
+    for seed in range(256):
+        first, x0 = _first_regeneration(model, jax.random.key(seed), 400)
+        if first is not None and first >= 50:
+            break
+    assert first is not None and 50 <= first < 400
+    m = first // 50 + 1
+    full = di_excursion(model, seed, 20_000)
     assert full["complete"]
-    two = di_excursion(model, 0, 2)
-    assert len(two["t"]) == 3 and not two["complete"] and two["x"][0] == full["x"][0] == x0
-    np.testing.assert_array_equal(two["v"], full["v"][:3])
-    one = di_excursion(model, 0, 1)
-    assert len(one["t"]) == 1 and not one["complete"] and one["i_half"] == -1 and one["x"][0] != full["x"][0]
+    found = di_excursion(model, seed, m)
+    assert len(found["t"]) == m + 1 and not found["complete"] and found["x"][0] == full["x"][0] == x0
+    np.testing.assert_array_equal(found["v"], full["v"][:m + 1])
+    none = di_excursion(model, seed, m - 1)
+    assert len(none["t"]) == 1 and not none["complete"] and none["i_half"] == -1 and none["x"][0] != full["x"][0]
 
 
 def _events_needed(model, key, t_last):
@@ -192,14 +198,20 @@ def test_pdmp_burn_zero_and_one_event(pdmp):
 def test_di_excursion_of_exactly_max_steps_steps_is_complete():
     """An excursion of n steps (n + 1 states) fits buffers of max_steps + 1 = n + 1 states, and
     max_steps did not stop it: 'complete' must be True (the loop stopped at n = max_steps before
-    the coin that ends the -HLE, and said False).  One step fewer does stop it."""
+    the coin that ends the -HLE, and said False).  One step fewer does stop it.  (The first seed
+    whose seek ends within 100 steps and whose excursion has 3 to 99 steps.)"""
     model = make_di_model(Params.from_nondim(TAU), H)
-    full = di_excursion(model, 0, 20_000)
-    n = len(full["t"]) - 1
-    assert full["complete"] and n < 100
-    short = di_excursion(model, 0, n - 1)
+    for seed in range(256):  # a seek within 100 steps (step by step), so that 50 (n - 1) bounds it for n >= 3
+        first, _ = _first_regeneration(model, jax.random.key(seed), 100)
+        if first is not None:
+            full = di_excursion(model, seed, 20_000)
+            n = len(full["t"]) - 1
+            if full["complete"] and 3 <= n < 100:
+                break
+    assert first is not None and full["complete"] and 3 <= n < 100
+    short = di_excursion(model, seed, n - 1)
     assert not short["complete"] and len(short["t"]) == n
-    exact = di_excursion(model, 0, n)
+    exact = di_excursion(model, seed, n)
     for k in ("t", "x", "v", "U"):
         np.testing.assert_array_equal(exact[k], full[k])
     assert exact["i_half"] == full["i_half"]
