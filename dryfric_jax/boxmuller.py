@@ -10,11 +10,11 @@ and :math:`t \in [0, 1)` (Box and Muller, *Ann. Math. Statist.* 29 (1958) 610),
 The logarithm is :func:`log` and the turn's cosine and sine :func:`cos_sin_turns`, both
 polynomials and selects that XLA vectorises: XLA:CPU calls a scalar libm routine per element for
 ``jnp.log``, ``jnp.cos`` and ``jnp.sin`` in float64 (~7 ns a number on one core of the 2-core
-test machine; the engine's float64 normals, hash included, ~4 ns each).  With one logarithm and one square root per *two*
-normals and an angle whose range reduction is exact (:math:`4t` minus its nearest integer),
-this is ~1.5x the rate (float64) of the branch-free inverse normal CDF (Wichura's AS 241) that
-version 0.2.4 used, which evaluated three rational functions, a logarithm and a square root per
-normal.
+test machine; the engine's float64 normals, hash included, ~4 ns each).  With one logarithm and
+one square root per *two* normals and an angle whose range reduction is exact (:math:`4t` minus
+its nearest integer), this is 1.9x (float64) and 1.3x (float32) the rate of the branch-free
+inverse normal CDF (AS 241) that version 0.2.4 used, which evaluated three rational functions, a
+logarithm and a square root per normal.
 
 Accuracy (``tests/test_boxmuller.py``, against extended-precision references): :func:`log` within
 4 ulp of ``numpy.log``; :func:`cos_sin_turns` within 2 ulp (relative, also near the zeros) in

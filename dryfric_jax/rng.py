@@ -132,7 +132,8 @@ def _normal(bits_u, bits_t, dtype):
 
 def _pairs(shape) -> None:
     if not shape or shape[-1] % 2:
-        raise ValueError(f"normals come in Box-Muller pairs: the last dimension must be even (got shape {tuple(shape)})")
+        raise ValueError("normals come in Box-Muller pairs: the last dimension must be even "
+                         f"(got shape {tuple(shape)})")
 
 
 def normal(key, shape, dtype):
