@@ -117,17 +117,17 @@ def _unit(bits, dtype, lo, hi):
 @functools.partial(jax.jit, static_argnums=2)
 def _normal(bits_u, bits_t, dtype):
     r""":func:`normal`'s transform of a pair's bits: :func:`boxmuller.pair` of
-    :math:`u = (k + 1/2) 2^{-m}` and :math:`t = k' 2^{-m}`, k and k' the top m bits of ``bits_u``
-    and ``bits_t``; u made exactly as :math:`(2k + 1) 2^{-m-1}` from the integer.  (Written as
+    :math:`u = (k + 1/2) 2^{-m}` and :math:`t = k' 2^{-m}` (:func:`_unit`, ``jax.random.uniform``'s
+    number), k and k' the top m bits of ``bits_u`` and ``bits_t``; u made exactly as
+    :math:`(2k + 1) 2^{-m-1}` from the integer.  (Written as
     :math:`(f - 1) + 2^{-m-1}` from the bits' float f in [1, 2), XLA's simplifier may fold the
     constants into one rounded constant, as it did to 0.2.4's :math:`((f - 1) + 2^{-m-1}) - 1/2`.)"""
     dtype = np.dtype(dtype)
     ut = _uint(dtype)
     m = np.finfo(dtype).nmant
-    shift = ut(8 * dtype.itemsize - m)
-    cell = np.array(2.0 ** -m, dtype)
-    u = ((bits_u >> shift) * ut(2) + ut(1)).astype(dtype) * np.array(2.0 ** -(m + 1), dtype)
-    return boxmuller.pair(u, (bits_t >> shift).astype(dtype) * cell)
+    k = bits_u >> ut(8 * dtype.itemsize - m)
+    u = (k * ut(2) + ut(1)).astype(dtype) * np.array(2.0 ** -(m + 1), dtype)
+    return boxmuller.pair(u, _unit(bits_t, dtype, 0.0, 1.0))
 
 
 def _pairs(shape) -> None:
