@@ -113,6 +113,19 @@ def test_center_may_be_a_numpy_bool():
             np.testing.assert_array_equal(a, b)
 
 
+# The first seed with the property each of the two tests below needs, found by their own search
+# over seeds 0..255 with the random streams of version 0.2.5 (the search took 13 s and 108 s on 2
+# CPU cores: 245 seeds, 61 long runs).  A test tries it first and then searches again, so a change
+# of the streams costs time, not a wrong seed: every property is asserted on the seed it ends at.
+SEEK_SEED = 12  # first regeneration after 385 seek steps
+SHORT_EXCURSION_SEED = 245  # regenerates at seek step 0, an excursion of 23 steps
+
+
+def _seeds(first):
+    """``first``, then 0, 1, ..., 255."""
+    return [first, *range(256)]
+
+
 def _first_regeneration(model, key, limit):
     """The index of the first seek step whose coin is heads on C_+, from x_+ at rest, drawn as the
     documented stream (step i from ``fold_in(key, i)``: its normals by ``model.draw``, its coin from
@@ -141,7 +154,7 @@ def test_di_excursion_seek_is_bounded_by_50_max_steps_and_reported_as_incomplete
     (bound 50 (m - 1) <= f) it finds none and returns the one empty state, incomplete, with no half
     (i_half = -1).  Kills a bound of 5 max_steps."""
     model = make_di_model(Params.from_nondim(TAU), H)
-    for seed in range(256):
+    for seed in _seeds(SEEK_SEED):
         first, x0 = _first_regeneration(model, jax.random.key(seed), 400)
         if first is not None and first >= 50:
             break
@@ -201,7 +214,7 @@ def test_di_excursion_of_exactly_max_steps_steps_is_complete():
     the coin that ends the -HLE, and said False).  One step fewer does stop it.  (The first seed
     whose seek ends within 100 steps and whose excursion has 3 to 99 steps.)"""
     model = make_di_model(Params.from_nondim(TAU), H)
-    for seed in range(256):  # a seek within 100 steps (step by step), so that 50 (n - 1) bounds it for n >= 3
+    for seed in _seeds(SHORT_EXCURSION_SEED):  # a seek within 100 steps (step by step): 50 (n - 1) bounds it for n >= 3
         first, _ = _first_regeneration(model, jax.random.key(seed), 100)
         if first is not None:
             full = di_excursion(model, seed, 20_000)
