@@ -64,8 +64,9 @@ import sys
 import numpy as np
 from scipy import integrate, special
 
-#: default cap on the lane-steps (DI) or events (PDMP) of one run: ~1.5 h on a 2-core CPU at
-#: 2e7 per second, a few minutes on a GPU.  ``max_work`` / ``--max-work`` raises it.
+#: default cap on the lane-steps (DI) or events (PDMP) of one run: on a 2-core CPU ~15-25 min of DI
+#: lane-steps (7e7-1.2e8 per second, float64, 0.2.5) or ~50 min of PDMP events (3.5e7 per second;
+#: README, Fig. 3's footnote), a few minutes on a GPU.  ``max_work`` / ``--max-work`` raises it.
 MAX_WORK = 1e11
 #: per-excursion bound in units of the excursion's time scale (see max_steps_per_excursion)
 MAX_TIME_REL = 1.0e4
