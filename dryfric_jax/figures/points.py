@@ -1,6 +1,6 @@
 r"""Resumable scenes: each finished estimate of a scene is kept, so an interrupted figure resumes.
 
-The scenes of many estimates (Fig. 3: 80 runs of N = 1e5, hours on a CPU; Fig. 8; Fig. 9 (b))
+The scenes of many estimates (Fig. 3: 80 runs of N = 1e5, ~1.5 h on a 2-core CPU; Fig. 8; Fig. 9 (b))
 call :func:`~dryfric_jax.api.estimate_diffusivity` and
 :func:`~dryfric_jax.api.bruteforce_diffusivity` through :class:`Points`.  Each finished run is
 appended to ``<out_dir>/<scene>.points.jsonl`` (one JSON line per run: what was asked, the
