@@ -54,7 +54,7 @@ STAT_NAMES = ("n", "U", "U2", "U3", "U4", "t", "t2", "t3", "t4", "Ut", "U2t", "U
               "t_half")
 
 SEEK, PLUS, MINUS = 0, 1, 2
-BLOCK = 128  # steps per while-iteration (32..256 measured on 2 CPU cores, README)
+BLOCK = 128  # steps per while-iteration (32..256 measured on 2 CPU cores, PERFORMANCE.md)
 GPU_DI_BLOCK = 256  # the DI's default K off a CPU (default_block)
 MAX_LAYOUT = 1 << 28  # lanes * K: a block's normals are drawn at once (plan.check_layout)
 # final round: the tail runs on lanes / COMPACT lanes once at most that many are still in flight
@@ -65,7 +65,7 @@ COMPACT_MIN_PER_DEVICE = 64
 FINAL_CALL_LANE_STEPS = 2**27
 # lane-steps of a paused round at most (simulate_long_excursions; a few seconds on a CPU, never below 4
 # blocks): progress, max_time and Ctrl-C act between rounds.  On an H200 2^26 is ~7 ms of work, so a run
-# at 2^18 lanes and K = 1024 makes rounds of 4 blocks (README "On an H200"; device_check --round-steps)
+# at 2^18 lanes and K = 1024 makes rounds of 4 blocks (PERFORMANCE.md "On an H200"; device_check --round-steps)
 ROUND_LANE_STEPS = 2**26
 #: with ``max_time``, the final round is cut at this multiple of it (:func:`simulate_long_excursions`)
 FINAL_DEADLINE = 2.0
@@ -73,7 +73,7 @@ FINAL_DEADLINE = 2.0
 # cores; 8 was no better
 UNROLL = 4
 # steps per iteration of the wait layout's loop (_quiet_steps): x4 ran 1.4x slower on 2 CPU cores
-# (XLA:CPU recomputes the step in each kernel that writes one of its arrays; README); on a GPU,
+# (XLA:CPU recomputes the step in each kernel that writes one of its arrays; PERFORMANCE.md); on a GPU,
 # where each iteration launches kernels, not yet measured (scripts/device_check.py --unroll).
 # Unrolling changes how XLA fuses the step, hence its rounding and, through the sticking
 # decisions, the paths: at 1024 lanes, float32, 2 CPU devices, unroll 1, 4 and 16 gave D =
@@ -457,7 +457,7 @@ def _events_layout(devices, chain, events: str | None) -> str:
     """How a block handles events (:func:`_block`).  The default: on a CPU the chain's
     ``cpu_events`` (the DI ``"wait"``, the PDMP ``"branch"``, measured: README); on an NVIDIA GPU
     ``"fused"`` for the DI (:mod:`dryfric_jax.fused`: the same numbers as ``"wait"``, bit for bit,
-    and 1.6-3.0x faster in float32 on an H100, README "On an H100"), ``"wait"`` for the PDMP and on
+    and 1.6-3.0x faster in float32 on an H100, PERFORMANCE.md "On an H100"), ``"wait"`` for the PDMP and on
     other accelerators.  ``DEFAULT_EVENTS`` (or ``events``) overrides it; only the DI has
     ``"fused"``."""
     events = DEFAULT_EVENTS if events is None else events
@@ -671,7 +671,7 @@ def default_chunk_lanes(backend: str | None = None) -> int:
     accelerator).  A GPU runs one lane per thread and needs ~10^5 of them: on an H200 (jax 0.11.2,
     Fig. 3 point, float32, K = 256, 8 excursions per lane) the DI ran 0.90, 2.7, 3.9, 6.1, 5.5 and
     4.8e9 useful lane-steps/s at 2^14, 2^16, 2^17, 2^18, 2^19 and 2^20 lanes, and 1.7e8 at 2048
-    lanes (K = 128, the CPU default at N = 1e5; README, "On a GPU")."""
+    lanes (K = 128, the CPU default at N = 1e5; PERFORMANCE.md, "On a GPU")."""
     backend = backend or jax.default_backend()
     return CPU_CHUNK_LANES if backend == "cpu" else GPU_CHUNK_LANES
 
@@ -681,7 +681,7 @@ def default_block(method: str = "di", lanes: int | None = None, backend: str | N
     256 for the DI on a GPU (or any accelerator); halved while ``lanes * K`` exceeds the layout
     bound 2^28 (:func:`~dryfric_jax.plan.check_layout`).  On an H200 (jax 0.11.2, Fig. 3 point,
     float32, 8 excursions per lane) K = 256 ran 18%, 11% and 5% faster than 128 at 2^14, 2^16 and
-    2^17 lanes (README "On a GPU"); the PDMP's K was not measured there."""
+    2^17 lanes (PERFORMANCE.md "On a GPU"); the PDMP's K was not measured there."""
     backend = backend or jax.default_backend()
     k = BLOCK if backend == "cpu" or method != "di" else GPU_DI_BLOCK
     while lanes is not None and k > 1 and lanes * k > MAX_LAYOUT:
@@ -694,7 +694,7 @@ def lanes_for(n_excursions: int, chunk_lanes: int | None = None, per_lane: int =
     ``chunk_lanes`` (default :func:`default_chunk_lanes`: few compiled shapes).  More lanes fill
     the vector units (the GPU's threads), fewer excursions per lane leave more lanes idle in the
     final round; 32 and 512 measured best for the DI and the PDMP at N = 1e4-2e4 on 2 CPU cores
-    (+10-25% over 64 and 256; README).  32 excursions per lane also keep the per-excursion work
+    (+10-25% over 64 and 256; PERFORMANCE.md).  32 excursions per lane also keep the per-excursion work
     bound ``max_work / lanes`` at >= 32 predicted mean excursions for N >= 16384
     (:mod:`dryfric_jax.plan`)."""
     chunk_lanes = chunk_lanes or default_chunk_lanes()

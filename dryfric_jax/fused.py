@@ -3,7 +3,7 @@ r"""Where the GPU's fused quiet loop is: the ``"fused"`` event layout, one Palla
 The ``"wait"`` layout (:func:`dryfric_jax.excursions._quiet_steps`) runs a block's K quiet steps
 as a ``fori_loop`` of whole-lane array operations: XLA launches at least one kernel per step and
 each step reads and writes every lane's state in device memory.  On an H200 that engine reached
-0.09 of the RNG bound (README "On a GPU"): a step of 2^18 lanes took ~43 us where its memory
+0.09 of the RNG bound (PERFORMANCE.md "On a GPU"): a step of 2^18 lanes took ~43 us where its memory
 traffic needs ~3 us.  Here the loop is turned inside out: one GPU thread runs its lane's K steps
 in registers, reading only the two normals of each step (Pallas, Triton backend), so a block is
 one kernel.
@@ -21,13 +21,13 @@ it (a chain with ``fused_quiet = True``).
 
 On a CPU the kernel runs in Pallas's interpreter (slow: for the tests only), and ``"fused"`` is
 the DI's default only on an NVIDIA GPU (:func:`dryfric_jax.excursions._events_layout`).  On an
-H100 (jax 0.11.2, Fig. 3 point, 2026-11-27; README "On an H100") its estimates equalled the
+H100 (jax 0.11.2, Fig. 3 point, 2026-11-27; PERFORMANCE.md "On an H100") its estimates equalled the
 ``"wait"`` layout's bit for bit at all five layouts run (2^16 and 2^18 lanes, K = 256 and 1024,
 float32 and float64), and it ran 3.0x (2^16 lanes, K = 256), 1.6x (2^18, 256) and 1.9x (2^18,
 1024) faster in float32, up to 8.8e9 useful lane-steps/s; in float64 it ran as fast as ``"wait"``.
 On an H200 (2026-11-30) the kernel alone ran 2.8e11 slot-steps/s (2^18 lanes, K = 1024, float32;
 :data:`TILE` 256 with 4 warps the fastest of 12 pairs), while the engine's run made ~1e10 slot-steps/s
-in all: the rest of the block, not this kernel, is where the time goes (README "On an H200").
+in all: the rest of the block, not this kernel, is where the time goes (PERFORMANCE.md "On an H200").
 """
 from __future__ import annotations
 

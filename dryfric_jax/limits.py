@@ -66,7 +66,7 @@ from scipy import integrate, special
 
 #: default cap on the lane-steps (DI) or events (PDMP) of one run: on a 2-core CPU ~15-25 min of DI
 #: lane-steps (7e7-1.2e8 per second, float64, 0.2.5) or ~30-50 min of PDMP events (3.5e7-5.6e7 per
-#: second; README, Fig. 3's footnote), a few minutes on a GPU.  ``max_work`` / ``--max-work`` raises it.
+#: second; RESULTS.md, the times of Fig. 3), a few minutes on a GPU.  ``max_work`` / ``--max-work`` raises it.
 MAX_WORK = 1e11
 #: per-excursion bound in units of the excursion's time scale (see max_steps_per_excursion)
 MAX_TIME_REL = 1.0e4

@@ -12,9 +12,9 @@ if [ "${SMALL:-0}" = 1 ]; then
   KT=128,256; KW=2,4; RS=65536,1048576; FS=134217728
   FIGS="5"; FIGQ=--quick; EVENTS=${EVENTS:-wait,fused}
   TESTS=tests/test_di_exact.py::test_float32_at_paper_values
-else  # the H200 of 2026-11-30 (README "On an H200"): the fused kernel alone ran 2.8e11 slot-steps/s (tile 256,
+else  # the H200 of 2026-11-30 (PERFORMANCE.md "On an H200"): the fused kernel alone ran 2.8e11 slot-steps/s (tile 256,
   # 4 warps: the best of 12) and a direct draw 8.3e10, yet a whole block ran ~1e10: first --breakdown splits
-  # one block (draw, loop, bookkeeping) and tries GPU-sized rounds and final calls (README "On an H200":
+  # one block (draw, loop, bookkeeping) and tries GPU-sized rounds and final calls (PERFORMANCE.md "On an H200":
   # a run there made 30 rounds of <= 4 blocks and 20 one-block calls); then the layouts, float64 and the
   # bench, and the full-setting GPU times of the scenes no lease timed (Figs. 9, 8, 5, 1); the GPU tests
   # all passed there, so only the closed forms run again
@@ -47,7 +47,7 @@ stage layouts64_bench "${T[2]}" $PY scripts/device_check.py --dtypes float64 --l
   --kernel-tiles 256 --kernel-warps 4
 # float32 against float64 with independent seeds (they differed by 0.39% on the H200, sharing keys,
 # and by 0.27% on 2 CPU cores, 6e6 excursions each; here 4e6 each; the paired tests above bound the float32 chain's
-# bias to 0.06% on a CPU: README "float32 against float64")
+# bias to 0.06% on a CPU: RESULTS.md "float32 against float64")
 export PY NDT BIG
 [ "${T[3]}" -gt 0 ] && stage dtypes "${T[3]}" bash -c 'for dt in float32 float64; do s=11; [ $dt = float64 ] && s=12
   $PY -m dryfric_jax.cli estimate --json --dtype $dt --seed $s --n-excursions $NDT --lanes $BIG --block 256 \

@@ -25,10 +25,10 @@ B30 (``0 < v / scale < dm`` -> ``0 < v < dm * scale``: differs within an ulp of 
 Oracles: the captions (Fig. 3: both panels log-log, PDMP dots and DI lines, Gamma in [1, 10]; Fig. 5: the
 exact P(v) dv as a line, the histogram at bin width 4.8e-4 m/s; Fig. 8: D against Gamma in log-log scale), the
 paper's section 7.3 (the experiment's exponents 1.61 and 1.74), MODEL_NOTES section 2 (D = 10 Gamma^3 / Delta^4
-for b = 0: exponent 3), the README (Fig. 3: 80 runs, 40 points, the PDMP's seeds 5000 past the DI's; Fig. 8: 11
-Gamma points, 2000 brute-force paths of 10 s, 88 points), the docstrings (local_exponent's "of one length >= 2",
-D_ci >= 0; _affordable_n retries the planner's ValueError; noise: 8 SD and tau delta L_X < 2), fake runs with
-known numbers (each curve checked against them), hand counts of bins and grid points, ``fractions``.
+for b = 0: exponent 3), the README and RESULTS.md (Fig. 3: 80 runs, 40 points, the PDMP's seeds 5000 past the
+DI's; Fig. 8: 11 Gamma points, 2000 brute-force paths of 10 s, 88 points), the docstrings (local_exponent's
+"of one length >= 2", D_ci >= 0; _affordable_n retries the planner's ValueError; noise: 8 SD and tau delta L_X < 2),
+fake runs with known numbers (each curve checked against them), hand counts of bins and grid points, ``fractions``.
 
 One defect, fixed in noise.grid_size (the last test): a delta that check_delta accepts, an ulp or two
 below delta_max with L_req / delta just above an integer, met ``assert tau * delta * N * delta < 2.0`` as a bare
@@ -117,7 +117,7 @@ def test_fig3_each_panel_plots_each_methods_own_numbers_on_log_log_axes(tmp_path
 
 
 def test_fig3_pdmp_seeds_are_the_dis_plus_5000_and_the_full_figure_is_80_runs(tmp_path, monkeypatch):
-    """README (Fig. 3): "from 0.2.1 the PDMP's seeds are 5000 past the DI's" (the kept runs of a points file are
+    """RESULTS.md (Fig. 3): "from 0.2.1 the PDMP's seeds are 5000 past the DI's" (the kept runs of a points file are
     found by their seeds), and "Fig. 3 is 80 runs (40 points, PDMP and DI)": 10 Gamma over the caption's
     [1, 10] for each of the 4 taus (the quick grid inside that range too).  Kills: the offset on the DI's seeds
     instead (A09), 9 Gamma points in the full figure (A11), a quick Gamma of 20 (A48)."""
@@ -212,8 +212,8 @@ def test_fig8_panels_plot_the_runs_the_exact_d_the_exponents_and_the_reference_l
 
 
 def test_fig8_full_settings_are_the_readmes_88_points(tmp_path, monkeypatch):
-    """README: "Fig. 8: 11 Gamma points" and its full run "N = 10^5, 2000 brute-force paths of 10 s, 88 points"
-    (11 Gamma x 4 tau x 2 cases), Gamma from 0.25 to 8 (the scene's grid, a geometric one, so the ratio of
+    """README: "Fig. 8: 11 Gamma points", and RESULTS.md: its full run "N = 10^5, 2000 brute-force paths of 10 s,
+    88 points" (11 Gamma x 4 tau x 2 cases), Gamma from 0.25 to 8 (the scene's grid, a geometric one, so the ratio of
     neighbours is 32^(1/10)).  Kills: 10 Gamma points (A26), 200 brute-force paths (A28)."""
     f, runs, _, _ = _fig8(tmp_path, monkeypatch, False)
     G = f["Gamma"]

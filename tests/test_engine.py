@@ -681,7 +681,7 @@ def test_float32_arithmetic_matches_float64_on_the_same_numbers():
     with the inverse-CDF normals of 0.2.4, where one lane of 2048 split a long excursion (U^2 =
     3.6) differently in float64 arithmetic.  The pairing must gain at least 8x in SE (the bound
     was 0.2% of D, 4.5x the 0.2.3 value, before), and float32 rounding must not move D beyond 4
-    paired SE.  (Unpaired runs of 6e6 excursions differed by -0.27%, 1.9 SE, on 2 CPU cores: README.)"""
+    paired SE.  (Unpaired runs of 6e6 excursions differed by -0.27%, 1.9 SE, on 2 CPU cores: RESULTS.md.)"""
     s32, s64 = _fig3_paired_round("float32"), _fig3_paired_round("float32_in_float64")
     assert np.mean(s32[:, 0] == s64[:, 0]) >= 0.95
     diff, se, d64 = _paired_difference(s32, s64)
@@ -720,7 +720,7 @@ def test_float32_numbers_match_float64_numbers_in_float64_arithmetic():
     4 paired SE.  With the arithmetic test above this splits float32 minus float64 into its two
     causes; the whole of it, the float32 chain against the float64 chain on coupled numbers,
     must agree within 4 paired SE too.  (Means over 16 independent rounds like this one, with
-    their SE: numbers -0.02 +- 0.03%, the whole -0.01 +- 0.03%; README "float32 against float64".)"""
+    their SE: numbers -0.02 +- 0.03%, the whole -0.01 +- 0.03%; RESULTS.md "float32 against float64".)"""
     s32, s64 = _fig3_paired_round("float32_in_float64"), _fig3_paired_round("coupled_float64")
     assert np.mean(s32[:, 0] == s64[:, 0]) >= 0.95
     diff, se, d64 = _paired_difference(s32, s64)

@@ -115,8 +115,8 @@ def _fig4(tmp_path, monkeypatch, quick):
 def test_fig4_caption_taus_and_the_readme_lags_burn_in_and_step(tmp_path, monkeypatch):
     """Fig. 4's caption: tau = 0.25, 0.5, 1 s, i.e. tau' = 0.74, 1.47, 2.95 (to its 2 digits), at Gamma = 5,
     Delta = 3.84, tau_L = 0.067, gamma_bar = 0.342, the PDMP at delta = 0.125; the curves are keyed by tau in
-    seconds.  The README: burn-in 50 tau0 for both models (the DI's in its steps: 50 / h' of them), records
-    every 0.05 tau0 (the PDMP's dt_rec, the DI's every h'), 177 lags up to 3 s at tau = 0.25 s, the DI step
+    seconds.  The README and RESULTS.md: burn-in 50 tau0 for both models (the DI's in its steps: 50 / h' of them),
+    records every 0.05 tau0 (the PDMP's dt_rec, the DI's every h'), 177 lags up to 3 s at tau = 0.25 s, the DI step
     6.5e-4 s there; the JSON's settings are those the runs were given.  Kills: tau = 2 s (C01), BURN_TAU0 5
     (C02), DT_REC 0.1 (C03), the JSON's burn-in not the one run (C23), its dt_rec not the one run (C26), the
     curves keyed by tau' (C22)."""

@@ -69,7 +69,7 @@ def test_fig5_stationary_velocity(figs):
 def test_fig3_pdmp_and_di_agree(figs):
     """A smoke check of the scene at quick settings (N = 1000: 3 SE is about +-25% of D, so it
     catches a wrong scene, not a grid bias of a few %). The sharp PDMP-DI agreement is
-    test_pdmp.py's (N = 2e4 at the Fig. 3 point); the full settings' numbers are in the README."""
+    test_pdmp.py's (N = 2e4 at the Fig. 3 point); the full settings' numbers are in RESULTS.md."""
     f = figs["fig3"]
     for tau, z in f["agree"].items():  # |D_pdmp - D_di| / hypot(CIs); 3 SE = 1.53
         assert max(z) <= 3 / 1.96, (tau, z)
