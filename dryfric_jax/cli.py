@@ -20,7 +20,7 @@ import re
 import sys
 import warnings
 
-from . import interrupts
+from . import compile_cache, interrupts
 from .api import MAX_FIGURE_SEED
 from .estimators import MIN_PATHS
 from .outfiles import check_writable, check_writable_dir, dumps, loads, write_atomic
@@ -177,7 +177,9 @@ def _params(a) -> Params:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = _Parser(prog="dryfric", description="Dry friction under colored noise: diffusivity D and mobility M0.")
+    p = _Parser(prog="dryfric", description="Dry friction under colored noise: diffusivity D and mobility M0.",
+                epilog="Compiled code is kept between commands in ~/.cache/dryfric_jax/xla (or $XDG_CACHE_HOME); "
+                       "DRYFRIC_CACHE_DIR=DIR moves it, DRYFRIC_CACHE_DIR=off turns it off.")
     sub = p.add_subparsers(dest="cmd", required=True, parser_class=_Parser)
     model = _model_options()
     sim = _Parser(add_help=False)
@@ -587,6 +589,7 @@ def _sweep(a) -> int:
 
 def main(argv=None) -> int:
     use_all_cpu_cores(vector_width=True)  # one device per core (also at import) and 512-bit vectors
+    compile_cache.enable()  # before anything compiles: compiled code kept between commands (DRYFRIC_CACHE_DIR)
     try:
         interrupts.started()  # from here a Ctrl-C is the KeyboardInterrupt below, not "while starting"
         parser = build_parser()

@@ -1,4 +1,10 @@
-from dryfric_jax.xla_flags import use_all_cpu_cores
+import os
+
+# the `dryfric` commands the tests run (in this process and in subprocesses, which inherit it) keep no
+# compiled code in the user's cache directory; tests/test_compile_cache.py gives them a directory of its own
+os.environ["DRYFRIC_CACHE_DIR"] = "off"
+
+from dryfric_jax.xla_flags import use_all_cpu_cores  # noqa: E402
 
 # one XLA host device per core, as importing dryfric_jax and the `dryfric` command do: lanes shard
 # over the cores (and the sharded code path is what every test exercises).  Must be set before JAX
