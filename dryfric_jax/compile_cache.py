@@ -71,14 +71,14 @@ def cache_root(environ=None) -> str | None:
 
 def enable(root: str | None = None) -> str | None:
     """Turn on JAX's persistent compilation cache in ``root`` (default :func:`cache_root`) /
-    :func:`host_tag`, before this process compiles anything; returns the directory used, or
-    None (turned off, a directory that cannot be made, or the user's own
-    ``JAX_COMPILATION_CACHE_DIR``, which is then what JAX uses).  Never raises for the
-    directory: a run without a cache is still a run."""
+    :func:`host_tag`, before this process compiles anything.  Returns the directory JAX's cache
+    uses: this one, or one set before (the user's own ``JAX_COMPILATION_CACHE_DIR``, or an earlier
+    call's), which is left as it is; None where there is none (turned off, or a directory that
+    cannot be made).  Never raises for the directory: a run without a cache is still a run."""
     import jax
 
-    if jax.config.jax_compilation_cache_dir:  # the user's own (JAX_COMPILATION_CACHE_DIR)
-        return None
+    if jax.config.jax_compilation_cache_dir:  # the user's own (JAX_COMPILATION_CACHE_DIR), or ours
+        return jax.config.jax_compilation_cache_dir
     root = cache_root() if root is None else root
     if root is None:
         return None

@@ -15,13 +15,16 @@ from dryfric_jax import compile_cache
 from dryfric_jax.compile_cache import cache_root, enable, host_tag
 
 ROOT = pathlib.Path(__file__).parent.parent
+# the commands below start with no JAX cache directory of the developer's (which would win over ours)
+ENV = {k: v for k, v in os.environ.items() if k != "JAX_COMPILATION_CACHE_DIR"}
 
 
 def test_cache_root_follows_the_environment():
     home = os.path.expanduser("~")
     assert cache_root({}) == os.path.join(home, ".cache", "dryfric_jax", "xla")
     assert cache_root({"XDG_CACHE_HOME": "/x/cache"}) == "/x/cache/dryfric_jax/xla"
-    assert cache_root({"XDG_CACHE_HOME": ""}) == os.path.join(home, ".cache", "dryfric_jax", "xla")  # unset, as XDG says
+    # an empty XDG_CACHE_HOME counts as unset, as the XDG spec says
+    assert cache_root({"XDG_CACHE_HOME": ""}) == os.path.join(home, ".cache", "dryfric_jax", "xla")
     # DRYFRIC_CACHE_DIR wins over XDG_CACHE_HOME, as given (~ expanded), and turns the cache off
     assert cache_root({"DRYFRIC_CACHE_DIR": "/y/c", "XDG_CACHE_HOME": "/x"}) == "/y/c"
     assert cache_root({"DRYFRIC_CACHE_DIR": "~/c"}) == os.path.join(home, "c")
@@ -50,19 +53,26 @@ def test_cpu_features_are_the_first_processors_model_and_flags():
     assert "processor" not in names and "cpu mhz" not in names  # nothing that changes between cores or runs
 
 
-def test_enable_runs_without_a_cache_it_cannot_make(tmp_path):
+@pytest.fixture
+def no_jax_cache():
+    """This process with no JAX cache directory (a developer's JAX_COMPILATION_CACHE_DIR set aside)."""
+    before = jax.config.jax_compilation_cache_dir
+    jax.config.update("jax_compilation_cache_dir", None)
+    yield
+    jax.config.update("jax_compilation_cache_dir", before)
+
+
+def test_enable_runs_without_a_cache_it_cannot_make(tmp_path, no_jax_cache):
     blocker = tmp_path / "a-file"
     blocker.write_text("")
-    before = jax.config.jax_compilation_cache_dir
     assert enable(str(blocker / "cache")) is None  # a file in the way: no cache, no error
-    assert jax.config.jax_compilation_cache_dir == before
+    assert jax.config.jax_compilation_cache_dir is None
 
 
-def test_enable_is_off_when_told(monkeypatch):
+def test_enable_is_off_when_told(monkeypatch, no_jax_cache):
     monkeypatch.setenv("DRYFRIC_CACHE_DIR", "off")
-    before = jax.config.jax_compilation_cache_dir
     assert enable() is None
-    assert jax.config.jax_compilation_cache_dir == before
+    assert jax.config.jax_compilation_cache_dir is None
 
 
 def _python(code, env):
@@ -73,19 +83,21 @@ def _python(code, env):
 
 def test_enable_leaves_the_users_own_jax_cache_alone(tmp_path):
     # JAX reads JAX_COMPILATION_CACHE_DIR when it starts: a new process
-    env = {**os.environ, "JAX_COMPILATION_CACHE_DIR": str(tmp_path / "theirs"), "DRYFRIC_CACHE_DIR": str(tmp_path / "ours")}
-    out = _python("import jax, dryfric_jax.compile_cache as c; print(c.enable(), jax.config.jax_compilation_cache_dir)", env)
-    assert out == f"None {tmp_path / 'theirs'}"
+    env = {**ENV, "JAX_COMPILATION_CACHE_DIR": str(tmp_path / "theirs"), "DRYFRIC_CACHE_DIR": str(tmp_path / "ours")}
+    out = _python("import jax, dryfric_jax.compile_cache as c; print(c.enable(), jax.config.jax_compilation_cache_dir)",
+                  env)
+    assert out == f"{tmp_path / 'theirs'} {tmp_path / 'theirs'}"
     assert not (tmp_path / "ours").exists()
 
 
 def test_enable_sets_jax_cache_in_the_hosts_directory(tmp_path):
-    env = {**os.environ, "DRYFRIC_CACHE_DIR": str(tmp_path / "c")}
+    env = {**ENV, "DRYFRIC_CACHE_DIR": str(tmp_path / "c")}
     out = _python("import jax, dryfric_jax.compile_cache as c; p = c.enable(); print(p, c.host_tag(), "
-                  "jax.config.jax_compilation_cache_dir == p, jax.config.jax_persistent_cache_min_compile_time_secs)",
-                  env).split()
+                  "jax.config.jax_compilation_cache_dir == p, jax.config.jax_persistent_cache_min_compile_time_secs, "
+                  "c.enable(str(p) + '-elsewhere') == p)", env).split()
     assert out[0] == str(tmp_path / "c" / out[1]) and os.path.isdir(out[0])
     assert out[2] == "True" and float(out[3]) == compile_cache.MIN_COMPILE_TIME_S
+    assert out[4] == "True" and not os.path.exists(out[0] + "-elsewhere")  # a second call keeps the first's
 
 
 # the command, run as `dryfric` runs it, counting the compilations that JAX's cache served (its own events)
@@ -115,7 +127,7 @@ def test_a_run_on_cached_code_gives_the_fresh_runs_numbers(tmp_path):
     """The command writes its compiled code on the first run and loads every entry on the second, and
     the result is the same to the last bit.  (The second run may add entries: a program that compiled
     in under MIN_COMPILE_TIME_S the first time can take longer on a loaded machine.)"""
-    env = {**os.environ, "DRYFRIC_CACHE_DIR": str(tmp_path)}
+    env = {**ENV, "DRYFRIC_CACHE_DIR": str(tmp_path)}
     fresh, _ = _estimate(env)
     entries = sorted(p.name for p in tmp_path.rglob("*") if p.is_file())
     assert entries and all(e.endswith("-cache") for e in entries)
