@@ -7,8 +7,8 @@ so a process loads only code compiled from exactly the same program, and loaded 
 a fresh compilation gives: the numbers are the same to the last bit (tested).  A default
 ``dryfric estimate`` (2 CPU cores, 2026-12-03, 4 interleaved runs each) took 9.6-10.2 s without
 the cache (~2.3 s of it importing JAX and the package, its run 6.3-6.5 s) and 6.5-7.6 s with it
-warm (its run 3.2-3.8 s); the first run, which writes the cache, took 0.4-1.3 s more.  It writes
-3 entries, 340 kB.
+warm (its run 3.2-3.8 s); an hour later, the machine slower, 11.1-12.7 s and 7.3-9.7 s.  The first
+run, which writes the cache, took 0.4-1.3 s more.  It writes 3-5 entries, ~350 kB.
 
 The ``dryfric`` command turns the cache on (:func:`enable`) in
 
@@ -30,8 +30,9 @@ import os
 import platform
 
 #: compilations shorter than this are not written (JAX's default is 1 s): at 0.1 s the default
-#: ``dryfric estimate`` writes 3 entries (its rounds and key splits), at 0 s 43 entries (0.5 MB), with
-#: no difference in its time beyond the run-to-run spread
+#: ``dryfric estimate`` writes 3-5 entries (its rounds, key splits and whatever else took longer than
+#: 0.1 s to compile that time), at 0 s 43 entries (0.5 MB), with no difference in its time beyond the
+#: run-to-run spread
 MIN_COMPILE_TIME_S = 0.1
 
 _OFF = {"", "0", "off", "no", "false", "none"}
