@@ -83,12 +83,14 @@ def enable(root: str | None = None) -> str | None:
     root = cache_root() if root is None else root
     if root is None:
         return None
+    from .outfiles import _can_create_in  # a real file made and removed: os.access is wrong on a read-only mount
+
     path = os.path.join(root, host_tag())
     try:
         os.makedirs(path, exist_ok=True)
-        if not os.access(path, os.W_OK | os.X_OK):
-            return None
     except OSError:  # a file in the way, a read-only home, no permission
+        return None
+    if not _can_create_in(path):
         return None
     jax.config.update("jax_compilation_cache_dir", path)
     jax.config.update("jax_persistent_cache_min_compile_time_secs", MIN_COMPILE_TIME_S)

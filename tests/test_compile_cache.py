@@ -62,10 +62,15 @@ def no_jax_cache():
     jax.config.update("jax_compilation_cache_dir", before)
 
 
-def test_enable_runs_without_a_cache_it_cannot_make(tmp_path, no_jax_cache):
+def test_enable_runs_without_a_cache_it_cannot_make(tmp_path, no_jax_cache, monkeypatch):
     blocker = tmp_path / "a-file"
     blocker.write_text("")
     assert enable(str(blocker / "cache")) is None  # a file in the way: no cache, no error
+    assert jax.config.jax_compilation_cache_dir is None
+    # a directory that exists but takes no file (a read-only mount, a full quota: os.access says yes there)
+    from dryfric_jax import outfiles
+    monkeypatch.setattr(outfiles, "_can_create_in", lambda d: False)
+    assert enable(str(tmp_path / "ro")) is None
     assert jax.config.jax_compilation_cache_dir is None
 
 
