@@ -61,13 +61,16 @@ def host_tag() -> str:
 
 def cache_root(environ=None) -> str | None:
     """Where the cache lives (without :func:`host_tag`), or None where ``DRYFRIC_CACHE_DIR`` turns
-    it off (module docstring)."""
+    it off or there is no home directory (module docstring)."""
     env = os.environ if environ is None else environ
     given = env.get("DRYFRIC_CACHE_DIR")
     if given is not None:
         return None if given.strip().lower() in _OFF else os.path.expanduser(given)
-    base = env.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return os.path.join(base, "dryfric_jax", "xla")
+    base = env.get("XDG_CACHE_HOME", "")
+    if not os.path.isabs(base):  # unset, empty or relative: the XDG spec says to ignore it
+        base = os.path.join(os.path.expanduser("~"), ".cache")
+    # no home directory to be found (expanduser leaves "~"): no cache rather than one in the working directory
+    return os.path.join(base, "dryfric_jax", "xla") if os.path.isabs(base) else None
 
 
 def enable(root: str | None = None) -> str | None:

@@ -23,13 +23,21 @@ def test_cache_root_follows_the_environment():
     home = os.path.expanduser("~")
     assert cache_root({}) == os.path.join(home, ".cache", "dryfric_jax", "xla")
     assert cache_root({"XDG_CACHE_HOME": "/x/cache"}) == "/x/cache/dryfric_jax/xla"
-    # an empty XDG_CACHE_HOME counts as unset, as the XDG spec says
+    # an empty or relative XDG_CACHE_HOME counts as unset, as the XDG spec says
     assert cache_root({"XDG_CACHE_HOME": ""}) == os.path.join(home, ".cache", "dryfric_jax", "xla")
+    assert cache_root({"XDG_CACHE_HOME": "rel/cache"}) == os.path.join(home, ".cache", "dryfric_jax", "xla")
     # DRYFRIC_CACHE_DIR wins over XDG_CACHE_HOME, as given (~ expanded), and turns the cache off
     assert cache_root({"DRYFRIC_CACHE_DIR": "/y/c", "XDG_CACHE_HOME": "/x"}) == "/y/c"
     assert cache_root({"DRYFRIC_CACHE_DIR": "~/c"}) == os.path.join(home, "c")
     for off in ("off", "OFF", "0", "no", "false", "none", "", "  "):
         assert cache_root({"DRYFRIC_CACHE_DIR": off, "XDG_CACHE_HOME": "/x"}) is None, off
+
+
+def test_no_home_directory_means_no_cache(monkeypatch):
+    monkeypatch.setattr(os.path, "expanduser", lambda p: p)  # what it does when it finds no home
+    assert cache_root({}) is None
+    assert cache_root({"XDG_CACHE_HOME": "/x"}) == "/x/dryfric_jax/xla"
+    assert cache_root({"DRYFRIC_CACHE_DIR": "c"}) == "c"  # a relative directory the user asked for is theirs
 
 
 def test_host_tag_is_one_per_jaxlib_machine_and_cpu(monkeypatch):
