@@ -41,13 +41,17 @@ _OFF = {"", "0", "off", "no", "false", "none"}
 def _cpu_features() -> str:
     """The host CPU's model and instruction-set flags (Linux's /proc/cpuinfo; elsewhere what
     :mod:`platform` knows)."""
+    keep = ("model name", "flags", "features", "cpu implementer", "cpu part", "isa")
     try:
         with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as f:
-            lines = f.read().split("\n\n")[0].splitlines()  # the first processor
-        keep = ("model name", "flags", "features", "cpu implementer", "cpu part", "isa")
-        return "\n".join(sorted(ln for ln in lines if ln.split(":")[0].strip().lower() in keep))
+            lines = []
+            for ln in f:  # the first processor's block (a many-core machine lists hundreds)
+                if not ln.strip():
+                    break
+                lines.append(ln.rstrip("\n"))
     except OSError:
         return platform.processor()
+    return "\n".join(sorted(ln for ln in lines if ln.split(":")[0].strip().lower() in keep))
 
 
 def host_tag() -> str:
