@@ -18,8 +18,8 @@ in a subdirectory per jaxlib version and host CPU (:func:`host_tag`), whatever J
 code compiled for one CPU (with AVX-512, say) must never reach another (without it), as it could
 on a cluster whose nodes share a home directory.  ``DRYFRIC_CACHE_DIR=off`` (or ``0``, ``no``,
 ``false``, ``none``, empty) turns it off; a cache directory the user gave JAX
-(``JAX_COMPILATION_CACHE_DIR``) is used as it is.  If the directory cannot be made, the command
-runs without a cache.  Python code (a notebook) keeps its compiled code for the life of the
+(``JAX_COMPILATION_CACHE_DIR``) is used as it is.  If the directory cannot be made or takes no
+file, or no home directory can be found, the command runs without a cache.  Python code (a notebook) keeps its compiled code for the life of the
 process anyway; :func:`enable` (``dryfric_jax.enable_compilation_cache()``), called before the
 first computation, gives it the disk cache too.
 """
@@ -81,8 +81,8 @@ def enable(root: str | None = None) -> str | None:
     """Turn on JAX's persistent compilation cache in ``root`` (default :func:`cache_root`) /
     :func:`host_tag`, before this process compiles anything.  Returns the directory JAX's cache
     uses: this one, or one set before (the user's own ``JAX_COMPILATION_CACHE_DIR``, or an earlier
-    call's), which is left as it is; None where there is none (turned off, or a directory that
-    cannot be made).  Never raises for the directory: a run without a cache is still a run."""
+    call's), which is left as it is; None where there is none (turned off, no home directory, or a
+    directory that cannot be made or takes no file).  Never raises for the directory: a run without a cache is still a run."""
     import jax
 
     if jax.config.jax_compilation_cache_dir:  # the user's own (JAX_COMPILATION_CACHE_DIR), or ours
