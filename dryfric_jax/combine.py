@@ -181,35 +181,39 @@ def combine_estimates(results: Sequence, *, labels: Sequence[str] | None = None)
             raise ValueError(f"results must be different runs: {labels[j]} and {labels[i]} have the same excursion "
                              "sums (the same run, or the same seed or key): pooling them would count its excursions "
                              "twice")
+    # said twice: warned now, and kept in the pool's ``warnings`` (which ``dryfric combine`` prints and writes)
+    said = []
     if len(known) < len(seeds):
-        warnings.warn("some results were made from a jax.random key, not a seed: their streams are assumed "
-                      "independent", DryfricWarning, stacklevel=2)
+        said.append("some results were made from a jax.random key, not a seed: their streams are assumed independent")
     versions = sorted({r.version for r in rs})
     if len(versions) > 1:  # pooled as before, but said: a seed's numbers may differ between versions
-        warnings.warn(f"results come from versions {', '.join(map(repr, versions))} of dryfric_jax: pooled as the same "
-                      "model (the pool's version is 'mixed'); rerun the older ones for a single-version result",
-                      DryfricWarning, stacklevel=2)
+        said.append(f"results come from versions {', '.join(map(repr, versions))} of dryfric_jax: pooled as the same "
+                    "model (the pool's version is 'mixed'); rerun the older ones for a single-version result")
+    for note in said:
+        warnings.warn(note, DryfricWarning, stacklevel=2)
     # math.fsum is correctly rounded, so the pooled sums, and all that follows from them, do not depend on the
     # order of the runs (with sum() the last digit of M0 did)
     total = {k: math.fsum(r.sums[k] for r in rs) for k in STAT_NAMES}
     if total["n"] > MAX_COUNT:
         raise ValueError(f"results must hold at most 2^62 excursions together (got {total['n']:.3g})")
-    out = _result(first, rs, total, seeds)
+    out = _result(first, rs, total, seeds, said)
     if not all(map(math.isfinite, (out.D, out.D_ci, out.M0, out.M0_ci))) or out.D < 0:
         raise ValueError(f"results must hold consistent excursion sums: they give D = {out.D:.3g} +- {out.D_ci:.3g}, "
                          f"M0 = {out.M0:.3g} (a hand-edited file?)")
     return out
 
 
-def _result(first: EstimateResult, rs, total: dict, seeds) -> EstimateResult:
+def _result(first: EstimateResult, rs, total: dict, seeds, said=()) -> EstimateResult:
     p = Params(**first.params)
     e = long_excursion_estimates(total, first.ci_level)
     wall = math.fsum(r.wall_s for r in rs)
     useful = math.fsum(r.lane_steps_per_s * r.wall_s for r in rs)
     slots = math.fsum(r.lane_steps_per_s * r.wall_s / r.lane_utilization if r.lane_utilization else 0.0 for r in rs)
     # the runs' notes once each, but the small-N and rounding notes for the pool's sums, not each run's
-    notes = list(dict.fromkeys(w for r in rs for w in r.warnings
-                               if w != small_n_note(r.n_excursions) and not w.startswith(ROUNDING_NOTE)))
+    # (and ``said``, the pool's own notes: key-made runs, mixed versions)
+    notes = list(dict.fromkeys([*(w for r in rs for w in r.warnings
+                                  if w != small_n_note(r.n_excursions) and not w.startswith(ROUNDING_NOTE)),
+                                *said]))
     if e["n_excursions"] < MIN_RELIABLE_N:
         notes.append(small_n_note(e["n_excursions"]))
     if rounding := rounding_note(total):

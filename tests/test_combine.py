@@ -248,6 +248,31 @@ def test_runs_of_other_versions_are_pooled_with_a_warning(runs):
     assert c.version == "mixed" and c.D == combine_estimates(runs[:2]).D
 
 
+def test_the_cli_says_and_keeps_the_pools_own_notes(tmp_path, runs, capsys):
+    """``dryfric combine`` silences the library's warnings and prints the result's ``warnings``
+    instead: the two notes combine makes of the pool itself (runs of other versions, runs made
+    from a key) must be among them, on stderr and in the JSON (they were warned only, so the
+    command said neither)."""
+    from dryfric_jax.cli import main
+    from dryfric_jax.outfiles import dumps
+
+    files = [tmp_path / "old.json", tmp_path / "keyed.json"]
+    files[0].write_text(dumps(dataclasses.replace(runs[0], version="0.1.0").to_dict()))
+    files[1].write_text(dumps(dataclasses.replace(runs[1], seed=None).to_dict()))
+    assert main(["combine", *map(str, files), "--json", "--out", str(tmp_path / "pool.json")]) == 0
+    cap = capsys.readouterr()
+    got = json.loads(cap.out)
+    notes = [w for w in got["warnings"] if "versions '0.1.0', '0.2" in w or "assumed independent" in w]
+    assert len(notes) == 2 and got["version"] == "mixed", got["warnings"]
+    assert all(f"dryfric: warning: {w}" in cap.err for w in notes)
+    assert json.loads((tmp_path / "pool.json").read_text())["warnings"] == got["warnings"]
+    # the pool pooled again with a third run: the key note, the same words again, is kept once
+    (tmp_path / "third.json").write_text(dumps(runs[2].to_dict()))
+    assert main(["combine", str(tmp_path / "pool.json"), str(tmp_path / "third.json"), "--json"]) == 0
+    again = json.loads(capsys.readouterr().out)["warnings"]
+    assert sum("assumed independent" in w for w in again) == 1 and notes[0] in again, again
+
+
 def test_the_pool_does_not_depend_on_the_order_of_the_runs(runs):
     # more runs than the fixture's three, so that there are orders whose float sums differ: with sum() the
     # last digit of the pooled M0 and D followed the order of the files given to 'dryfric combine'
