@@ -256,7 +256,7 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--skip-refused", action="store_true",
                     help="record the points the planner refuses (predicted work over --max-work, no stationary "
                          "state, ...) as 'refused' and run the others; without it such a grid is refused "
-                         "(exit 2) and the message names every refused point")
+                         "(exit 2) and the message counts the refused points and names the first six")
     sw.add_argument("--allow-truncated", action="store_true",
                     help="exit 0 even when points have truncated excursions (their results are biased low; "
                          "exit 3 otherwise)")

@@ -16,7 +16,7 @@ grid (:func:`~dryfric_jax.plan.check_settings`): a wrong setting is a user's mis
 refusal.  Every point is then planned (:func:`~dryfric_jax.plan.plan_estimate`).  A point with invalid
 parameters refuses the grid before anything is simulated.  A point the planner refuses (its
 predicted work exceeds ``max_work``, no stationary state, an inadmissible h or delta) refuses the
-grid too, and the message names every such point; with ``skip_refused`` they are recorded as
+grid too, and the message counts them and names the first ``1 + MAX_NAMED``; with ``skip_refused`` they are recorded as
 ``"refused"`` (with the reason) and the others run.  A point that runs but ends without an
 estimate (:class:`~dryfric_jax.api.NoEstimateError`: fewer than 2 complete excursions within the
 work bounds) is recorded as ``"failed"`` and the sweep goes on; with the same seed and settings it
@@ -225,7 +225,7 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
         max_time: optional time limit of each point, seconds (module docstring: a point it stopped is
             rerun by a resumed sweep that gives more time).
         skip_refused: record the points the planner refuses (status ``"refused"``) and run the
-            others, instead of refusing the grid (``ValueError`` naming every refused point).
+            others, instead of refusing the grid (``ValueError`` counting the refused points, naming the first six).
         progress: optional ``progress(done, total, record)`` after each point (and once at start).
 
     The points' warnings are kept in their records, not shown; a

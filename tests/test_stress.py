@@ -154,7 +154,7 @@ def test_plan_matrix_every_case_is_planned_or_refused_by_name():
 
 @pytest.mark.parametrize("tl,fastest", [(0.067, 0.067), (math.inf, 5.0 / 3.84**2), (1.0, 5.0 / 3.84**2)])
 def test_default_h_and_its_bound_are_the_documented_fractions(tl, fastest):
-    """README "Choosing h": default h = 0.01 min(tau0, tau_L), admissible 0 < h <= 0.1 min(tau0, tau_L)
+    """README "Choosing h": default h = 0.01 min(tau0, tau_L), admissible 1e-12 min(tau0, tau_L) <= h <= 0.1 min(tau0, tau_L)
     (the bound itself included); tau0 = Gamma/Delta^2 written out here."""
     p = dj.Params(5.0, 3.84, 0.5, tl, 0.342)
     assert dj.default_h(p) == pytest.approx(0.01 * fastest, rel=1e-14)
