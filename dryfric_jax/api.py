@@ -1,7 +1,7 @@
 """Public entry points: ``estimate_diffusivity`` (long excursions) and ``bruteforce_diffusivity``.
 
-Both take physical :class:`~dryfric_jax.params.Params`, simulate the nondimensional DI chain and
-return physical numbers (D in m^2/s, M0 in m/s, durations in s) with 95% CIs.
+Both take physical :class:`~dryfric_jax.params.Params`, simulate the nondimensional DI chain or the
+PDMP (``method``) and return physical numbers (D in m^2/s, M0 in m/s, durations in s) with 95% CIs.
 """
 from __future__ import annotations
 
@@ -304,13 +304,13 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
             On a GPU, ``dryfric bench --lanes ... --block ...`` measures which layout is fastest.
         max_steps: work bound per excursion; default
             :func:`~dryfric_jax.limits.max_steps_per_excursion` (1e4 tail time scales of the
-            excursion, at most ``max_work / lanes``).  Excursions reaching it are truncated,
+            excursion, at most ``max(max_work / lanes, 64)``).  Excursions reaching it are truncated,
             excluded and reported (``n_truncated``, a warning).
         max_work: bound on the run's lane-steps (events); a run predicted to exceed it is refused
             with ``ValueError`` before any simulation
             (:func:`~dryfric_jax.limits.check_work`), and the rounds stop once it is spent
             (``stopped_by = "work_bound"``).  The final round then finishes the excursions in
-            flight (dropping them would bias D low), each within ``max_steps <= max_work / lanes``,
+            flight (dropping them would bias D low), each within ``max_steps <= max(max_work / lanes, 64)``,
             so a run's ``work`` can reach about twice ``max_work`` (measured: 1.66x).
         rtol: precision target: after the first ``n_excursions``, keep running rounds until
             the 95% half-width of D is at most ``rtol * |D|`` (a target out of reach, say 1e-160,
@@ -319,9 +319,10 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
             final round, which finishes the excursions in flight, is cut at twice ``max_time``,
             and the excursions it cut are counted as truncated (excluded, warned).  Both act
             between calls: add up to one round and one call (~4 s each on 2 CPU cores).
-        progress: optional callback ``progress(dict)`` after every round: N, D, D_ci so far, the
-            target, ``elapsed_s``, and the projection ``left_s`` (seconds, None until known) to the
-            limit ``left_to`` that ends the run first (:func:`time_left`).
+        progress: optional callback ``progress(dict)`` after every round, with the keys
+            ``n_excursions``, ``D`` and ``D_ci`` (so far, m^2/s), ``target`` (``n_excursions``
+            asked for), ``rtol``, ``elapsed_s``, and the projection ``left_s`` (seconds, None
+            until known) to the limit ``left_to`` that ends the run first (:func:`time_left`).
 
     A Ctrl-C between rounds returns what the completed rounds reached (``stopped_by =
     "interrupted"``); nothing already simulated is lost.  Before 2 excursions have closed there is
@@ -457,8 +458,9 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
     DI paths start at :math:`(x_\Delta, 0)`, PDMP paths at :math:`s_+ = (x_{k_++1}, 1, 0)`
     (Algorithm 2, corrected); ``burn_in`` seconds are simulated first and not counted.  The bias
     is O(1/t): pick t long against the velocity correlation time.  PDMP paths are bounded by
-    ``max_events`` (default 10x the expected count); paths stopped by it are reported in
-    ``n_unfinished`` and make the call fail rather than return a biased number.  A run that
+    ``max_events`` (default 10x the expected count + 1000); if any path reaches it the call raises
+    ``RuntimeError`` naming how many, rather than return a biased number (so a returned result's
+    ``n_unfinished`` is 0).  A run that
     needs more than ``max_work`` steps (events) is refused before it starts.
     """
     if method == "auto":

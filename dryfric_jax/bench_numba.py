@@ -12,7 +12,8 @@ numba 0.68 and its speed moved 1.7x with numba's version.  The loops run in floa
 the engine's dtypes: a ``Generator``'s float32 normals are slower in numba (1.25e8/s, one core,
 numba 0.68.1), so a float32 loop would be a weaker baseline.
 
-numba is an optional extra (``pip install -e ".[bench]"``); it is never imported by the package.
+numba is an optional extra (``pip install -e ".[bench]"``); this module is imported only by ``dryfric
+bench`` (:mod:`dryfric_jax.bench`), never by ``import dryfric_jax``.
 """
 from __future__ import annotations
 

@@ -178,7 +178,7 @@ def _params(a) -> Params:
 
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="dryfric", description="Dry friction under colored noise: diffusivity D and mobility M0.",
-                epilog="Compiled code is kept between commands in ~/.cache/dryfric_jax/xla (or $XDG_CACHE_HOME); "
+                epilog="Compiled code is kept between commands in ~/.cache/dryfric_jax/xla (or $XDG_CACHE_HOME/dryfric_jax/xla); "
                        "DRYFRIC_CACHE_DIR=DIR moves it, DRYFRIC_CACHE_DIR=off turns it off.")
     sub = p.add_subparsers(dest="cmd", required=True, parser_class=_Parser)
     model = _model_options()
@@ -191,8 +191,8 @@ def build_parser() -> argparse.ArgumentParser:
                      help="PDMP noise grid step, s^-1/2 (default: delta' = delta sqrt(Gamma)/Delta = 0.05, "
                           "and delta sqrt(tau) <= 1/16 for slow noise)")
     sim.add_argument("--seed", type=_seed, default=0)
-    sim.add_argument("--dtype", default="float64", help="float64 or float32 (the DI falls back to float64 "
-                                                        "where float32 is not safe, README)")
+    sim.add_argument("--dtype", default="float64", help="float64 or float32 (the DI and the PDMP fall "
+                                                        "back to float64 where float32 is not safe, README)")
     sim.add_argument("--max-work", type=_number("max-work"), default=None,
                      help="cap on lane-steps (DI) or events (PDMP) of the run; a run predicted to need more is "
                           "refused before it starts (default 1e11)")

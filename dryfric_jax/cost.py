@@ -28,7 +28,7 @@ EVENT_COST = 1.0
 #: the admissible maximum
 DELTA_ND = 0.05
 #: and at most this fraction of the noise's stationary SD 1/sqrt(tau'): delta' sqrt(tau') =
-#: delta sqrt(tau) <= 1/16, both dimensionless. Measured (README "Default delta"): at tau = 1 s,
+#: delta sqrt(tau) <= 1/16, both dimensionless. Measured (README "The PDMP", bullet "Default δ"): at tau = 1 s,
 #: Gamma = 1, where the stick thresholds lie 3.5 and 4.2 SD out, delta sqrt(tau) = 0.12 puts D
 #: 6-7% (4 SE) below the DI and 1/16 agrees with it (-0.7 +- 1.8% SE); at Gamma = 1 and 1.29
 #: halving 1/16 again moves D by -1.4 +- 1.1% (SE), no visible bias
@@ -41,7 +41,7 @@ def default_delta(params: Params) -> float:
 
     The second cap keeps the grid step below 1/16 of the stationary SD of the noise
     (:math:`\delta\sqrt\tau \le 1/16`); it binds for slow noise (:math:`\tau' > 1.56`), where the
-    jump chain's tail near deep stick thresholds otherwise biases D low (README "Default delta").
+    jump chain's tail near deep stick thresholds otherwise biases D low (README "The PDMP", bullet "Default δ").
     """
     nd = params.nondim()
     d = min(DELTA_ND, DELTA_PER_SD / math.sqrt(nd.tau), 0.5 * delta_max(nd.tau, nd.gamma_bar))
@@ -49,7 +49,7 @@ def default_delta(params: Params) -> float:
 
 
 #: the deepest stick threshold, in stationary SDs of the noise, at which the default delta was
-#: measured against the DI (tau = 1 s, Gamma = 1: 4.18 SD, README "Default delta")
+#: measured against the DI (tau = 1 s, Gamma = 1: 4.18 SD, README "The PDMP", bullet "Default δ")
 DELTA_VALIDATED_SD = 4.2
 
 

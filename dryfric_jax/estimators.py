@@ -45,8 +45,8 @@ from .params import check_positive, real_or_none, shown
 
 #: Below this many excursions the 95% delta-method CI for D is not trusted.  Measured coverage
 #: (README "Confidence intervals", scripts/ci_calibration.py): with viscous damping (paper's tau_L) it
-#: is 0.94-0.95 from N = 500 on; without (tau_L = inf) it climbs to a plateau of ~0.90 only at
-#: N ~ 1e4, because U per excursion then has a stretched-exponential tail.
+#: is 0.94-0.95 from N = 500 on; without (tau_L = inf) it climbs to a plateau of ~0.90 only from
+#: N ~ 5e3 (0.90 +- 0.01 up to 1e5), because U per excursion then has a stretched-exponential tail.
 MIN_RELIABLE_N = 10_000
 #: tau_L' above which the velocity tail is exponential over the range that dominates Var(U): the
 #: D CI then covers ~0.90 instead of 0.95 (measured at tau_L = inf; nominal at tau_L' = 0.2).

@@ -1,4 +1,5 @@
-r"""Long excursions of the discrete DI as vmapped lanes inside one ``lax.while_loop``.
+r"""Long excursions of the discrete DI (and of the PDMP, whose chain runs on the same engine) as
+vmapped lanes inside one ``lax.while_loop``.
 
 A lane runs one chain and cuts it at regenerations (:mod:`dryfric_jax.regeneration`):
 

@@ -1,7 +1,8 @@
 r"""What a run will do, decided before any simulation: method, step, dtype and work bounds.
 
 :func:`plan_estimate` validates every argument of
-:func:`~dryfric_jax.api.estimate_diffusivity` and returns a :class:`Plan`, or raises
+:func:`~dryfric_jax.api.estimate_diffusivity` that fixes the run (all but ``key``, ``rtol``,
+``max_time`` and ``progress``, which ``estimate_diffusivity`` checks itself) and returns a :class:`Plan`, or raises
 ``ValueError`` naming the parameter and its valid range.  It is pure Python (no JAX, no chain
 is built), so a test can check thousands of parameter sets, and a user can ask whether a run is
 feasible before paying for it.
@@ -17,7 +18,7 @@ Decisions, in order:
    :func:`~dryfric_jax.limits.pdmp_float32_unsafe_reason`), and say so in ``notes``;
 4. the work: refused if the prediction exceeds ``max_work``
    (:func:`~dryfric_jax.limits.check_work`), and a per-excursion bound ``max_steps``
-   (:func:`~dryfric_jax.limits.max_steps_per_excursion`, at most ``max_work / lanes``).
+   (:func:`~dryfric_jax.limits.max_steps_per_excursion`, at most ``max(max_work / lanes, 64)``).
 """
 from __future__ import annotations
 
@@ -254,7 +255,8 @@ def plan_estimate(params: Params, *, method: str = "di", h: float | None = None,
                   block: int | None = None) -> Plan:
     """Validate a long-excursion run and fix its method, step, dtype and work bounds.
 
-    Same arguments as :func:`~dryfric_jax.api.estimate_diffusivity`.  Raises ``ValueError`` (naming
+    The arguments of :func:`~dryfric_jax.api.estimate_diffusivity` that fix the run (not ``key``,
+    ``rtol``, ``max_time``, ``progress``).  Raises ``ValueError`` (naming
     the parameter and its range) for anything it would refuse, including a run predicted to need
     more than ``max_work`` lane-steps (events).
     """

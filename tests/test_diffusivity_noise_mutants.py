@@ -24,7 +24,7 @@ B30 (``0 < v / scale < dm`` -> ``0 < v < dm * scale``: differs within an ulp of 
 
 Oracles: the captions (Fig. 3: both panels log-log, PDMP dots and DI lines, Gamma in [1, 10]; Fig. 5: the
 exact P(v) dv as a line, the histogram at bin width 4.8e-4 m/s; Fig. 8: D against Gamma in log-log scale), the
-paper's section 7.3 (the experiment's exponents 1.61 and 1.74), MODEL_NOTES section 2 (D = 10 Gamma^3 / Delta^4
+paper's section 7.2 (the experiment's exponents 1.61 and 1.74), MODEL_NOTES section 2 (D = 10 Gamma^3 / Delta^4
 for b = 0: exponent 3), the README and RESULTS.md (Fig. 3: 80 runs, 40 points, the PDMP's seeds 5000 past the
 DI's; Fig. 8: 11 Gamma points, 2000 brute-force paths of 10 s, 88 points), the docstrings (local_exponent's
 "of one length >= 2", D_ci >= 0; _affordable_n retries the planner's ValueError; noise: 8 SD and tau delta L_X < 2),
@@ -179,11 +179,11 @@ def _fig8(tmp_path, monkeypatch, quick):
 
 
 def test_fig8_panels_plot_the_runs_the_exact_d_the_exponents_and_the_reference_lines(tmp_path, monkeypatch):
-    """Fig. 8 (caption and section 7.3): top, D against Gamma in log-log scale, long-excursion lines with their CI,
+    """Fig. 8 (caption and section 7.2): top, D against Gamma in log-log scale, long-excursion lines with their CI,
     brute-force dots with theirs, the exact white-noise D over every Gamma; bottom, the local exponent at the
     geometric midpoints sqrt(G_i G_(i+1)) (Gamma doubles in the quick grid 0.5 .. 4, so by hand 3 exactly, with
     half-width hypot(r_i, r_(i+1)) / ln 2), and horizontal references at 3 (D = 10 Gamma^3 / Delta^4 for b = 0,
-    MODEL_NOTES section 2) and at the experiment's 1.61 and 1.74 (section 7.3).  Kills: the exponent plotted at
+    MODEL_NOTES section 2) and at the experiment's 1.61 and 1.74 (section 7.2).  Kills: the exponent plotted at
     Gamma[1:] (A19), its bars the exponent itself (A20), the LE bars D itself (A21), the BF dots at the LE's D
     (A22), the references at 2 (A23), 1.71 (A24), 1.47 (A25), the exact D without its first point (A27), the D
     panel's y axis linear (A41), the exponent panel's x axis linear (A42: shared, so the D panel's x too)."""

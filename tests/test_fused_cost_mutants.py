@@ -36,7 +36,7 @@ from dryfric_jax.di import make_di_model
 
 
 def test_threshold_depth_uses_the_deeper_threshold_for_a_negative_bias():
-    """README "Default delta": depth (Delta + |gamma_bar|) sqrt(tau / Gamma).  Gamma = 2, Delta = 4,
+    """README "The PDMP", bullet "Default δ": depth (Delta + |gamma_bar|) sqrt(tau / Gamma).  Gamma = 2, Delta = 4,
     tau = 2, gamma_bar = -0.8: (4 + 0.8) sqrt(1) = 4.8 > 4.2, so the note is given; with the bias
     taken signed (1 - 0.2) it was 3.2 and the note was lost.  Kills: ``abs`` dropped."""
     p = dj.Params(2.0, 4.0, 2.0, 1.0, -0.8)

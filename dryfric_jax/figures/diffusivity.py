@@ -1,4 +1,5 @@
-r"""Fig. 3 and Fig. 8 (paper sections 7.1, 7.3): D against Gamma, with 95% CI bars.
+r"""Figs. 3, 5 and 8 (paper sections 7.1, 7.2): D against Gamma with 95% CI bars, and the
+stationary velocity law.
 
 * Fig. 3: D and the mean excursion duration for tau = 0.125, 0.25, 0.5, 1 s (tau_L = 0.067 s,
   Delta = 3.84, gamma_bar = 0.342): PDMP (delta = 0.125 s^-1/2) dots, DI lines; N = 1e5 (full)
@@ -6,7 +7,9 @@ r"""Fig. 3 and Fig. 8 (paper sections 7.1, 7.3): D against Gamma, with 95% CI ba
   ``max_work`` (the N used is in the JSON);
 * Fig. 8: D for b = 0 and for b = -v/tau_L + gamma_bar, tau = 1e-5 .. 1e-2 s: brute force
   (t = 10 s) dots, long excursions lines, the exact white-noise D as reference, and the local
-  exponent d ln D / d ln Gamma (finite differences of the long-excursion D, delta-method CI).
+  exponent d ln D / d ln Gamma (finite differences of the long-excursion D, delta-method CI);
+* Fig. 5: the DI's stationary velocity histogram (Gamma = 0.16, tau = 1e-5 s) against the exact
+  white-noise density and the discrete chain's law at the same h, and 10 displacement paths U(t).
 """
 from __future__ import annotations
 
@@ -91,7 +94,7 @@ def fig3(out_dir, quick, seed):
 def local_exponent(G, D, D_ci):
     r"""Local exponent :math:`d\ln D/d\ln\Gamma` between neighbouring points, at their geometric
     midpoints, and its 95% half-width :math:`\sqrt{(c_1/D_1)^2 + (c_0/D_0)^2}/\Delta\ln\Gamma`
-    (independent points; paper section 7.3 discusses the experiment's 1.61 and 1.74).
+    (independent points; paper section 7.2 discusses the experiment's 1.61 and 1.74).
 
     ``G`` (increasing, > 0), ``D`` (> 0) and ``D_ci`` (>= 0): finite, of one length >= 2;
     ``ValueError`` naming the argument (a repeated Gamma gave inf, a negative D nan)."""
