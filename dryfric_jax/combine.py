@@ -27,6 +27,7 @@ from .estimators import MIN_RELIABLE_N, ROUNDING_NOTE, long_excursion_estimates,
 from .excursions import STAT_NAMES
 from .params import Params
 from .plan import DTYPES, MAX_COUNT
+from .outfiles import _from_strict
 
 # what must agree for two runs to sample the same law (the engine layout does not matter), and to
 # pool their CIs (the level)
@@ -36,6 +37,8 @@ _SAME = ("params", "method", "h", "delta", "L_X", "dtype", "ci_level")
 def _as_result(r, label: str) -> EstimateResult:
     if isinstance(r, EstimateResult):
         return r
+    if isinstance(r, dict):  # parsed with json.load: the strict JSON's "inf" (tau_L = inf), "nan" as floats again
+        r = _from_strict(r)
     if isinstance(r, dict) and r.get("status", "ok") != "ok" and "params" in r:  # a sweep's refused/failed point
         raise ValueError(f"results must be estimate results: {label} is a sweep record of a {r['status']} point, "
                          f"which has none ({str(r.get('reason', ''))[:200]})")
@@ -127,7 +130,8 @@ def combine_estimates(results: Sequence, *, labels: Sequence[str] | None = None)
 
     Args:
         results: :class:`~dryfric_jax.api.EstimateResult` objects (or their ``to_dict()``, or
-            records of a sweep's results file) of
+            records of a sweep's results file, also as ``json.load`` reads them: the strict
+            JSON's ``"inf"``, as tau_L = inf is written, is read as the float) of
             :func:`~dryfric_jax.api.estimate_diffusivity` with the same parameters, method,
             step (``h`` or ``delta``) and dtype, and different seeds.
         labels: names of the results for the messages (``dryfric combine`` passes the file

@@ -273,6 +273,22 @@ def test_the_cli_says_and_keeps_the_pools_own_notes(tmp_path, runs, capsys):
     assert sum("assumed independent" in w for w in again) == 1 and notes[0] in again, again
 
 
+def test_files_parsed_by_json_load_pool_with_tau_L_inf(runs):
+    """The package writes tau_L = inf as the string "inf" (strict JSON); a user who reads its files
+    with ``json.load`` and pools them in Python gets the float back (it was refused: "tau_L must be
+    a real number (got 'inf')"), and so do a sweep's records read line by line."""
+    from dryfric_jax.outfiles import dumps
+
+    inf = [dataclasses.replace(r, params={**r.params, "tau_L": math.inf}) for r in runs[:2]]
+    parsed = [json.loads(dumps(r.to_dict())) for r in inf]
+    assert parsed[0]["params"]["tau_L"] == "inf"
+    want, got = combine_estimates(inf), combine_estimates(parsed)
+    assert got.params["tau_L"] == math.inf and (got.D, got.D_ci, got.M0, got.sums) == (want.D, want.D_ci, want.M0, want.sums)
+    record = json.loads(dumps({"params": inf[0].params, "seed": inf[0].seed, "status": "ok",
+                               "result": {k: v for k, v in inf[0].to_dict().items() if k != "params"}}))
+    assert combine_estimates([record, parsed[1]]).D == want.D
+
+
 def test_the_pool_does_not_depend_on_the_order_of_the_runs(runs):
     # more runs than the fixture's three, so that there are orders whose float sums differ: with sum() the
     # last digit of the pooled M0 and D followed the order of the files given to 'dryfric combine'
