@@ -34,6 +34,12 @@ class DryfricWarning(UserWarning):
     """A result that should be read with care (too few excursions, truncated excursions)."""
 
 
+#: the notes of an estimate whose excursions were truncated, by cause (the CLI names the option
+#: that helps from them): the final round's deadline (2 max_time) or the work bound max_steps
+CUT_NOTE = "the final round, which finishes the excursions in flight, was cut at"
+BOUND_NOTE = "hit the work bound"
+
+
 class NoEstimateError(RuntimeError):
     """A run ended without an estimate: fewer than 2 complete excursions within its work bounds
     (``max_work``, ``max_steps``, ``max_time``).  Without ``max_time`` it is deterministic: the same
@@ -408,13 +414,13 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
         notes.append(f"{what} before the " + (f"target rtol = {rtol}" if rtol else f"{n_excursions} excursions")
                      + f": result of {sim.n_excursions} excursions")
     if cut:
-        notes.append(f"the final round, which finishes the excursions in flight, was cut at {FINAL_DEADLINE:g} x "
+        notes.append(f"{CUT_NOTE} {FINAL_DEADLINE:g} x "
                      f"max_time: {sim.n_unfinished} excursions still running are excluded and counted as truncated: "
                      "the estimate is biased low (the excursions are far longer than planned; raise max_time)")
     hit_bound = n_truncated - (sim.n_unfinished if cut else 0)
     if hit_bound:
         notes.append(f"{hit_bound} of {n_truncated + sim.n_excursions} "
-                     f"excursions hit the work bound (max_steps = {plan.max_steps} {unit} per excursion) and are "
+                     f"excursions {BOUND_NOTE} (max_steps = {plan.max_steps} {unit} per excursion) and are "
                      "excluded: the estimate is biased low")
     if sim.n_excursions < 2 and stopped == "interrupted":  # nothing to return: the Ctrl-C goes on up
         raise KeyboardInterrupt("fewer than 2 complete excursions before Ctrl-C")

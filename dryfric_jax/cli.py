@@ -475,7 +475,7 @@ def _run(a) -> int:
         _report(a, r, text)
         if r.stopped_by == "interrupted":
             return 130
-        return _truncation_exit(a, r, ", --max-steps raises the bound")
+        return _truncation_exit(a, r, _truncation_remedy(r))
     if a.cmd == "bruteforce":
         with _warnings_kept_in_result():
             r = api.bruteforce_diffusivity(params, a.seed, t=a.t, n_paths=a.n_paths, method=a.method, h=a.h,
@@ -484,6 +484,17 @@ def _run(a) -> int:
         _report(a, r, _print_bruteforce)
         return 0
     raise _UserError(f"unknown command {a.cmd!r}")
+
+
+def _truncation_remedy(r) -> str:
+    """The options that would have spared an estimate its truncated excursions, by the causes its
+    notes give: the work bound (``--max-steps``) or the final round's deadline (``--max-time``)."""
+    from .api import BOUND_NOTE, CUT_NOTE
+
+    fixes = [fix for note, fix in ((BOUND_NOTE, "--max-steps raises the bound"),
+                                   (CUT_NOTE, "a larger --max-time lets the final round finish"))
+             if any(note in w for w in r.warnings)]
+    return "".join(f", {f}" for f in fixes)
 
 
 def _truncation_exit(a, r, remedy: str) -> int:

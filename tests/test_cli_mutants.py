@@ -171,10 +171,21 @@ def test_estimate_exit_codes(calls, capsys):
     calls.result.update(stopped_by="interrupted")
     assert main(["estimate"]) == 130
     capsys.readouterr()
-    calls.result.update(stopped_by="n_excursions", n_truncated=4)
+    from dryfric_jax.api import BOUND_NOTE, CUT_NOTE
+
+    bound, cut = f"4 of 9 excursions {BOUND_NOTE} (max_steps = 64 steps per excursion)", f"{CUT_NOTE} 2 x max_time"
+    calls.result.update(stopped_by="n_excursions", n_truncated=4, warnings=[bound])
     assert main(["estimate"]) == 3
     err = capsys.readouterr().err
-    assert "4 truncated excursions" in err and "--allow-truncated accepts it, --max-steps raises the bound" in err
+    assert "4 truncated excursions" in err and "(--allow-truncated accepts it, --max-steps raises the bound)" in err
+    # the remedy follows the cause: the final round's deadline names --max-time, not --max-steps
+    calls.result.update(warnings=[cut])
+    assert main(["estimate"]) == 3
+    assert "(--allow-truncated accepts it, a larger --max-time lets the final round finish)" in capsys.readouterr().err
+    calls.result.update(warnings=[cut, bound])
+    assert main(["estimate"]) == 3
+    assert ("(--allow-truncated accepts it, --max-steps raises the bound, a larger --max-time lets the final round "
+            "finish)") in capsys.readouterr().err
     assert main(["estimate", "--allow-truncated"]) == 0
     assert "truncated" not in capsys.readouterr().err
 
