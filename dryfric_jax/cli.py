@@ -559,7 +559,8 @@ def _sweep(a) -> int:
               rtol=a.rtol, max_time=a.max_time, skip_refused=a.skip_refused, **_work_options(a))
     try:
         with _warnings_kept_in_result():  # a point's ProjectionWarning on stderr at once
-            out = sweep.run_sweep(sweep.grid(**axes), a.out, progress=sweep.progress_bar, **kw)
+            points = sweep.grid(**axes)
+            out = sweep.run_sweep(points, a.out, progress=sweep.progress_bar_for(points), **kw)
     except ValueError as e:
         if str(e).startswith("out must"):
             raise _UserError("--" + str(e)) from None

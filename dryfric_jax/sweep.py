@@ -49,6 +49,7 @@ the file then keeps one record (the same result unless ``max_time`` stopped one)
 """
 from __future__ import annotations
 
+import functools
 import itertools
 import json
 import math
@@ -420,14 +421,23 @@ def rows(path: str, seed: int | None = None, **settings) -> list[dict]:
     return sorted(out, key=lambda r: tuple(r[k] for k in PARAM_KEYS))
 
 
-def progress_bar(done: int, total: int, rec) -> None:
-    """A one-line bar on stderr (terminal), one line per point otherwise."""
+def progress_bar_for(points: list[dict]):
+    """:func:`progress_bar` showing Gamma, tau and every other parameter that varies over
+    ``points``, so that each line says which point it is (a grid over tau_L or gamma_bar printed
+    the same "Gamma=5 tau=0.001" on every line)."""
+    axes = [k for k in PARAM_KEYS if k in ("Gamma", "tau") or len({_canon(pt.get(k)) for pt in points}) > 1]
+    return functools.partial(progress_bar, axes=tuple(axes))
+
+
+def progress_bar(done: int, total: int, rec, axes=("Gamma", "tau")) -> None:
+    """A one-line bar on stderr (terminal), one line per point otherwise; a point is shown by its
+    parameters ``axes`` (:func:`progress_bar_for` picks those that vary in a grid)."""
     width = 30
     fill = int(width * done / max(total, 1))
     last = ""
     if rec is not None:
         p = rec["params"]
-        last = f"  Gamma={p['Gamma']:.4g} tau={p['tau']:.4g}: "
+        last = "  " + " ".join(f"{k}={p[k]:.4g}" for k in axes) + ": "
         if status(rec) == "ok":
             last += f"D={rec['result']['D']:.4g}±{rec['result']['D_ci']:.2g}"
         else:

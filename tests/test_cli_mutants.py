@@ -225,8 +225,10 @@ def test_every_sweep_option_reaches_run_sweep(calls, tmp_path, capsys):
     (pts, path), kw = _only(calls, "sweep")
     assert path == out and pts == sweep.grid(Gamma=[1.0, 2.0], gamma_bar=[-0.5, 0.25])
     assert {p["gamma_bar"] for p in pts} == {-0.5, 0.25}
+    bar = kw.pop("progress")  # the bar shows the axes that vary: gamma_bar too
+    assert (bar.func, bar.keywords) == (sweep.progress_bar, dict(axes=("Gamma", "tau", "gamma_bar")))
     assert kw == dict(seed=5, method="pdmp", h=None, delta=0.2, dtype="float32", n_excursions=40, rtol=0.05,
-                      max_time=9.0, skip_refused=True, max_work=3e9, progress=sweep.progress_bar)
+                      max_time=9.0, skip_refused=True, max_work=3e9)
     calls.list.clear()
     assert main(["sweep", "--tau", "0.25", "--h", "0.0005", "--out", out]) == 0
     (pts, _), kw = _only(calls, "sweep")

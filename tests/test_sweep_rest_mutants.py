@@ -211,6 +211,20 @@ def test_the_progress_bar_lines(capsys, monkeypatch):
                                        + "\r" + done.ljust(150) + "\n")
 
 
+def test_the_progress_bar_names_every_axis_that_varies(capsys, monkeypatch):
+    """A grid over tau_L and gamma_bar: each line shows them beside Gamma and tau (every line read
+    "Gamma=5 tau=0.001" before); an axis with one value, or none given, is not shown."""
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: False)
+    points = sweep.grid(tau=[0.001], tau_L=[math.inf, 0.067], gamma_bar=[-0.342, 0.342], Delta=[3.84])
+    bar = sweep.progress_bar_for(points)
+    rec = _rec("ok", 5.0, result=dict(RESULT, D=1.23456, D_ci=0.0123))
+    rec["params"] = dict(rec["params"], tau=0.001, tau_L=math.inf, gamma_bar=-0.342)
+    bar(1, 4, rec)
+    assert capsys.readouterr().err.endswith(" 1/4 points  Gamma=5 tau=0.001 tau_L=inf gamma_bar=-0.342: D=1.235\u00b10.012\n")
+    sweep.progress_bar_for(sweep.grid(Gamma=[1, 2]))(1, 2, rec)
+    assert capsys.readouterr().err.endswith(" 1/2 points  Gamma=5 tau=0.001: D=1.235\u00b10.012\n")
+
+
 def test_a_setting_beyond_float_range_refuses_the_file_by_line(tmp_path, capsys):
     """DEFECT (fixed in sweep._check_record): a hand-edited setting that is an integer beyond float range (n_excursions = 10**400)
     was read as a sweep record, then made an OverflowError traceback where the point's identity is made (the
