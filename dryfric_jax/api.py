@@ -255,7 +255,7 @@ class BruteForceResult:
     wall_s: float
     lane_steps_per_s: float
     params: dict
-    burn_in: float = 0.0
+    burn_in: float = 0.0  # s, as simulated: for the DI a whole number of steps h, as t
     ci_level: float = 0.95
     delta: float | None = None
     L_X: float | None = None
@@ -511,8 +511,11 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
     t0 = time.perf_counter()
     unfinished = 0
     if method == "di":
-        U, t_nd = simulate_bruteforce(model, key, int(n_paths), round(t / h), burn_in_steps=round(burn_in / h),
+        # whole steps: t and burn_in are recorded as simulated (a burn-in under h/2 is none at all)
+        burn_steps = round(burn_in / h)
+        U, t_nd = simulate_bruteforce(model, key, int(n_paths), round(t / h), burn_in_steps=burn_steps,
                                       block=block, chunk_lanes=chunk_lanes)
+        burn_in = burn_steps * h
         steps = n_paths * (t_nd + burn_in / params.tau0) / float(model.h)
     else:
         t_nd, b_nd = t / params.tau0, burn_in / params.tau0

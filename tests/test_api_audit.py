@@ -229,7 +229,17 @@ def test_bruteforce_result_is_the_paths_in_physical_units(monkeypatch):
     want = (v / t_nd * P.D0, Z95 * np.sqrt((((U - U.mean()) ** 2 - v) ** 2).mean() / 6) / t_nd * P.D0,
             U.mean() / t_nd * P.v0, Z95 * np.sqrt(v / 6) / t_nd * P.v0, t_nd * P.tau0)
     assert (r.D_t, r.D_t_ci, r.M0_t, r.M0_t_ci, r.t) == pytest.approx(want, rel=1e-12)
-    assert r.lane_steps_per_s == pytest.approx(6 * (t_nd + 0.1 / P.tau0) / 0.02, rel=1e-12) and r.wall_s == 1.0
+    # the burn-in recorded and counted is the one simulated, whole steps (it was the one asked for)
+    burn = round(0.1 / h) * h
+    assert burn != 0.1 and r.burn_in == burn
+    assert r.lane_steps_per_s == pytest.approx(6 * (t_nd + burn / P.tau0) / 0.02, rel=1e-12) and r.wall_s == 1.0
+    clock = iter([1.0, 2.0])
+    monkeypatch.setattr(api, "time", types.SimpleNamespace(perf_counter=lambda: next(clock)))
+    with warnings.catch_warnings():  # under h/2: no burn-in step at all, and none recorded
+        warnings.simplefilter("ignore", dj.DryfricWarning)
+        monkeypatch.setattr(api, "simulate_bruteforce", lambda model, key, n, n_steps, *, burn_in_steps, **kw:
+                            (U, t_nd) if burn_in_steps == 0 else pytest.fail("a burn-in step"))
+        assert dj.bruteforce_diffusivity(P, 3, h=h, t=0.5, burn_in=0.45 * h, n_paths=6).burn_in == 0.0
 
 
 def test_bruteforce_takes_a_horizon_of_one_step(monkeypatch):
