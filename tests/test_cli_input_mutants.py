@@ -147,6 +147,10 @@ def test_the_progress_line(capsys):
     assert "~30 s left (stops at --max-work)" in _progress(capsys, left_s=30.0, left_to="max_work")
     line = _progress(capsys, left_s=30.0, left_to="rtol")
     assert "~30 s left" in line and "stops at" not in line
+    # no D before 2 excursions have closed (the API gives nan): a dash, not "nan ± nan%"
+    for d, ci in ((math.nan, math.nan), (2.0, math.nan), (0.0, 0.0)):
+        line = _progress(capsys, n_excursions=0, D=d, D_ci=ci)
+        assert "N =         0   D = –   (target 5%)" in line and "nan" not in line, line
 
 
 def test_theory_prints_the_chains_step_bias_in_percent(capsys):
