@@ -432,7 +432,8 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
         notes.append(small_n_note(sim.n_excursions))
     if params.tau_L_nd > WEAK_DAMPING_TAU_L:
         notes.append(f"tau_L/tau0 = {params.tau_L_nd:.3g} > {WEAK_DAMPING_TAU_L:g} (weak or no viscous damping): "
-                     "the 95% CI for D covers only ~90% (measured), misses are on the low side")
+                     "the 95% CI for D covers only ~90% (measured at tau_L = inf, gamma_bar = 0 and 0.5 Delta; "
+                     "~83% at |gamma_bar| = 0.9 Delta), misses are on the low side")
     total = sim.total()
     if rounding := rounding_note(total):
         notes.append(rounding)

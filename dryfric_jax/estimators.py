@@ -49,7 +49,8 @@ from .params import check_positive, real_or_none, shown
 #: N ~ 5e3 (0.90 +- 0.01 up to 1e5), because U per excursion then has a stretched-exponential tail.
 MIN_RELIABLE_N = 10_000
 #: tau_L' above which the velocity tail is exponential over the range that dominates Var(U): the
-#: D CI then covers ~0.90 instead of 0.95 (measured at tau_L = inf; nominal at tau_L' = 0.2).
+#: D CI then covers ~0.90 instead of 0.95 (measured at tau_L = inf, gamma_bar = 0 and 0.5 Delta; ~0.83 at
+#: 0.9 Delta, README "Confidence intervals"; nominal at tau_L' = 0.2).
 WEAK_DAMPING_TAU_L = 1.0
 #: N' below which the brute-force CI of D^t under-covers: the delta-method CI of a variance needs
 #: many paths.  Measured on Gaussian U(t) (its law at t >> the correlation time; heavier tails
