@@ -34,6 +34,9 @@ class DryfricWarning(UserWarning):
     """A result that should be read with care (too few excursions, truncated excursions)."""
 
 
+#: brute force (DI): a horizon t that whole steps of h miss by more than this share is said
+HORIZON_RTOL = 0.01
+
 #: the notes of an estimate whose excursions were truncated, by cause (the CLI names the option
 #: that helps from them): the final round's deadline (2 max_time) or the work bound max_steps
 CUT_NOTE = "the final round, which finishes the excursions in flight, was cut at"
@@ -505,6 +508,9 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
     if n_paths < MIN_RELIABLE_PATHS:
         notes = [*notes, f"n_paths = {n_paths} < {MIN_RELIABLE_PATHS}: the delta-method CI of D_t under-covers at "
                          "this size (0.74 at 10 paths, 0.92 at 100 for Gaussian U(t))"]
+    if h is not None and abs(round(t / h) * h - t) > HORIZON_RTOL * t:  # the DI runs whole steps
+        notes = [*notes, f"t = {t:.4g} s is {t / h:.3g} steps of h = {h:.4g} s: the horizon simulated is "
+                         f"t = {round(t / h) * h:.4g} s = {round(t / h)} h (the result's t)"]
     model = _build(params, plan)
     for n in notes:
         warnings.warn(n, DryfricWarning, stacklevel=2)

@@ -242,6 +242,22 @@ def test_bruteforce_result_is_the_paths_in_physical_units(monkeypatch):
         assert dj.bruteforce_diffusivity(P, 3, h=h, t=0.5, burn_in=0.45 * h, n_paths=6).burn_in == 0.0
 
 
+def test_bruteforce_says_when_whole_steps_miss_the_horizon(monkeypatch):
+    """The DI runs round(t/h) steps: a t that misses a whole number of steps by more than 1% is said
+    (t = 1.5 h ran 2 steps, t = 2h, silently; the result's t showed it), within 1% it is not."""
+    monkeypatch.setattr(api, "simulate_bruteforce", lambda model, key, n, steps, **kw: (np.arange(3.0), steps * 0.02))
+    h = 0.02 * P.tau0
+    for t, said in ((1.5 * h, True), (1.4 * h, True), (100.9 * h, False), (101.5 * h, False), (10 * h, False)):
+        with warnings.catch_warnings(record=True) as ws:
+            warnings.simplefilter("always", dj.DryfricWarning)
+            r = dj.bruteforce_diffusivity(P, 3, h=h, t=t, n_paths=3)
+        notes = [w for w in r.warnings if "the horizon simulated is" in w]
+        assert len(notes) == said and sum("the horizon simulated is" in str(w.message) for w in ws) == said, t
+        assert r.t == pytest.approx(round(t / h) * h, rel=1e-12)
+        if said:
+            assert notes[0].endswith(f"is t = {round(t / h) * h:.4g} s = {round(t / h)} h (the result's t)")
+
+
 def test_bruteforce_takes_a_horizon_of_one_step(monkeypatch):
     """t = h is one step, allowed; below h it is refused (the message says t >= h)."""
     monkeypatch.setattr(api, "simulate_bruteforce", lambda model, key, n, steps, **kw: (np.arange(3.0), steps * 1.0))
