@@ -508,9 +508,11 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
     if n_paths < MIN_RELIABLE_PATHS:
         notes = [*notes, f"n_paths = {n_paths} < {MIN_RELIABLE_PATHS}: the delta-method CI of D_t under-covers at "
                          "this size (0.74 at 10 paths, 0.92 at 100 for Gaussian U(t))"]
-    if h is not None and abs(round(t / h) * h - t) > HORIZON_RTOL * t:  # the DI runs whole steps
-        notes = [*notes, f"t = {t:.4g} s is {t / h:.3g} steps of h = {h:.4g} s: the horizon simulated is "
-                         f"t = {round(t / h) * h:.4g} s = {round(t / h)} h (the result's t)"]
+    if h is not None:  # the DI runs whole steps; a horizon they miss by more than HORIZON_RTOL is said
+        n_steps = round(t / h)
+        if abs(n_steps * h - t) > HORIZON_RTOL * t:
+            notes = [*notes, f"t = {t:.4g} s is {t / h:.3g} steps of h = {h:.4g} s: the horizon simulated is "
+                             f"t = {n_steps * h:.4g} s = {n_steps} h (the result's t)"]
     model = _build(params, plan)
     for n in notes:
         warnings.warn(n, DryfricWarning, stacklevel=2)
@@ -520,7 +522,7 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
     if method == "di":
         # whole steps: t and burn_in are recorded as simulated (a burn-in under h/2 is none at all)
         burn_steps = round(burn_in / h)
-        U, t_nd = simulate_bruteforce(model, key, int(n_paths), round(t / h), burn_in_steps=burn_steps,
+        U, t_nd = simulate_bruteforce(model, key, int(n_paths), n_steps, burn_in_steps=burn_steps,
                                       block=block, chunk_lanes=chunk_lanes)
         burn_in = burn_steps * h
         steps = n_paths * (t_nd + burn_in / params.tau0) / float(model.h)

@@ -296,7 +296,7 @@ def _progress_line(d):
 
     rel = d["D_ci"] / abs(d["D"]) if d["D"] == d["D"] and d["D"] else float("nan")
     # before 2 excursions have closed there is no D yet: a dash, not "nan ± nan%"
-    shown = f"{d['D']:.5g} ± {100 * rel:.2f}%" if d["D"] == d["D"] and rel == rel else "–"
+    shown = f"{d['D']:.5g} ± {100 * rel:.2f}%" if rel == rel else "–"
     goal = f"target {100 * d['rtol']:.2g}%" if d["rtol"] else f"target N = {d['target']}"
     left = "" if d.get("left_s") is None else f", ~{duration_text(d['left_s'])} left" + (
         f" (stops at --{d['left_to'].replace('_', '-')})" if d["left_to"] in ("max_work", "max_time") else "")

@@ -25,9 +25,9 @@ import numpy as np
 from .api import MAX_SEED, DryfricWarning, EstimateResult, missing_fields, small_n_note
 from .estimators import MIN_RELIABLE_N, ROUNDING_NOTE, long_excursion_estimates, rounding_note
 from .excursions import STAT_NAMES
+from .outfiles import from_strict
 from .params import Params
 from .plan import DTYPES, MAX_COUNT
-from .outfiles import _from_strict
 
 # what must agree for two runs to sample the same law (the engine layout does not matter), and to
 # pool their CIs (the level)
@@ -38,7 +38,7 @@ def _as_result(r, label: str) -> EstimateResult:
     if isinstance(r, EstimateResult):
         return r
     if isinstance(r, dict):  # parsed with json.load: the strict JSON's "inf" (tau_L = inf), "nan" as floats again
-        r = _from_strict(r)
+        r = from_strict(r)
     if isinstance(r, dict) and r.get("status", "ok") != "ok" and "params" in r:  # a sweep's refused/failed point
         raise ValueError(f"results must be estimate results: {label} is a sweep record of a {r['status']} point, "
                          f"which has none ({str(r.get('reason', ''))[:200]})")

@@ -38,13 +38,15 @@ def _to_strict(x):
     return x
 
 
-def _from_strict(x):
+def from_strict(x):
+    """What :func:`dumps` wrote, already parsed (``json.load``): the strings ``"inf"``, ``"-inf"``,
+    ``"nan"`` as floats again, in nested dicts and lists."""
     if isinstance(x, str):
         return _NONFINITE.get(x, x)
     if isinstance(x, dict):
-        return {k: _from_strict(v) for k, v in x.items()}
+        return {k: from_strict(v) for k, v in x.items()}
     if isinstance(x, list):
-        return [_from_strict(v) for v in x]
+        return [from_strict(v) for v in x]
     return x
 
 
@@ -59,7 +61,7 @@ def dumps(obj, **kw) -> str:
 def loads(text: str):
     """``json.loads`` of :func:`dumps` output (and of older files with ``Infinity``): the strings
     ``"inf"``, ``"-inf"``, ``"nan"`` become floats again."""
-    return _from_strict(json.loads(text))
+    return from_strict(json.loads(text))
 
 
 def _can_create_in(d: str) -> bool:
