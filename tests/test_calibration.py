@@ -12,11 +12,12 @@ README): that case is warned about, not calibrated here.
 """
 import math
 
+import numpy as np
 import pytest
 
 import dryfric_jax as dj
 from dryfric_jax.di import make_di_model
-from dryfric_jax.estimators import MIN_RELIABLE_N, replicate_coverage
+from dryfric_jax.estimators import MIN_RELIABLE_N, long_excursion_estimates, replicate_coverage
 from dryfric_jax.excursions import STAT_NAMES, simulate_replicates
 
 LANES_PER_REPLICATE = 16
@@ -37,3 +38,12 @@ def test_coverage_at_the_reliable_size():
     print(f"coverage(D) = {c['coverage_D']:.3f}, coverage(M0) = {c['coverage_M0']:.3f} (binomial sd {se:.3f})")
     assert 0.90 <= c["coverage_D"] <= 0.99
     assert 0.90 <= c["coverage_M0"] <= 0.99
+    # the width itself: the replicates' spread against the mean standard error the CI claims.  A coverage
+    # band alone passes a CI 15% too wide almost surely (coverage 0.976); the sd of 120 replicates is
+    # known to ~7% (Gaussian; more with heavy tails), so 0.75-1.25 catches a CI a third too wide or narrow
+    reps = sim.stats.reshape(REPLICATES, LANES_PER_REPLICATE, -1).sum(1)
+    es = [long_excursion_estimates(dict(zip(STAT_NAMES, r))) for r in reps]
+    for q in ("D", "M0"):
+        ratio = np.std([e[q] for e in es], ddof=1) / np.mean([e[f"{q}_ci"] / 1.96 for e in es])
+        print(f"sd({q}) / mean standard error = {ratio:.3f}")
+        assert 0.75 <= ratio <= 1.25, (q, ratio)
