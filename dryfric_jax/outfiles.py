@@ -89,11 +89,26 @@ def _can_create(p: str) -> str | None:
     removed).  The name's length and characters are the file system's to judge (a name over 255
     bytes, a trailing '/', passed the check of the directory and failed after the run)."""
     try:
-        os.close(os.open(p, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600))
+        fd = os.open(p, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
     except OSError as e:
         return e.strerror
-    os.unlink(p)
+    try:  # removed only while it is still the probe: another process (a sweep on the same new file) may have
+        mine = os.fstat(fd).st_ino  # renamed its first record over it since (an audit's harness saw it deleted)
+        if os.stat(p).st_ino == mine:
+            os.unlink(p)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
     return None
+
+
+def _mode(p: str) -> int:
+    """``p``'s mode bits, or all write bits if it went away since it was seen (another process's)."""
+    try:
+        return os.stat(p).st_mode
+    except FileNotFoundError:
+        return 0o222
 
 
 def check_writable(path: str, name: str = "out") -> None:
@@ -106,7 +121,7 @@ def check_writable(path: str, name: str = "out") -> None:
     if ok:
         d = os.path.dirname(os.path.realpath(p))
         ok = (not os.path.lexists(p) or os.path.isfile(p)) and os.path.isdir(d) and _can_create_in(d)
-        if ok and os.path.isfile(p) and not os.stat(p).st_mode & 0o222:
+        if ok and os.path.isfile(p) and not _mode(p) & 0o222:
             ok, why = False, "the file is read-only"
         if ok and not os.path.lexists(p):
             why = _can_create(p)

@@ -217,6 +217,33 @@ def test_check_writable_tries_the_directory_a_link_points_into(tmp_path, monkeyp
     assert tried == [str(tmp_path / "data")]
 
 
+def test_the_probe_of_a_new_name_never_removes_another_process_s_file(tmp_path, monkeypatch):
+    """``check_writable`` of a new name creates it and removes it.  Another process (a sweep writing its
+    first record to the same new file) may rename its file over the name in between: that file stayed
+    deleted (an audit's two-process harness saw it 3 times in 1688 writes).  The probe is removed only
+    while the name is still the probe; a file seen and gone before its mode is read is no traceback.
+    Mutant: the old unconditional unlink."""
+    p = tmp_path / "r.jsonl"
+    real_fstat = os.fstat
+
+    def fstat_then_the_other_writes(fd):  # the moment between the probe's creation and its removal
+        st = real_fstat(fd)
+        write_atomic(str(p), "theirs\n")
+        return st
+
+    monkeypatch.setattr(outfiles.os, "fstat", fstat_then_the_other_writes)
+    check_writable(str(p))
+    monkeypatch.undo()
+    assert p.read_text() == "theirs\n"
+    check_writable(str(tmp_path / "new.json"))  # with nobody else there, the probe is gone
+    assert sorted(os.listdir(tmp_path)) == ["r.jsonl"]
+    seen = iter([True, False])  # isfile says yes, then the file is gone: treated as a new name
+    monkeypatch.setattr(outfiles.os.path, "isfile", lambda q: next(seen, False))
+    q = tmp_path / "gone.json"
+    check_writable(str(q))
+    assert not q.exists()
+
+
 def test_check_writable_dir_refuses_a_file_and_a_directory_where_nothing_can_be_made(tmp_path):
     """An existing file is not a directory to write into; /proc accepts no new file (``os.access``
     says it does).  Mutants: an existing file accepted as a new directory; a failed trial file taken
