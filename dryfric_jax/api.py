@@ -407,9 +407,9 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
     n_truncated = sim.n_truncated + sim.n_unfinished
     cut = max_time is not None and sim.n_unfinished > 0  # the final round's deadline (the block bound never binds)
     if stopped == "interrupted":
-        notes.append(f"interrupted: result of the {sim.n_excursions} excursions completed before Ctrl-C")
+        notes.append(f"interrupted: result of the {sim.n_excursions} excursions completed by then")
     if sim.n_in_flight and not cut:
-        notes.append(f"{sim.n_in_flight} in-flight excursions dropped (second Ctrl-C): D is biased low by "
+        notes.append(f"{sim.n_in_flight} in-flight excursions dropped (a second interrupt): D is biased low by "
                      f"O(lanes/N) = O({sim.n_in_flight / max(sim.n_excursions, 1):.2g})")
     elif stopped in ("max_time", "work_bound"):
         what = f"max_time reached ({max_time} s)" if stopped == "max_time" else \
@@ -426,7 +426,7 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
                      f"excursions {BOUND_NOTE} (max_steps = {plan.max_steps} {unit} per excursion) and are "
                      "excluded: the estimate is biased low")
     if sim.n_excursions < 2 and stopped == "interrupted":  # nothing to return: the Ctrl-C goes on up
-        raise KeyboardInterrupt("fewer than 2 complete excursions before Ctrl-C")
+        raise KeyboardInterrupt("fewer than 2 complete excursions before the interrupt")
     if sim.n_excursions < 2:
         cause = "within max_time (raise it)" if stopped == "max_time" else \
             "within the work bounds (raise max_work / max_steps)"

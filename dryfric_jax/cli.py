@@ -5,6 +5,7 @@ range, no traceback, nothing simulated); 3 a result was printed (and written to 
 excursions hit the work bound, so it is biased (``--allow-truncated`` accepts it: exit 0);
 1 no result possible (fewer than 2 complete excursions within the work bounds or ``--max-time``);
 130 Ctrl-C (what the completed rounds reached is printed; nothing if fewer than 2 excursions closed);
+143 SIGTERM (``kill``, a batch scheduler's time limit), taken as a Ctrl-C: the same is printed and kept;
 141 stdout's reader closed the pipe (``dryfric estimate | head -1``), quietly, as SIGPIPE would.
 ``sweep`` runs every point it can: 1 if a point ended without a result, else 3 if a point's
 excursions were truncated (``--allow-truncated``), else 0; its refused and failed points are
@@ -41,14 +42,41 @@ class _StoreOnce(argparse._StoreAction):
 
 
 class _Parser(argparse.ArgumentParser):
+    """Options are spelled out in full: argparse's abbreviations took ``--gamma 5`` as ``--gamma-bar 5``
+    (the bias, where Gamma, ``--Gamma``, was meant) and ran it without a word."""
+
     def __init__(self, *args, **kwargs):
+        kwargs.setdefault("allow_abbrev", False)
         super().__init__(*args, **kwargs)
         self.register("action", None, _StoreOnce)  # the default action ("store") of this parser's options
 
     def error(self, message):  # one line, exit 2 (argparse prints the usage block otherwise)
         if message.startswith("argument ") and ": --" in message:
             message = message.split(": ", 1)[1]  # our converters already name the option
+        if message.startswith("unrecognized arguments: "):
+            message += _spelling_hint(self, message.split(": ", 1)[1].split())
         raise _UserError(message)
+
+
+def _spelling_hint(parser: argparse.ArgumentParser, words: list[str]) -> str:
+    """For the unknown options among ``words`` (``--gamma``, ``--n-exc``, ``--tau-l``), the options
+    they abbreviate or differ from only in case, of every subcommand: "" if none."""
+    known = {o for a in _all_actions(parser) for o in a.option_strings if o.startswith("--")}
+    said = []
+    for w in words:
+        name = w.split("=", 1)[0]
+        if not name.startswith("--") or name in known:
+            continue
+        like = sorted(o for o in known if o.lower().startswith(name.lower()))
+        if like:
+            said.append(f"{name}: did you mean {' or '.join(like)}?")
+    return (" (" + "; ".join(said) + "; options are case-sensitive and spelled out in full)") if said else ""
+
+
+def _all_actions(parser: argparse.ArgumentParser):
+    """The parser's actions and those of its subcommands."""
+    subs = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+    return [*parser._actions, *(a for sub in subs for sp in sub.choices.values() for a in sp._actions)]
 
 
 class _UserError(Exception):
@@ -608,10 +636,11 @@ def main(argv=None) -> int:
         interrupts.started()  # from here a Ctrl-C is the KeyboardInterrupt below, not "while starting"
         parser = build_parser()
         a = parser.parse_args(_join_negative_values(parser, list(sys.argv[1:] if argv is None else argv)))
-        rc = _run(a)
+        with interrupts.sigterm_as_ctrl_c():  # SIGTERM (kill, a scheduler's time limit) keeps results as Ctrl-C does
+            rc = _run(a)
         if rc == 130:  # a sweep or figures run stopped by Ctrl-C (its results kept): no timer holds the exit
             interrupts.cancel_timers()
-        return rc
+        return interrupts.exit_status(rc)
     except (_UserError, ValueError) as exc:
         print(f"dryfric: error: {exc}", file=sys.stderr)
         return 2
@@ -619,9 +648,10 @@ def main(argv=None) -> int:
         print(f"dryfric: error: {exc}", file=sys.stderr)
         return 1
     except KeyboardInterrupt as exc:  # with its reason when the API gave one (before 2 excursions closed)
-        print("dryfric: interrupted" + (f": {exc}" if str(exc) else ""), file=sys.stderr)
+        print("dryfric: " + ("terminated (SIGTERM)" if interrupts.terminated() else "interrupted")
+              + (f": {exc}" if str(exc) else ""), file=sys.stderr)
         interrupts.cancel_timers()  # one JAX left running would hold the exit for 60 s (interrupts.cancel_timers)
-        return 130
+        return interrupts.exit_status(130)
     except BrokenPipeError:  # the reader of stdout left (`dryfric estimate | head -1`): stop as SIGPIPE would
         _drop_stdout()
         return EXIT_BROKEN_PIPE

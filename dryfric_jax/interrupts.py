@@ -18,10 +18,16 @@ first thing on import, makes such a Ctrl-C end the command at once with exit cod
 on stderr, as later ones do, until ``cli.main`` takes over (:func:`started`: the window between the
 end of the package's import and main's ``try`` gave a traceback too); it acts only in the command
 (:func:`launched_as_cli`), never where a program or a notebook imports the package.
+
+SIGTERM (``kill``, a batch scheduler's time limit, ``timeout``) ended the command at once with
+exit 143 and threw away every round already run, printing nothing.  :func:`sigterm_as_ctrl_c`,
+entered by ``cli.main``, makes it a Ctrl-C: what was reached is printed and written, and the exit
+status is still the signal's, 128 + 15 (:func:`exit_status`).
 """
 from __future__ import annotations
 
 import _thread
+import contextlib
 import os
 import signal
 import sys
@@ -115,3 +121,42 @@ def cancel_timers() -> int:
             t.cancel()
             n += 1
     return n
+
+
+#: the signal :func:`sigterm_as_ctrl_c` turned into a KeyboardInterrupt, else None
+_terminated: int | None = None
+
+
+def _terminate(signum, frame):
+    global _terminated
+    _terminated = signum
+    raise KeyboardInterrupt
+
+
+@contextlib.contextmanager
+def sigterm_as_ctrl_c():
+    """Within: SIGTERM raises ``KeyboardInterrupt`` (the command's Ctrl-C path: the completed rounds'
+    result printed and written, a sweep's or figure's finished points kept), and :func:`terminated`
+    says so.  Only in the main thread and where SIGTERM has its default action (a handler someone
+    installed, or an ignored SIGTERM, is left alone); the previous handler is restored on exit."""
+    global _terminated
+    _terminated = None
+    if threading.current_thread() is not threading.main_thread() or signal.getsignal(signal.SIGTERM) != signal.SIG_DFL:
+        yield
+        return
+    signal.signal(signal.SIGTERM, _terminate)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+def terminated() -> bool:
+    """Whether the last :func:`sigterm_as_ctrl_c` block was ended by SIGTERM."""
+    return _terminated is not None
+
+
+def exit_status(rc: int) -> int:
+    """A command's exit status: 130 (stopped by a KeyboardInterrupt) becomes 128 + SIGTERM when SIGTERM
+    raised it, so a scheduler or a shell still sees the signal that ended the command."""
+    return 128 + _terminated if rc == 130 and _terminated is not None else rc

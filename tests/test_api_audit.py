@@ -107,7 +107,7 @@ def test_without_max_time_nothing_is_cut_and_in_flight_drops_are_said(monkeypatc
         r, ws = _run(max_time=max_time)
         assert (r.n_truncated, r.max_time, r.stopped_by) == (3, None, "interrupted")
         assert sum(w.startswith("3 of 8 excursions hit the work bound") for w in ws) == 1
-        assert sum(w.startswith("4 in-flight excursions dropped (second Ctrl-C)") for w in ws) == 1
+        assert sum(w.startswith("4 in-flight excursions dropped (a second interrupt)") for w in ws) == 1
         assert not any("cut at" in w for w in ws)
 
 

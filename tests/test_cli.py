@@ -475,7 +475,7 @@ def test_theory_prints_m0_when_only_d_leaves_float64(capsys):
 
 
 @pytest.mark.parametrize("stopped,code,said", [
-    ("interrupted", 130, "dryfric: interrupted: fewer than 2 complete excursions before Ctrl-C"),
+    ("interrupted", 130, "dryfric: interrupted: fewer than 2 complete excursions before the interrupt"),
     ("max_time", 1, "dryfric: error: fewer than 2 complete excursions within max_time (raise it): max_time reached"),
     ("work_bound", 1, "dryfric: error: fewer than 2 complete excursions within the work bounds (raise max_work / "
                       "max_steps): work bound reached")])
@@ -928,3 +928,84 @@ def test_work_refusal_suggests_raising_max_work_only_when_a_float_could_allow_it
     assert main(["estimate", "--max-work", "1e3"]) == 2
     err = capsys.readouterr().err
     assert "max_work must be >= " in err and "(got 1e+03)" in err and "Raise --max-work, coarsen h" in err
+
+
+_SIGTERM_ITSELF = """\
+import os, signal, sys
+from dryfric_jax import cli, excursions
+real, calls = excursions.Lanes.advance, [0]
+def advance(self, *a):
+    calls[0] += 1
+    if calls[0] == {at}:  # kill(1)'s SIGTERM, in the middle of a paused round
+        os.kill(os.getpid(), signal.SIGTERM)
+    return real(self, *a)
+excursions.Lanes.advance = advance
+sys.exit(cli.main(sys.argv[1:]))
+"""
+
+
+@pytest.mark.parametrize("at", [1, 4])
+def test_sigterm_keeps_what_was_reached_as_ctrl_c_does(tmp_path, at):
+    """SIGTERM (kill, a batch scheduler's time limit) ended ``dryfric estimate`` at once, exit 143, printing
+    and writing nothing: every round run was lost (found by an audit).  It is now a Ctrl-C with the signal's
+    exit status: in the 4th paused round, the result of the rounds reached is printed and written (stopped_by
+    "interrupted"); in the first (the pilot, before any round ended), one line says so.  The process
+    signals itself from inside the engine, so the moment is the same on any machine.  ~10 s each."""
+    import pathlib
+
+    script = tmp_path / "term.py"
+    script.write_text(_SIGTERM_ITSELF.format(at=at))
+    out = tmp_path / "r.json"
+    p = subprocess.run([sys.executable, str(script), "estimate", "--n-excursions", "100000", "--json", "--out",
+                        str(out)], cwd=pathlib.Path(__file__).parent.parent, capture_output=True, text=True,
+                       timeout=600)
+    assert p.returncode == 143 and "Traceback" not in p.stderr, p.stderr[-800:]
+    if at == 1:
+        assert (p.stdout, p.stderr) == ("", "dryfric: terminated (SIGTERM)\n")
+        assert not out.exists()
+        return
+    r = json.loads(p.stdout)
+    assert r == json.loads(out.read_text()) and r["stopped_by"] == "interrupted"
+    assert 2 <= r["n_excursions"] < 100_000 and r["n_truncated"] == 0 and math.isfinite(r["D"])
+
+
+def test_sigterm_is_ctrl_c_only_inside_main_and_only_where_it_has_its_default_action():
+    """``main`` restores SIGTERM's handler when it returns; a SIGTERM handler someone else installed, or an
+    ignored SIGTERM, is left as it was (cli.main is called from programs and tests, not only as the command)."""
+    import signal
+
+    from dryfric_jax import interrupts
+
+    before = signal.getsignal(signal.SIGTERM)
+    try:
+        for h in (signal.SIG_DFL, signal.SIG_IGN, lambda s, f: None):
+            signal.signal(signal.SIGTERM, h)
+            seen = []
+            with interrupts.sigterm_as_ctrl_c():
+                seen.append(signal.getsignal(signal.SIGTERM))
+            assert signal.getsignal(signal.SIGTERM) is h
+            assert (seen[0] is interrupts._terminate) == (h is signal.SIG_DFL)
+            assert not interrupts.terminated() and interrupts.exit_status(130) == 130
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        assert main(["theory", "--json"]) == 0 and signal.getsignal(signal.SIGTERM) is signal.SIG_DFL
+    finally:
+        signal.signal(signal.SIGTERM, before)
+
+
+@pytest.mark.parametrize("argv, hint", [
+    (["estimate", "--gamma", "5"], "--gamma: did you mean --Gamma or --gamma-bar?"),
+    (["sweep", "--gamma", "1,2", "--out", "x.jsonl"], "--gamma: did you mean --Gamma or --gamma-bar?"),
+    (["estimate", "--n-exc", "100"], "--n-exc: did you mean --n-excursions?"),
+    (["estimate", "--tau-l=1"], "--tau-l: did you mean --tau-L?"),
+    (["theory", "--delt", "1"], "--delt: did you mean --Delta or --delta?"),
+])
+def test_options_are_not_abbreviated(capsys, argv, hint):
+    """argparse's abbreviations ran ``dryfric estimate --gamma 5`` as ``--gamma-bar 5``: the bias set to 5 where
+    Gamma was meant, exit 0 and a wrong answer without a word (found by an audit).  Every option is now spelled
+    out in full; an unknown one is refused (exit 2, nothing run) with the options it may have meant."""
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("dryfric: error: unrecognized arguments: ") and err.count("\n") == 1
+    assert hint in err and "case-sensitive and spelled out in full" in err
+    assert main(["estimate", "--foo", "1"]) == 2
+    assert capsys.readouterr().err == "dryfric: error: unrecognized arguments: --foo 1\n"
