@@ -233,8 +233,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="run rounds until the 95%% CI half-width of D is <= RTOL*|D|")
     e.add_argument("--max-time", type=_number("max-time"), default=None,
                    help="stop after this many seconds (the excursions in flight are then finished, for at most as "
-                        "long again; any still running are counted as truncated: exit 3); checked between calls "
-                        "of a few seconds")
+                        "long again; any still running are counted as truncated: exit 3); checked between the "
+                        "engine's calls of 2^26-2^27 lane-steps (a few seconds on 2 CPU cores at Fig. 3's point, "
+                        "longer where a step costs more), so it may be passed by up to one call")
     e.add_argument("--lanes", type=_int_at_least("lanes", 1), default=None,
                    help="engine lanes (default: a power of two near N/32, 512-4096 on a CPU (fewer when N < 512), "
                         "up to 2^18 on a GPU; 'dryfric bench --lanes ...' measures layouts); the law does not change, "

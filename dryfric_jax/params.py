@@ -111,6 +111,13 @@ def _tau0(Gamma, Delta):
     return Gamma / d2
 
 
+def _beyond(x: float, lo: float, hi: float) -> str:
+    """``x`` (outside [lo, hi]) to 3 digits, or in full where 3 digits would show it on a bound
+    (1.0000000000000002e300 is not "1e+300")."""
+    s = f"{x:.3g}"
+    return repr(x) if float(s) in (lo, hi) else s
+
+
 def _check_scales(p: "Params") -> None:
     r"""``ValueError`` unless the reference units :math:`\tau_0, u_0, v_0, D_0` and the numbers
     :math:`\tau', \tau_L'` (unless infinite) lie in :data:`SCALE_RANGE` and
@@ -132,7 +139,7 @@ def _check_scales(p: "Params") -> None:
     for names, what, x in checks:
         if not lo <= x <= hi:
             raise ValueError(
-                f"{names} must keep {what} in [{lo:g}, {hi:g}] (got {x:.3g} from Gamma = {v['Gamma']!r}, "
+                f"{names} must keep {what} in [{lo:g}, {hi:g}] (got {_beyond(x, lo, hi)} from Gamma = {v['Gamma']!r}, "
                 f"Delta = {v['Delta']!r}, tau = {v['tau']!r}, tau_L = {v['tau_L']!r}): out of floating-point "
                 "range, express the parameters in other units")
     if not abs(v["gamma_bar"] / v["Delta"]) <= hi:
@@ -229,7 +236,7 @@ class Params(eqx.Module):
         tau0 = _tau0(Gamma, Delta)
         lo, hi = SCALE_RANGE
         if not lo <= tau0 <= hi:  # tau = tau' tau0 would be 0 (or inf), and refused as if the user gave it
-            raise ValueError(f"Gamma and Delta must keep tau0 = Gamma/Delta^2 in [{lo:g}, {hi:g}] (got {tau0:.3g} from "
+            raise ValueError(f"Gamma and Delta must keep tau0 = Gamma/Delta^2 in [{lo:g}, {hi:g}] (got {_beyond(tau0, lo, hi)} from "
                              f"Gamma = {Gamma!r}, Delta = {Delta!r}): out of floating-point range, express the "
                              "parameters in other units")
         nd = []

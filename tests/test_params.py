@@ -149,3 +149,13 @@ def test_units_representable_although_delta_squared_is_not(G, D, tau0):
     assert p.tau0 == pytest.approx(tau0, rel=1e-14) and p.tau_nd == pytest.approx(1.0, rel=1e-14)
     assert p.u0 == pytest.approx(tau0 * G / D, rel=1e-14) and p.D0 == pytest.approx(tau0 * (G / D) ** 2, rel=1e-14)
     assert Params.from_nondim(2.0, Gamma=G, Delta=D).tau == pytest.approx(2 * tau0, rel=1e-14)
+
+
+def test_a_unit_just_past_its_bound_is_shown_in_full():
+    """Gamma = 1e300, Delta = 1e150 give D0 = 1.0000000000000002e300, just past 1e300: refused rightly, but
+    the message said "(got 1e+300 ..." against the range [1e-300, 1e+300] (found by an audit).  Three digits
+    are kept where they show a value off its bound."""
+    with pytest.raises(ValueError, match=r"D0 = Gamma\^3/Delta\^4 in \[1e-300, 1e\+300\] \(got 1\.0000000000000002e\+300 "):
+        Params(1e300, 1e150, 1.0, 1.0, 0.0)
+    with pytest.raises(ValueError, match=r"tau0 = Gamma/Delta\^2 in \[1e-300, 1e\+300\] \(got 1e-310 from"):
+        Params(1e-300, 1e5, 1.0, 1.0, 0.0)
