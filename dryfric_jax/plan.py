@@ -228,9 +228,17 @@ def choose(params: Params, method: str, h, delta, dtype) -> Plan:
     if method == "auto":
         h_c = check_h(params, h)
         d_c = default_delta(params) if delta is None else delta
-        pdmp_grid_info(params, d_c)  # validates delta
-        method, reason = choose_method(params, h_c, d_c)
-        h, delta = (h_c, None) if method == "di" else (None, d_c)
+        try:
+            pdmp_grid_info(params, d_c)  # validates delta
+        except ValueError as e:
+            if not defaulted:  # the caller's delta: refused by name
+                raise
+            # the default grid cannot be built (tau' tiny: 8 noise sds need > 2^31 points): the DI, which needs
+            # none (this refused the run, saying "use method 'di'", where auto should have chosen it)
+            method, reason, h, delta = "di", f"the PDMP cannot run here ({e}); chose di", h_c, None
+        else:
+            method, reason = choose_method(params, h_c, d_c)
+            h, delta = (h_c, None) if method == "di" else (None, d_c)
     if method == "di":
         h = check_h(params, h)
         unsafe = float32_unsafe_reason(h / params.tau, h / params.tau0, params.tau_nd)

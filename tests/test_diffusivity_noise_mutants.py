@@ -291,7 +291,7 @@ def test_a_refused_grid_counts_its_points_from_the_grid_size():
     assert n > 2**30 - 2 and f"{2 * (n + 1) + 1:.3g}" == "2.17e+09" and f"{2 * n + 2:.3g}" == "2.16e+09"
     gb = n * 2.0**-30 - 1.0
     assert 1.0 + gb == n * 2.0**-30
-    with pytest.raises(ValueError, match=r"^delta = .* too small: the noise grid would have 2\.17e\+09 points"):
+    with pytest.raises(ValueError, match=r"^delta' = .* too small: the noise grid would have 2\.17e\+09 points"):
         grid_size(2.0**-30, 100.0, gb)
 
 

@@ -104,7 +104,7 @@ def test_delta_max_is_stable_at_extreme_tau():
 
 
 def test_a_grid_beyond_int_range_is_refused_with_a_readable_count():
-    with pytest.raises(ValueError, match=r"^delta = .* too small: the noise grid would have 1.6e\+11 points"):
+    with pytest.raises(ValueError, match=r"^delta' = .* too small: the noise grid would have 1.6e\+11 points"):
         grid_size(1e-10, 1.0)
     with pytest.raises(ValueError, match=r"would have inf points"):
         grid_size(1e-300, 1.0, 1e300)  # L_req / delta overflows

@@ -56,6 +56,23 @@ def test_auto_compares_the_documented_costs_per_tau0():
     assert plan_estimate(fast, method="auto", n_excursions=100).method == "di"
 
 
+def test_auto_chooses_the_di_where_the_default_pdmp_grid_cannot_be_built():
+    """Delta = 1e-8 at Fig. 3's Gamma and tau: tau' = tau Delta^2 / Gamma = 1e-17, so 8 noise sds at the default
+    delta' = 0.05 need 2 * 8 / sqrt(1e-17) / 0.05 ~ 1.0e11 grid points > 2^31 - 1.  ``auto`` refused the run
+    ("use method 'di'") where it should pick the DI (found by an audit); a delta the caller gives is still
+    refused by name, in the caller's units (it printed delta' = 0.0224 for a delta of 1e-10 s^-1/2)."""
+    p = dj.Params(**{**dj.FIG3, "Delta": 1e-8})
+    assert 8 / math.sqrt(p.tau_nd) / 0.05 * 2 > 2**31
+    plan = plan_estimate(p, method="auto", n_excursions=100, max_work=1e30)
+    assert plan.method == "di" and plan.reason.startswith("the PDMP cannot run here (delta = ")
+    assert plan.reason.endswith("; chose di")
+    with pytest.raises(ValueError, match=r"^delta = 1e-10 s\^-1/2 \(delta' = 0\.02236\) is too small: the noise "
+                                         r"grid would have 2\.26e\+11 points"):
+        plan_estimate(p, method="auto", delta=1e-10, n_excursions=100)
+    with pytest.raises(ValueError, match=r"^delta = 2\.236e-10 s\^-1/2 \(delta' = 0\.05\) is too small"):
+        plan_estimate(p, method="pdmp", n_excursions=100)
+
+
 def _delta_max(tau, gamma_bar):
     """noise docstring: the admissible bound (-a + sqrt(a^2 + 16 tau)) / (4 tau), a = tau L,
     L = max(8/sqrt(tau), 1 + |gamma_bar|), written out unrationalised."""

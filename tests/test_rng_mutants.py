@@ -201,7 +201,7 @@ def test_a_too_fine_grid_is_refused_with_its_point_count():
     assert n >= 2**30 - 2 and f"{2 * (n + 1) + 1:.3g}" == "2.16e+09"
     gb = n * 2.0**-30 - 1.0  # exact: 31 significant bits
     assert 1.0 + gb == n * 2.0**-30
-    with pytest.raises(ValueError, match=r"^delta = .* too small: the noise grid would have 2\.16e\+09 points "
+    with pytest.raises(ValueError, match=r"^delta' = .* too small: the noise grid would have 2\.16e\+09 points "
                                          r"\(at most 2147483647\)"):
         grid_size(2.0**-30, 100.0, gb)
 
