@@ -19,7 +19,7 @@ from .bruteforce import simulate_bruteforce
 from .di import make_di_model
 from .estimators import (
     MIN_PATHS, MIN_RELIABLE_N, MIN_RELIABLE_PATHS, WEAK_DAMPING_TAU_L, bruteforce_estimates, long_excursion_estimates,
-    rounding_note,
+    near_runaway_note, rounding_note,
 )
 from .excursions import BLOCK, FINAL_DEADLINE, simulate_long_excursions, work_per_excursion
 from .limits import MAX_WORK
@@ -437,6 +437,8 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
         notes.append(f"tau_L/tau0 = {params.tau_L_nd:.3g} > {WEAK_DAMPING_TAU_L:g} (weak or no viscous damping): "
                      "the 95% CI for D covers only ~90% (measured at tau_L = inf, gamma_bar = 0 and 0.5 Delta; "
                      "~83% at |gamma_bar| = 0.9 Delta), misses are on the low side")
+    if runaway := near_runaway_note(params.tau_L_nd, params.gamma_bar_nd):
+        notes.append(runaway)
     total = sim.total()
     if rounding := rounding_note(total):
         notes.append(rounding)

@@ -52,6 +52,22 @@ MIN_RELIABLE_N = 10_000
 #: D CI then covers ~0.90 instead of 0.95 (measured at tau_L = inf, gamma_bar = 0 and 0.5 Delta; ~0.83 at
 #: 0.9 Delta, README "Confidence intervals"; nominal at tau_L' = 0.2).
 WEAK_DAMPING_TAU_L = 1.0
+#: |gamma_bar'| from which, when the damping does not cut the drift time (tau_L' >= 1/(1 - |gamma_bar'|)^2,
+#: tau_L = inf included), the D interval is far below 95% near the runaway bias: measured coverage (white
+#: noise, tau_L = inf, scripts/ci_calibration.py) 0.83 at 0.9 Delta (N = 2e4), 0.78 at 0.95 Delta (2e4),
+#: 0.50 and 0.24 at 0.99 Delta (1e4, 2e3); README "Confidence intervals"
+NEAR_RUNAWAY = 0.9
+
+
+def near_runaway_note(tau_L: float, gamma_bar: float) -> str | None:
+    """The warning for a run near the runaway bias (nondimensional ``tau_L``, ``gamma_bar``), else None."""
+    g = abs(gamma_bar)
+    if not (NEAR_RUNAWAY <= g < 1.0 and tau_L * (1.0 - g) ** 2 >= 1.0):
+        return None
+    return (f"|gamma_bar|/Delta = {g:.4g}, near the runaway bias (|gamma_bar| = Delta) with no damping to stop "
+            "the drift: the D interval covers far less than 95% (measured at tau_L = inf: 0.83 at 0.9 Delta, "
+            "0.78 at 0.95 Delta with N = 2e4; 0.50 at 0.99 Delta with N = 1e4, 0.24 with N = 2e3), its misses are "
+            "low and may be by many half-widths; where tau << tau0 'dryfric theory' gives the exact D")
 #: N' below which the brute-force CI of D^t under-covers: the delta-method CI of a variance needs
 #: many paths.  Measured on Gaussian U(t) (its law at t >> the correlation time; heavier tails
 #: cover less), 2e4 replicates each: 0.44 at N' = 3, 0.74 at 10, 0.87 at 30, 0.92 at 100, 0.935 at

@@ -297,3 +297,27 @@ def test_bruteforce_work_limits_at_their_boundaries(monkeypatch):
     t = 2.0**62 / 2 / per_tau0 * P.tau0  # 2^61 expected events per path, 10x that is past 2^62
     with pytest.raises(ValueError, match=r"^t must keep t \+ burn_in below 2\^62 events"):
         dj.bruteforce_diffusivity(P, 3, method="pdmp", t=t, n_paths=3, max_work=1e300)
+
+
+def test_a_run_near_the_runaway_bias_says_how_little_its_d_interval_covers(monkeypatch):
+    """|gamma_bar'| >= 0.9 where the damping does not stop the drift (tau_L' (1 - |gamma_bar'|)^2 >= 1, tau_L = inf
+    included): measured coverage of the D interval 0.83 at 0.9 Delta down to 0.24 at 0.99 Delta (README), while
+    the only warning said "~90%" (an audit saw single runs at 0.99 Delta miss by 3-29 half-widths, all low).
+    The warning is graded by this rule, on both sides of each bound, and reaches the result's warnings."""
+    from dryfric_jax.estimators import near_runaway_note
+
+    inf = math.inf
+    said = [(tl, g) for tl in (inf, 400.0, 99.0, 1e4) for g in (0.899, 0.9, -0.95, 0.99, 0.999999, 1.0, 1.5)
+            if near_runaway_note(tl, g)]
+    # 1/(1 - 0.9)^2 = 100 (<= 400, > 99); 1/(1 - 0.95)^2 = 400 (<= 400); 1/(1 - 0.99)^2 = 1e4 (<= 1e4)
+    assert said == [(inf, 0.9), (inf, -0.95), (inf, 0.99), (inf, 0.999999), (400.0, 0.9), (400.0, -0.95),
+                    (1e4, 0.9), (1e4, -0.95), (1e4, 0.99)]
+    note = near_runaway_note(inf, 0.99)
+    assert note.startswith("|gamma_bar|/Delta = 0.99, near the runaway bias") and "0.24 with N = 2e3" in note
+    _fake_engine(monkeypatch, lambda kw: (_stats(U40, T40), "n_excursions"))
+    with warnings.catch_warnings(record=True) as ws:
+        warnings.simplefilter("always")
+        r = dj.estimate_diffusivity(dj.Params.from_nondim(1e-5, inf, -0.95), 7, n_excursions=40)
+    assert note.replace("0.99", "0.95", 1) in r.warnings
+    assert note.replace("0.99", "0.95", 1) in [str(w.message) for w in ws]
+    assert not any("runaway" in w for w in _run()[0].warnings)  # the viscous P
