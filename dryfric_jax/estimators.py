@@ -68,6 +68,8 @@ def near_runaway_note(tau_L: float, gamma_bar: float) -> str | None:
             "the drift: the D interval covers far less than 95% (measured at tau_L = inf: 0.83 at 0.9 Delta, "
             "0.78 at 0.95 Delta with N = 2e4; 0.50 at 0.99 Delta with N = 1e4, 0.24 with N = 2e3), its misses are "
             "low and may be by many half-widths; where tau << tau0 'dryfric theory' gives the exact D")
+
+
 #: N' below which the brute-force CI of D^t under-covers: the delta-method CI of a variance needs
 #: many paths.  Measured on Gaussian U(t) (its law at t >> the correlation time; heavier tails
 #: cover less), 2e4 replicates each: 0.44 at N' = 3, 0.74 at 10, 0.87 at 30, 0.92 at 100, 0.935 at

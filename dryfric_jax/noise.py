@@ -67,8 +67,9 @@ def grid_size(delta: float, tau: float, gamma_bar: float = 0.0, shown_as: str | 
     check_delta(delta, tau, gamma_bar)
     n = required_reach(tau, gamma_bar) / delta  # may be inf
     if not n <= 2**30 - 2:  # 2 ceil(n) + 3 <= 2**31 - 1 points
-        raise ValueError(f"{shown_as or f'delta{chr(39)} = {delta!r}'} is too small: the noise grid would have "
-                         f"{2.0 * n + 3:.3g} points (at most {2**31 - 1}); for these parameters use method 'di'")
+        shown_as = shown_as or f"delta' = {delta!r}"
+        raise ValueError(f"{shown_as} is too small: the noise grid would have {2.0 * n + 3:.3g} points "
+                         f"(at most {2**31 - 1}); for these parameters use method 'di'")
     N = math.ceil(n) + 1
     # tau delta L_X < 2 for every delta < delta_max, but only up to rounding: a delta an ulp below delta_max
     # with L_req/delta just above an integer has the product 2 - 2e-16, which float64 rounds to 2.0 (it met a
