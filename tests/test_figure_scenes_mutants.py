@@ -320,3 +320,21 @@ def test_affordable_n_divides_by_4_down_to_the_floor_then_says_why(monkeypatch):
     asked.clear()
     monkeypatch.setattr(diffusivity, "plan_estimate", planner(2000))
     assert diffusivity._affordable_n(None, "di", 100_000, {}) == 1562 and asked == [100_000, 25_000, 6250, 1562]
+
+
+def test_table1_is_drawn_in_a_readable_font(monkeypatch, tmp_path):
+    """Table 1's PNG had every cell shrunk to 2 pt: matplotlib's automatic font size fitted the long row label
+    into an equal-width first column (found by a user audit).  The table now has a fixed 9 pt font and a first
+    column four times as wide as the others.  The simulator is a fake (V = 1 - t' on 8 paths)."""
+    from dryfric_jax.figures import touchette
+
+    drawn = {}
+    monkeypatch.setattr(touchette, "di_transient",
+                        lambda model, key, n, steps: np.tile(1.0 - np.asarray(touchette.T_TABLE), (8, 1)))
+    monkeypatch.setattr(touchette, "save", lambda fig, out, name, nums, t0: drawn.update(fig=fig) or {})
+    touchette.table1(str(tmp_path), True, 0)
+    (ax,) = drawn["fig"].axes
+    cells = ax.tables[0].get_celld()
+    assert {c.get_text().get_fontsize() for c in cells.values()} == {9}
+    assert cells[0, 0].get_width() == pytest.approx(4 * cells[0, 1].get_width())
+    common.plt.close(drawn["fig"])

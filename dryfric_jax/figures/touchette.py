@@ -45,9 +45,14 @@ def table1(out_dir, quick, seed):
     unit = [theory.first_moment_unit_intensity(t, 1.0) for t in T_TABLE]
     rows = [("t'", T_TABLE), ("MC (this model)", mc), ("MC 2 SE", 2 * se), ("exact, this model", exact),
             ("exact, unit-intensity noise (Gamma_w = Gamma)", unit), ("paper's printed EF row", PAPER_ROW)]
-    fig, ax = plt.subplots(figsize=(9, 2.4))
+    fig, ax = plt.subplots(figsize=(11, 2.6))
     ax.axis("off")
-    ax.table(cellText=[[r[0]] + [f"{v:.3f}" for v in r[1]] for r in rows], loc="center")
+    # fixed font and a wide first column: left to itself matplotlib shrank every cell to 2 pt to fit the labels
+    table = ax.table(cellText=[[r[0]] + [f"{v:.3f}" for v in r[1]] for r in rows], loc="center",
+                     colWidths=[0.4] + [0.1] * len(T_TABLE))
+    table.auto_set_font_size(False)
+    table.set_fontsize(9)
+    table.scale(1.0, 1.3)
     ax.set_title(f"Table 1: E[V'(t')] from v'=1, tau'={tau:g}, h'={h:g}, {n} paths")
     nums = dict(t=T_TABLE, mc=mc, se=se, exact_model=exact, exact_unit_intensity=unit, paper_row=PAPER_ROW,
                 max_abs_err=float(np.max(np.abs(mc - exact))), max_err_in_se=float(np.max(np.abs(mc - exact) / se)),
