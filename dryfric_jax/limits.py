@@ -197,7 +197,10 @@ def _exp10(log_x: float) -> str:
         return "inf"
     if e >= 1e6:
         return f"10^({e:.3g})"
-    return f"{10 ** (e - math.floor(e)):.2g}e{int(math.floor(e))}"
+    m, k = f"{10 ** (e - math.floor(e)):.2g}", int(math.floor(e))
+    if m == "10":  # a mantissa of 9.95... rounds up: "1e16", not "10e15"
+        m, k = "1", k + 1
+    return f"{m}e{k}"
 
 
 def check_simulable(tau_L: float, tau_L_s: float, tau0: float) -> None:

@@ -260,6 +260,8 @@ def test_the_symmetric_passage_time_is_tau_pi_erfi(tau):
     (1e10 * 0 + 10 * math.log(10.0), "1e+10"),
     (1234 * math.log(10.0) + math.log(2.53), "2.5e1234"),  # two digits of the mantissa
     (123456.7 * math.log(10.0), "5e123456"),  # 10^0.7 = 5.01
+    (15.999 * math.log(10.0), "1e16"),  # 10^0.999 = 9.977 rounds to 10 at two digits: it printed "10e15"
+    (1233.9999 * math.log(10.0), "1e1234"),
     (1e6 * math.log(10.0), "10^(1e+06)"),  # e = 1e6 exactly (checked below): the exponent's own form
     (1.9e300 * math.log(10.0), "10^(1.9e+300)"), (math.inf, "inf"),
 ])
