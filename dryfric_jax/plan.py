@@ -25,6 +25,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -64,8 +65,17 @@ def h_max(params: Params) -> float:
 
 
 def scalar(x):
-    """A 0-d numpy array as its Python scalar (README: taken like a Python number); anything else as is."""
-    return x.item() if isinstance(x, np.ndarray) and x.shape == () else x
+    """A 0-d numpy or JAX array of numbers as its Python scalar (README: taken like a Python number;
+    ``jnp.array(1000)`` was refused as "n_excursions must be an integer"); anything else as is, a
+    ``jax.random`` key and a traced value included."""
+    if isinstance(x, np.ndarray) and x.shape == ():
+        return x.item()
+    if isinstance(x, jax.Array) and x.shape == () and jax.dtypes.issubdtype(x.dtype, np.number):
+        try:
+            return x.item()
+        except jax.errors.ConcretizationTypeError:  # under jit: for the checks to refuse by name
+            return x
+    return x
 
 
 def real(x) -> float | None:

@@ -149,6 +149,19 @@ def test_0d_arrays_are_taken_like_python_numbers():
     assert plan == want and type(plan.lanes) is int and type(plan.max_work) is float
     assert check_seed(np.array(3)) == 3 and _key(np.array(3))[1] == 3
     assert dj.plan_estimate(P, n_excursions=np.int64(50), max_steps=np.array(1000)).max_steps == 1000
+    # 0-d JAX arrays too (jnp.array(50) was refused as "n_excursions must be an integer in [2, 2^62]"; found by a
+    # user audit); a jax.random key is not a number and stays a key, a float is no count
+    import jax
+    import jax.numpy as jnp
+
+    plan = dj.plan_estimate(P, n_excursions=jnp.array(50), max_work=jnp.array(1e9), lanes=jnp.array(16),
+                            block=jnp.array(64))
+    assert plan == want and type(plan.lanes) is int and type(plan.max_work) is float
+    assert check_seed(jnp.array(3)) == 3 and _key(jnp.array(3))[1] == 3
+    k = jax.random.key(3)
+    assert _key(k) == (k, None)
+    with pytest.raises(ValueError, match=r"^n_excursions must be an integer in \[2, 2\^62\] \(got 50\.0\)"):
+        dj.plan_estimate(P, n_excursions=jnp.array(50.0))
 
 
 def _estimate_dict(run_seed, sums=(), **edit):
