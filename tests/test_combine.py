@@ -74,6 +74,13 @@ def test_refusals_name_what_differs(runs):
         combine_estimates([runs[0], dataclasses.replace(runs[1], h=2 * runs[1].h)])
     with pytest.raises(ValueError, match="must share params"):
         combine_estimates([runs[0], dataclasses.replace(runs[1], params={**runs[1].params, "tau": 2e-5})])
+    # parameters equal to 1e-12 (relative), as h is compared: Params.from_nondim gives tau = 0.49999999999999994
+    # for 0.5, the same run to the last bit, and such a pair was refused (found by a user audit); 1e-9 apart, not
+    tau = runs[1].params["tau"]
+    ulp = dataclasses.replace(runs[1], params={**runs[1].params, "tau": math.nextafter(tau, 0.0)})
+    assert combine_estimates([runs[0], ulp]).n_excursions == runs[0].n_excursions + runs[1].n_excursions
+    with pytest.raises(ValueError, match="must share params"):
+        combine_estimates([runs[0], dataclasses.replace(runs[1], params={**runs[1].params, "tau": tau * (1 + 1e-9)})])
     with pytest.raises(ValueError, match="no excursion sums"):
         combine_estimates([{**runs[0].to_dict(), "sums": {}}])
     with pytest.raises(ValueError, match="at least one"):
