@@ -143,9 +143,7 @@ _NEGATIVE_VALUE = re.compile(r"^-(\d|\.\d|inf|nan)", re.IGNORECASE)
 def _join_negative_values(parser: argparse.ArgumentParser, argv: list[str]) -> list[str]:
     """``--gamma-bar -1e-3`` as ``--gamma-bar=-1e-3``: argparse takes only plain negative decimals
     ("-0.5") for an option's value, and "-1e-3", "-inf", "-nan" or "-0.5,0.5" for an unknown option."""
-    subs = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
-    takes_value = {opt for sub in subs for sp in sub.choices.values() for a in sp._actions
-                   if a.nargs != 0 for opt in a.option_strings}
+    takes_value = {opt for a in _all_actions(parser) if a.nargs != 0 for opt in a.option_strings}
     out, i = [], 0
     while i < len(argv):
         if argv[i] in takes_value and i + 1 < len(argv) and _NEGATIVE_VALUE.match(argv[i + 1]):
