@@ -541,11 +541,17 @@ def _theory(a, params) -> int:
     beyond float64 (D ~ 2 tau_L^2 Gamma underflows at tau_L = 1e-300 s) is refused by name, exit 2,
     but the other is still printed: the whole output was refused for D alone."""
     from . import theory
+    from .api import DryfricWarning
 
     out, refused = {}, {}
+    if params.tau_nd > theory.WHITE_TAU_ND:  # said once here, in the CLI's words, not as the library's warnings
+        print(f"dryfric: note: --tau = {params.tau:.3g} s (tau/tau0 = {params.tau_nd:.3g}) is not used: these are the "
+              "white-noise (tau -> 0) values; 'dryfric estimate' gives the colored-noise D and M0", file=sys.stderr)
     for name, f in (("D", theory.exact_D), ("M0", theory.exact_M0)):
         try:
-            out[name] = f(params)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", DryfricWarning)
+                out[name] = f(params)
         except ValueError as e:
             out[name], refused[name] = None, str(e)
     out.update(params=params.as_dict(), convention="model (Gamma_w = 2 Gamma)")
@@ -562,8 +568,10 @@ def _theory(a, params) -> int:
         from .chain_law import white_chain_law
 
         law = white_chain_law(params, a.h)
-        out.update(h=a.h, chain_D=law.D, chain_M0=law.M0, chain_mean_v2=law.mean_v2,
-                   mean_v2=theory.exact_mean_square_velocity(params))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DryfricWarning)
+            mean_v2 = theory.exact_mean_square_velocity(params)
+        out.update(h=a.h, chain_D=law.D, chain_M0=law.M0, chain_mean_v2=law.mean_v2, mean_v2=mean_v2)
     if a.json:
         print(dumps(out))
     else:

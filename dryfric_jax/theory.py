@@ -26,6 +26,24 @@ from .limits import check_recurrent
 from .params import Params, check_finite, check_params, check_positive
 
 
+#: tau/tau0 above which the white-noise values are said not to be the params' (their tau is not used)
+WHITE_TAU_ND = 1e-3
+
+
+def _white_only(params: Params, name: str) -> None:
+    """Warn (a ``DryfricWarning``) when ``params`` has a correlation time these tau -> 0 values ignore: given
+    Fig. 3's params, exact_D returned the white-noise 0.0227 without a word, 8.5x the colored-noise D (a user
+    audit).  At tau/tau0 <= :data:`WHITE_TAU_ND` the white-noise value is what the params mean; above it,
+    pass a tau near 0 (``Params(Gamma, Delta, 1e-9, tau_L, gamma_bar)``) to ask for it without the warning."""
+    if params.tau_nd > WHITE_TAU_ND:
+        from .api import DryfricWarning
+
+        warnings.warn(f"theory.{name} is the white-noise (tau -> 0) value: tau = {params.tau:.3g} s (tau/tau0 = "
+                      f"{params.tau_nd:.3g} > {WHITE_TAU_ND:g}) is not used, and colored noise changes it (D is 8.5x "
+                      "lower at Fig. 3's point, tau/tau0 = 1.47; estimate_diffusivity gives the colored-noise values)",
+                      DryfricWarning, stacklevel=3)
+
+
 # ---------------------------------------------------------------------------------------------
 # stationary density and exact D, M0 for b(v) = -v/tau_L + gamma_bar
 # ---------------------------------------------------------------------------------------------
@@ -71,8 +89,10 @@ def stationary_density(v, params: Params):
         + \frac{\bar\gamma v}{\Gamma}\Big)
 
     (MODEL_NOTES section 2; the paper prints the :math:`\Gamma_w = \Gamma` form without the 2s).
+    ``params.tau`` is not used (a ``DryfricWarning`` where :math:`\tau/\tau_0 > 10^{-3}`).
     """
     itl, g = _nd(params)
+    _white_only(params, "stationary_density")
     vn = _velocities(v) / params.v0
     inf = np.isinf(vn)  # p(+-inf) = 0 (the exponent would be inf - inf there)
     p = np.where(inf, 0.0, np.exp(_log_p_unnorm(np.where(inf, 0.0, vn), itl, g) - _log_norm(itl, g)) / params.v0)
@@ -220,8 +240,10 @@ def _in_units(name, value_nd, unit, params: Params, *, positive: bool):
 
 def exact_M0(params: Params) -> float:
     r"""White-noise mobility :math:`M_0 = \int v\,p(v)\,dv` (physical units); the closed form
-    :func:`M0_constant_bias` for :math:`\tau_L = \infty`."""
+    :func:`M0_constant_bias` for :math:`\tau_L = \infty`.  ``params.tau`` is not used (a ``DryfricWarning``
+    where :math:`\tau/\tau_0 > 10^{-3}`)."""
     itl, g = _nd(params)
+    _white_only(params, "exact_M0")
     if itl == 0.0:
         return M0_constant_bias(params.Gamma, params.Delta, params.gamma_bar)
     with _round_off_ignored():
@@ -231,8 +253,10 @@ def exact_M0(params: Params) -> float:
 def exact_mean_square_velocity(params: Params) -> float:
     r"""White-noise :math:`E[V^2] = \int v^2 p(v)\,dv` (physical units, m^2/s^2); for
     :math:`\tau_L = \infty` the closed form of the asymmetric Laplace law,
-    :math:`2\Gamma^2(\Delta^2 + 3\bar\gamma^2)/(\Delta^2 - \bar\gamma^2)^2`."""
+    :math:`2\Gamma^2(\Delta^2 + 3\bar\gamma^2)/(\Delta^2 - \bar\gamma^2)^2`.  ``params.tau`` is not used (a
+    ``DryfricWarning`` where :math:`\tau/\tau_0 > 10^{-3}`)."""
     itl, g = _nd(params)
+    _white_only(params, "exact_mean_square_velocity")
     if itl == 0.0:
         return _mean_square_constant_bias(params.Gamma, params.Delta, params.gamma_bar)
     with _round_off_ignored():
@@ -250,9 +274,11 @@ def exact_D(params: Params) -> float:
     (MODEL_NOTES section 2).  F is integrated from the nearer tail.  For :math:`\tau_L = \infty`
     the closed form :func:`D_constant_bias` (the quadrature agrees with it to 1e-14, but it is
     exact and instantaneous however close :math:`|\bar\gamma|` is to :math:`\Delta`).
-    ``ValueError`` naming D where it leaves float64's range.
+    ``ValueError`` naming D where it leaves float64's range.  ``params.tau`` is not used (a
+    ``DryfricWarning`` where :math:`\tau/\tau_0 > 10^{-3}`).
     """
     itl, g = _nd(params)
+    _white_only(params, "exact_D")
     if itl == 0.0:
         return D_constant_bias(params.Gamma, params.Delta, params.gamma_bar)
     with _round_off_ignored():

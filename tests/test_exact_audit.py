@@ -283,3 +283,33 @@ def test_di_model_thresholds_and_start(g_nd):
     assert bool(m.minus.contains(xm)) and not bool(m.minus.contains(xp))
     X, V = m.init_state(3)
     assert np.all(np.asarray(X) == float(m.x_plus)) and np.all(np.asarray(V) == 0.0)
+
+
+# --------------------------------------------------------------------------------------------------------
+# the white-noise values say so when the params carry a correlation time they ignore (a user audit: given
+# Fig. 3's params, exact_D returned 0.0227 without a word, 8.5x the colored-noise D)
+# --------------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("f", [theory.exact_D, theory.exact_M0, theory.exact_mean_square_velocity,
+                               lambda p: theory.stationary_density(0.01, p)])
+def test_white_noise_values_warn_when_given_a_tau_they_ignore(f):
+    from dryfric_jax import DryfricWarning
+    G, D = 5.0, 3.84
+    tau0 = G / D**2
+    with warnings.catch_warnings(record=True) as ws:
+        warnings.simplefilter("always")
+        at = f(Params(G, D, 1e-3 * tau0, 0.067, 0.342))  # tau/tau0 = 1e-3 (rounded at most 1 ulp): white
+        quiet = [w for w in ws if issubclass(w.category, DryfricWarning)]
+        above = f(Params(G, D, 1.01e-3 * tau0, 0.067, 0.342))
+    said = [str(w.message) for w in ws if issubclass(w.category, DryfricWarning)]
+    assert not quiet and len(said) == 1 and "white-noise (tau -> 0) value" in said[0] and "not used" in said[0]
+    assert at == above  # the value itself does not depend on tau
+    assert ws[-1].filename == __file__  # said at the caller's line
+
+
+def test_cli_theory_notes_once_that_tau_is_not_used(capsys):
+    from dryfric_jax.cli import main
+    assert main(["theory"]) == 0  # Fig. 3's tau = 0.5 s
+    err = capsys.readouterr().err
+    assert err.count("is not used") == 1 and "--tau = 0.5 s" in err and "dryfric estimate" in err
+    assert main(["theory", "--tau", "1e-6", "--h", "0.001"]) == 0
+    assert capsys.readouterr().err == ""
