@@ -37,8 +37,8 @@ jax.config.update("jax_enable_x64", True)
 
 from . import theory  # noqa: E402
 from .api import (  # noqa: E402
-    BruteForceResult, DryfricWarning, EstimateResult, NoEstimateError, ProjectionWarning, bruteforce_diffusivity,
-    default_h, estimate_diffusivity,
+    BruteForceResult, DryfricWarning, EstimateResult, NoEstimateError, ProjectionWarning, SmallSampleWarning,
+    bruteforce_diffusivity, default_h, estimate_diffusivity,
 )
 from .chain_law import ChainLaw, white_chain_law  # noqa: E402
 from .combine import combine_estimates, gather_hosts  # noqa: E402
@@ -53,7 +53,7 @@ from ._version import __version__  # noqa: E402, F401
 __all__ = [
     "Params", "FIG3", "OUStep", "ou_step", "ou_moments", "DIModel", "make_di_model",
     "estimate_diffusivity", "bruteforce_diffusivity", "EstimateResult", "BruteForceResult",
-    "DryfricWarning", "ProjectionWarning", "NoEstimateError", "default_h", "Plan", "plan_estimate",
+    "DryfricWarning", "ProjectionWarning", "SmallSampleWarning", "NoEstimateError", "default_h", "Plan", "plan_estimate",
     "delta_method", "psi_D", "psi_M", "MIN_RELIABLE_N", "MIN_RELIABLE_PATHS",
     "theory", "ChainLaw", "white_chain_law", "combine_estimates", "gather_hosts", "enable_compilation_cache",
 ]

@@ -59,6 +59,21 @@ class ProjectionWarning(DryfricWarning):
     which says what did happen."""
 
 
+class SmallSampleWarning(DryfricWarning):
+    """N (or n_paths) below the size where the delta-method CI is calibrated.  Its own category so that a
+    sweep at small N can silence it alone, ``warnings.simplefilter("ignore", dj.SmallSampleWarning)``,
+    and still see the warnings that matter more (truncated excursions, the float64 fallback, weak damping,
+    the runaway bias).  Each point's N is in the text, so Python's once-per-text rule showed it at every
+    point of a sweep."""
+
+
+def category(note: str) -> type:
+    """The warning class a result's note is issued with: :class:`SmallSampleWarning` for the small-N
+    and small-n_paths notes, :class:`DryfricWarning` for every other."""
+    return SmallSampleWarning if note.startswith(("n_excursions = ", "n_paths = ")) and " < " in note \
+        and "under-covers" in note else DryfricWarning
+
+
 def small_n_note(n: int) -> str:
     """The warning for N below :data:`MIN_RELIABLE_N` (estimates and pooled estimates)."""
     return (f"n_excursions = {n} < {MIN_RELIABLE_N}: the delta-method CI under-covers at this size "
@@ -91,6 +106,9 @@ def check_progress(progress) -> None:
 def _key(key):
     """``(key, seed)`` from a seed in [0, :data:`MAX_SEED`] (None: 0) or a ``jax.random`` key
     (``seed`` None); ``ValueError`` naming ``key`` for anything else."""
+    if isinstance(key, jax.core.Tracer):  # vmap over keys compiled for 12 s, then a TracerArrayConversionError
+        raise ValueError("key is a JAX tracer (under jax.jit, vmap or grad): the estimators run on the host, round "
+                         "after round, and cannot be traced; call them in a Python loop over the keys or seeds")
     key = scalar(key)  # a 0-d numpy array: its seed
     if isinstance(key, numbers.Integral) and not isinstance(key, (bool, np.bool_)):
         seed = check_seed(key)
@@ -103,6 +121,16 @@ def _key(key):
         what = f"an array of shape {key.shape} and dtype {key.dtype}" if hasattr(key, "shape") else repr(key)
         raise ValueError(f"key must be a seed (an integer in [0, 2^62]) or one jax.random key (got {what})")
     return (jax.random.wrap_key_data(jax.numpy.asarray(key)) if raw else key), None
+
+
+def require_x64() -> None:
+    """``RuntimeError`` unless JAX's 64-bit mode is on.  Importing dryfric_jax turns it on (the sums are
+    float64 whatever the simulation dtype); a notebook that turned it off afterwards got five "float64
+    truncated to float32" warnings and an OverflowError from inside JAX (a user audit)."""
+    if not jax.config.jax_enable_x64:
+        raise RuntimeError("dryfric_jax needs JAX's 64-bit mode (its sums are float64 in every dtype; importing it "
+                           "turned the mode on and something turned it off): jax.config.update('jax_enable_x64', "
+                           "True) restores it, and dtype='float32' still simulates in float32")
 
 
 def _build(params: Params, plan: Plan):
@@ -341,6 +369,7 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
     Returns:
         :class:`EstimateResult`: D, M0 with 95% CI half-widths, mean excursion duration, counts.
     """
+    require_x64()
     rtol, max_time = check_rtol(rtol), check_max_time(max_time)
     check_progress(progress)
     plan = plan_estimate(params, method=method, h=h, delta=delta, dtype=dtype, n_excursions=n_excursions,
@@ -443,7 +472,7 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
     if rounding := rounding_note(total):
         notes.append(rounding)
     for n in notes:
-        warnings.warn(n, DryfricWarning, stacklevel=2)
+        warnings.warn(n, category(n), stacklevel=2)
     e = long_excursion_estimates(total)
     return EstimateResult(
         D=float(e["D"] * params.D0), D_ci=float(e["D_ci"] * params.D0), M0=float(e["M0"] * params.v0),
@@ -475,6 +504,7 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
     ``n_unfinished`` is 0).  A run that
     needs more than ``max_work`` steps (events) is refused before it starts.
     """
+    require_x64()
     if method == "auto":
         raise ValueError("method must be 'di' or 'pdmp' for brute force (got 'auto')")
     n_paths = check_count("n_paths", n_paths, MIN_PATHS, hi=MAX_COUNT, why=" (with 2 paths the D_t CI is 0)")
@@ -517,7 +547,7 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
                              f"t = {n_steps * h:.4g} s = {n_steps} h (the result's t)"]
     model = _build(params, plan)
     for n in notes:
-        warnings.warn(n, DryfricWarning, stacklevel=2)
+        warnings.warn(n, category(n), stacklevel=2)
     key, seed = _key(key)
     t0 = time.perf_counter()
     unfinished = 0

@@ -71,12 +71,24 @@ def plain_number(x):
 
 
 def check_params(params) -> None:
-    """``ValueError`` unless ``params`` is a :class:`Params` (a dict, say, failed later with an
-    AttributeError)."""
+    """``ValueError`` unless ``params`` is a valid :class:`Params` with concrete values (a dict, say,
+    failed later with an AttributeError).
+
+    A Params may hold tracers (its properties work under jit), but the estimators, the planner and the
+    exact laws run on the host: under ``jax.jit``/``vmap``/``grad`` they failed deep inside with JAX's
+    ConcretizationTypeError.  And ``eqx.tree_at`` or ``tree_map`` build a Params without its checks:
+    Gamma = -1 got through and was refused later as "tau_L must be >= 1e-60 tau0 = -6.78e-62 s" (both from a
+    user audit), so the values are checked again here, by name."""
     if not isinstance(params, Params):
         raise ValueError(f"params must be a dryfric_jax.Params (got {type(params).__name__}): e.g. "
                          "Params(Gamma=5.0, Delta=3.84, tau=0.5, tau_L=0.067, gamma_bar=0.342), or Params(**d) "
                          "for a dict d")
+    traced = [k for k in _FIELDS if isinstance(getattr(params, k), jax.core.Tracer)]
+    if traced:
+        raise ValueError(f"params.{traced[0]} is a JAX tracer (under jax.jit, vmap or grad): the estimators run on "
+                         "the host, round after round, and cannot be traced; call them in a Python loop over the "
+                         "parameters (a new Gamma, Delta, tau, tau_L or gamma_bar reuses the compiled code)")
+    Params(*(getattr(params, k) for k in _FIELDS))  # __check_init__ again: ValueError naming the field
 
 
 def check_positive(name: str, value, *, allow_inf: bool = False) -> None:

@@ -120,6 +120,33 @@ def test_small_n_warning_is_below_min_reliable_n_only(monkeypatch, n, warned):
     assert any(w.startswith(f"n_excursions = {n} < 10000") for w in ws) is warned and r.warnings == ws
 
 
+def test_a_sweep_at_small_n_silences_the_small_n_warning_alone(monkeypatch):
+    """The small-N note carries each point's N, so Python's once-per-text rule showed it at every point of
+    a sweep, and the notebook silenced all DryfricWarnings for it, truncation included (a user audit).  It is
+    a SmallSampleWarning (a DryfricWarning); silencing that class keeps the truncation and weak-damping ones."""
+    _fake_engine(monkeypatch, lambda kw: (_stats(U5, T5, truncated=3), "n_excursions"))
+    p = dj.Params.from_nondim(0.3, math.inf, 0.1, Gamma=2.0, Delta=3.0)
+    with warnings.catch_warnings(record=True) as ws:
+        warnings.simplefilter("always")
+        warnings.simplefilter("ignore", dj.SmallSampleWarning)
+        r = dj.estimate_diffusivity(p, 7, h=0.02 * p.tau0, n_excursions=40)
+    shown = [str(w.message) for w in ws]
+    assert any(w.startswith("n_excursions = 5 < 10000") for w in r.warnings)  # in the result, not shown
+    assert not any(w.startswith("n_excursions = ") for w in shown)
+    assert any("hit the work bound" in w for w in shown) and any("weak or no viscous damping" in w for w in shown)
+    assert all(w.category is dj.DryfricWarning for w in ws)
+    assert issubclass(dj.SmallSampleWarning, dj.DryfricWarning) and "SmallSampleWarning" in dj.__all__
+
+
+def test_a_bruteforce_run_with_few_paths_warns_in_the_small_sample_class():
+    from dryfric_jax.api import category, small_n_note
+    assert category(small_n_note(5)) is dj.SmallSampleWarning
+    assert category("n_paths = 10 < 100: the delta-method CI of D_t under-covers at this size") is dj.SmallSampleWarning
+    assert category("3 of 10 excursions hit the work bound (max_steps = 4)") is dj.DryfricWarning
+    assert category("tau_L/tau0 = 2 > 1 (weak or no viscous damping): the 95% CI for D covers only ~90%") \
+        is dj.DryfricWarning
+
+
 @pytest.mark.parametrize("tau_L,warned", [(1.0, False), (math.nextafter(1.0, 2.0), True), (math.inf, True)])
 def test_weak_damping_warning_is_above_tau_l_one_only(monkeypatch, tau_L, warned):
     p = dj.Params.from_nondim(0.3, tau_L, 0.1, Gamma=2.0, Delta=3.0)

@@ -4,6 +4,9 @@ is in test_cli.py, the parameters' own checks in test_params.py).  Nothing here 
 case is refused, or planned only."""
 import re
 
+import equinox as eqx
+import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
@@ -25,6 +28,57 @@ P = dj.Params(**dj.FIG3)
 def test_params_that_are_not_Params_are_refused_by_name(call, bad):
     with pytest.raises(ValueError, match="^params must be a dryfric_jax.Params"):
         call(bad)
+
+
+CALLS_ON_PARAMS = [
+    lambda p: dj.estimate_diffusivity(p, 0, n_excursions=50),
+    lambda p: dj.bruteforce_diffusivity(p, 0, t=1.0, n_paths=4),
+    lambda p: dj.plan_estimate(p), theory.exact_D, lambda p: white_chain_law(p, 1e-3), dj.default_h,
+]
+
+
+@pytest.mark.parametrize("call", CALLS_ON_PARAMS)
+@pytest.mark.parametrize("transform,G", [(jax.jit, 5.0), (jax.grad, 5.0), (jax.vmap, jnp.array([2.0, 5.0]))])
+def test_tracing_an_estimator_is_refused_by_name_at_once(call, transform, G):
+    """Under jit, grad or vmap (a notebook user's first try at a sweep) the host-side drivers failed deep
+    inside with JAX's ConcretizationTypeError (vmap over keys after a 12 s compile; a user audit)."""
+    f = transform(lambda G: call(dj.Params(G, 3.84, 0.5, 0.067, 0.342)))
+    with pytest.raises(ValueError, match=r"^params\.Gamma is a JAX tracer \(under jax.jit, vmap or grad\).*Python loop"):
+        f(G)
+
+
+def test_a_traced_key_is_refused_before_any_work():
+    keys = jax.random.split(jax.random.key(0), 2)
+    with pytest.raises(ValueError, match=r"^key is a JAX tracer"):
+        jax.vmap(lambda k: dj.estimate_diffusivity(P, k, n_excursions=50).D)(keys)
+    with pytest.raises(ValueError, match=r"^key is a JAX tracer"):
+        jax.vmap(lambda k: dj.bruteforce_diffusivity(P, k, t=1.0, n_paths=4).D_t)(keys)
+
+
+@pytest.mark.parametrize("call", CALLS_ON_PARAMS)
+@pytest.mark.parametrize("field,value,match", [
+    ("Gamma", -1.0, r"^Gamma must be finite and > 0 \(got -1.0\)"),
+    ("tau_L", 0.0, r"^tau_L must be > 0 or inf"),
+    ("gamma_bar", float("nan"), r"^gamma_bar must be a finite number"),
+    ("tau", np.ones(3), r"^tau must be a real number \(got an array of shape \(3,\)\)"),
+])
+def test_params_edited_around_their_checks_are_checked_again(call, field, value, match):
+    """eqx.tree_at (and tree_map) build a Params without __check_init__: Gamma = -1 got through and was
+    refused as "tau_L must be >= 1e-60 tau0 = -6.78e-62 s", an array as a bare TypeError (a user audit)."""
+    bad = eqx.tree_at(lambda p: getattr(p, field), P, value)
+    with pytest.raises(ValueError, match=match):
+        call(bad)
+
+
+def test_jax_64_bit_mode_turned_off_is_said_not_a_traceback_from_jax():
+    jax.config.update("jax_enable_x64", False)
+    try:
+        for call in (lambda: dj.estimate_diffusivity(P, 0, n_excursions=50, dtype="float32"),
+                     lambda: dj.bruteforce_diffusivity(P, 0, t=1.0, n_paths=4)):
+            with pytest.raises(RuntimeError, match=r"needs JAX's 64-bit mode.*jax_enable_x64', True"):
+                call()
+    finally:
+        jax.config.update("jax_enable_x64", True)
 
 
 @pytest.mark.parametrize("bad", ["1", None, True, [1.0, "a"], [[1.0, 2.0], [3.0]], b"1"])
