@@ -252,7 +252,9 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--max-events", type=_int_at_least("max-events", 1, 2**62, "2^62"), default=None,
                    help="PDMP only: events per path before t (default 10x the expected count + 1000); a path "
                         "that reaches it fails the run, which says so")
-    th = sub.add_parser("theory", parents=[model], help="exact white-noise D and M0")
+    th = sub.add_parser("theory", parents=[model], help="exact white-noise (tau -> 0) D and M0; --tau is not used",
+                        description="Exact white-noise (tau -> 0) D and M0 of the model (MODEL_NOTES section 2): "
+                                    "--tau is not used ('dryfric estimate' gives the colored-noise values).")
     th.add_argument("--h", type=_number("h"), default=None,
                     help="also the exact white-noise D, M0 and E[V^2] of the DI chain at this step, s (its "
                          "step bias; seconds for small h)")
@@ -544,12 +546,9 @@ def _theory(a, params) -> int:
     from .api import DryfricWarning
 
     out, refused = {}, {}
-    if params.tau_nd > theory.WHITE_TAU_ND:  # said once here, in the CLI's words, not as the library's warnings
-        print(f"dryfric: note: --tau = {params.tau:.3g} s (tau/tau0 = {params.tau_nd:.3g}) is not used: these are the "
-              "white-noise (tau -> 0) values; 'dryfric estimate' gives the colored-noise D and M0", file=sys.stderr)
     for name, f in (("D", theory.exact_D), ("M0", theory.exact_M0)):
         try:
-            with warnings.catch_warnings():
+            with warnings.catch_warnings():  # the command says "white-noise" (and its help that --tau is not used)
                 warnings.simplefilter("ignore", DryfricWarning)
                 out[name] = f(params)
         except ValueError as e:
