@@ -31,8 +31,8 @@ def fig1_2(out_dir, quick, seed):
     for row, (name, e) in zip(axs, runs.items()):
         t, x, v, U, k = e["t"] * p.tau0, e["x"] * sx, e["v"] * p.v0, e["U"] * p.u0, e["i_half"]
         draw = "steps-post" if name.startswith("PDMP") else "default"
-        for sl, col in ((slice(0, k + 1), "k"), (slice(k, None), "r")):
-            row[0].plot(t[sl], x[sl], col, lw=0.7, drawstyle=draw)
+        for sl, col, half in ((slice(0, k + 1), "k", "first"), (slice(k, None), "r", "second")):
+            row[0].plot(t[sl], x[sl], col, lw=0.7, drawstyle=draw, label=f"{half} half excursion")
             row[1].plot(t[sl], v[sl], col, lw=0.7)
             row[2].plot(t[sl], U[sl], col, lw=0.7)
             # the PDMP's X is constant between events while V follows its flow: vertical, then a jump in X
@@ -41,6 +41,7 @@ def fig1_2(out_dir, quick, seed):
             ax.set_ylabel(yl)
             ax.set_xlabel("X (s^-1/2)" if yl == "V (m/s)" and ax is row[3] else "t (s)")
         row[0].set_title(name)
+        row[0].legend(fontsize=7)
         nums[name] = dict(duration_s=float(t[-1]), half_s=float(t[k]), U_m=float(U[-1]), steps_or_events=len(t) - 1,
                           complete=e["complete"], x_start=float(x[0]), x_half=float(x[k]))
     return save(fig, out_dir, "fig1_2", nums, t0)

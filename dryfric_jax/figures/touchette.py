@@ -121,5 +121,5 @@ def fig7(out_dir, quick, seed):
         nums["max_dev_in_se"][f"{tau:g}"] = float(np.max(np.abs(c - ex) / se))
     ax.set_xlabel("t'")
     ax.set_ylabel("<V'(0) V'(t')>")
-    ax.legend()
+    ax.legend(title="dots: DI, bars +- 2 SE", title_fontsize=8)
     return save(fig, out_dir, "fig7", nums, t0)
