@@ -208,7 +208,34 @@ def _with_warnings(text, ws):
 class EstimateResult:
     """Long-excursion estimate (physical units; CIs are 95% half-widths).
 
-    ``print(result)`` shows :meth:`summary` and the warnings; ``repr`` shows every field."""
+    ``print(result)`` shows :meth:`summary` and the warnings; ``repr`` shows every field.
+
+    Attributes:
+        D, D_ci, M0, M0_ci: the diffusivity (m^2/s) and mobility (m/s) and their half-widths at ``ci_level``.
+        mean_duration, mean_duration_ci: the mean cycle length (s).  For the PDMP it is the paper's long
+            excursion (threshold to threshold); for the DI it is the regeneration cycle of
+            :mod:`~dryfric_jax.regeneration`, which spans one or more of the paper's excursions (2-4 times
+            longer at Fig. 3's parameters, and h-dependent).  D and M0 do not depend on the rule.
+        n_excursions: N, the complete excursions behind the estimate; ``n_requested`` what was asked for.
+        n_truncated: excursions that hit the work bound ``max_steps`` (or the final round's deadline
+            under ``max_time``): excluded from the sums, so the estimate is biased low; a warning says so.
+        stopped_by: what ended the rounds: ``"n_excursions"`` (N reached), ``"target"`` (``rtol`` met),
+            ``"max_time"``, ``"work_bound"`` (``max_work``), ``"interrupted"`` (Ctrl-C or SIGTERM;
+            the rounds already run are kept) or ``"combined"`` (:func:`~dryfric_jax.combine_estimates`).
+        method, method_reason, h, delta, L_X, dtype: the model and resolution simulated (``h`` for the DI
+            in s, ``delta`` and ``L_X`` the PDMP's grid in s^-1/2) and why ``method="auto"`` chose it.
+        seed, lanes, block, version: with the settings above they fix the random streams, so the same
+            values give the same numbers to the last bit; ``seed`` is None for a ``jax.random`` key.
+        wall_s, lane_steps_per_s, events_per_s: the call's wall time, compiling included on the first
+            call of a shape (later calls reuse it), and its useful lane-steps (events) per second.
+        work, predicted_work, max_work, max_steps, lane_utilization: lane-steps (events) paid, the
+            planner's prediction, the bounds, and the share of paid slots that were useful.
+        rtol, max_time: the precision target and time limit of the run (None when not given).
+        warnings: every note the run issued (also issued as :class:`DryfricWarning`).
+        sums: the excursions' sufficient statistics (nondimensional), which runs pool by adding.
+        combined_from: the seeds a pooled result was made from.
+        params: the physical parameters as a dict.
+    """
 
     D: float
     D_ci: float
@@ -258,8 +285,10 @@ class EstimateResult:
         ``dryfric estimate`` prints)."""
         return (f"D  = {_fmt(self.D, self.D_ci)} m^2/s   ({100 * self.ci_level:g}% CI)\n"
                 f"M0 = {_fmt(self.M0, self.M0_ci)} m/s\n"
-                f"mean excursion duration = {self.mean_duration:.4g} s\n"
-                f"N = {self.n_excursions} excursions, {self.n_truncated} truncated, {_resolution(self)}, "
+                + (f"mean excursion duration = {self.mean_duration:.4g} s\n" if self.method == "pdmp" else
+                   f"mean cycle duration = {self.mean_duration:.4g} s (regeneration cycles: >= 1 of the paper's "
+                   "excursions each)\n")
+                + f"N = {self.n_excursions} excursions, {self.n_truncated} truncated, {_resolution(self)}, "
                 f"{self.dtype}, " + (f"seeds {self.combined_from}" if self.combined_from else f"seed {self.seed}")
                 + f"\nwall {self.wall_s:.1f} s, {self.lane_steps_per_s:.3g} "
                 f"{'lane-steps' if self.delta is None else 'events'}/s, stopped by: {self.stopped_by}")
@@ -334,7 +363,8 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
         dtype: ``"float64"`` or ``"float32"`` for the simulation (statistics are float64).
         lanes, chunk_lanes, block: engine layout (do not change the estimate's law, only the
             random streams; recorded in the result): lanes in [1, 2^22] (default
-            :func:`~dryfric_jax.excursions.lanes_for`, a power of two near N/32 up to ``chunk_lanes``,
+            :func:`~dryfric_jax.excursions.lanes_for`, a power of two near N/32 but at least min(512, N),
+            up to ``chunk_lanes``: N = 2000 gives 512 lanes; a new lane count compiles anew,
             default 4096 on a CPU and 2^18 on a GPU),
             block K in [1, 1024] (default :func:`~dryfric_jax.excursions.default_block`: 128,
             and 256 for the DI on a GPU), lanes * K <= 2^28 (:func:`~dryfric_jax.plan.check_layout`).
