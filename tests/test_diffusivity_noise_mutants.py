@@ -196,9 +196,10 @@ def test_fig8_panels_plot_the_runs_the_exact_d_the_exponents_and_the_reference_l
         assert top["scales"] == ("log", "log") and bottom["scales"][0] == "log"
         assert len(top["lines"]) == 1 and np.array_equal(top["lines"][0][0], G)
         assert top["lines"][0][1] == pytest.approx(7 * G, rel=1e-15)
-        assert [y for _, y in bottom["lines"]] == [pytest.approx([3.0, 3.0]), pytest.approx([1.61, 1.61]),
-                                                   pytest.approx([1.74, 1.74])]
-        assert bottom["texts"] == ["3 (white noise, b = 0)", "1.61 (experiment)", "1.74 (experiment)"]
+        # 3 is the white-noise exponent of b = 0 only: the viscous panel (k = 1) has the experiment's two
+        three = [pytest.approx([3.0, 3.0])] if k == 0 else []
+        assert [y for _, y in bottom["lines"]] == three + [pytest.approx([1.61, 1.61]), pytest.approx([1.74, 1.74])]
+        assert bottom["texts"] == ["3 (white noise, b = 0)"][:len(three)] + ["1.61 (experiment)", "1.74 (experiment)"]
         r = np.array([rel(g) for g in G])
         for j, tau in enumerate((1e-5, 1e-2)):
             D = 1e5 * tau * G**3
@@ -246,17 +247,20 @@ def test_fig5_histogram_panel_plots_the_bin_probabilities_and_the_exact_density_
 
     monkeypatch.setattr(diffusivity, "make_di_model", lambda params, h: None)
     monkeypatch.setattr(diffusivity, "di_stationary", stationary)
-    monkeypatch.setattr(diffusivity, "white_chain_law", lambda params, h: _Run(M0=0.0, mean_v2=0.0, p_stuck=0.0))
+    monkeypatch.setattr(diffusivity, "white_chain_law", lambda params, h: _Run(M0=0.0, mean_v2=0.0, p_stuck=0.125))
     for name in ("exact_M0", "exact_mean_square_velocity"):
         monkeypatch.setattr(theory, name, lambda params: 0.0)
     monkeypatch.setattr(theory, "stationary_density", lambda v, params: 1 + 100 * np.asarray(v))
     _capture(monkeypatch, figs)
     diffusivity.fig5(str(tmp_path), True, 0)
-    (exact_x, exact_y), (hist_x, hist_y) = figs[0][0]["lines"]
+    (exact_x, exact_y), (hist_x, hist_y), (atom_x, atom_y) = figs[0][0]["lines"]
     mid = -x + bw * (np.arange(11) + 0.5)
     assert exact_x == pytest.approx(mid, rel=0, abs=1e-15) and hist_x == pytest.approx(mid, rel=0, abs=1e-15)
     assert exact_y == pytest.approx((1 + 100 * mid) * bw, rel=1e-12)
     assert hist_y == pytest.approx([0.5] + [0.0] * 9 + [0.5], rel=0, abs=1e-15)
+    # the chain's atom at V = 0 on top of the density, in the bin holding v = 0 ([-x + 5 bw, -x + 6 bw))
+    assert atom_x == pytest.approx([mid[5]], rel=0, abs=1e-15)
+    assert atom_y == pytest.approx([(1 + 100 * mid[5]) * bw + 0.125], rel=1e-12)
 
 
 def test_fig5_p_stuck_counts_exact_zeros_only(tmp_path, monkeypatch):

@@ -80,7 +80,7 @@ def fig3(out_dir, quick, seed):
         # PDMP (delta > 0) and DI approximate the same D: difference in units of the combined CI
         nums["agree"][f"{tau:g}"] = [abs(a - b) / math.hypot(c, e) for a, b, c, e in
                                      zip(p["D"], d["D"], p["D_ci"], d["D_ci"])]
-    for ax, lab in ((a1, "D (m^2/s)"), (a2, "mean excursion duration (s)")):
+    for ax, lab in ((a1, "D (m^2/s)"), (a2, "mean duration (s)")):
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_xlabel("Gamma (m^2 s^-3)")
@@ -89,9 +89,8 @@ def fig3(out_dir, quick, seed):
     # not the same quantity: the PDMP's excursion is the paper's (threshold to threshold); the DI's cycle runs from one
     # Nummelin regeneration to the next (regeneration.py), a coin at each release near a threshold, so a cycle spans
     # a random number (>= 1) of the paper's excursions and is 2-4x longer here.  D and M0 do not depend on the rule.
-    a2.set_title("dots: PDMP, the paper's long excursion; lines: DI regeneration cycle,\n"
-                 "which spans >= 1 of the paper's excursions (not the same quantity; D does not depend on it)",
-                 fontsize=8)
+    a2.set_title("dots: PDMP, the paper's long excursion\n"
+                 "lines: DI regeneration cycle, >= 1 such excursion each (not the same quantity)", fontsize=8)
     nums["runs"] = pts.summary()
     return save(fig, out_dir, "fig3", nums, t0)
 
