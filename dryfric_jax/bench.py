@@ -42,6 +42,10 @@ from .plan import check_count, check_layout, plan_estimate
 from .params import FIG3, Params
 
 
+#: how to get the compiled baseline (an installed package has no checkout for ``pip install -e '.[bench]'``)
+NUMBA_HINT = "pip install numba (the bench extra; in a checkout pip install -e '.[bench]')"
+
+
 def _device_timer(per_lane_block, init, lanes: int, block: int, n: int, reps: int):
     """Compile ``per_lane_block(keys, b, carry) -> carry`` run for ``b = 0, 1, ...`` on every local
     device (``lanes`` split evenly, ``n`` lane-steps in all) and return a function that times it:
@@ -222,7 +226,7 @@ def run_bench(n_excursions: int = 10_000, numba_excursions: int = 10_000, seed: 
         try:
             from .bench_numba import RNG, BaselineIncomplete, run_numba, run_numba_pdmp
         except Exception as exc:  # not installed, or broken in this environment: say so, go on
-            out["numba"] = f"unavailable ({type(exc).__name__}: {exc}); pip install -e '.[bench]'"
+            out["numba"] = f"unavailable ({type(exc).__name__}: {exc}); {NUMBA_HINT}"
         else:
             import numba
 
@@ -366,7 +370,7 @@ def tune_layout(lanes_list, blocks, dtype: str = "float32", n_excursions: int = 
         try:
             from .bench_numba import BaselineIncomplete, run_numba
         except Exception as exc:
-            out["numba"] = f"unavailable ({type(exc).__name__}: {exc}); pip install -e '.[bench]'"
+            out["numba"] = f"unavailable ({type(exc).__name__}: {exc}); {NUMBA_HINT}"
         else:
             try:
                 rate = _numba_rates(run_numba, make_di_model(p, default_h(p)), numba_excursions, seed, (2,))[2]

@@ -380,6 +380,8 @@ def test_run_bench_without_numba_or_with_a_broken_one_says_so_and_keeps_the_rest
         b = bench.run_bench(n_excursions=50)
         want = "ModuleNotFoundError" if how == "absent" else "RuntimeError: numba is broken here"
         assert b["numba"].startswith(f"unavailable ({want}"), b["numba"]
+        # an installed package has no checkout: the hint was only "pip install -e '.[bench]'" (a packaging audit)
+        assert b["numba"].endswith("; pip install numba (the bench extra; in a checkout pip install -e '.[bench]')")
         assert not any("numba" in k and k != "numba_excursions" for k in b if k != "numba")
         assert b["ratio_di_float64_to_rng_bound"] == 1.0 and b["pdmp_float32_events_per_s"] == 2.0
     fake_engine_for_run_bench(monkeypatch, {k: [2.0, 2.0] for k in RATES})

@@ -118,3 +118,19 @@ def test_python_gets_an_import_error_naming_the_old_jax():
     msg, imported = r.stdout.strip().splitlines()
     assert msg.startswith("dryfric_jax needs jax >= 0.6.2") and "jax 0.5.3" in msg
     assert imported == "False"  # checked before JAX is imported
+
+
+def test_the_source_distribution_carries_what_its_tests_use():
+    """setuptools alone put tests/test_*.py in the sdist but not conftest.py (x64, the cache off, one device per
+    core), the notebooks test_notebooks.py runs, nor the scripts test_cli.py runs: an unpacked sdist failed its own
+    tests (a packaging audit).  MANIFEST.in grafts them, and every top-level folder or file the tests name."""
+    lines = [ln.split() for ln in (ROOT / "MANIFEST.in").read_text().splitlines() if ln and not ln.startswith("#")]
+    grafted = {w for ln in lines if ln[0] == "graft" for w in ln[1:]}
+    included = {w for ln in lines if ln[0] == "include" for w in ln[1:]}
+    assert {"tests", "notebooks", "scripts"} <= grafted
+    assert {"README.md", "PERFORMANCE.md", "RESULTS.md"} <= included
+    used = set()
+    for f in (ROOT / "tests").glob("*.py"):
+        text = f.read_text()
+        used |= {d for d in ("notebooks", "scripts") if f'ROOT / "{d}"' in text or f"'{d}/" in text or f'"{d}/' in text}
+    assert used <= grafted, used - grafted
