@@ -23,7 +23,7 @@ import warnings
 
 from . import compile_cache, interrupts
 from .api import MAX_FIGURE_SEED
-from .estimators import MIN_PATHS
+from .estimators import MIN_PATHS, MIN_RELIABLE_PATHS
 from .outfiles import check_writable, check_writable_dir, dumps, loads, write_atomic
 from .params import FIG3, Params
 from .xla_flags import use_all_cpu_cores
@@ -206,6 +206,10 @@ def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="dryfric", description="Dry friction under colored noise: diffusivity D and mobility M0.",
                 epilog="Compiled code is kept between commands in ~/.cache/dryfric_jax/xla (or $XDG_CACHE_HOME/dryfric_jax/xla); "
                        "DRYFRIC_CACHE_DIR=DIR moves it, DRYFRIC_CACHE_DIR=off turns it off.")
+    from ._version import __version__
+
+    p.add_argument("--version", action="version", version=f"dryfric_jax {__version__}",
+                   help="print the package version and exit")
     sub = p.add_subparsers(dest="cmd", required=True, parser_class=_Parser)
     model = _model_options()
     sim = _Parser(add_help=False)
@@ -216,7 +220,8 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--delta", type=_number("delta"), default=None,
                      help="PDMP noise grid step, s^-1/2 (default: delta' = delta sqrt(Gamma)/Delta = 0.05, "
                           "and delta sqrt(tau) <= 1/16 for slow noise)")
-    sim.add_argument("--seed", type=_seed, default=0)
+    sim.add_argument("--seed", type=_seed, default=0, help="random seed, an integer in [0, 2^62 - 2^20] (default 0); "
+                                                          "the same seed and settings give the same numbers")
     sim.add_argument("--dtype", default="float64", help="float64 or float32 (the DI and the PDMP fall "
                                                         "back to float64 where float32 is not safe, README)")
     sim.add_argument("--max-work", type=_number("max-work"), default=None,
@@ -247,7 +252,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="exit 0 even when excursions hit the work bound (the result is biased low; exit 3 otherwise)")
     b = sub.add_parser("bruteforce", parents=[model, sim], help="fixed-horizon (brute force) D^t")
     b.add_argument("--t", type=_number("t"), required=True, help="horizon, s")
-    b.add_argument("--n-paths", type=_int_at_least("n-paths", MIN_PATHS, 2**62, "2^62"), required=True)
+    b.add_argument("--n-paths", type=_int_at_least("n-paths", MIN_PATHS, 2**62, "2^62"), required=True,
+                   help=f"independent paths (>= {MIN_PATHS}; the CI under-covers below {MIN_RELIABLE_PATHS})")
     b.add_argument("--burn-in", type=_number("burn-in"), default=0.0, help="uncounted warm-up, s")
     b.add_argument("--max-events", type=_int_at_least("max-events", 1, 2**62, "2^62"), default=None,
                    help="PDMP only: events per path before t (default 10x the expected count + 1000); a path "
@@ -264,21 +270,31 @@ def build_parser() -> argparse.ArgumentParser:
     fg.add_argument("--out", required=True, help="output directory (created if its parent exists); Figs. 3, 8 "
                     "and 9 keep each finished run there (fig3.points.jsonl, ...), so rerunning an interrupted "
                     "command resumes")
-    fg.add_argument("--seed", type=_seed, default=0)
+    fg.add_argument("--seed", type=_seed, default=0, help="the figures' seed (each run's is derived from it; "
+                                                          "default 0): the same seed gives the same numbers")
     sw = sub.add_parser("sweep", help="D and M0 with CIs over a grid of parameters, resumable (JSON Lines file)")
     g = sw.add_argument_group("axes: comma-separated lists (SI units); omitted ones stay at the Fig. 3 point")
     for name, conv in (("Gamma", _number("Gamma")), ("Delta", _number("Delta")), ("tau", _number("tau")),
                        ("tau-L", _tau_L), ("gamma-bar", _number("gamma-bar"))):
-        g.add_argument(f"--{name}", type=_list_of(conv, name), default=None, action=_Once)
+        g.add_argument(f"--{name}", type=_list_of(conv, name), default=None, action=_Once,
+                       help=f"values of {name}, e.g. 1,2.5,5" + (" (or inf)" if name == "tau-L" else ""))
     sw.add_argument("--out", required=True, help="results file (JSON Lines); an existing one is resumed")
     sw.add_argument("--method", default="di", help="di, pdmp or auto")
-    sw.add_argument("--h", type=_number("h"), default=None)
-    sw.add_argument("--delta", type=_number("delta"), default=None)
-    sw.add_argument("--dtype", default="float64")
-    sw.add_argument("--seed", type=_seed, default=0)
-    sw.add_argument("--n-excursions", type=_count_option("n-excursions"), default=20_000)
-    sw.add_argument("--rtol", type=_number("rtol"), default=None)
-    sw.add_argument("--max-work", type=_number("max-work"), default=None)
+    sw.add_argument("--h", type=_number("h"), default=None, help="DI step, s, at every point (default: each point's "
+                                                                 "0.01*min(tau0, tau_L))")
+    sw.add_argument("--delta", type=_number("delta"), default=None,
+                    help="PDMP noise grid step, s^-1/2, at every point (default: each point's, as for 'estimate')")
+    sw.add_argument("--dtype", default="float64", help="float64 or float32 (as for 'estimate')")
+    sw.add_argument("--seed", type=_seed, default=0,
+                    help="the sweep's seed; each point's seed is derived from it and the point's parameters and "
+                         "settings (recorded; stable when the grid is edited)")
+    sw.add_argument("--n-excursions", type=_count_option("n-excursions"), default=20_000,
+                    help="excursions per point (the first round when --rtol is given)")
+    sw.add_argument("--rtol", type=_number("rtol"), default=None,
+                    help="run each point until the 95%% CI half-width of D is <= RTOL*|D|")
+    sw.add_argument("--max-work", type=_number("max-work"), default=None,
+                    help="cap on lane-steps (events) per point; a point predicted to need more is refused before "
+                         "any point runs (see --skip-refused; default 1e11)")
     sw.add_argument("--max-time", type=_number("max-time"), default=None,
                     help="time limit of each point, s (as for 'estimate'); a point it stopped is rerun by the same "
                          "command with a larger --max-time (or none), and its record kept until then")

@@ -1009,3 +1009,21 @@ def test_options_are_not_abbreviated(capsys, argv, hint):
     assert hint in err and "case-sensitive and spelled out in full" in err
     assert main(["estimate", "--foo", "1"]) == 2
     assert capsys.readouterr().err == "dryfric: error: unrecognized arguments: --foo 1\n"
+
+
+def test_every_option_of_every_command_says_what_it_is():
+    """'dryfric sweep --help' listed --h, --delta, --dtype, --seed, --n-excursions, --rtol, --max-work and the five
+    axes with no text, and --seed nowhere said its range (a packaging audit)."""
+    from dryfric_jax.cli import _all_actions, build_parser
+    bare = sorted({s for a in _all_actions(build_parser()) if a.option_strings and not a.help for s in a.option_strings})
+    assert bare == [], bare
+    seeds = [a.help for a in _all_actions(build_parser()) if "--seed" in a.option_strings]
+    assert len(seeds) == 4 and "[0, 2^62 - 2^20]" in seeds[0]  # estimate, bruteforce, figures, sweep
+
+
+def test_version_option_prints_the_package_version(capsys):
+    from dryfric_jax import __version__
+    from dryfric_jax.cli import main
+    with pytest.raises(SystemExit) as e:
+        main(["--version"])
+    assert e.value.code == 0 and capsys.readouterr().out == f"dryfric_jax {__version__}\n"
