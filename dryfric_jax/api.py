@@ -23,6 +23,7 @@ from .estimators import (
 )
 from .excursions import BLOCK, FINAL_DEADLINE, simulate_long_excursions, work_per_excursion
 from .limits import MAX_WORK
+from .outfiles import dumps
 from .params import Params, check_positive, real_or_none
 from .pdmp import make_pdmp_model, simulate_pdmp_bruteforce
 from .plan import (  # noqa: F401  (default_h, h_max, check_h, METHODS are part of the API)
@@ -278,7 +279,15 @@ class EstimateResult:
     version: str = ""
 
     def to_dict(self) -> dict:
+        """Every field, as Python values (tau_L = inf stays a float: ``json.dumps`` would write ``Infinity``;
+        :meth:`to_json` writes strict JSON)."""
         return asdict(self)
+
+    def to_json(self, **kw) -> str:
+        """Strict JSON of :meth:`to_dict`, as the CLI writes it: a non-finite float (tau_L = inf) is the string
+        ``"inf"``, which :func:`~dryfric_jax.combine_estimates` and ``json.load`` + ``outfiles.from_strict`` read
+        back as the float; ``kw`` go to ``json.dumps`` (``indent=1``, say)."""
+        return dumps(self.to_dict(), **kw)
 
     def summary(self) -> str:
         """D and M0 with their CIs, the mean duration, N, the resolution, seed and speed (what
@@ -324,7 +333,15 @@ class BruteForceResult:
     warnings: list = field(default_factory=list)
 
     def to_dict(self) -> dict:
+        """Every field, as Python values (tau_L = inf stays a float: ``json.dumps`` would write ``Infinity``;
+        :meth:`to_json` writes strict JSON)."""
         return asdict(self)
+
+    def to_json(self, **kw) -> str:
+        """Strict JSON of :meth:`to_dict`, as the CLI writes it: a non-finite float (tau_L = inf) is the string
+        ``"inf"``, which :func:`~dryfric_jax.combine_estimates` and ``json.load`` + ``outfiles.from_strict`` read
+        back as the float; ``kw`` go to ``json.dumps`` (``indent=1``, say)."""
+        return dumps(self.to_dict(), **kw)
 
     def summary(self) -> str:
         """D_t and M0_t with their CIs, the horizon, N' and the resolution (what ``dryfric
@@ -393,8 +410,9 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
 
     A Ctrl-C between rounds returns what the completed rounds reached (``stopped_by =
     "interrupted"``); nothing already simulated is lost.  Before 2 excursions have closed there is
-    nothing to return, and the ``KeyboardInterrupt`` goes on up (with that reason): callers (the
-    CLI, sweeps, figures) treat it as any Ctrl-C.
+    nothing to return, and the ``KeyboardInterrupt`` goes on up (with the reason "fewer than 2 complete
+    excursions before the interrupt" once a round has run; a bare one during the first round, which
+    includes compiling a new shape): callers (the CLI, sweeps, figures) treat it as any Ctrl-C.
 
     Returns:
         :class:`EstimateResult`: D, M0 with 95% CI half-widths, mean excursion duration, counts.
@@ -451,8 +469,8 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
                           f"{plan.predicted_work / n_excursions:.3g}).  Lower n_excursions, raise max_work, or "
                           "coarsen h or delta", ProjectionWarning, stacklevel=4)
         if progress is not None:
-            progress(dict(n_excursions=st.n_excursions, D=e.get("D", math.nan) * params.D0,
-                          D_ci=e.get("D_ci", math.nan) * params.D0, target=n_excursions, rtol=rtol,
+            progress(dict(n_excursions=st.n_excursions, D=float(e.get("D", math.nan) * params.D0),
+                          D_ci=float(e.get("D_ci", math.nan) * params.D0), target=n_excursions, rtol=rtol,
                           elapsed_s=el, left_s=left, left_to=to))
         here[0] += time.perf_counter() - now
 
@@ -565,7 +583,7 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
                          f"{burn_in:.4g} s: {bound:.3g})")
     if work > max_work:
         raise ValueError(f"max_work must be >= {work:.3g} {'steps' if h is not None else 'events (expected)'} for "
-                         f"t = {t:.4g} s and n_paths = {n_paths} (got {max_work:.3g}); raise --max-work or lower t "
+                         f"t = {t:.4g} s and n_paths = {n_paths} (got {max_work:.3g}); raise max_work (--max-work) or lower t "
                          "or n_paths")
     if n_paths < MIN_RELIABLE_PATHS:
         notes = [*notes, f"n_paths = {n_paths} < {MIN_RELIABLE_PATHS}: the delta-method CI of D_t under-covers at "

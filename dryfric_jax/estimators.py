@@ -67,7 +67,7 @@ def near_runaway_note(tau_L: float, gamma_bar: float) -> str | None:
     return (f"|gamma_bar|/Delta = {g:.4g}, near the runaway bias (|gamma_bar| = Delta) with no damping to stop "
             "the drift: the D interval covers far less than 95% (measured at tau_L = inf: 0.83 at 0.9 Delta, "
             "0.78 at 0.95 Delta with N = 2e4; 0.50 at 0.99 Delta with N = 1e4, 0.24 with N = 2e3), its misses are "
-            "low and may be by many half-widths; where tau << tau0 'dryfric theory' gives the exact D")
+            "low and may be by many half-widths; where tau << tau0 'dryfric theory' (theory.exact_D) gives the exact D")
 
 
 #: N' below which the brute-force CI of D^t under-covers: the delta-method CI of a variance needs

@@ -182,7 +182,7 @@ def check_work(tau: float, tau_L: float, gamma_bar: float, steps_per_tau0: float
         raise ValueError(
             f"{head}: {n_excursions} excursions of predicted mean duration >= {_exp10(log_t)} tau0 at "
             f"{steps_per_tau0:.3g} {unit} per tau0 (tau' = {tau:.3g}, tau_L' = {tau_L:.3g}, "
-            f"gamma_bar' = {gamma_bar:.3g}); {why}.  " + ("Coarsen" if beyond else "Raise --max-work, coarsen")
+            f"gamma_bar' = {gamma_bar:.3g}); {why}.  " + ("Coarsen" if beyond else "Raise max_work (--max-work), coarsen")
             + " h or delta, lower N, or use the white-noise theory when tau << tau0")
     # accepted: log_w <= log(max_work) <= log(largest float), up to rounding, so exp cannot overflow
     return min(math.exp(min(log_w, math.log(max_work))), max_work)
@@ -226,7 +226,7 @@ def float32_unsafe_reason(h_over_tau: float, h_nd: float, tau_nd: float = 1.0) -
     docstring."""
     if h_over_tau < FLOAT32_MIN_H_OVER_TAU:
         return (f"h/tau = {h_over_tau:.3g} < {FLOAT32_MIN_H_OVER_TAU:g}: float32 rounds the OU decay "
-                f"1 - exp(-h/tau) by up to {3e-8 / h_over_tau:.1%}")
+                f"1 - exp(-h/tau) by up to {100 * 3e-8 / h_over_tau:.2g}%")  # .1% said 0.0% near the bound
     if h_nd < FLOAT32_MIN_H_ND:
         return f"h/tau0 = {h_nd:.3g} < {FLOAT32_MIN_H_ND:g}: velocity increments near float32 resolution"
     if tau_nd < FLOAT32_MIN_TAU_ND:

@@ -227,6 +227,7 @@ def test_progress_projection_and_early_max_work_warning(monkeypatch):
     assert [(d["left_s"], d["left_to"]) for d in seen] == [(None, None), (0.5, "max_work"), (0.0, "max_work")]
     D, D_ci, _, _ = _by_hand(U40, T40)
     assert seen[0]["D"] == pytest.approx(D * P.D0, rel=1e-12) and seen[0]["D_ci"] == pytest.approx(D_ci * P.D0)
+    assert all(type(d["D"]) is float and type(d["D_ci"]) is float for d in seen)  # D_ci was an np.float64
     assert [d["elapsed_s"] for d in seen] == [1.0, 3.0, 5.0]
     # a precision target: rel / rtol = 2 asks 4 x 100 = 400 excursions, 300 more at 2e7 lane-steps / 1e9 per s
     seen.clear()

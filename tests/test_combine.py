@@ -372,3 +372,18 @@ def test_the_rounding_note_is_the_pools_and_an_estimate_carries_it(runs, monkeyp
     with pytest.warns(dj.DryfricWarning, match="rounding note of N"):
         r = dj.estimate_diffusivity(P, 7, n_excursions=2_000)
     assert f"rounding note of N = {r.n_excursions}" in r.warnings
+
+
+def test_a_result_writes_strict_json_that_combine_reads_back():
+    """to_dict() keeps tau_L = inf a float, which json.dumps wrote as Infinity (refused by strict readers; a user
+    audit): to_json() writes "inf", as the CLI does, and combine_estimates reads the parsed dicts back."""
+    import json
+    p = dj.Params.from_nondim(1e-5, math.inf, 0.2)
+    r1, r2 = (dj.estimate_diffusivity(p, s, n_excursions=200, max_steps=10**6) for s in (1, 2))
+    text = r1.to_json()
+    assert '"tau_L": "inf"' in text and "Infinity" not in text
+    json.loads(text, parse_constant=lambda c: pytest.fail(f"non-strict constant {c}"))
+    pooled = dj.combine_estimates([json.loads(r1.to_json()), json.loads(r2.to_json())])
+    assert pooled.params["tau_L"] == math.inf and pooled.n_excursions == r1.n_excursions + r2.n_excursions
+    bf = dj.bruteforce_diffusivity(p, 3, t=1.0 * p.tau0, n_paths=8)
+    assert '"tau_L": "inf"' in bf.to_json()
