@@ -140,10 +140,12 @@ def main(argv=None) -> int:
             emit(kind="failed", dtype=dt, **row)
         emit(kind="tune", **tile, **{k: v for k, v in b.items() if k not in ("layouts", "skipped", "failed", "params")})
         for row in b["layouts"]:
-            at = (dt, row["lanes"], row["block"], row["events"])
+            # the unroll is part of the layout: an unroll-4 row was compared with the unroll-1 one as a tile mismatch
+            at = (dt, row["lanes"], row["block"], row["events"], row.get("unroll"))
             if at in d_at:
                 emit(kind="tile_check", dtype=dt, **tile, lanes=row["lanes"], block=row["block"],
-                     events=row["events"], same_D=row["D"] == d_at[at], D=row["D"], D_default_tile=d_at[at])
+                     events=row["events"], unroll=row.get("unroll"), same_D=row["D"] == d_at[at], D=row["D"],
+                     D_default_tile=d_at[at])
             d_at.setdefault(at, row["D"])
     fused.TILE, fused.NUM_WARPS = default_tile
     if a.numba_n > 0:

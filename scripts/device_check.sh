@@ -51,7 +51,7 @@ stage layouts64_bench "${T[2]}" $PY scripts/device_check.py --dtypes float64 --l
 export PY NDT BIG
 [ "${T[3]}" -gt 0 ] && stage dtypes "${T[3]}" bash -c 'for dt in float32 float64; do s=11; [ $dt = float64 ] && s=12
   $PY -m dryfric_jax.cli estimate --json --dtype $dt --seed $s --n-excursions $NDT --lanes $BIG --block 256 \
-    --max-work 1e12; [ $? = 130 ] && break; done'
+    --max-work 1e12; rc=$?; [ $rc = 130 ] && break; done; exit $rc'
 [ "${T[4]}" -gt 0 ] && stage unroll32 "${T[4]}" $PY scripts/device_check.py --dtypes float32 --lanes $BIG \
   --block 256 --unroll 1,4 --events wait --n $N --bound-n $BOUND --numba-n 0 --budget-s $(( ${T[4]} - 30 ))
 # issue 5: the path scenes at full settings (the README's CPU column), one after another until the limit;
