@@ -53,7 +53,8 @@ from ._version import __version__  # noqa: E402, F401
 __all__ = [
     "Params", "FIG3", "OUStep", "ou_step", "ou_moments", "DIModel", "make_di_model",
     "estimate_diffusivity", "bruteforce_diffusivity", "EstimateResult", "BruteForceResult",
-    "DryfricWarning", "ProjectionWarning", "SmallSampleWarning", "NoEstimateError", "default_h", "Plan", "plan_estimate",
+    "DryfricWarning", "ProjectionWarning", "SmallSampleWarning", "NoEstimateError", "default_h", "Plan",
+    "plan_estimate",
     "delta_method", "psi_D", "psi_M", "MIN_RELIABLE_N", "MIN_RELIABLE_PATHS",
     "theory", "ChainLaw", "white_chain_law", "combine_estimates", "gather_hosts", "enable_compilation_cache",
 ]

@@ -215,14 +215,15 @@ class EstimateResult:
         D, D_ci, M0, M0_ci: the diffusivity (m^2/s) and mobility (m/s) and their half-widths at ``ci_level``.
         mean_duration, mean_duration_ci: the mean cycle length (s).  For the PDMP it is the paper's long
             excursion (threshold to threshold); for the DI it is the regeneration cycle of
-            :mod:`~dryfric_jax.regeneration`, which spans one or more of the paper's excursions (2-4 times
+            :mod:`~dryfric_jax.regeneration`, which spans one or more of the paper's excursions (about 2-4 times
             longer at Fig. 3's parameters, and h-dependent).  D and M0 do not depend on the rule.
         n_excursions: N, the complete excursions behind the estimate; ``n_requested`` what was asked for.
         n_truncated: excursions that hit the work bound ``max_steps`` (or the final round's deadline
             under ``max_time``): excluded from the sums, so the estimate is biased low; a warning says so.
         stopped_by: what ended the rounds: ``"n_excursions"`` (N reached), ``"target"`` (``rtol`` met),
-            ``"max_time"``, ``"work_bound"`` (``max_work``), ``"interrupted"`` (Ctrl-C or SIGTERM;
-            the rounds already run are kept) or ``"combined"`` (:func:`~dryfric_jax.combine_estimates`).
+            ``"max_time"``, ``"work_bound"`` (``max_work``), ``"interrupted"`` (Ctrl-C, and SIGTERM
+            under the ``dryfric`` command; the rounds already run are kept) or ``"combined"``
+            (:func:`~dryfric_jax.combine_estimates`).
         method, method_reason, h, delta, L_X, dtype: the model and resolution simulated (``h`` for the DI
             in s, ``delta`` and ``L_X`` the PDMP's grid in s^-1/2) and why ``method="auto"`` chose it.
         seed, lanes, block, version: with the settings above they fix the random streams, so the same
@@ -294,9 +295,9 @@ class EstimateResult:
         ``dryfric estimate`` prints)."""
         return (f"D  = {_fmt(self.D, self.D_ci)} m^2/s   ({100 * self.ci_level:g}% CI)\n"
                 f"M0 = {_fmt(self.M0, self.M0_ci)} m/s\n"
-                + (f"mean excursion duration = {self.mean_duration:.4g} s\n" if self.method == "pdmp" else
-                   f"mean cycle duration = {self.mean_duration:.4g} s (regeneration cycles: >= 1 of the paper's "
-                   "excursions each)\n")
+                + f"mean excursion duration = {self.mean_duration:.4g} s"
+                + ("\n" if self.method == "pdmp" else
+                   " (DI: regeneration cycles, each >= 1 of the paper's excursions)\n")
                 + f"N = {self.n_excursions} excursions, {self.n_truncated} truncated, {_resolution(self)}, "
                 f"{self.dtype}, " + (f"seeds {self.combined_from}" if self.combined_from else f"seed {self.seed}")
                 + f"\nwall {self.wall_s:.1f} s, {self.lane_steps_per_s:.3g} "
@@ -415,7 +416,8 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
     includes compiling a new shape): callers (the CLI, sweeps, figures) treat it as any Ctrl-C.
 
     Returns:
-        :class:`EstimateResult`: D, M0 with 95% CI half-widths, mean excursion duration, counts.
+        :class:`EstimateResult`: D, M0 with 95% CI half-widths, mean excursion duration (for the DI its
+        regeneration cycle's, see :class:`EstimateResult`), counts.
     """
     require_x64()
     rtol, max_time = check_rtol(rtol), check_max_time(max_time)
@@ -583,7 +585,8 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
                          f"{burn_in:.4g} s: {bound:.3g})")
     if work > max_work:
         raise ValueError(f"max_work must be >= {work:.3g} {'steps' if h is not None else 'events (expected)'} for "
-                         f"t = {t:.4g} s and n_paths = {n_paths} (got {max_work:.3g}); raise max_work (--max-work) or lower t "
+                         f"t = {t:.4g} s and n_paths = {n_paths} (got {max_work:.3g}); raise max_work (--max-work) "
+                         "or lower t "
                          "or n_paths")
     if n_paths < MIN_RELIABLE_PATHS:
         notes = [*notes, f"n_paths = {n_paths} < {MIN_RELIABLE_PATHS}: the delta-method CI of D_t under-covers at "

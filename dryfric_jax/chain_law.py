@@ -82,7 +82,9 @@ def white_chain_law(params: Params, h: float, *, nodes_per_sd: int = 8, width: f
     integer in [:data:`MIN_NODES_PER_SD`, :data:`MAX_NODES_PER_SD`]), the grid reaching ``width``
     widths of the continuum law past the origin on each side (a finite number >= :data:`MIN_WIDTH`):
     fewer would cost the result its accuracy (a width of -1 gave D 25 times too small).
-    ``tau`` is not used: this is the :math:`\tau/h \to 0` limit.  Raises ``ValueError`` where
+    ``tau`` is not used: this is the :math:`\tau/h \to 0` limit, which the name says (unlike
+    :func:`~dryfric_jax.theory.exact_D`, no warning where ``params`` carry a larger tau: the figures and
+    ``dryfric theory --h`` ask for this chain at their own h whatever the tau).  Raises ``ValueError`` where
     the grid would exceed ``MAX_NODES`` (``h`` small against the law's width: small h, or a wide
     law, :math:`|\bar\gamma| \to \Delta` with :math:`\tau_L = \infty`, or a bump far from 0,
     :math:`|\bar\gamma'| > 1` with a large :math:`\tau_L'`: its sd :math:`\sqrt{\tau_L'}` at

@@ -182,7 +182,8 @@ def check_work(tau: float, tau_L: float, gamma_bar: float, steps_per_tau0: float
         raise ValueError(
             f"{head}: {n_excursions} excursions of predicted mean duration >= {_exp10(log_t)} tau0 at "
             f"{steps_per_tau0:.3g} {unit} per tau0 (tau' = {tau:.3g}, tau_L' = {tau_L:.3g}, "
-            f"gamma_bar' = {gamma_bar:.3g}); {why}.  " + ("Coarsen" if beyond else "Raise max_work (--max-work), coarsen")
+            f"gamma_bar' = {gamma_bar:.3g}); {why}.  "
+            + ("Coarsen" if beyond else "Raise max_work (--max-work), coarsen")
             + " h or delta, lower N, or use the white-noise theory when tau << tau0")
     # accepted: log_w <= log(max_work) <= log(largest float), up to rounding, so exp cannot overflow
     return min(math.exp(min(log_w, math.log(max_work))), max_work)
@@ -221,12 +222,19 @@ def pdmp_float32_unsafe_reason(tau_L: float) -> str | None:
     return None
 
 
+def _percent(x: float) -> str:
+    """``x`` as a percentage to 2 significant digits, without an exponent: "0.045%", "3%", "30000%" (a ".1%"
+    format said 0.0% near the float32 bound, a ".2g" one 3e+04%)."""
+    p = 100 * x
+    return f"{p:.2g}%" if p < 100 else f"{p:.0f}%"
+
+
 def float32_unsafe_reason(h_over_tau: float, h_nd: float, tau_nd: float = 1.0) -> str | None:
     r"""Why float32 is not safe for the DI at this step and :math:`\tau'` (None if it is); module
     docstring."""
     if h_over_tau < FLOAT32_MIN_H_OVER_TAU:
         return (f"h/tau = {h_over_tau:.3g} < {FLOAT32_MIN_H_OVER_TAU:g}: float32 rounds the OU decay "
-                f"1 - exp(-h/tau) by up to {100 * 3e-8 / h_over_tau:.2g}%")  # .1% said 0.0% near the bound
+                f"1 - exp(-h/tau) by up to {_percent(3e-8 / h_over_tau)}")
     if h_nd < FLOAT32_MIN_H_ND:
         return f"h/tau0 = {h_nd:.3g} < {FLOAT32_MIN_H_ND:g}: velocity increments near float32 resolution"
     if tau_nd < FLOAT32_MIN_TAU_ND:

@@ -55,10 +55,11 @@ deviation :math:`\sqrt{2h}/\tau` of X, and
 :math:`h \to 0`, so a regeneration happens only where the continuous-time rule ends a half excursion.
 It does not happen at every such release (the coin's chance does not tend to 1 as :math:`h \to 0`),
 so a cycle spans a random number (>= 1) of the paper's threshold-to-threshold excursions and its mean
-duration is 2-4 times theirs at Fig. 3's parameters (RESULTS.md, "Where the reproduction and the
-paper's text differ"); D and M0, ratios over i.i.d. cycles, do not depend on that.  For :math:`\tau \ll h`,
-:math:`|a|^2 \approx \tau^2/(2h) \to 0`: C covers :math:`\pm 4` stationary standard deviations
-and :math:`\varepsilon \to 1`, so every stuck step is a regeneration chance.  Either way the
+duration is about 2-4 times theirs at Fig. 3's parameters (1.9 at its point; RESULTS.md, "Where the
+reproduction and the paper's text differ"); D and M0, ratios over i.i.d. cycles, do not depend on that.
+
+For :math:`\tau \ll h`, :math:`|a|^2 \approx \tau^2/(2h) \to 0`: C covers :math:`\pm 4` stationary
+standard deviations and :math:`\varepsilon \to 1`, so every stuck step is a regeneration chance.  Either way the
 expected wait is a few stuck visits, so no excursion is astronomically long.
 """
 from __future__ import annotations

@@ -140,6 +140,10 @@ def test_a_sweep_at_small_n_silences_the_small_n_warning_alone(monkeypatch):
 
 def test_a_bruteforce_run_with_few_paths_warns_in_the_small_sample_class():
     from dryfric_jax.api import category, small_n_note
+    with warnings.catch_warnings(record=True) as ws:  # a real run (the note's own wording decides its class)
+        warnings.simplefilter("always")
+        dj.bruteforce_diffusivity(P, 1, t=P.tau0, n_paths=8)
+    assert [w.category for w in ws if str(w.message).startswith("n_paths = 8 < ")] == [dj.SmallSampleWarning]
     assert category(small_n_note(5)) is dj.SmallSampleWarning
     assert category("n_paths = 10 < 100: the delta-method CI of D_t under-covers at this size") is dj.SmallSampleWarning
     assert category("3 of 10 excursions hit the work bound (max_steps = 4)") is dj.DryfricWarning

@@ -139,14 +139,14 @@ def test_estimate_summary_written_out():
     M0 with D's CI, the resolution's digits)."""
     want = ("D  = 0.0025 ± 0.0001  (4.0%) m^2/s   (95% CI)\n"
             "M0 = -0.0314159 ± 0.0013  (4.0%) m/s\n"  # 0.00126 / 0.0314159 = 4.01%
-            "mean cycle duration = 0.1235 s (regeneration cycles: >= 1 of the paper's excursions each)\n"
+            "mean excursion duration = 0.1235 s (DI: regeneration cycles, each >= 1 of the paper's excursions)\n"
             "N = 20000 excursions, 3 truncated, h = 0.000667 s, float64, seed 7\n"
             "wall 12.3 s, 1.23e+08 lane-steps/s, stopped by: target")
     assert _estimate().summary() == want
     # the DI's cycle is not the paper's excursion (2-4x longer at Fig. 3's point; an audit read the two
     # methods' "mean excursion duration" as one quantity); the PDMP's is
     pdmp = _estimate(method="pdmp", h=None, delta=0.0625, L_X=6.0).summary()
-    assert "\nmean excursion duration = 0.1235 s\n" in pdmp and "cycle" not in pdmp
+    assert "\nmean excursion duration = 0.1235 s\n" in pdmp and "cycles" not in pdmp
 
 
 def test_pooled_pdmp_summary_names_its_seeds_the_grid_and_events():

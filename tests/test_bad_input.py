@@ -43,7 +43,8 @@ def test_tracing_an_estimator_is_refused_by_name_at_once(call, transform, G):
     """Under jit, grad or vmap (a notebook user's first try at a sweep) the host-side drivers failed deep
     inside with JAX's ConcretizationTypeError (vmap over keys after a 12 s compile; a user audit)."""
     f = transform(lambda G: call(dj.Params(G, 3.84, 0.5, 0.067, 0.342)))
-    with pytest.raises(ValueError, match=r"^params\.Gamma is a JAX tracer \(under jax.jit, vmap or grad\).*Python loop"):
+    with pytest.raises(ValueError,
+                       match=r"^params\.Gamma is a JAX tracer \(under jax.jit, vmap or grad\).*Python loop"):
         f(G)
 
 

@@ -1015,7 +1015,8 @@ def test_every_option_of_every_command_says_what_it_is():
     """'dryfric sweep --help' listed --h, --delta, --dtype, --seed, --n-excursions, --rtol, --max-work and the five
     axes with no text, and --seed nowhere said its range (a packaging audit)."""
     from dryfric_jax.cli import _all_actions, build_parser
-    bare = sorted({s for a in _all_actions(build_parser()) if a.option_strings and not a.help for s in a.option_strings})
+    bare = sorted({s for a in _all_actions(build_parser()) if a.option_strings and not a.help
+                   for s in a.option_strings})
     assert bare == [], bare
     seeds = [a.help for a in _all_actions(build_parser()) if "--seed" in a.option_strings]
     assert len(seeds) == 4 and "[0, 2^62 - 2^20]" in seeds[0]  # estimate, bruteforce, figures, sweep

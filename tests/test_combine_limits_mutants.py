@@ -312,8 +312,8 @@ def test_float32_reasons_state_their_numbers():
     """float32_unsafe_reason's messages: at h/tau = 1e-6 float32's rounding of 1 - m2 (up to 3e-8) is 3e-8 /
     1e-6 = 3.0% of it; at tau' = 1e-32 the noise's stationary SD 1/sqrt(tau') is 1e16.  Kills L52 (3e-8 x
     h/tau) and L56 (1/tau' for the SD)."""
-    assert "by up to 3% " not in limits.float32_unsafe_reason(1e-6, 1.0, 1.0)
     assert limits.float32_unsafe_reason(1e-6, 1.0, 1.0).endswith("by up to 3%")
+    assert limits.float32_unsafe_reason(1e-10, 1.0, 1.0).endswith("by up to 30000%")  # not 3e+04%
     # near the bound h/tau = 1e-4 the share is 0.03%; with one decimal it read "0.0%" (a user audit)
     assert limits.float32_unsafe_reason(6.7e-5, 1.0, 1.0).endswith("by up to 0.045%")
     assert "stationary SD 1e+16 nears" in limits.float32_unsafe_reason(1.0, 1.0, 1e-32)

@@ -26,7 +26,7 @@ from .common import plt, save
 TAUS = (0.25, 0.5, 1.0)
 BURN_TAU0 = 50.0
 #: the plot's lowest value (log axis); a band below it is drawn down to it
-FLOOR = 1e-3
+FLOOR = 1e-4
 DT_REC = 0.05
 
 
@@ -55,8 +55,9 @@ def fig4(out_dir, quick, seed):
             # a log axis cannot show r <= 0: those lags are left out (a gap), not drawn at a floor (clipping
             # them to 1e-4 drew a flat line that looked like data); the band is the estimate +- 2 SE
             ax.semilogy(rho, np.where(r > 0, r, np.nan), style, color=f"C{j}", label=f"tau = {tau:g} s ({name})")
-            ax.fill_between(rho, np.maximum(r - 2 * se, FLOOR), np.maximum(r + 2 * se, FLOOR), color=f"C{j}", alpha=0.15,
-                            lw=0)  # a band reaching the axis' floor: consistent with <= 0 there
+            # a band reaching the axis' floor: consistent with <= 0 there
+            ax.fill_between(rho, np.maximum(r - 2 * se, FLOOR), np.maximum(r + 2 * se, FLOOR), color=f"C{j}",
+                            alpha=0.15, lw=0)
             cur[name] = dict(rho=rho, h_over_h0=r, se=se)
         cur["di_h"] = h_nd * p.tau0
         diff = np.abs(cur["pdmp"]["h_over_h0"] - cur["di"]["h_over_h0"])
@@ -66,6 +67,7 @@ def fig4(out_dir, quick, seed):
     ax.set_xlabel("rho (s)")
     ax.set_ylabel("h(rho) / h(0)")
     ax.set_ylim(FLOOR, 1.5)
-    ax.set_title("bands: estimate +- 2 SE; lags where the estimate is <= 0 are gaps (log axis)", fontsize=8)
+    ax.set_title(f"bands: estimate +- 2 SE; lags where the estimate is <= 0 are gaps (log axis, from {FLOOR:g})",
+                 fontsize=8)
     ax.legend(fontsize=7)
     return save(fig, out_dir, "fig4", nums, t0)

@@ -1,7 +1,8 @@
 r"""Figs. 3, 5 and 8 (paper sections 7.1, 7.2): D against Gamma with 95% CI bars, and the
 stationary velocity law.
 
-* Fig. 3: D and the mean excursion duration for tau = 0.125, 0.25, 0.5, 1 s (tau_L = 0.067 s,
+* Fig. 3: D and the mean excursion duration (PDMP: the paper's; DI: its regeneration cycle, which spans
+  one or more of the paper's excursions) for tau = 0.125, 0.25, 0.5, 1 s (tau_L = 0.067 s,
   Delta = 3.84, gamma_bar = 0.342): PDMP (delta = 0.125 s^-1/2) dots, DI lines; N = 1e5 (full)
   or 1e3 (quick), lowered by 4x steps (not below 1e3) where the run would exceed the default
   ``max_work`` (the N used is in the JSON);
@@ -88,7 +89,8 @@ def fig3(out_dir, quick, seed):
     a1.legend(title="dots PDMP, lines DI")
     # not the same quantity: the PDMP's excursion is the paper's (threshold to threshold); the DI's cycle runs from one
     # Nummelin regeneration to the next (regeneration.py), a coin at each release near a threshold, so a cycle spans
-    # a random number (>= 1) of the paper's excursions and is 2-4x longer here.  D and M0 do not depend on the rule.
+    # a random number (>= 1) of the paper's excursions and is about 2-4x longer here.  D and M0 do not depend on
+    # the rule.
     a2.set_title("dots: PDMP, the paper's long excursion\n"
                  "lines: DI regeneration cycle, >= 1 such excursion each (not the same quantity)", fontsize=8)
     nums["runs"] = pts.summary()
@@ -189,7 +191,8 @@ def fig5(out_dir, quick, seed):
     # (tau/h -> 0); at h = 0.01 tau0 its E[V^2] is 0.40% below the continuum value
     law = white_chain_law(p, h)
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4))
-    a1.plot(mid, exact, "k-", label="exact white-noise density x bin width\n(MODEL_NOTES §2: 2 Gamma tau_L, Delta/Gamma)")
+    a1.plot(mid, exact, "k-",
+            label="exact white-noise density x bin width\n(MODEL_NOTES §2: 2 Gamma tau_L, Delta/Gamma)")
     a1.plot(mid, prob, "r^", ms=3, label=f"DI, tau = 1e-5 s ({paths} paths)")
     # the discrete chain sticks at V = 0 with positive probability (the continuum law has no atom): the
     # bin holding v = 0 gets that atom on top of the density, which the chain's exact law predicts
