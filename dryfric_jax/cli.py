@@ -87,6 +87,9 @@ def _in_float64(name, s, v):
     """``v = float(s)``, refused where the text is a number float64 cannot hold: "1e400" read as inf
     and "1e-400" as 0 (the range checks then said "got inf", "got 0.0", and --tau-L 1e999 ran
     silently as tau_L = inf)."""
+    if "_" in s:  # Python reads "5_0" as 50: a typo for 5.0 or 5,0 would run silently
+        raise argparse.ArgumentTypeError(f"--{name} must be a number (got {s!r}: '_' is not taken as a digit "
+                                         "separator)")
     mantissa = s.strip().lower().split("e")[0]
     if (math.isinf(v) and "inf" not in mantissa) or (v == 0 and any(c in mantissa for c in "123456789")):
         raise argparse.ArgumentTypeError(f"--{name} must be a number within float64's range, 1e-308 to 1e308 in "
@@ -160,9 +163,11 @@ def _int_at_least(name, lo, hi=None, hi_text=None):
 
     def conv(s):
         try:
-            v = int(s)
+            v = int(s) if "_" not in s else None  # int("5_0") is 50: a typo would run silently
         except ValueError:
-            raise argparse.ArgumentTypeError(f"--{name} must be an integer {rng} (got {s!r})") from None
+            v = None
+        if v is None:
+            raise argparse.ArgumentTypeError(f"--{name} must be an integer {rng} (got {s!r})")
         if v < lo or (hi is not None and v > hi):
             raise argparse.ArgumentTypeError(f"--{name} must be an integer {rng} (got {s!r})")
         return v

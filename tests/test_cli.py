@@ -115,6 +115,10 @@ BAD += [
     (["sweep", "--Gamma", "1,", "--out", "s.jsonl"], "--Gamma"),
     (["sweep", "--Gamma", "1", "--Gamma", "2", "--out", "s.jsonl"], "--Gamma must be given once"),  # kept only 2
     (["estimate", "--Gamma", "-1e3"], "Gamma must be"),  # was "expected one argument"
+    # Python's float and int read "5_0" as 50: a typo for 5.0 ran silently at Gamma = 50
+    (["theory", "--Gamma", "5_0"], "--Gamma must be a number (got '5_0'"),
+    (["sweep", "--tau-L", "1,0_5", "--out", "s.jsonl"], "--tau-L must be a number (got '0_5'"),
+    (["estimate", "--n-excursions", "1_000"], "--n-excursions must be an integer"),
     (["theory", "--gamma-bar", "-inf"], "gamma_bar must be"),
     (["theory", "--gamma-bar", "-nan"], "gamma_bar must be"),  # was "--gamma-bar: expected one argument"
     (["estimate", "--tau-L", "-NaN"], "tau_L must be"),
