@@ -451,6 +451,10 @@ def _work_options(a):
     return kw
 
 
+#: the commands whose completed work a SIGTERM keeps (printed and written, as a Ctrl-C does)
+KEEPS_RESULTS = ("estimate", "sweep", "figures")
+
+
 def _run(a) -> int:
     from . import api
 
@@ -663,7 +667,11 @@ def main(argv=None) -> int:
         interrupts.started()  # from here a Ctrl-C is the KeyboardInterrupt below, not "while starting"
         parser = build_parser()
         a = parser.parse_args(_join_negative_values(parser, list(sys.argv[1:] if argv is None else argv)))
-        with interrupts.sigterm_as_ctrl_c():  # SIGTERM (kill, a scheduler's time limit) keeps results as Ctrl-C does
+        # SIGTERM (kill, a scheduler's time limit) keeps results as Ctrl-C does, in the commands that have results to
+        # keep; elsewhere it keeps its default action: 'timeout 60 dryfric bench' at 2^22 lanes ran on for 10 min,
+        # its SIGTERM waiting for a long compiled call to return (an audit), with nothing to keep
+        keeps = interrupts.sigterm_as_ctrl_c() if a.cmd in KEEPS_RESULTS else contextlib.nullcontext()
+        with keeps:
             rc = _run(a)
         if rc == 130:  # a sweep or figures run stopped by Ctrl-C (its results kept): no timer holds the exit
             interrupts.cancel_timers()

@@ -996,6 +996,28 @@ def test_sigterm_is_ctrl_c_only_inside_main_and_only_where_it_has_its_default_ac
         signal.signal(signal.SIGTERM, before)
 
 
+def test_sigterm_keeps_its_default_action_in_commands_with_nothing_to_keep(monkeypatch):
+    """'timeout 60 dryfric bench' at 2^22 lanes ran on for 10 minutes: SIGTERM, taken as a Ctrl-C, waited for a long
+    compiled call to return, in a command with no partial result to keep (an audit).  Only estimate, sweep and
+    figures take it as a Ctrl-C; in the others (bench, bruteforce, theory, combine) it kills at once."""
+    import signal
+
+    from dryfric_jax import cli, interrupts
+
+    seen = {}
+    monkeypatch.setattr(cli, "_run", lambda a: seen.setdefault(a.cmd, signal.getsignal(signal.SIGTERM)) and 0)
+    before = signal.getsignal(signal.SIGTERM)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    try:
+        for argv in (["estimate"], ["sweep", "--out", "s.jsonl"], ["figures", "--out", "d"], ["bench"],
+                     ["bruteforce", "--t", "1", "--n-paths", "10"], ["theory"], ["combine", "a.json"]):
+            main(argv)
+    finally:
+        signal.signal(signal.SIGTERM, before)
+    assert {c for c, h in seen.items() if h is interrupts._terminate} == {"estimate", "sweep", "figures"}
+    assert {c for c, h in seen.items() if h is signal.SIG_DFL} == {"bench", "bruteforce", "theory", "combine"}
+
+
 @pytest.mark.parametrize("argv, hint", [
     (["estimate", "--gamma", "5"], "--gamma: did you mean --Gamma or --gamma-bar?"),
     (["sweep", "--gamma", "1,2", "--out", "x.jsonl"], "--gamma: did you mean --Gamma or --gamma-bar?"),
