@@ -205,8 +205,23 @@ def _with_warnings(text, ws):
     return text + "".join(f"\nwarning: {w}" for w in ws)
 
 
+class _Record:
+    """What both results share: their fields as a dict and as strict JSON."""
+
+    def to_dict(self) -> dict:
+        """Every field, as Python values (tau_L = inf stays a float: ``json.dumps`` would write ``Infinity``;
+        :meth:`to_json` writes strict JSON)."""
+        return asdict(self)
+
+    def to_json(self, **kw) -> str:
+        """Strict JSON of :meth:`to_dict`, as the CLI writes it: a non-finite float (tau_L = inf) is the string
+        ``"inf"``, which :func:`~dryfric_jax.combine_estimates` and ``json.load`` + ``outfiles.from_strict`` read
+        back as the float; ``kw`` go to ``json.dumps`` (``indent=1``, say)."""
+        return dumps(self.to_dict(), **kw)
+
+
 @dataclass
-class EstimateResult:
+class EstimateResult(_Record):
     """Long-excursion estimate (physical units; CIs are 95% half-widths).
 
     ``print(result)`` shows :meth:`summary` and the warnings; ``repr`` shows every field.
@@ -279,17 +294,6 @@ class EstimateResult:
     max_time: float | None = None
     version: str = ""
 
-    def to_dict(self) -> dict:
-        """Every field, as Python values (tau_L = inf stays a float: ``json.dumps`` would write ``Infinity``;
-        :meth:`to_json` writes strict JSON)."""
-        return asdict(self)
-
-    def to_json(self, **kw) -> str:
-        """Strict JSON of :meth:`to_dict`, as the CLI writes it: a non-finite float (tau_L = inf) is the string
-        ``"inf"``, which :func:`~dryfric_jax.combine_estimates` and ``json.load`` + ``outfiles.from_strict`` read
-        back as the float; ``kw`` go to ``json.dumps`` (``indent=1``, say)."""
-        return dumps(self.to_dict(), **kw)
-
     def summary(self) -> str:
         """D and M0 with their CIs, the mean duration, N, the resolution, seed and speed (what
         ``dryfric estimate`` prints)."""
@@ -308,7 +312,7 @@ class EstimateResult:
 
 
 @dataclass
-class BruteForceResult:
+class BruteForceResult(_Record):
     """Fixed-horizon estimate (physical units; CIs are 95% half-widths); ``print`` shows
     :meth:`summary` and the warnings."""
 
@@ -332,17 +336,6 @@ class BruteForceResult:
     events_per_s: float | None = None
     n_unfinished: int = 0
     warnings: list = field(default_factory=list)
-
-    def to_dict(self) -> dict:
-        """Every field, as Python values (tau_L = inf stays a float: ``json.dumps`` would write ``Infinity``;
-        :meth:`to_json` writes strict JSON)."""
-        return asdict(self)
-
-    def to_json(self, **kw) -> str:
-        """Strict JSON of :meth:`to_dict`, as the CLI writes it: a non-finite float (tau_L = inf) is the string
-        ``"inf"``, which :func:`~dryfric_jax.combine_estimates` and ``json.load`` + ``outfiles.from_strict`` read
-        back as the float; ``kw`` go to ``json.dumps`` (``indent=1``, say)."""
-        return dumps(self.to_dict(), **kw)
 
     def summary(self) -> str:
         """D_t and M0_t with their CIs, the horizon, N' and the resolution (what ``dryfric
@@ -586,8 +579,7 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
     if work > max_work:
         raise ValueError(f"max_work must be >= {work:.3g} {'steps' if h is not None else 'events (expected)'} for "
                          f"t = {t:.4g} s and n_paths = {n_paths} (got {max_work:.3g}); raise max_work (--max-work) "
-                         "or lower t "
-                         "or n_paths")
+                         "or lower t or n_paths")
     if n_paths < MIN_RELIABLE_PATHS:
         notes = [*notes, f"n_paths = {n_paths} < {MIN_RELIABLE_PATHS}: the delta-method CI of D_t under-covers at "
                          "this size (0.74 at 10 paths, 0.92 at 100 for Gaussian U(t))"]

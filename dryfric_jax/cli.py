@@ -163,12 +163,11 @@ def _int_at_least(name, lo, hi=None, hi_text=None):
 
     def conv(s):
         try:
-            v = int(s) if "_" not in s else None  # int("5_0") is 50: a typo would run silently
+            v = int(s)
         except ValueError:
             v = None
-        if v is None:
-            raise argparse.ArgumentTypeError(f"--{name} must be an integer {rng} (got {s!r})")
-        if v < lo or (hi is not None and v > hi):
+        # int("5_0") is 50: a typo would run silently
+        if v is None or "_" in s or v < lo or (hi is not None and v > hi):
             raise argparse.ArgumentTypeError(f"--{name} must be an integer {rng} (got {s!r})")
         return v
     return conv
@@ -570,32 +569,31 @@ def _theory(a, params) -> int:
     from . import theory
     from .api import DryfricWarning
 
-    out, refused = {}, {}
-    for name, f in (("D", theory.exact_D), ("M0", theory.exact_M0)):
-        try:
-            with warnings.catch_warnings():  # the command says "white-noise" (and its help that --tau is not used)
-                warnings.simplefilter("ignore", DryfricWarning)
+    # the command says "white-noise", and its help that --tau is not used: theory's warning about tau is not said
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DryfricWarning)
+        out, refused = {}, {}
+        for name, f in (("D", theory.exact_D), ("M0", theory.exact_M0)):
+            try:
                 out[name] = f(params)
-        except ValueError as e:
-            out[name], refused[name] = None, str(e)
-    out.update(params=params.as_dict(), convention="model (Gamma_w = 2 Gamma)")
-    if refused:  # print the one that is not (nothing when both are: a runaway bias, a user's mistake)
-        kept = [k for k in ("D", "M0") if k not in refused]
-        if kept and a.json:
-            print(dumps({**out, "refused": refused}))
-        elif kept:
-            print(f"white-noise {kept[0]:<2} = {out[kept[0]]:.6g} {'m^2/s' if kept[0] == 'D' else 'm/s'}")
-        why = "; ".join(dict.fromkeys(refused.values()))  # D and M0 refused for one reason: said once
-        skipped = "; the DI chain at --h is not computed" if a.h is not None else ""
-        raise _UserError(why + (f" ({kept[0]} printed above{skipped})" if kept else ""))
-    if a.h is not None:
-        from .chain_law import white_chain_law
+            except ValueError as e:
+                out[name], refused[name] = None, str(e)
+        out.update(params=params.as_dict(), convention="model (Gamma_w = 2 Gamma)")
+        if refused:  # print the one that is not (nothing when both are: a runaway bias, a user's mistake)
+            kept = [k for k in ("D", "M0") if k not in refused]
+            if kept and a.json:
+                print(dumps({**out, "refused": refused}))
+            elif kept:
+                print(f"white-noise {kept[0]:<2} = {out[kept[0]]:.6g} {'m^2/s' if kept[0] == 'D' else 'm/s'}")
+            why = "; ".join(dict.fromkeys(refused.values()))  # D and M0 refused for one reason: said once
+            skipped = "; the DI chain at --h is not computed" if a.h is not None else ""
+            raise _UserError(why + (f" ({kept[0]} printed above{skipped})" if kept else ""))
+        if a.h is not None:
+            from .chain_law import white_chain_law
 
-        law = white_chain_law(params, a.h)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", DryfricWarning)
-            mean_v2 = theory.exact_mean_square_velocity(params)
-        out.update(h=a.h, chain_D=law.D, chain_M0=law.M0, chain_mean_v2=law.mean_v2, mean_v2=mean_v2)
+            law = white_chain_law(params, a.h)
+            out.update(h=a.h, chain_D=law.D, chain_M0=law.M0, chain_mean_v2=law.mean_v2,
+                       mean_v2=theory.exact_mean_square_velocity(params))
     if a.json:
         print(dumps(out))
     else:

@@ -248,9 +248,9 @@ class Params(eqx.Module):
         tau0 = _tau0(Gamma, Delta)
         lo, hi = SCALE_RANGE
         if not lo <= tau0 <= hi:  # tau = tau' tau0 would be 0 (or inf), and refused as if the user gave it
-            raise ValueError(f"Gamma and Delta must keep tau0 = Gamma/Delta^2 in [{lo:g}, {hi:g}] (got {_beyond(tau0, lo, hi)} from "
-                             f"Gamma = {Gamma!r}, Delta = {Delta!r}): out of floating-point range, express the "
-                             "parameters in other units")
+            raise ValueError(f"Gamma and Delta must keep tau0 = Gamma/Delta^2 in [{lo:g}, {hi:g}] (got "
+                             f"{_beyond(tau0, lo, hi)} from Gamma = {Gamma!r}, Delta = {Delta!r}): out of "
+                             "floating-point range, express the parameters in other units")
         nd = []
         for name, v, unit in (("tau", tau, tau0), ("tau_L", tau_L, tau0), ("gamma_bar", gamma_bar, Delta)):
             c = _concrete(name, v)  # a Python float; None for a tracer, kept (Params checks it on the concrete call)
