@@ -24,7 +24,7 @@ from .estimators import (
 from .excursions import BLOCK, FINAL_DEADLINE, simulate_long_excursions, work_per_excursion
 from .limits import MAX_WORK
 from .outfiles import dumps
-from .params import Params, check_positive, real_or_none
+from .params import Params, check_positive, real_or_none, rounded_bound
 from .pdmp import make_pdmp_model, simulate_pdmp_bruteforce
 from .plan import (  # noqa: F401  (default_h, h_max, check_h, METHODS are part of the API)
     DTYPES, MAX_COUNT, METHODS, Plan, check_count, check_h, check_layout, check_max_time, check_max_work, check_rtol,
@@ -567,7 +567,7 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
         raise ValueError(f"burn_in must be a finite number >= 0 (got {burn_in!r})")
     burn_in = b
     if h is not None and t < h:
-        raise ValueError(f"t must be >= h = {h:.4g} s (got {t!r})")
+        raise ValueError(f"t must be >= h = {rounded_bound(h, lower=True)} s (got {t!r})")
     # the work is known in advance: (t + burn_in) / h steps per path, or the expected events
     per_path = (t + burn_in) / params.tau0 * plan.per_tau0
     work = n_paths * per_path
@@ -577,7 +577,7 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
         raise ValueError(f"t must keep t + burn_in below 2^62 {unit} per path (got t = {t:.4g} s, burn_in = "
                          f"{burn_in:.4g} s: {bound:.3g})")
     if work > max_work:
-        raise ValueError(f"max_work must be >= {work:.3g} {'steps' if h is not None else 'events (expected)'} for "
+        raise ValueError(f"max_work must be >= {rounded_bound(work, lower=True, digits=3)} {'steps' if h is not None else 'events (expected)'} for "
                          f"t = {t:.4g} s and n_paths = {n_paths} (got {max_work:.3g}); raise max_work (--max-work) "
                          "or lower t or n_paths")
     if n_paths < MIN_RELIABLE_PATHS:

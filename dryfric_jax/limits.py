@@ -64,6 +64,8 @@ import sys
 import numpy as np
 from scipy import integrate, special
 
+from .params import rounded_bound
+
 #: default cap on the lane-steps (DI) or events (PDMP) of one run: on a 2-core CPU ~15-25 min of DI
 #: lane-steps (7e7-1.2e8 per second, float64, 0.2.5) or ~30-50 min of PDMP events (3.5e7-5.6e7 per
 #: second; RESULTS.md, the times of Fig. 3), a few minutes on a GPU.  ``max_work`` / ``--max-work`` raises it.
@@ -209,7 +211,7 @@ def check_simulable(tau_L: float, tau_L_s: float, tau0: float) -> None:
     ``tau_L_s`` and ``tau0`` in seconds, for the message)."""
     if tau_L < MIN_TAU_L_ND:
         raise ValueError(
-            f"tau_L must be >= {MIN_TAU_L_ND:g} tau0 = {MIN_TAU_L_ND * tau0:.3g} s for a simulation (got tau_L = "
+            f"tau_L must be >= {MIN_TAU_L_ND:g} tau0 = {rounded_bound(MIN_TAU_L_ND * tau0, lower=True, digits=3)} s for a simulation (got tau_L = "
             f"{tau_L_s:.3g} s, tau_L/tau0 = {tau_L:.3g}): D ~ tau_L^2 there, and the excursion sums behind its CI "
             "(U^4 ~ (tau_L/tau0)^4) underflow float64, collapsing the CI to 0")
 

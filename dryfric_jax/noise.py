@@ -29,7 +29,7 @@ import math
 
 import numpy as np
 
-from .params import real_or_none, shown
+from .params import real_or_none, rounded_bound, shown
 
 COVER_SD = 8.0
 
@@ -55,7 +55,7 @@ def check_delta(delta: float, tau: float, gamma_bar: float = 0.0, *, scale: floa
     ok = v is not None and math.isfinite(v) and 0 < v / scale < dm
     if not ok:
         raise ValueError(
-            f"delta must be in (0, {dm * scale:.4g}) for these parameters (got {shown(delta)}): the noise grid must "
+            f"delta must be in (0, {rounded_bound(dm * scale, lower=False)}) for these parameters (got {shown(delta)}): the noise grid must "
             f"cover 8 standard deviations of N(0, 1/tau) and the stick thresholds while keeping "
             f"tau*delta*L_X < 2 (up-probabilities in [0, 1])")
 

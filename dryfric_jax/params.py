@@ -13,6 +13,7 @@ In these units :math:`\Gamma = \Delta = 1` and the model keeps three numbers,
 """
 from __future__ import annotations
 
+import decimal
 import math
 import sys
 
@@ -26,6 +27,22 @@ def shown(x, width: int = 60, head: int = 24) -> str:
     digits, a long path) as its first ``head`` characters and its length."""
     text = repr(x)
     return text if len(text) <= width else f"{text[:head]}... ({len(text)} characters)"
+
+
+def rounded_bound(x: float, *, lower: bool, digits: int = 4) -> str:
+    """A refusal's bound ``x`` to ``digits`` significant digits, rounded *into* the admissible
+    range: up for a lower bound, down for an upper one, so that a value a user copies from the
+    message, or any value inside the printed range, is accepted (``f"{x:.4g}"`` rounded
+    h_max = 0.0123456 up to 0.01235, which the message called admissible and the check refused).
+    Non-finite or zero ``x`` is shown as ``.{digits}g`` shows it."""
+    x = float(x)
+    s = f"{x:.{digits}g}"
+    if not math.isfinite(x) or x == 0.0 or (float(s) >= x if lower else float(s) <= x):
+        return s
+    # one unit of the last digit inward (compared as the floats a user's text becomes)
+    d = decimal.Decimal(s)
+    step = decimal.Decimal(1).scaleb(decimal.Decimal(x).adjusted() - digits + 1)  # x's last digit, not s's
+    return f"{float(d + step if lower else d - step):.{digits}g}"
 
 
 def _concrete(name: str, x):

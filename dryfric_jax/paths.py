@@ -24,7 +24,7 @@ from . import rng
 from .api import _key
 from .di import DIModel
 from .excursions import BLOCK, block_keys
-from .params import check_finite, check_positive, shown
+from .params import check_finite, check_positive, rounded_bound, shown
 from .plan import MAX_COUNT, check_count
 from .pdmp import PDMPModel, flow
 from .sharding import over_lanes
@@ -362,7 +362,7 @@ def pdmp_stationary(model, key, n_paths: int, n_records: int, dt_rec: float, bur
         bound = 10 * float(model.rate) * t_end + 10_000  # an OverflowError past int64 (burn = 1e30)
         if not bound <= MAX_COUNT:
             most = (MAX_COUNT - 10_000) / 10 / float(model.rate)
-            raise ValueError(f"burn + n_records * dt_rec must be at most {most:.3g} (tau0): its default event bound, "
+            raise ValueError(f"burn + n_records * dt_rec must be at most {rounded_bound(most, lower=False, digits=3)} (tau0): its default event bound, "
                              f"10x the expected jumps, must be at most 2^62 (got {t_end:.3g})")
         max_events = int(bound)
     V, ok = _pdmp_sampled(model, jax.random.split(key, n_paths), jnp.asarray(burn, jnp.float64),

@@ -35,7 +35,7 @@ from .limits import (
     MAX_WORK, check_recurrent, check_simulable, check_work, float32_unsafe_reason, max_steps_per_excursion,
     pdmp_float32_unsafe_reason,
 )
-from .params import Params, check_params, real_or_none, shown
+from .params import Params, check_params, real_or_none, rounded_bound, shown
 from .pdmp import pdmp_grid_info
 
 METHODS = ("di", "pdmp", "auto")
@@ -97,7 +97,7 @@ def check_h(params: Params, h: float) -> float:
     lo = H_MIN_REL * min(params.tau0, params.tau_L)
     v = real(h)
     if v is None or not (math.isfinite(v) and lo <= v <= hm):
-        raise ValueError(f"h must be in [{lo:.4g}, {hm:.4g}] s, i.e. between {H_MIN_REL:g} and {H_MAX_REL:g} times "
+        raise ValueError(f"h must be in [{rounded_bound(lo, lower=True)}, {rounded_bound(hm, lower=False)}] s, i.e. between {H_MIN_REL:g} and {H_MAX_REL:g} times "
                          f"min(tau0, tau_L) (got {shown(h)})")
     return v
 

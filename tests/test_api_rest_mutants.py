@@ -381,11 +381,12 @@ def test_h_range_ends_are_fractions_of_the_fastest_time_scale():
 
 
 def test_h_refusal_says_the_range_in_seconds_and_in_time_scales():
-    """4 significant digits of each end (1.23456e-14 s and 0.00123456 s), then the fractions in order (mutants:
-    3 digits, the fractions swapped)."""
+    """4 significant digits of each end (1.23456e-14 s and 0.00123456 s), rounded into the range (up at the
+    bottom, down at the top: 0.001235, the nearest, was refused), then the fractions in order (mutants: 3
+    digits, the fractions swapped)."""
     with pytest.raises(ValueError) as e:
         check_h(Q, 1.0)
-    assert str(e.value) == ("h must be in [1.235e-14, 0.001235] s, i.e. between 1e-12 and 0.1 times "
+    assert str(e.value) == ("h must be in [1.235e-14, 0.001234] s, i.e. between 1e-12 and 0.1 times "
                             "min(tau0, tau_L) (got 1.0)")
 
 

@@ -16,7 +16,9 @@ FIG3_TAU = FIG3["tau"]
 # tau delta (L_req + 2 delta) < 2, L_req = 8/sqrt(tau) (nondimensional; README "The PDMP")
 _t = FIG3_TAU * FIG3["Delta"] ** 2 / FIG3["Gamma"]
 _L = 8 / _t**0.5
-DELTA_MAX = f"{(-_t * _L + (_t * _t * _L * _L + 16 * _t) ** 0.5) / (4 * _t) * FIG3['Delta'] / FIG3['Gamma'] ** 0.5:.4g}"
+_dm = (-_t * _L + (_t * _t * _L * _L + 16 * _t) ** 0.5) / (4 * _t) * FIG3['Delta'] / FIG3['Gamma'] ** 0.5
+_digit = 10.0 ** (math.floor(math.log10(_dm)) - 3)
+DELTA_MAX = f"{math.floor(_dm / _digit) * _digit:.4g}"  # 4 digits, rounded down (into the range)
 
 ESTIMATE_KEYS = {"D", "D_ci", "M0", "M0_ci", "mean_duration", "n_excursions", "n_truncated", "method", "h", "dtype",
                  "seed", "wall_s", "lane_steps_per_s", "params"}

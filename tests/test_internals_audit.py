@@ -5,6 +5,7 @@ stationary law against detailed balance in ``fractions``, the uniform mapping bi
 regeneration set against scipy's Gaussian density, and fixed-seed moment tests of the streams."""
 import dataclasses
 import math
+import re
 from decimal import Decimal, getcontext
 from fractions import Fraction
 
@@ -102,7 +103,8 @@ def test_grid_size_is_ceil_of_the_reach_plus_one():
     assert grid_size(2.0**-26, 1.0) == 2**29 + 1  # a grid of 2^30 + 3 points is still counted, not refused
     dm = 4 / (8 + math.sqrt(80))  # tau = 1: delta_max = 4/(tau L + sqrt((tau L)^2 + 16 tau)), L = 8
     check_delta(0.99 * dm * 2.5, 1.0, scale=2.5)  # a delta in units of 1/2.5 of the nondim one
-    with pytest.raises(ValueError, match=rf"^delta must be in \(0, {dm * 2.5:.4g}\)"):
+    # the range's top 2.5 dm = 0.590170 rounded down (into the range) to 4 digits
+    with pytest.raises(ValueError, match=r"^delta must be in \(0, 0\.5901\)"):
         check_delta(1.01 * dm * 2.5, 1.0, scale=2.5)
     N, d, tau = 10, 0.2, 1.0
     k = np.arange(-N, N + 1)
@@ -137,10 +139,36 @@ def test_pdmp_grid_info_in_physical_units():
     assert g["rate_nd"] == pytest.approx(2 / (tau_nd * 4 * delta) ** 2, rel=1e-14)
     tL = tau_nd * 8 / math.sqrt(tau_nd)  # the refusal states the range in physical units: delta_max' / 4
     dm_phys = 4 / (tL + math.sqrt(tL * tL + 16 * tau_nd)) / 4
-    with pytest.raises(ValueError, match=rf"^delta must be in \(0, {dm_phys:.4g}\) .*\(got {delta / 0.9 * 1.1}\)"):
+    with pytest.raises(ValueError, match=rf"^delta must be in \(0, [^)]+\) .*\(got {delta / 0.9 * 1.1}\)") as e:
         pdmp_grid_info(p, delta / 0.9 * 1.1)
+    top = float(re.match(r"delta must be in \(0, ([^)]+)\)", str(e.value)).group(1))
+    assert dm_phys * (1 - 1e-3) <= top <= dm_phys  # 4 digits, rounded into the range
     m = make_pdmp_model(p, delta)
     assert float(m.c_alpha) == pytest.approx(tau_nd * (4 * delta) ** 2 / 4, rel=1e-15)
+
+
+def test_a_refusals_stated_range_is_accepted_to_its_ends():
+    """DEFECT (fixed: params.rounded_bound): a refusal printed its bounds to 4 digits rounded to nearest, so an
+    upper bound could be printed above the true one and a lower one below it: "h must be in [..., 0.01235] s"
+    refused h = 0.01235, and "delta must be in (0, 0.05873)" refused 0.058726.  Now a bound is rounded into the
+    range.  Over 300 seeded parameter points: both ends of the stated h range are accepted, as is the largest
+    float below the stated top of delta's open range (the old code failed at 300 of the points for h, at one end
+    or the other, and at 154 for delta)."""
+    from dryfric_jax.plan import check_h
+
+    rs = np.random.default_rng(11)
+    for _ in range(300):
+        G, D = 10 ** rs.uniform(-3, 3), 10 ** rs.uniform(-2, 2)
+        tau_nd, gb = 10 ** rs.uniform(-2, 3), rs.uniform(-0.99, 0.99)
+        p = dj.Params(G, D, tau_nd * G / D**2, 10 ** rs.uniform(-1, 2) * G / D**2, gb * D)
+        with pytest.raises(ValueError) as e:
+            check_h(p, 1e300)
+        lo, hi = map(float, re.match(r"h must be in \[([^,]+), ([^\]]+)\] s", str(e.value)).groups())
+        assert check_h(p, lo) == lo and check_h(p, hi) == hi, str(e.value)
+        with pytest.raises(ValueError) as e:
+            pdmp_grid_info(p, 1e300)
+        top = float(re.match(r"delta must be in \(0, ([^)]+)\)", str(e.value)).group(1))
+        pdmp_grid_info(p, float(np.nextafter(top, 0)))
 
 
 def test_a_delta_within_ulps_of_its_bound_is_refused_in_physical_units():
@@ -167,7 +195,12 @@ def test_a_delta_within_ulps_of_its_bound_is_refused_in_physical_units():
                 assert g["N"] >= 2 and nd.tau * g["delta_nd"] ** 2 * g["N"] < 2 * (1 + 1e-12)
             except ValueError as e:
                 refused += 1
-                assert str(e).startswith(f"delta must be in (0, {dm:.4g}) for these parameters (got {x!r})"), str(e)
+                m = re.match(rf"delta must be in \(0, ([^)]+)\) for these parameters \(got {re.escape(repr(x))}\)", str(e))
+                assert m, str(e)
+                # the stated range is the bound to 4 digits rounded into it, and excludes x (before: rounded
+                # to nearest, "(0, 0.05873)" refusing 0.058726)
+                top = float(m.group(1))
+                assert dm * (1 - 1e-3) <= top <= dm and x >= top, str(e)
             x = float(np.nextafter(x, 0))
     assert refused > 100  # the bound itself and rounding next to it are exercised
 

@@ -214,7 +214,7 @@ def test_a_setting_is_refused_once_and_a_point_that_refuses_h_is_named(tmp_path,
     assert not out.exists()
     assert main(["sweep", "--Gamma", "0.05,5", "--n-excursions", "50", "--h", "0.001", "--out", str(out)]) == 2
     err = capsys.readouterr().err
-    assert err.startswith("dryfric: error: h must be in [3.391e-15, 0.0003391] s")
+    assert err.startswith("dryfric: error: h must be in [3.391e-15, 0.000339] s")
     assert '[at sweep point {"Gamma": 0.05' in err
     assert "--skip-refused records the refused points" in err and not out.exists()
 
