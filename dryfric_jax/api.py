@@ -577,7 +577,8 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
         raise ValueError(f"t must keep t + burn_in below 2^62 {unit} per path (got t = {t:.4g} s, burn_in = "
                          f"{burn_in:.4g} s: {bound:.3g})")
     if work > max_work:
-        raise ValueError(f"max_work must be >= {rounded_bound(work, lower=True, digits=3)} {'steps' if h is not None else 'events (expected)'} for "
+        least = rounded_bound(work, lower=True, digits=3)
+        raise ValueError(f"max_work must be >= {least} {'steps' if h is not None else 'events (expected)'} for "
                          f"t = {t:.4g} s and n_paths = {n_paths} (got {max_work:.3g}); raise max_work (--max-work) "
                          "or lower t or n_paths")
     if n_paths < MIN_RELIABLE_PATHS:

@@ -35,6 +35,7 @@ The delta-method CI under-covers for small N because U per excursion is heavy-ta
 from __future__ import annotations
 
 import functools
+import math
 from statistics import NormalDist
 
 import jax
@@ -133,9 +134,34 @@ def delta_method(psi, mean, cov, n: int, level: float = 0.95):
     """
     if isinstance(n, bool) or not isinstance(n, (int, np.integer, float, np.floating)) or not n >= 1:
         raise ValueError(f"n must be a sample size >= 1 (got {n!r}): n = 0 gave an infinite CI, n < 0 NaN")
+    z_quantile(level)
+    m, c = _real_array("mean", mean), _real_array("cov", cov)
+    if m.ndim != 1 or m.size == 0 or c.shape != (m.size, m.size):
+        raise ValueError(f"mean must be a vector of k >= 1 numbers and cov a k x k matrix (got shapes {m.shape} "
+                         f"and {c.shape}; a mismatch was a TypeError from inside JAX)")
+    try:
+        return _delta_method(psi, m, c, n, level)
+    except TypeError as e:  # psi itself: not a scalar, or not a function of one vector (a JAX TypeError)
+        raise ValueError(f"psi must map a vector of {m.size} numbers to one number ({e})") from None
+
+
+def _delta_method(psi, mean, cov, n, level):
+    """:func:`delta_method` on arguments the package built itself (not validated again)."""
     value, var = _value_and_variance(psi)(jnp.asarray(mean, jnp.float64), jnp.asarray(cov, jnp.float64))
     sigma = float(jnp.sqrt(var))
-    return float(value), z_quantile(level) * sigma / np.sqrt(n), sigma
+    return float(value), z_quantile(level) * sigma / math.sqrt(n), sigma  # float64 whatever n's type
+
+
+def _real_array(name: str, x) -> np.ndarray:
+    """``x`` as a float64 array of finite numbers, or ``ValueError`` naming ``name`` (a NaN mean gave a
+    NaN or, where psi ignored the entry, a finite CI of a sample that held a NaN)."""
+    try:
+        a = np.asarray(x, np.float64)
+    except (TypeError, ValueError):
+        a = None
+    if a is None or not np.isfinite(a).all():
+        raise ValueError(f"{name} must hold finite real numbers (got {shown(x)})")
+    return a
 
 
 @functools.lru_cache(maxsize=16)
@@ -239,8 +265,8 @@ def long_excursion_estimates(T: dict, level: float = 0.95) -> dict:
     if n < 2:
         raise ValueError(f"need at least 2 complete excursions for a CI (got {n})")
     S, C = moments_from_sums(T)
-    D, D_ci, _ = delta_method(psi_D, S, C, n, level)
-    M0, M0_ci, _ = delta_method(psi_M, S, C, n, level)
+    D, D_ci, _ = _delta_method(psi_D, S, C, n, level)
+    M0, M0_ci, _ = _delta_method(psi_M, S, C, n, level)
     z = z_quantile(level)
     return dict(D=D, D_ci=D_ci, M0=M0, M0_ci=M0_ci, mean_duration=S[2],
                 mean_duration_ci=z * np.sqrt(max(C[2, 2], 0.0) / n),
@@ -266,7 +292,7 @@ def bruteforce_estimates(U, t: float, level: float = 0.95) -> dict:
     Y = np.stack([Uc / np.sqrt(t), Uc**2 / t])
     R = Y.mean(1)
     G = np.cov(Y, bias=True)
-    D, D_ci, _ = delta_method(phi_bf, R, G, n, level)
+    D, D_ci, _ = _delta_method(phi_bf, R, G, n, level)
     D = max(D, 0.0)  # y2 >= y1^2 up to the rounding of y1 ~ 1e-16 sd
     z = z_quantile(level)
     return dict(D_t=D, D_t_ci=D_ci, M0_t=float(U.mean() / t), M0_t_ci=z * float(U.std() / t / np.sqrt(n)),

@@ -211,7 +211,8 @@ def check_simulable(tau_L: float, tau_L_s: float, tau0: float) -> None:
     ``tau_L_s`` and ``tau0`` in seconds, for the message)."""
     if tau_L < MIN_TAU_L_ND:
         raise ValueError(
-            f"tau_L must be >= {MIN_TAU_L_ND:g} tau0 = {rounded_bound(MIN_TAU_L_ND * tau0, lower=True, digits=3)} s for a simulation (got tau_L = "
+            f"tau_L must be >= {MIN_TAU_L_ND:g} tau0 = {rounded_bound(MIN_TAU_L_ND * tau0, lower=True, digits=3)} s "
+            f"for a simulation (got tau_L = "
             f"{tau_L_s:.3g} s, tau_L/tau0 = {tau_L:.3g}): D ~ tau_L^2 there, and the excursion sums behind its CI "
             "(U^4 ~ (tau_L/tau0)^4) underflow float64, collapsing the CI to 0")
 

@@ -55,7 +55,8 @@ def check_delta(delta: float, tau: float, gamma_bar: float = 0.0, *, scale: floa
     ok = v is not None and math.isfinite(v) and 0 < v / scale < dm
     if not ok:
         raise ValueError(
-            f"delta must be in (0, {rounded_bound(dm * scale, lower=False)}) for these parameters (got {shown(delta)}): the noise grid must "
+            f"delta must be in (0, {rounded_bound(dm * scale, lower=False)}) for these parameters "
+            f"(got {shown(delta)}): the noise grid must "
             f"cover 8 standard deviations of N(0, 1/tau) and the stick thresholds while keeping "
             f"tau*delta*L_X < 2 (up-probabilities in [0, 1])")
 

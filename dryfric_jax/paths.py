@@ -361,8 +361,8 @@ def pdmp_stationary(model, key, n_paths: int, n_records: int, dt_rec: float, bur
     if max_events is None:
         bound = 10 * float(model.rate) * t_end + 10_000  # an OverflowError past int64 (burn = 1e30)
         if not bound <= MAX_COUNT:
-            most = (MAX_COUNT - 10_000) / 10 / float(model.rate)
-            raise ValueError(f"burn + n_records * dt_rec must be at most {rounded_bound(most, lower=False, digits=3)} (tau0): its default event bound, "
+            most = rounded_bound((MAX_COUNT - 10_000) / 10 / float(model.rate), lower=False, digits=3)
+            raise ValueError(f"burn + n_records * dt_rec must be at most {most} (tau0): its default event bound, "
                              f"10x the expected jumps, must be at most 2^62 (got {t_end:.3g})")
         max_events = int(bound)
     V, ok = _pdmp_sampled(model, jax.random.split(key, n_paths), jnp.asarray(burn, jnp.float64),

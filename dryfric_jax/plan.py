@@ -97,7 +97,8 @@ def check_h(params: Params, h: float) -> float:
     lo = H_MIN_REL * min(params.tau0, params.tau_L)
     v = real(h)
     if v is None or not (math.isfinite(v) and lo <= v <= hm):
-        raise ValueError(f"h must be in [{rounded_bound(lo, lower=True)}, {rounded_bound(hm, lower=False)}] s, i.e. between {H_MIN_REL:g} and {H_MAX_REL:g} times "
+        raise ValueError(f"h must be in [{rounded_bound(lo, lower=True)}, {rounded_bound(hm, lower=False)}] s, i.e. "
+                         f"between {H_MIN_REL:g} and {H_MAX_REL:g} times "
                          f"min(tau0, tau_L) (got {shown(h)})")
     return v
 

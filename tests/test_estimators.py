@@ -168,6 +168,38 @@ def test_delta_method_refuses_a_sample_size_below_one(n):
         delta_method(lambda m: m[0], [1.0], [[1.0]], n)
 
 
+@pytest.mark.parametrize("psi,mean,cov,match", [
+    (lambda m: m[0], [1.0, 2.0], np.eye(3)[:2], r"^mean must be a vector of k >= 1 numbers and cov a k x k matrix "
+                                                r"\(got shapes \(2,\) and \(2, 3\)"),
+    (lambda m: m[0], [[1.0]], [[1.0]], r"^mean must be a vector"),
+    (lambda m: m[0], [], np.zeros((0, 0)), r"^mean must be a vector"),
+    (lambda m: m, [1.0, 2.0], np.eye(2), r"^psi must map a vector of 2 numbers to one number \(Gradient only"),
+    (lambda m: m[0], [1.0, float("nan")], np.eye(2), r"^mean must hold finite real numbers \(got \[1\.0, nan\]\)"),
+    (lambda m: m[0], [1.0, 2.0], [[1.0, 0.0], [0.0, float("inf")]], r"^cov must hold finite real numbers"),
+    (lambda m: m[0], "x", [[1.0]], r"^mean must hold finite real numbers \(got 'x'\)"),
+    (lambda m: m[0], [1j], [[1.0]], r"^mean must hold finite real numbers"),
+])
+def test_delta_method_refuses_bad_moments_and_psi_by_name(psi, mean, cov, match):
+    """A public function, so a caller's mistake is a ValueError naming the argument: a cov of the wrong shape and a
+    psi with a vector output were JAX TypeErrors from inside the gradient, and a NaN in an entry psi ignores
+    gave a finite CI (a 'left as is' item of stop 64, fixed)."""
+    from dryfric_jax.estimators import delta_method
+
+    with pytest.raises(ValueError, match=match):
+        delta_method(psi, mean, cov, 10)
+
+
+def test_delta_method_returns_floats_and_the_textbook_interval():
+    """psi(m) = m0 m1 at m = (2, 3), C = diag(4, 9), n = 100: grad (3, 2), sigma^2 = 9*4 + 4*9 = 72, half-width
+    1.959964 sqrt(72)/10 = 1.663057; plain floats, not numpy scalars (the half-width was an np.float64)."""
+    from dryfric_jax.estimators import delta_method
+
+    out = delta_method(lambda m: m[0] * m[1], np.array([2.0, 3.0]), np.diag([4.0, 9.0]), 100)
+    assert [type(x) for x in out] == [float, float, float]
+    assert out[0] == 6.0 and out[2] == pytest.approx(72**0.5, rel=1e-14)
+    assert out[1] == pytest.approx(1.959963984540054 * 72**0.5 / 10, rel=1e-14)
+
+
 def test_moments_from_sums_are_the_sample_mean_and_covariance():
     """The mean and covariance (divisor N, as documented) of X = (U, U^2, t, Ut, t^2) from the
     sums equal numpy's on the samples: every product of the covariance is the right one

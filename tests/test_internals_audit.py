@@ -195,7 +195,8 @@ def test_a_delta_within_ulps_of_its_bound_is_refused_in_physical_units():
                 assert g["N"] >= 2 and nd.tau * g["delta_nd"] ** 2 * g["N"] < 2 * (1 + 1e-12)
             except ValueError as e:
                 refused += 1
-                m = re.match(rf"delta must be in \(0, ([^)]+)\) for these parameters \(got {re.escape(repr(x))}\)", str(e))
+                got = re.escape(repr(x))
+                m = re.match(rf"delta must be in \(0, ([^)]+)\) for these parameters \(got {got}\)", str(e))
                 assert m, str(e)
                 # the stated range is the bound to 4 digits rounded into it, and excludes x (before: rounded
                 # to nearest, "(0, 0.05873)" refusing 0.058726)
