@@ -61,16 +61,25 @@ def check_delta(delta: float, tau: float, gamma_bar: float = 0.0, *, scale: floa
             f"tau*delta*L_X < 2 (up-probabilities in [0, 1])")
 
 
-def grid_size(delta: float, tau: float, gamma_bar: float = 0.0, shown_as: str | None = None) -> int:
+def grid_size(delta: float, tau: float, gamma_bar: float = 0.0, shown_as: str | None = None,
+              scale: float | None = None) -> int:
     """N, the grid is x_k = k delta for |k| <= N (nondimensional delta, tau, gamma_bar); ``shown_as``: how
     a refusal names delta (default "delta' = ..."; :func:`dryfric_jax.pdmp.pdmp_grid_info` gives the
-    caller's physical delta too)."""
+    caller's physical delta too, and ``scale``, delta / delta', for the smallest delta it states)."""
     check_delta(delta, tau, gamma_bar)
-    n = required_reach(tau, gamma_bar) / delta  # may be inf
+    reach = required_reach(tau, gamma_bar)
+    n = reach / delta  # may be inf
     if not n <= 2**30 - 2:  # 2 ceil(n) + 3 <= 2**31 - 1 points
         shown_as = shown_as or f"delta' = {delta!r}"
+        least = reach / (2**30 - 2)  # the smallest delta' whose grid fits
+        if least < delta_max(tau, gamma_bar):
+            name, unit = ("delta'", "") if scale is None else ("delta", " s^-1/2")
+            least = rounded_bound(least * (scale or 1.0), lower=True)
+            fix = f"{name} must be >= {least}{unit} here, or use method 'di'"
+        else:
+            fix = "no delta is admissible for these parameters: use method 'di'"
         raise ValueError(f"{shown_as} is too small: the noise grid would have {2.0 * n + 3:.3g} points "
-                         f"(at most {2**31 - 1}); for these parameters use method 'di'")
+                         f"(at most {2**31 - 1}); {fix}")
     N = math.ceil(n) + 1
     # tau delta L_X < 2 for every delta < delta_max, but only up to rounding: a delta an ulp below delta_max
     # with L_req/delta just above an integer has the product 2 - 2e-16, which float64 rounds to 2.0 (it met a

@@ -222,7 +222,8 @@ def pdmp_grid_info(params: Params, delta: float) -> dict:
     # refused here in physical units, not by grid_size's check of a delta' rounded the other way
     check_delta(delta, nd.tau, nd.gamma_bar, scale=scale)
     d = float(delta) / scale
-    N = grid_size(d, nd.tau, nd.gamma_bar, shown_as=f"delta = {float(delta):.4g} s^-1/2 (delta' = {d:.4g})")
+    N = grid_size(d, nd.tau, nd.gamma_bar, shown_as=f"delta = {float(delta):.4g} s^-1/2 (delta' = {d:.4g})",
+                  scale=scale)
     return dict(delta=float(delta), delta_nd=d, L_X=N * d * scale, N=N, rate_nd=2.0 / (nd.tau * d) ** 2)
 
 

@@ -1,5 +1,6 @@
 """The PDMP's jump noise: its exact stationary law, and its OU limit as delta -> 0."""
 import math
+import re
 from functools import partial
 
 import jax
@@ -10,7 +11,7 @@ from scipy import stats
 
 import dryfric_jax as dj
 from dryfric_jax.noise import check_delta, delta_max, grid_size, stationary_law
-from dryfric_jax.pdmp import make_pdmp_model
+from dryfric_jax.pdmp import make_pdmp_model, pdmp_grid_info
 
 
 @partial(jax.jit, static_argnames=("n_lanes",))
@@ -101,6 +102,26 @@ def test_delta_max_is_stable_at_extreme_tau():
         assert delta_max(tau) * math.sqrt(tau) == pytest.approx(4 / (8 + math.sqrt(80)), rel=1e-12)
     for tau in (1e150, 1e300):  # the thresholds set L = 1: delta_max -> 2/(tau L)
         assert delta_max(tau) * tau == pytest.approx(2.0, rel=1e-12)
+
+
+def test_a_grid_too_fine_is_refused_with_the_smallest_delta_that_fits():
+    """The refusal said only "use method 'di'"; it now states the smallest delta whose grid fits (L_req / (2^30 - 2),
+    rounded up: 8 / (2^30 - 2) = 7.4506e-9 at tau = 1), which is accepted, in the caller's units from
+    pdmp_grid_info, and says when no delta is admissible (the smallest above delta_max: tau = 1e-300 with the
+    thresholds at 1e300)."""
+    with pytest.raises(ValueError, match=r"1\.6e\+11 points \(at most 2147483647\); delta' must be >= 7\.451e-09 "
+                                         r"here, or use method 'di'$"):
+        grid_size(1e-10, 1.0)
+    assert grid_size(7.451e-09, 1.0) <= 2**30 - 1  # accepted
+    with pytest.raises(ValueError, match=r"no delta is admissible for these parameters: use method 'di'$"):
+        grid_size(1e-300, 1.0, 1e300)
+    p = dj.Params(**{**dj.FIG3, "Delta": 1e-8})  # delta = delta' Delta / sqrt(Gamma)
+    with pytest.raises(ValueError, match=r"delta must be >= ([0-9.e+-]+) s\^-1/2 here") as e:
+        pdmp_grid_info(p, 1e-10)
+    least = float(re.search(r">= ([0-9.e+-]+) s", str(e.value)).group(1))
+    scale = 1e-8 / math.sqrt(dj.FIG3["Gamma"])
+    assert least / scale == pytest.approx(8 / math.sqrt(p.tau_nd) / (2**30 - 2), rel=1e-3)
+    assert pdmp_grid_info(p, least)["N"] <= 2**30 - 1
 
 
 def test_a_grid_beyond_int_range_is_refused_with_a_readable_count():
