@@ -21,7 +21,7 @@ from .estimators import (
     MIN_PATHS, MIN_RELIABLE_N, MIN_RELIABLE_PATHS, WEAK_DAMPING_TAU_L, bruteforce_estimates, long_excursion_estimates,
     near_runaway_note, rounding_note,
 )
-from .excursions import BLOCK, FINAL_DEADLINE, simulate_long_excursions, work_per_excursion
+from .excursions import BLOCK, FINAL_DEADLINE, INTERRUPT_GRACE_S, simulate_long_excursions, work_per_excursion
 from .limits import MAX_WORK
 from .outfiles import dumps
 from .params import Params, check_positive, real_or_none, rounded_bound
@@ -477,7 +477,8 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
     # a lane the final round's deadline (max_time) or its block bound (never expected) stopped lost
     # its in-flight excursion: count it too
     n_truncated = sim.n_truncated + sim.n_unfinished
-    cut = max_time is not None and sim.n_unfinished > 0  # the final round's deadline (the block bound never binds)
+    # the final round's deadline: max_time's, or the grace after a Ctrl-C (the block bound never binds)
+    cut = sim.n_unfinished > 0 and (max_time is not None or stopped == "interrupted")
     if stopped == "interrupted":
         notes.append(f"interrupted: result of the {sim.n_excursions} excursions completed by then")
     if sim.n_in_flight and not cut:
@@ -488,7 +489,13 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
             f"work bound reached (max_work = {max_work:.3g} {unit}, predicted >= {plan.predicted_work:.3g})"
         notes.append(f"{what} before the " + (f"target rtol = {rtol}" if rtol else f"{n_excursions} excursions")
                      + f": result of {sim.n_excursions} excursions")
-    if cut:
+    if cut and stopped == "interrupted":
+        notes.append(f"the final round, which finishes the excursions in flight, was cut {INTERRUPT_GRACE_S:g} s after "
+                     "the interrupt"
+                     + (f" (or at {FINAL_DEADLINE:g} x max_time)" if max_time is not None else "")
+                     + f": {sim.n_unfinished} excursions still running are excluded and counted as truncated: the "
+                     "estimate is biased low")
+    elif cut:
         notes.append(f"{CUT_NOTE} {FINAL_DEADLINE:g} x "
                      f"max_time: {sim.n_unfinished} excursions still running are excluded and counted as truncated: "
                      "the estimate is biased low (the excursions are far longer than planned; raise max_time)")

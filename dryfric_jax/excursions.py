@@ -36,6 +36,7 @@ reported, and the lane seeks again; no lane runs more than ``budget + max_steps`
 """
 from __future__ import annotations
 
+import sys
 import time
 from dataclasses import dataclass
 from functools import lru_cache, partial
@@ -70,6 +71,10 @@ FINAL_CALL_LANE_STEPS = 2**27
 ROUND_LANE_STEPS = 2**26
 #: with ``max_time``, the final round is cut at this multiple of it (:func:`simulate_long_excursions`)
 FINAL_DEADLINE = 2.0
+#: after a first Ctrl-C (or SIGTERM in the CLI), the final round that finishes the excursions in flight
+#: is cut this many seconds later (between calls; the cut ones are reported as truncated): without it, a
+#: run far harder than planned (Gamma = 1e8 at Fig. 3's point) finished them for over 10 minutes, silent
+INTERRUPT_GRACE_S = 20.0
 # steps per iteration of the block's loop: best of 5 runs against 1, DI +1-7%, PDMP +10-14% on 2 CPU
 # cores; 8 was no better
 UNROLL = 4
@@ -798,6 +803,7 @@ def simulate_long_excursions(chain, key, n_excursions: int, *, lanes: int | None
             stopped = "interrupted"
             if total is None:
                 raise
+            deadline = _grace(deadline, total.n_in_flight)
         first_ctrl_c = stopped != "interrupted"  # the run's first Ctrl-C may still come, in this round
         while True:
             try:
@@ -809,6 +815,7 @@ def simulate_long_excursions(chain, key, n_excursions: int, *, lanes: int | None
                 stopped = "interrupted"
                 if first_ctrl_c:  # the first Ctrl-C finishes the in-flight excursions: the final round
                     first_ctrl_c = False  # runs again from its start (same key, lanes unchanged: same chains)
+                    deadline = _grace(deadline, total.n_in_flight)
                     continue
                 # second Ctrl-C: keep the closed excursions, in-flight ones dropped
             break
@@ -821,6 +828,15 @@ def simulate_long_excursions(chain, key, n_excursions: int, *, lanes: int | None
             break
         want = closed(total) + extra
     return total, stopped
+
+
+def _grace(deadline: float | None, in_flight: int) -> float:
+    """The final round's deadline after a first Ctrl-C: at most :data:`INTERRUPT_GRACE_S` from now.
+    Says so on stderr (the run otherwise went silent until it ended)."""
+    print(f"interrupted: finishing the {in_flight} excursions in flight for at most {INTERRUPT_GRACE_S:g} s (any "
+          "still running then are reported as truncated); interrupt again to drop them", file=sys.stderr, flush=True)
+    grace = _now() + INTERRUPT_GRACE_S
+    return grace if deadline is None else min(deadline, grace)
 
 
 def steps_per_excursion(chain, key, *, lanes: int = 256, budget: int = 4096, block: int = BLOCK,

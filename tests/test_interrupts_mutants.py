@@ -244,6 +244,7 @@ class _Lanes:
     or ``KeyboardInterrupt`` (the Ctrl-C that arrives during that round); a call past the script fails."""
     script = dict(advance=[], finish=[])
     calls = []
+    deadlines = []
 
     def __init__(self, chain, lanes, block, max_steps):
         self.n_real, self.paid = lanes, 0
@@ -261,17 +262,18 @@ class _Lanes:
         return self._next("advance")
 
     def finish(self, key, budget=0, deadline=None):
+        _Lanes.deadlines.append(deadline)
         return self._next("finish")
 
 
-def _loop(monkeypatch, advance, finish, more=None, ctrl_c_escapes=False):
+def _loop(monkeypatch, advance, finish, more=None, ctrl_c_escapes=False, max_time=None):
     import jax
 
     monkeypatch.setattr(excursions, "Lanes", _Lanes)
-    _Lanes.script, _Lanes.calls = dict(advance=list(advance), finish=list(finish)), []
+    _Lanes.script, _Lanes.calls, _Lanes.deadlines = dict(advance=list(advance), finish=list(finish)), [], []
     run = excursions.simulate_long_excursions
     args = (None, jax.random.key(0), 4)
-    kw = dict(lanes=8, block=8, more=more)
+    kw = dict(lanes=8, block=8, more=more, max_time=max_time)
     return run(*args, **kw) if ctrl_c_escapes else _no_ctrl_c_escapes(run, *args, **kw)
 
 
@@ -310,6 +312,30 @@ def test_a_second_ctrl_c_in_the_final_round_keeps_the_completed_rounds(monkeypat
     paused = _stats(4, 2)
     st, stopped = _loop(monkeypatch, [paused], [KeyboardInterrupt, KeyboardInterrupt, _stats(6, 0)])
     assert (st, stopped, _Lanes.calls) == (paused, "interrupted", ["advance", "finish", "finish"])
+
+
+@pytest.mark.parametrize("where", ["rounds", "final round"])
+def test_a_first_ctrl_c_gives_the_final_round_a_grace_deadline_and_says_so(monkeypatch, capsys, where):
+    """DEFECT (a hard-cases audit): after a first Ctrl-C (SIGTERM in the CLI) the final round finishing the
+    excursions in flight had no deadline without ``max_time``: at Gamma = 1e8 (Fig. 3's point) 'timeout 75
+    dryfric estimate' was still running, silent, 10 minutes later.  Now the final round is cut
+    INTERRUPT_GRACE_S after the Ctrl-C (the clock here: 100 s), or at the max_time deadline if earlier, and
+    one line on stderr says so, naming the excursions in flight."""
+    monkeypatch.setattr(excursions, "_now", lambda: 100.0)
+    grace = 100.0 + excursions.INTERRUPT_GRACE_S
+    if where == "rounds":  # the target wants more, so a second paused round runs, and is interrupted
+        advance, finish, more = [_stats(1, 8), KeyboardInterrupt], [_stats(6, 0)], lambda s: 1000
+    else:
+        advance, finish, more = [_stats(4, 2)], [KeyboardInterrupt, _stats(6, 0)], lambda s: 0
+    _loop(monkeypatch, advance, finish, more=more)
+    assert _Lanes.deadlines[-1] == grace and (where == "rounds" or _Lanes.deadlines[0] is None)
+    in_flight = 8 if where == "rounds" else 2
+    assert capsys.readouterr().err == (f"interrupted: finishing the {in_flight} excursions in flight for at most "
+                                       f"{excursions.INTERRUPT_GRACE_S:g} s (any still running then are reported as "
+                                       "truncated); interrupt again to drop them\n")
+    _loop(monkeypatch, [_stats(1, 8), KeyboardInterrupt], [_stats(6, 0)], more=lambda s: 1000,
+          max_time=1.0)  # max_time's deadline is the earlier
+    assert _Lanes.deadlines == [100.0 + excursions.FINAL_DEADLINE * 1.0]
 
 
 # ------------------------------------------------------------------------------------------------------ sweeps
