@@ -129,6 +129,21 @@ def test_a_final_round_cut_after_an_interrupt_is_said_as_such(monkeypatch, max_t
     assert not any("dropped" in w for w in ws)
 
 
+@pytest.mark.parametrize("stopped", ["target", "n_excursions"])
+def test_a_target_stop_with_weak_damping_says_the_stop_rule_biases_d(monkeypatch, stopped):
+    """An audit (2000 + 1000 replicates, white noise, tau_L = inf, b = 0, against the exact chain law): runs that
+    the rtol target stopped had D 1.9% (0.9%) low and coverage 0.90 (0.92) at N ~ 8e3 (2e4), against 0.2% and
+    0.93-0.94 at fixed N; at the damped calibration point no difference.  The note comes with a target stop and
+    weak damping only (P here is viscous: no note)."""
+    _fake_engine(monkeypatch, lambda kw: (_stats(U40, T40), stopped))
+    weak = dj.Params.from_nondim(0.3, math.inf, 0.1, Gamma=2.0, Delta=3.0)
+    for params, said in ((weak, stopped == "target"), (P, False)):
+        with warnings.catch_warnings(record=True) as ws:
+            warnings.simplefilter("always")
+            dj.estimate_diffusivity(params, 7, h=0.02 * params.tau0, n_excursions=40, rtol=0.5)
+        assert sum(str(w.message) == dj.api.TARGET_STOP_NOTE for w in ws) == said
+
+
 @pytest.mark.parametrize("n,warned", [(9_999, True), (10_000, False)])
 def test_small_n_warning_is_below_min_reliable_n_only(monkeypatch, n, warned):
     rng = np.random.default_rng(0)
@@ -361,7 +376,7 @@ def test_a_run_near_the_runaway_bias_says_how_little_its_d_interval_covers(monke
             if near_runaway_note(tl, g)]
     # 1/(1 - 0.9)^2 = 100 (<= 400, > 99); 1/(1 - 0.95)^2 = 400 (<= 400); 1/(1 - 0.99)^2 = 1e4 (<= 1e4)
     assert said == [(inf, 0.9), (inf, -0.95), (inf, 0.99), (inf, 0.999999), (400.0, 0.9), (400.0, -0.95),
-                    (1e4, 0.9), (1e4, -0.95), (1e4, 0.99)]
+                    (1e4, 0.9), (1e4, -0.95), (1e4, 0.99), (1e4, 0.999999)]  # the last: damping-limited, below
     note = near_runaway_note(inf, 0.99)
     assert note.startswith("|gamma_bar|/Delta = 0.99, near the runaway bias") and "0.24 with N = 2e3" in note
     _fake_engine(monkeypatch, lambda kw: (_stats(U40, T40), "n_excursions"))
@@ -371,3 +386,22 @@ def test_a_run_near_the_runaway_bias_says_how_little_its_d_interval_covers(monke
     assert note.replace("0.99", "0.95", 1) in r.warnings
     assert note.replace("0.99", "0.95", 1) in [str(w.message) for w in ws]
     assert not any("runaway" in w for w in _run()[0].warnings)  # the viscous P
+
+
+def test_a_run_near_the_runaway_bias_with_damping_that_sets_the_excursions_is_warned_too():
+    """DEFECT (a hard-cases audit): at tau_L' = 1e5, gamma_bar = 0.999 Delta (tau_L' (1 - g)^2 = 0.1: the damping,
+    not the drift, ends the excursions) 0 of 6 D intervals covered the white-noise D, misses of 4-68 half-widths,
+    and 2 of 6 at (5e3, 0.99); only the mild "~90%" note was shown.  Now a second note from tau_L' >= 3e3
+    (DAMPED_RUNAWAY_TAU_L; 60 runs each covered 0.90 and 0.88 at (1e3, 0.99) and (200, 0.95), like the mild note
+    says).  On both sides of each bound; the drift-limited note is unchanged."""
+    from dryfric_jax.estimators import DAMPED_RUNAWAY_TAU_L, near_runaway_note
+
+    assert DAMPED_RUNAWAY_TAU_L == 3e3
+    for tl, g, said in ((2999.0, 0.99, False), (3000.0, 0.99, True), (3000.0, -0.99, True), (1e5, 0.999, True),
+                        (1e5, 0.899, False), (1e5, 1.0, False), (1e3, 0.99, False)):
+        note = near_runaway_note(tl, g)
+        assert (note is not None) is said, (tl, g)
+        if said:
+            assert note.startswith(f"|gamma_bar|/Delta = {abs(g):.4g}, near the runaway bias (|gamma_bar| = Delta), "
+                                   f"with damping so weak (tau_L/tau0 = {tl:.3g}) that it sets") and "0 of 6" in note
+    assert "with damping so weak" not in near_runaway_note(1e4, 0.99)  # (1 - g)^2 tau_L' = 1: drift-limited
