@@ -172,21 +172,26 @@ def check_work(tau: float, tau_L: float, gamma_bar: float, steps_per_tau0: float
     if log_w > math.log(max_work):
         # the reason: the largest of the three factors of the predicted work
         factors = {"n": math.log(n_excursions), "t": log_t, "steps": math.log(steps_per_tau0)}
+        key = max(factors, key=factors.get)
         why = {"n": "many excursions (lower N)",
                "steps": "each excursion needs many small steps (h or delta small against the excursion)",
                "t": "the bias |gamma_bar| >= Delta keeps the particle moving" if abs(gamma_bar) >= 1.0 else
                "the noise rarely reaches the far threshold (slow weak noise: tau large against tau0)"
-               }[max(factors, key=factors.get)]
+               }[key]
         # beyond float range no max_work (a finite number) allows the run: do not suggest raising it
         beyond = log_w > math.log(sys.float_info.max)
         head = f"max_work must be >= {_exp10(log_w)} {unit} for these parameters" + (
             ", beyond float range (no max_work allows them)" if beyond else f" (got {max_work:.3g})")
+        if beyond and key == "t":  # the duration alone is past e^236 tau0: "coarsen h, lower N" cannot help
+            fix = ("No h, delta or N makes this run feasible" + (
+                "; the white-noise theory ('dryfric theory') gives D when tau << tau0" if tau < 1.0 else ""))
+        else:
+            fix = (("Coarsen" if beyond else "Raise max_work (--max-work), coarsen")
+                   + " h or delta, lower N, or use the white-noise theory when tau << tau0")
         raise ValueError(
             f"{head}: {n_excursions} excursions of predicted mean duration >= {_exp10(log_t)} tau0 at "
             f"{steps_per_tau0:.3g} {unit} per tau0 (tau' = {tau:.3g}, tau_L' = {tau_L:.3g}, "
-            f"gamma_bar' = {gamma_bar:.3g}); {why}.  "
-            + ("Coarsen" if beyond else "Raise max_work (--max-work), coarsen")
-            + " h or delta, lower N, or use the white-noise theory when tau << tau0")
+            f"gamma_bar' = {gamma_bar:.3g}); {why}.  {fix}")
     # accepted: log_w <= log(max_work) <= log(largest float), up to rounding, so exp cannot overflow
     return min(math.exp(min(log_w, math.log(max_work))), max_work)
 
