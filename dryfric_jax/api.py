@@ -40,7 +40,8 @@ HORIZON_RTOL = 0.01
 
 #: the notes of an estimate whose excursions were truncated, by cause (the CLI names the option
 #: that helps from them): the final round's deadline (2 max_time) or the work bound max_steps
-CUT_NOTE = "the final round, which finishes the excursions in flight, was cut at"
+FINAL_CUT = "the final round, which finishes the excursions in flight, was cut"
+CUT_NOTE = f"{FINAL_CUT} at"  # by max_time's deadline (the CLI's --max-time hint looks for it)
 BOUND_NOTE = "hit the work bound"
 #: with weak damping, a run that the precision target ended (README "Confidence intervals": an audit's 2000 + 1000
 #: replicates against the exact chain law, white noise, tau_L = inf, b = 0, rtol 0.15 and 0.10 after 1000)
@@ -498,8 +499,7 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
         notes.append(f"{what} before the " + (f"target rtol = {rtol}" if rtol else f"{n_excursions} excursions")
                      + f": result of {sim.n_excursions} excursions")
     if cut and stopped == "interrupted":
-        notes.append(f"the final round, which finishes the excursions in flight, was cut {INTERRUPT_GRACE_S:g} s after "
-                     "the interrupt"
+        notes.append(f"{FINAL_CUT} {INTERRUPT_GRACE_S:g} s after the interrupt"
                      + (f" (or at {FINAL_DEADLINE:g} x max_time)" if max_time is not None else "")
                      + f": {sim.n_unfinished} excursions still running are excluded and counted as truncated: the "
                      "estimate is biased low")

@@ -752,9 +752,11 @@ def simulate_long_excursions(chain, key, n_excursions: int, *, lanes: int | None
     Returns:
         ``(stats, stopped_by)`` with ``stopped_by`` in ``{"n_excursions", "target", "max_time",
         "interrupted", "work_bound"}``.  Completed rounds are never lost: on Ctrl-C the in-flight
-        excursions are finished (a second Ctrl-C drops them, see ``n_in_flight``).  A first Ctrl-C
-        that comes during the final round (a Ctrl-C acts between its calls) runs that round again
-        from its start, which gives the same excursions; it was taken for the second.
+        excursions are finished (a second Ctrl-C drops them, see ``n_in_flight``), within
+        :data:`INTERRUPT_GRACE_S` of the first Ctrl-C (those still running then are left unfinished).
+        A first Ctrl-C that comes during the final round (a Ctrl-C acts between its calls) runs that
+        round again from its start, which gives the same excursions where the grace suffices (fewer
+        where the round needed longer); it was taken for the second.
     """
     if n_excursions < 1:
         raise ValueError(f"n_excursions must be >= 1 (got {n_excursions})")
@@ -832,11 +834,15 @@ def simulate_long_excursions(chain, key, n_excursions: int, *, lanes: int | None
 
 def _grace(deadline: float | None, in_flight: int) -> float:
     """The final round's deadline after a first Ctrl-C: at most :data:`INTERRUPT_GRACE_S` from now.
-    Says so on stderr (the run otherwise went silent until it ended)."""
-    print(f"interrupted: finishing the {in_flight} excursions in flight for at most {INTERRUPT_GRACE_S:g} s (any "
-          "still running then are reported as truncated); interrupt again to drop them", file=sys.stderr, flush=True)
-    grace = _now() + INTERRUPT_GRACE_S
-    return grace if deadline is None else min(deadline, grace)
+    Says so on stderr (the run otherwise went silent until it ended), on a line of its own (a terminal's
+    progress line is cleared first)."""
+    now = _now()
+    new = now + INTERRUPT_GRACE_S if deadline is None else min(deadline, now + INTERRUPT_GRACE_S)
+    clear = "\r\x1b[K" if sys.stderr.isatty() else ""
+    print(f"{clear}dryfric: interrupted: finishing the {in_flight} excursions in flight for at most "
+          f"{max(new - now, 0.0):.3g} s (any still running then are reported as truncated); interrupt again to drop "
+          "them", file=sys.stderr, flush=True)
+    return new
 
 
 def steps_per_excursion(chain, key, *, lanes: int = 256, budget: int = 4096, block: int = BLOCK,

@@ -182,7 +182,7 @@ def check_work(tau: float, tau_L: float, gamma_bar: float, steps_per_tau0: float
         beyond = log_w > math.log(sys.float_info.max)
         head = f"max_work must be >= {_exp10(log_w)} {unit} for these parameters" + (
             ", beyond float range (no max_work allows them)" if beyond else f" (got {max_work:.3g})")
-        if beyond and key == "t":  # the duration alone is past e^236 tau0: "coarsen h, lower N" cannot help
+        if log_t > math.log(sys.float_info.max):  # one excursion alone lasts > 1.8e308 tau0: nothing can help
             fix = ("No h, delta or N makes this run feasible" + (
                 "; the white-noise theory ('dryfric theory') gives D when tau << tau0" if tau < 1.0 else ""))
         else:
@@ -197,18 +197,21 @@ def check_work(tau: float, tau_L: float, gamma_bar: float, steps_per_tau0: float
 
 
 def _exp10(log_x: float) -> str:
-    """``exp(log_x)`` as text, also far beyond float range ("2.5e1234", "10^(1.9e+300)", "inf")."""
+    """``exp(log_x)`` as text, also far beyond float range ("2.5e1234", "10^(1.9e+300)", "inf"), rounded
+    up: it states a lower bound ("max_work must be >= ...", a duration ">= ..."), and a max_work copied
+    from the message must be accepted (rounded to nearest, 54 of 200 were refused again)."""
     e = log_x / math.log(10.0)
-    if e <= 15:
-        return f"{math.exp(log_x):.3g}"
+    if e <= 15:  # accepted as max_work where its log is >= log_x (check_work compares logs)
+        s = f"{math.exp(log_x):.3g}"
+        return s if math.log(float(s)) >= log_x else rounded_bound(math.exp(log_x), lower=True, digits=3)
     if not math.isfinite(e):
         return "inf"
     if e >= 1e6:
-        return f"10^({e:.3g})"
-    m, k = f"{10 ** (e - math.floor(e)):.2g}", int(math.floor(e))
-    if m == "10":  # a mantissa of 9.95... rounds up: "1e16", not "10e15"
-        m, k = "1", k + 1
-    return f"{m}e{k}"
+        return f"10^({rounded_bound(e, lower=True, digits=3)})"
+    m, k = math.ceil(10 ** (e - math.floor(e)) * 10) / 10, int(math.floor(e))
+    if m >= 10:  # a mantissa of 9.95... rounds up: "1e16", not "10e15"
+        m, k = 1.0, k + 1
+    return f"{m:g}e{k}"
 
 
 def check_simulable(tau_L: float, tau_L_s: float, tau0: float) -> None:

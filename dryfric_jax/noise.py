@@ -71,11 +71,11 @@ def grid_size(delta: float, tau: float, gamma_bar: float = 0.0, shown_as: str | 
     n = reach / delta  # may be inf
     if not n <= 2**30 - 2:  # 2 ceil(n) + 3 <= 2**31 - 1 points
         shown_as = shown_as or f"delta' = {delta!r}"
-        least = reach / (2**30 - 2)  # the smallest delta' whose grid fits
-        if least < delta_max(tau, gamma_bar):
+        least = reach / (2**30 - 2)  # the smallest delta' whose grid fits, stated rounded up: it must stay below
+        shown_least = rounded_bound(least * (scale or 1.0), lower=True)  # delta_max to be admissible
+        if float(shown_least) < delta_max(tau, gamma_bar) * (scale or 1.0):
             name, unit = ("delta'", "") if scale is None else ("delta", " s^-1/2")
-            least = rounded_bound(least * (scale or 1.0), lower=True)
-            fix = f"{name} must be >= {least}{unit} here, or use method 'di'"
+            fix = f"{name} must be >= {shown_least}{unit} here, or use method 'di'"
         else:
             fix = "no delta is admissible for these parameters: use method 'di'"
         raise ValueError(f"{shown_as} is too small: the noise grid would have {2.0 * n + 3:.3g} points "

@@ -257,9 +257,10 @@ def test_the_symmetric_passage_time_is_tau_pi_erfi(tau):
 
 @pytest.mark.parametrize("log_x,text", [
     (math.log(1250.0), "1.25e+03"),  # e <= 15: exp(x) itself, 3 digits
-    (1e10 * 0 + 10 * math.log(10.0), "1e+10"),
-    (1234 * math.log(10.0) + math.log(2.53), "2.5e1234"),  # two digits of the mantissa
-    (123456.7 * math.log(10.0), "5e123456"),  # 10^0.7 = 5.01
+    (math.log(59_749.0), "5.98e+04"),  # rounded up (a lower bound): "5.97e+04" was refused as max_work
+    (1e10 * 0 + 10 * math.log(10.0), "1.01e+10"),  # log(1e10) < 10 log(10) by rounding: 1e10 is refused
+    (1234 * math.log(10.0) + math.log(2.53), "2.6e1234"),  # two digits of the mantissa, rounded up
+    (123456.7 * math.log(10.0), "5.1e123456"),  # 10^0.7 = 5.01, up
     (15.999 * math.log(10.0), "1e16"),  # 10^0.999 = 9.977 rounds to 10 at two digits: it printed "10e15"
     (1233.9999 * math.log(10.0), "1e1234"),
     (1e6 * math.log(10.0), "10^(1e+06)"),  # e = 1e6 exactly (checked below): the exponent's own form
@@ -271,6 +272,29 @@ def test_exp10_writes_the_docstrings_forms(log_x, text):
     (e > 1e6), L44 (exponent form from 1e5), L45 (three digits of mantissa), L46 (inf not said)."""
     assert 1e6 * math.log(10.0) / math.log(10.0) == 1e6
     assert limits._exp10(log_x) == text
+
+
+def test_a_max_work_copied_from_the_refusal_is_accepted():
+    """The work refusal states a lower bound ("max_work must be >= 5.98e+04"), rounded to nearest it was below the
+    prediction in 54 of these 200 runs (a diff review): copied back as max_work, it was refused again."""
+    for n in range(1000, 1200):
+        with pytest.raises(ValueError) as e:
+            limits.check_work(0.3, 10.0, 0.1, 50.0, n, max_work=1.0)
+        least = float(str(e.value).split("max_work must be >= ")[1].split(" ")[0])
+        assert limits.check_work(0.3, 10.0, 0.1, 50.0, n, max_work=least) <= least
+
+
+def test_a_work_refusal_past_float_range_by_the_duration_alone_suggests_nothing_that_cannot_help():
+    """One excursion predicted to last past 1.8e308 tau0 (tau_L' = 1e300, gamma_bar' = 1.5: the bias keeps it moving):
+    no h, delta or N helps, so none is suggested; the white-noise theory only where tau' < 1.  Past float range by N
+    and steps alone (a duration of ~1), coarsening and lowering N are still the advice."""
+    for tau, hint in ((0.5, True), (2.0, False)):
+        with pytest.raises(ValueError) as e:
+            limits.check_work(tau, 1e300, 1.5, 10.0, 100)
+        assert str(e.value).endswith(".  No h, delta or N makes this run feasible" + (
+            "; the white-noise theory ('dryfric theory') gives D when tau << tau0" if hint else ""))
+    with pytest.raises(ValueError, match=r"\.  Coarsen h or delta, lower N, or use the white-noise theory"):
+        limits.check_work(1e-3, 0.5, 0.0, 1e200, 10**150)
 
 
 def test_max_steps_is_the_ceiling_of_1e4_tail_time_scales():

@@ -330,12 +330,13 @@ def test_a_first_ctrl_c_gives_the_final_round_a_grace_deadline_and_says_so(monke
     _loop(monkeypatch, advance, finish, more=more)
     assert _Lanes.deadlines[-1] == grace and (where == "rounds" or _Lanes.deadlines[0] is None)
     in_flight = 8 if where == "rounds" else 2
-    assert capsys.readouterr().err == (f"interrupted: finishing the {in_flight} excursions in flight for at most "
-                                       f"{excursions.INTERRUPT_GRACE_S:g} s (any still running then are reported as "
-                                       "truncated); interrupt again to drop them\n")
+    assert capsys.readouterr().err == (f"dryfric: interrupted: finishing the {in_flight} excursions in flight for at "
+                                       "most 20 s (any still running then are reported as truncated); interrupt "
+                                       "again to drop them\n")
     _loop(monkeypatch, [_stats(1, 8), KeyboardInterrupt], [_stats(6, 0)], more=lambda s: 1000,
-          max_time=1.0)  # max_time's deadline is the earlier
+          max_time=1.0)  # max_time's deadline is the earlier, and the line says how long is left
     assert _Lanes.deadlines == [100.0 + excursions.FINAL_DEADLINE * 1.0]
+    assert "for at most 2 s (any" in capsys.readouterr().err
 
 
 # ------------------------------------------------------------------------------------------------------ sweeps
