@@ -21,7 +21,8 @@ from .estimators import (
     MIN_PATHS, MIN_RELIABLE_N, MIN_RELIABLE_PATHS, WEAK_DAMPING_TAU_L, bruteforce_estimates, long_excursion_estimates,
     near_runaway_note, rounding_note,
 )
-from .excursions import BLOCK, FINAL_DEADLINE, INTERRUPT_GRACE_S, simulate_long_excursions, work_per_excursion
+from .excursions import BLOCK
+from .rounds import FINAL_DEADLINE, INTERRUPT_GRACE_S, simulate_long_excursions, work_per_excursion
 from .limits import MAX_WORK
 from .outfiles import dumps
 from .params import Params, check_positive, real_or_none, rounded_bound

@@ -273,7 +273,7 @@ def sums_from_samples(U, t, t_half=None) -> dict:
 
 
 def long_excursion_estimates(T: dict, level: float = 0.95) -> dict:
-    """D, M0 (and mean durations) with CIs from the sums ``T`` of :class:`~dryfric_jax.excursions.ExcursionStats`.
+    """D, M0 (and mean durations) with CIs from the sums ``T`` of :class:`~dryfric_jax.rounds.ExcursionStats`.
 
     Units are those of the sums (nondimensional in the engine).
     """

@@ -5,7 +5,7 @@ One device per core: the lanes' ``while_loop`` runs on one core per device, so w
 default CPU device a notebook used one core while the ``dryfric`` command used all of them
 (measured on 2 cores, Fig. 3 point, N = 2e4, float64: 10.9-11.2 s on one device, 8.6 s on two,
 the same D to the last bit).  The estimate does not depend on the device count (pad lanes,
-:class:`dryfric_jax.excursions.Lanes`; tested with 1 and 3 devices), so this changes the speed,
+:class:`dryfric_jax.rounds.Lanes`; tested with 1 and 3 devices), so this changes the speed,
 not the numbers.  It also makes ``jax.devices("cpu")`` list one device per core for the rest of
 the program; ``XLA_FLAGS=--xla_force_host_platform_device_count=1`` (set before importing)
 keeps one.

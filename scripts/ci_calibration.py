@@ -15,7 +15,8 @@ import math
 import dryfric_jax as dj
 from dryfric_jax.di import make_di_model
 from dryfric_jax.estimators import replicate_coverage
-from dryfric_jax.excursions import STAT_NAMES, simulate_replicates
+from dryfric_jax.excursions import STAT_NAMES
+from dryfric_jax.rounds import simulate_replicates
 from dryfric_jax.outfiles import dumps
 
 

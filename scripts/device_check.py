@@ -27,7 +27,7 @@ keeps what it printed), at the paper's Fig. 3 point:
   H200 (2026-11-30) the kernel and a direct draw took ~1 and ~3 ms of a ~27 ms block (2^18 lanes,
   K = 1024, float32; the run's wall time over its slot-steps): this splits the rest;
 * ``rounds`` (``--round-steps``, ``--final-call-steps``, after the breakdown): the DI at the first --lanes
-  and --block for each cap of a paused round's lane-steps (``excursions.ROUND_LANE_STEPS``; it changes
+  and --block for each cap of a paused round's lane-steps (``rounds.ROUND_LANE_STEPS``; it changes
   the random streams, not the law) and of a final round's call (``FINAL_CALL_LANE_STEPS``; it changes
   no number), the CPU-sized defaults first: whether GPU-sized rounds and calls pay.
 
@@ -235,22 +235,23 @@ def round_sweep(dtype, lanes, block, events, rounds, finals, n):
     restored after.  One compile run first; each run on max(n, 8 lanes) excursions, seed 1."""
     import dryfric_jax as dj
     from dryfric_jax import excursions as ex
+    from dryfric_jax import rounds as rd
 
     p = fig3_di(dtype)[0]
-    saved = ex.ROUND_LANE_STEPS, ex.FINAL_CALL_LANE_STEPS, ex.DEFAULT_EVENTS
+    saved = rd.ROUND_LANE_STEPS, rd.FINAL_CALL_LANE_STEPS, ex.DEFAULT_EVENTS
     ex.DEFAULT_EVENTS = events or ex.DEFAULT_EVENTS
     try:
         dj.estimate_diffusivity(p, 1, dtype=dtype, lanes=lanes, block=block, n_excursions=200)  # compile
         for r in rounds or [saved[0]]:
             for f in finals or [saved[1]]:
-                ex.ROUND_LANE_STEPS, ex.FINAL_CALL_LANE_STEPS = r, f
+                rd.ROUND_LANE_STEPS, rd.FINAL_CALL_LANE_STEPS = r, f
                 res = dj.estimate_diffusivity(p, 1, dtype=dtype, lanes=lanes, block=block,
                                               n_excursions=max(n, 8 * lanes))
                 emit(kind="rounds", dtype=dtype, lanes=lanes, block=block, round_lane_steps=r, final_call_lane_steps=f,
                      lane_steps_per_s=res.lane_steps_per_s, wall_s=res.wall_s, utilization=res.lane_utilization,
                      n_excursions=res.n_excursions, D=res.D, D_ci=res.D_ci)
     finally:
-        ex.ROUND_LANE_STEPS, ex.FINAL_CALL_LANE_STEPS, ex.DEFAULT_EVENTS = saved
+        rd.ROUND_LANE_STEPS, rd.FINAL_CALL_LANE_STEPS, ex.DEFAULT_EVENTS = saved
 
 
 def block_breakdown(dtype, lanes, block, events, reps=5):
@@ -261,6 +262,7 @@ def block_breakdown(dtype, lanes, block, events, reps=5):
     import numpy as np
 
     from dryfric_jax import excursions as ex
+    from dryfric_jax.rounds import Lanes
 
     chain = fig3_di(dtype)[1]
     events = ex._events_layout(jax.devices(), chain, events)
@@ -278,7 +280,7 @@ def block_breakdown(dtype, lanes, block, events, reps=5):
     s["rest"] = s["block"] - s["draw"] - s["quiet"]
     # in situ: paused rounds of 1, 4 and 16 blocks (a run's rounds are >= 4 blocks; a final round's calls
     # can be 1 block each): the slope is a block in the engine, the intercept what a round costs besides
-    ln = ex.Lanes(chain, lanes, block=block, events=events)
+    ln = Lanes(chain, lanes, block=block, events=events)
     ln.advance(jax.random.key(1), block)  # compile
     nbs, secs = [1, 4, 16, 1, 4, 16], []
     for i, nb in enumerate(nbs):

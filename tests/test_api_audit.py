@@ -18,7 +18,8 @@ import pytest
 import dryfric_jax as dj
 from dryfric_jax import api
 from dryfric_jax.estimators import long_excursion_estimates, sums_from_samples
-from dryfric_jax.excursions import STAT_NAMES, ExcursionStats
+from dryfric_jax.excursions import STAT_NAMES
+from dryfric_jax.rounds import ExcursionStats
 
 P = dj.Params.from_nondim(0.3, 0.5, 0.1, Gamma=2.0, Delta=3.0)  # viscous: no weak-damping warning
 U5 = np.array([1.0, -2.0, 3.0, 0.5, 2.5])
@@ -115,7 +116,7 @@ def test_without_max_time_nothing_is_cut_and_in_flight_drops_are_said(monkeypatc
 
 @pytest.mark.parametrize("max_time", [None, 50.0])
 def test_a_final_round_cut_after_an_interrupt_is_said_as_such(monkeypatch, max_time):
-    """A first Ctrl-C gives the final round a grace deadline (excursions.INTERRUPT_GRACE_S); the excursions it
+    """A first Ctrl-C gives the final round a grace deadline (rounds.INTERRUPT_GRACE_S); the excursions it
     cut are counted as truncated and said to be cut after the interrupt, not "dropped (a second interrupt)"
     nor "hit the work bound" (both were printed, at Gamma = 1e8 with no max_time: a hard-cases audit)."""
     _fake_engine(monkeypatch, lambda kw: (_stats(U5, T5, truncated=3, unfinished=2, in_flight=2), "interrupted"))

@@ -18,7 +18,8 @@ import pytest
 import dryfric_jax as dj
 from dryfric_jax.di import make_di_model
 from dryfric_jax.estimators import MIN_RELIABLE_N, long_excursion_estimates, replicate_coverage
-from dryfric_jax.excursions import STAT_NAMES, simulate_replicates
+from dryfric_jax.excursions import STAT_NAMES
+from dryfric_jax.rounds import simulate_replicates
 
 LANES_PER_REPLICATE = 16
 REPLICATES = 120

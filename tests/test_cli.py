@@ -492,7 +492,8 @@ def test_no_estimate_says_what_ended_the_run(monkeypatch, capsys, stopped, code,
     import numpy as np
 
     from dryfric_jax import api
-    from dryfric_jax.excursions import STAT_NAMES, ExcursionStats
+    from dryfric_jax.excursions import STAT_NAMES
+    from dryfric_jax.rounds import ExcursionStats
 
     empty = ExcursionStats(np.zeros((4, len(STAT_NAMES))), 0, 0, 0)
     monkeypatch.setattr(api, "simulate_long_excursions", lambda *a, **k: (empty, stopped))
@@ -940,14 +941,14 @@ def test_work_refusal_suggests_raising_max_work_only_when_a_float_could_allow_it
 
 _SIGTERM_ITSELF = """\
 import os, signal, sys
-from dryfric_jax import cli, excursions
-real, calls = excursions.Lanes.advance, [0]
+from dryfric_jax import cli, rounds
+real, calls = rounds.Lanes.advance, [0]
 def advance(self, *a):
     calls[0] += 1
     if calls[0] == {at}:  # kill(1)'s SIGTERM, in the middle of a paused round
         os.kill(os.getpid(), signal.SIGTERM)
     return real(self, *a)
-excursions.Lanes.advance = advance
+rounds.Lanes.advance = advance
 sys.exit(cli.main(sys.argv[1:]))
 """
 

@@ -13,10 +13,8 @@ from dryfric_jax import rng
 from dryfric_jax.di import DIModel, make_di_model
 from dryfric_jax.estimators import long_excursion_estimates
 from dryfric_jax.pdmp import PDMPModel, make_pdmp_model
-from dryfric_jax.excursions import (
-    STAT_NAMES, Lanes, _close, _run_round, compiled_round, init_lanes, run_round, simulate_long_excursions,
-    steps_per_excursion,
-)
+from dryfric_jax.excursions import STAT_NAMES, _close, _run_round, compiled_round, init_lanes
+from dryfric_jax.rounds import Lanes, run_round, simulate_long_excursions, steps_per_excursion
 
 
 @pytest.mark.slow
@@ -208,7 +206,7 @@ def test_round_block_bound_counts_from_the_lane_with_fewest_blocks(events):
 def test_final_round_in_many_calls_equals_one_call(method, events, monkeypatch):
     """A final round runs in calls of at most FINAL_CALL_LANE_STEPS lane-steps (so a Ctrl-C acts
     between them): one block per call, compaction included, gives the same lanes as the default."""
-    from dryfric_jax import excursions
+    from dryfric_jax import rounds
 
     p = dj.Params.from_nondim(0.5, 1.0, 0.2)
     chain = make_di_model(p, 0.02) if method == "di" else make_pdmp_model(p, 0.3)
@@ -217,7 +215,7 @@ def test_final_round_in_many_calls_equals_one_call(method, events, monkeypatch):
     calls = []
     real = Lanes._call_once
     monkeypatch.setattr(Lanes, "_call_once", lambda *a: calls.append(1) or real(*a))
-    monkeypatch.setattr(excursions, "FINAL_CALL_LANE_STEPS", 1)  # one block per call
+    monkeypatch.setattr(rounds, "FINAL_CALL_LANE_STEPS", 1)  # one block per call
     many = run_round(chain, jax.random.key(4), 128, 600, block=8, events=events, max_steps=5000)
     assert len(calls) > 50  # the round really was split
     assert np.array_equal(one.stats, many.stats) and np.array_equal(one.lane_steps, many.lane_steps)
@@ -229,7 +227,7 @@ def test_ctrl_c_acts_between_the_calls_of_a_final_round(monkeypatch):
     """A KeyboardInterrupt arriving during a final round's calls leaves it at the next call's
     return, instead of after every in-flight excursion has finished; the lanes keep the state of
     the last completed round."""
-    from dryfric_jax import excursions
+    from dryfric_jax import rounds
 
     chain = make_di_model(dj.Params.from_nondim(0.5, 1.0, 0.2), 0.02)
     ln = Lanes(chain, 64, block=8)
@@ -244,7 +242,7 @@ def test_ctrl_c_acts_between_the_calls_of_a_final_round(monkeypatch):
         return real(*a)
 
     monkeypatch.setattr(Lanes, "_call_once", interrupted)
-    monkeypatch.setattr(excursions, "FINAL_CALL_LANE_STEPS", 1)
+    monkeypatch.setattr(rounds, "FINAL_CALL_LANE_STEPS", 1)
     with pytest.raises(KeyboardInterrupt):
         ln.finish(jax.random.key(1))
     assert len(calls) == 3 and ln.lane is before
@@ -257,12 +255,12 @@ def test_max_time_cuts_the_final_round_and_counts_what_it_cut(monkeypatch):
     Before, the final round finished every in-flight excursion whatever max_time said: at
     Gamma = 1e30 (excursions ~1e17 times longer than planned) a 30-s run had not ended after 2
     minutes.  A fake clock, one second per reading, makes this independent of the machine."""
-    from dryfric_jax import excursions
+    from dryfric_jax import rounds
 
     chain = make_di_model(dj.Params.from_nondim(0.5, 1.0, 0.2), 0.005)  # excursions of ~10^3 steps
     clock = iter(range(10**6))
-    monkeypatch.setattr(excursions, "_now", lambda: float(next(clock)))
-    monkeypatch.setattr(excursions, "FINAL_CALL_LANE_STEPS", 1)  # one block per call of the final round
+    monkeypatch.setattr(rounds, "_now", lambda: float(next(clock)))
+    monkeypatch.setattr(rounds, "FINAL_CALL_LANE_STEPS", 1)  # one block per call of the final round
     calls, real = [], Lanes._call_once
     monkeypatch.setattr(Lanes, "_call_once", lambda *a: calls.append(1) or real(*a))
     st, stopped = simulate_long_excursions(chain, jax.random.key(3), 10**6, lanes=64, block=8, pilot_budget=64,
@@ -281,12 +279,12 @@ def test_no_compacted_tail_starts_past_the_deadline(monkeypatch):
     """The final round's compacted tail is further calls: past the deadline none starts, and the
     lanes still in flight are counted as unfinished.  It used to start one (a new shape to compile:
     a --max-time 3 run took 15 s on 2 cores, audit).  Before the deadline the tail runs as usual."""
-    from dryfric_jax import excursions
+    from dryfric_jax import rounds
 
     chain = make_di_model(dj.Params.from_nondim(0.5, 1.0, 0.2), 0.02)
     got = {}
     for past in (False, True):
-        monkeypatch.setattr(excursions, "_now", lambda: 10.0 if past else 0.0)
+        monkeypatch.setattr(rounds, "_now", lambda: 10.0 if past else 0.0)
         ln = Lanes(chain, 256, block=8, max_steps=1500)
         ln.advance(jax.random.key(1), 3000)
         calls, real = [], Lanes._call_once

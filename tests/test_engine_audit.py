@@ -1,4 +1,4 @@
-r"""Mutation audit of the lane engine's round loop (``dryfric_jax.excursions``) on a clock chain.
+r"""Mutation audit of the lane engine's round loop (``dryfric_jax.rounds``) on a clock chain.
 
 The clock is a deterministic chain whose regenerations are known in advance: lane ``l`` starts
 at counter ``-OFFSETS[l]``, each step adds 1, and the step onto a counter ``c >= 1`` that is a
@@ -17,8 +17,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from dryfric_jax import excursions
-from dryfric_jax.excursions import STAT_NAMES, Lanes, simulate_long_excursions, work_per_excursion
+from dryfric_jax import excursions, rounds
+from dryfric_jax.excursions import STAT_NAMES
+from dryfric_jax.rounds import Lanes, simulate_long_excursions, work_per_excursion
 
 OFFSETS = (0, 1, 3, 7, 12, 20, 33, 60)  # extra seek steps of each lane
 H = 0.375  # the DI-like clock's fixed step (t = n h)
@@ -338,10 +339,10 @@ def test_replicates_run_on_a_fresh_key_with_a_5_percent_margin(monkeypatch):
     the budget to the excursions it measured), with a budget of 1.05 n_per_replicate mean
     excursions per replicate: ceil(1.05 * 40 * 12.5 / 4) = 132 steps per lane."""
     keys, calls = [], []
-    monkeypatch.setattr(excursions, "steps_per_excursion", lambda ch, k, **kw: keys.append(k) or 12.5)
-    monkeypatch.setattr(excursions, "run_round", lambda ch, k, lanes, budget, **kw: calls.append((k, lanes, budget)))
+    monkeypatch.setattr(rounds, "steps_per_excursion", lambda ch, k, **kw: keys.append(k) or 12.5)
+    monkeypatch.setattr(rounds, "run_round", lambda ch, k, lanes, budget, **kw: calls.append((k, lanes, budget)))
     key = jax.random.key(7)
-    excursions.simulate_replicates(_chain(False), key, 3, 40, lanes_per_replicate=4)
+    rounds.simulate_replicates(_chain(False), key, 3, 40, lanes_per_replicate=4)
     ((k, lanes, budget),) = calls
     assert (lanes, budget) == (12, math.ceil(1.05 * 40 * 12.5 / 4))
     data = lambda k: np.asarray(jax.random.key_data(k)).tolist()  # noqa: E731
@@ -427,7 +428,7 @@ def _interrupting(monkeypatch, finish_raises: bool):
     monkeypatch.setattr(Lanes, "advance", advance)
     monkeypatch.setattr(Lanes, "finish", finish)
     clock = [0.0]
-    monkeypatch.setattr(excursions, "_now", lambda: clock[0])
+    monkeypatch.setattr(rounds, "_now", lambda: clock[0])
     return calls
 
 

@@ -1,5 +1,5 @@
-r"""Mutation audit of the lane engine's host side (``dryfric_jax.excursions``): layout defaults
-(``default_block``, ``lanes_for``, ``_is_cuda``, ``_events_layout``, ``compiled_round``), the rounds of
+r"""Mutation audit of the lane engine's host side (``dryfric_jax.excursions``, ``dryfric_jax.rounds``):
+layout defaults (``default_block``, ``lanes_for``, ``_is_cuda``, ``_events_layout``, ``compiled_round``), the rounds of
 :class:`Lanes` (layout and pad lanes, call caps, deadlines, compaction, paid work), ``run_round``, the stopping
 rules of ``simulate_long_excursions``, ``steps_per_excursion``, ``simulate_replicates`` and ``ExcursionStats``.
 
@@ -22,7 +22,9 @@ import numpy as np
 import pytest
 
 from dryfric_jax import excursions
-from dryfric_jax.excursions import STAT_NAMES, ExcursionStats, Lanes, simulate_long_excursions
+from dryfric_jax import rounds as rd
+from dryfric_jax.excursions import STAT_NAMES
+from dryfric_jax.rounds import ExcursionStats, Lanes, simulate_long_excursions
 from test_engine_audit import OFFSETS, H, Clock, PClock, _expected, _lane_blocks, reference_lane
 
 ND = len(jax.local_devices())
@@ -127,7 +129,7 @@ def test_final_round_calls_are_capped_at_final_call_lane_steps(monkeypatch, per_
     max_d floor(B_d / per_call) + 1 calls (the last one finds every device stopped short of the
     cap), B_d the blocks of the device's slowest clock lane, and the sums are the clock's."""
     calls = _counting_calls(monkeypatch)
-    monkeypatch.setattr(excursions, "FINAL_CALL_LANE_STEPS", per_call * 8 * 8)
+    monkeypatch.setattr(rd, "FINAL_CALL_LANE_STEPS", per_call * 8 * 8)
     ln = Lanes(_clock(), 8, block=8, events="wait")
     got = ln.finish(jax.random.key(0), 300)
     blocks = _device_blocks(8, 300, "wait")
@@ -142,7 +144,7 @@ def test_a_paused_round_is_one_call_whatever_the_final_call_cap(monkeypatch):
     compaction on (128 lanes) and a final-call cap of one block: 3 blocks of 8 steps for budget
     20, "branch" (whole blocks), every lane 24 steps; no compacted tail."""
     calls = _counting_calls(monkeypatch)
-    monkeypatch.setattr(excursions, "FINAL_CALL_LANE_STEPS", 1)
+    monkeypatch.setattr(rd, "FINAL_CALL_LANE_STEPS", 1)
     ln = Lanes(_clock(), 128, block=8, events="branch")
     st = ln.advance(jax.random.key(0), 20)
     assert calls == [128] and np.all(np.asarray(ln.lane.work) == 24) and st.n_unfinished == 0
@@ -154,8 +156,8 @@ def test_a_final_round_call_at_the_deadline_is_the_last(monkeypatch):
     per call and the clock standing exactly at the deadline, the round stops after one call, and
     all 8 clock lanes (which need ~50 blocks) are left unfinished."""
     calls = _counting_calls(monkeypatch)
-    monkeypatch.setattr(excursions, "FINAL_CALL_LANE_STEPS", 1)
-    monkeypatch.setattr(excursions, "_now", lambda: 5.0)
+    monkeypatch.setattr(rd, "FINAL_CALL_LANE_STEPS", 1)
+    monkeypatch.setattr(rd, "_now", lambda: 5.0)
     st = Lanes(_clock(), 8, block=8, events="wait").finish(jax.random.key(0), 300, deadline=5.0)
     assert calls == [8] and st.n_unfinished == 8
 
@@ -165,7 +167,7 @@ def test_no_compacted_tail_starts_at_the_deadline(monkeypatch):
     """The tail starts only before the deadline (``_now() < deadline``): with the clock standing at
     it, the round ends after its first call, the 16 slowest lanes unfinished."""
     calls = _counting_calls(monkeypatch)
-    monkeypatch.setattr(excursions, "_now", lambda: 5.0)
+    monkeypatch.setattr(rd, "_now", lambda: 5.0)
     st = Lanes(_clock(), 128, block=8, events="wait").finish(jax.random.key(0), 300, deadline=5.0)
     assert calls == [128] and st.n_unfinished == 16
 
@@ -184,8 +186,8 @@ def test_the_compacted_tail_stops_at_the_deadline_too(monkeypatch):
         return real(self, lane, *a)
 
     monkeypatch.setattr(Lanes, "_call_once", once)
-    monkeypatch.setattr(excursions, "FINAL_CALL_LANE_STEPS", 1)
-    monkeypatch.setattr(excursions, "_now", lambda: clock[0])
+    monkeypatch.setattr(rd, "FINAL_CALL_LANE_STEPS", 1)
+    monkeypatch.setattr(rd, "_now", lambda: clock[0])
     assert list(_device_blocks(128, 310, "wait")) == [56, 56]
     st = Lanes(_clock(), 128, block=8, events="wait").finish(jax.random.key(0), 310, deadline=5.0)
     assert calls.count(16) == 1 and calls[-1] == 16 and st.n_unfinished == 16
@@ -217,7 +219,7 @@ def test_dropping_the_in_flight_excursion_keeps_only_those_closed_within_the_bud
     """``run_round(finish_in_flight=False)``: the lanes run ceil(300 / 8) = 38 blocks ("branch": 304
     steps each) and keep only the excursions that closed within them (the biased demo): the sums
     are those, lane by lane, and nothing is reported in flight."""
-    st = excursions.run_round(_clock(), jax.random.key(0), 8, 300, block=8, finish_in_flight=False,
+    st = rd.run_round(_clock(), jax.random.key(0), 8, 300, block=8, finish_in_flight=False,
                               events="branch")
     for lane, off in enumerate(OFFSETS):
         closed = _closed_by(off, 304)
@@ -250,22 +252,22 @@ def test_steps_per_excursion_grows_the_budget_until_a_lane_has_one_each(monkeypa
             return _stats(closed=n_exc, useful=50 if n_exc == 0 else 100)
         return run_round
 
-    monkeypatch.setattr(excursions, "run_round", fake(4))
-    assert excursions.steps_per_excursion(_clock(), jax.random.key(0), lanes=4, budget=64, block=8,
+    monkeypatch.setattr(rd, "run_round", fake(4))
+    assert rd.steps_per_excursion(_clock(), jax.random.key(0), lanes=4, budget=64, block=8,
                                           max_steps=16) == 25.0
     assert seen == [(4, 64, 8, 16)]
     seen.clear()
-    monkeypatch.setattr(excursions, "run_round", fake(0))
-    assert excursions.steps_per_excursion(_clock(), jax.random.key(0), lanes=4, budget=1024, block=8,
+    monkeypatch.setattr(rd, "run_round", fake(0))
+    assert rd.steps_per_excursion(_clock(), jax.random.key(0), lanes=4, budget=1024, block=8,
                                           max_steps=16) == 50.0
     assert seen == [(4, 1024, 8, 16), (4, 4096, 8, 16)]
 
 
 def test_replicates_pass_block_and_work_bound_to_the_pilot_and_the_round(monkeypatch):
     got = []
-    monkeypatch.setattr(excursions, "steps_per_excursion", lambda ch, k, **kw: got.append(kw) or 10.0)
-    monkeypatch.setattr(excursions, "run_round", lambda ch, k, lanes, budget, **kw: got.append(kw))
-    excursions.simulate_replicates(_clock(), jax.random.key(0), 2, 20, lanes_per_replicate=4, block=16,
+    monkeypatch.setattr(rd, "steps_per_excursion", lambda ch, k, **kw: got.append(kw) or 10.0)
+    monkeypatch.setattr(rd, "run_round", lambda ch, k, lanes, budget, **kw: got.append(kw))
+    rd.simulate_replicates(_clock(), jax.random.key(0), 2, 20, lanes_per_replicate=4, block=16,
                                    max_steps=77)
     assert got == [dict(block=16, max_steps=77)] * 2
 
@@ -309,7 +311,7 @@ class _Script:
         if clock is not None:
             times = iter(clock)
             last = [clock[-1]]
-            monkeypatch.setattr(excursions, "_now", lambda: next(times, last[0]))
+            monkeypatch.setattr(rd, "_now", lambda: next(times, last[0]))
 
     def _log(self, ln, kind, key):
         self.keys.append((kind, np.asarray(jax.random.key_data(key)).tolist()))
@@ -386,17 +388,16 @@ def test_pilot_budgets_grow_within_a_rounds_lane_steps_and_stop_past_64_max_step
 
 
 def test_the_round_cap_defaults_to_the_engine_constant(monkeypatch):
-    """``round_lane_steps`` left out is ``excursions.ROUND_LANE_STEPS`` (read per run, so that
+    """``round_lane_steps`` left out is ``rounds.ROUND_LANE_STEPS`` (read per run, so that
     ``scripts/device_check.py --round-steps`` can try GPU-sized rounds): set to 4000, the second round of
     the case below is capped at 4000 / 8 = 500, as with the argument; at the default 2^26 it is
     ceil(92 x 100 / 8) = 1150."""
-    import dryfric_jax.excursions as ex
 
-    assert ex.ROUND_LANE_STEPS == 2**26
+    assert rd.ROUND_LANE_STEPS == 2**26
     s = _Script(monkeypatch, [(_stats(closed=4, in_flight=4, useful=800), 0), (_stats(closed=100), 0)])
     _run(100)
     assert s.budgets == [16, 1150]
-    monkeypatch.setattr(ex, "ROUND_LANE_STEPS", 4000)
+    monkeypatch.setattr(rd, "ROUND_LANE_STEPS", 4000)
     s = _Script(monkeypatch, [(_stats(closed=4, in_flight=4, useful=800), 0), (_stats(closed=100), 0)])
     _run(100)
     assert s.budgets == [16, 500]

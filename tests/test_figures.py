@@ -226,7 +226,8 @@ def test_a_ctrl_c_before_two_excursions_closed_is_an_interruption(tmp_path, monk
     import numpy as np
 
     from dryfric_jax import NoEstimateError, api
-    from dryfric_jax.excursions import STAT_NAMES, ExcursionStats
+    from dryfric_jax.excursions import STAT_NAMES
+    from dryfric_jax.rounds import ExcursionStats
     from dryfric_jax.figures import points
     from dryfric_jax.params import FIG3, Params
 

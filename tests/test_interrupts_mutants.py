@@ -31,7 +31,7 @@ import types
 
 import pytest
 
-from dryfric_jax import cli, excursions, interrupts
+from dryfric_jax import cli, interrupts, rounds
 
 
 # --------------------------------------------------------------------------------------------- launched_as_cli
@@ -269,9 +269,9 @@ class _Lanes:
 def _loop(monkeypatch, advance, finish, more=None, ctrl_c_escapes=False, max_time=None):
     import jax
 
-    monkeypatch.setattr(excursions, "Lanes", _Lanes)
+    monkeypatch.setattr(rounds, "Lanes", _Lanes)
     _Lanes.script, _Lanes.calls, _Lanes.deadlines = dict(advance=list(advance), finish=list(finish)), [], []
-    run = excursions.simulate_long_excursions
+    run = rounds.simulate_long_excursions
     args = (None, jax.random.key(0), 4)
     kw = dict(lanes=8, block=8, more=more, max_time=max_time)
     return run(*args, **kw) if ctrl_c_escapes else _no_ctrl_c_escapes(run, *args, **kw)
@@ -321,8 +321,8 @@ def test_a_first_ctrl_c_gives_the_final_round_a_grace_deadline_and_says_so(monke
     dryfric estimate' was still running, silent, 10 minutes later.  Now the final round is cut
     INTERRUPT_GRACE_S after the Ctrl-C (the clock here: 100 s), or at the max_time deadline if earlier, and
     one line on stderr says so, naming the excursions in flight."""
-    monkeypatch.setattr(excursions, "_now", lambda: 100.0)
-    grace = 100.0 + excursions.INTERRUPT_GRACE_S
+    monkeypatch.setattr(rounds, "_now", lambda: 100.0)
+    grace = 100.0 + rounds.INTERRUPT_GRACE_S
     if where == "rounds":  # the target wants more, so a second paused round runs, and is interrupted
         advance, finish, more = [_stats(1, 8), KeyboardInterrupt], [_stats(6, 0)], lambda s: 1000
     else:
@@ -335,7 +335,7 @@ def test_a_first_ctrl_c_gives_the_final_round_a_grace_deadline_and_says_so(monke
                                        "again to drop them\n")
     _loop(monkeypatch, [_stats(1, 8), KeyboardInterrupt], [_stats(6, 0)], more=lambda s: 1000,
           max_time=1.0)  # max_time's deadline is the earlier, and the line says how long is left
-    assert _Lanes.deadlines == [100.0 + excursions.FINAL_DEADLINE * 1.0]
+    assert _Lanes.deadlines == [100.0 + rounds.FINAL_DEADLINE * 1.0]
     assert "for at most 2 s (any" in capsys.readouterr().err
 
 

@@ -10,7 +10,8 @@ import pytest
 from scipy.integrate import solve_ivp
 
 import dryfric_jax as dj
-from dryfric_jax.excursions import compiled_round, simulate_long_excursions
+from dryfric_jax.excursions import compiled_round
+from dryfric_jax.rounds import simulate_long_excursions
 from dryfric_jax.pdmp import (
     PDMPModel,
     displacement, excursion_skeleton, flow, grid_offsets, hitting_time, make_pdmp_model,

@@ -1,5 +1,5 @@
 """Lanes sharded over 2 forced CPU devices: pad lanes, the compaction decision and size, and the
-block counts carried between the calls of a final round (:class:`dryfric_jax.excursions.Lanes`).
+block counts carried between the calls of a final round (:class:`dryfric_jax.rounds.Lanes`).
 
 Each expected value comes from an independent run: the same lanes as one unsharded function
 (``_run_round``) on exactly the real lanes, the round without compaction, or the round in one call.
@@ -18,22 +18,22 @@ SCRIPT = textwrap.dedent("""
     import json, warnings
     import jax, jax.numpy as jnp, numpy as np
     import dryfric_jax as dj
-    from dryfric_jax import excursions as ex
+    from dryfric_jax import rounds as rd
     from dryfric_jax.di import make_di_model
     warnings.simplefilter("ignore")
     chain = make_di_model(dj.Params.from_nondim(0.5, 1.0, 0.2), 0.02)  # excursions of a few hundred steps
     nd = jax.device_count()
-    out = dict(devices=nd, COMPACT=ex.COMPACT, COMPACT_MIN_PER_DEVICE=ex.COMPACT_MIN_PER_DEVICE)
-    calls, real_call = [], ex.Lanes._call_once
+    out = dict(devices=nd, COMPACT=rd.COMPACT, COMPACT_MIN_PER_DEVICE=rd.COMPACT_MIN_PER_DEVICE)
+    calls, real_call = [], rd.Lanes._call_once
 
     def logged(self, lane, keys, b0, args):  # each call's lanes and the blocks each device ran
         lane, nb = real_call(self, lane, keys, b0, args)
         calls.append([int(keys.shape[0]), nb.tolist()])
         return lane, nb
 
-    ex.Lanes._call_once = logged
-    m = ex.COMPACT_MIN_PER_DEVICE  # lanes just below and at the threshold on each device
-    out["compact"] = {k: ex.Lanes(chain, k).compact for k in (m * nd - nd, m * nd)}
+    rd.Lanes._call_once = logged
+    m = rd.COMPACT_MIN_PER_DEVICE  # lanes just below and at the threshold on each device
+    out["compact"] = {k: rd.Lanes(chain, k).compact for k in (m * nd - nd, m * nd)}
 
     # 15 real lanes, 16 in the layout (a pad lane repeats lane 0; the compacted tail below has the same
     # shape, one compilation less): a paused round, then a final one
@@ -44,7 +44,7 @@ SCRIPT = textwrap.dedent("""
                     lane_steps=st.lane_steps.tolist(), unfinished=st.n_unfinished)
 
     def two_rounds():
-        ln = ex.Lanes(chain, R, block=8, max_steps=MAXS)
+        ln = rd.Lanes(chain, R, block=8, max_steps=MAXS)
         paused = summary(ln.advance(jax.random.fold_in(key, 0), BUDGET))
         return ln, paused, summary(ln.finish(jax.random.fold_in(key, 1), BUDGET))
 
@@ -63,15 +63,15 @@ SCRIPT = textwrap.dedent("""
     out["ref_paused"], out["ref_final"] = ref
 
     # the same final round in calls of one block each
-    per_call, ex.FINAL_CALL_LANE_STEPS = ex.FINAL_CALL_LANE_STEPS, 1
+    per_call, rd.FINAL_CALL_LANE_STEPS = rd.FINAL_CALL_LANE_STEPS, 1
     calls.clear()
     _, _, out["final_many"] = two_rounds()
     out["calls_many"] = calls[1:]  # the final round's calls (the first is the paused round)
-    ex.FINAL_CALL_LANE_STEPS = per_call
+    rd.FINAL_CALL_LANE_STEPS = per_call
 
     # a compacted final round: 128 lanes, 64 per device; the same round without compaction
     for compact in (True, False):
-        ln = ex.Lanes(chain, 128, block=8, max_steps=MAXS, compact=compact)
+        ln = rd.Lanes(chain, 128, block=8, max_steps=MAXS, compact=compact)
         calls.clear()
         st = ln.finish(jax.random.key(2), 300)
         out[f"compact_{compact}"] = dict(calls=[c[0] for c in calls], stats=st.stats.tolist(),

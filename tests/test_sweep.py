@@ -372,10 +372,10 @@ def test_max_time_bounds_each_point_and_a_resumed_sweep_with_more_time_reruns_it
     with the same or less time skips it, one with more time (or none) reruns it, and the new record
     replaces the old one in place, only once the point has finished.  A fake clock (one second per
     reading) makes the limit independent of the machine."""
-    from dryfric_jax import excursions
+    from dryfric_jax import rounds
 
     clock = iter(range(10**6))
-    monkeypatch.setattr(excursions, "_now", lambda: float(next(clock)))
+    monkeypatch.setattr(rounds, "_now", lambda: float(next(clock)))
     out = str(tmp_path / "s.jsonl")
     pts = sweep.grid(Gamma=[2.0, 5.0])
     # max_time 2: the clock reads 2 after the second round (the rounds stop) and 3 before the final
@@ -396,7 +396,8 @@ def test_max_time_bounds_each_point_and_a_resumed_sweep_with_more_time_reruns_it
     import numpy as np
 
     from dryfric_jax import api
-    from dryfric_jax.excursions import STAT_NAMES, ExcursionStats
+    from dryfric_jax.excursions import STAT_NAMES
+    from dryfric_jax.rounds import ExcursionStats
 
     empty = ExcursionStats(np.zeros((4, len(STAT_NAMES))), 0, 0, 0)
     for where, name, stub in (

@@ -46,10 +46,10 @@ def test_one_ctrl_c_in_the_final_round_still_finishes_the_excursions_in_flight(m
     in-flight excursions are still finished, giving the same excursions as without it (the round
     runs again from its start); it was taken for a second Ctrl-C, dropping 512 of them and biasing D
     low (audit).  A second Ctrl-C in the rerun drops them, as documented."""
-    from dryfric_jax import excursions
+    from dryfric_jax import rounds
 
     want = _quiet(n_excursions=2000)
-    real, seen = excursions.Lanes.finish, []
+    real, seen = rounds.Lanes.finish, []
 
     def finish(self, *a, **k):
         seen.append(1)
@@ -57,7 +57,7 @@ def test_one_ctrl_c_in_the_final_round_still_finishes_the_excursions_in_flight(m
             raise KeyboardInterrupt
         return real(self, *a, **k)
 
-    monkeypatch.setattr(excursions.Lanes, "finish", finish)
+    monkeypatch.setattr(rounds.Lanes, "finish", finish)
     r = _quiet(n_excursions=2000)
     assert r.stopped_by == "interrupted"
     if ctrl_c_at == 1:

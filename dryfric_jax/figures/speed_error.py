@@ -25,7 +25,8 @@ import numpy as np
 from .. import theory
 from ..di import make_di_model
 from ..estimators import bruteforce_estimates, long_excursion_estimates
-from ..excursions import STAT_NAMES, run_round
+from ..excursions import STAT_NAMES
+from ..rounds import run_round
 from ..params import FIG3, Params
 from ..paths import di_stationary
 from ..plan import default_h
