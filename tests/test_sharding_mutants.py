@@ -19,6 +19,7 @@ SCRIPT = textwrap.dedent("""
     import jax, jax.numpy as jnp, numpy as np
     import dryfric_jax as dj
     from dryfric_jax import rounds as rd
+    from dryfric_jax import excursions as ex
     from dryfric_jax.di import make_di_model
     warnings.simplefilter("ignore")
     chain = make_di_model(dj.Params.from_nondim(0.5, 1.0, 0.2), 0.02)  # excursions of a few hundred steps
