@@ -255,10 +255,13 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--allow-truncated", action="store_true",
                    help="exit 0 even when excursions hit the work bound (the result is biased low; exit 3 otherwise)")
     b = sub.add_parser("bruteforce", parents=[model, sim], help="fixed-horizon (brute force) D^t")
-    b.add_argument("--t", type=_number("t"), required=True, help="horizon, s")
+    b.add_argument("--t", type=_number("t"), required=True,
+                   help="horizon, s; D_t is biased low by O(1/t) (white noise, tau_L = inf: D (1 - 5.4 tau0/t)), "
+                        "warned about below 100 correlation times max(min(tau0, tau_L), tau)")
     b.add_argument("--n-paths", type=_int_at_least("n-paths", MIN_PATHS, 2**62, "2^62"), required=True,
                    help=f"independent paths (>= {MIN_PATHS}; the CI under-covers below {MIN_RELIABLE_PATHS})")
-    b.add_argument("--burn-in", type=_number("burn-in"), default=0.0, help="uncounted warm-up, s")
+    b.add_argument("--burn-in", type=_number("burn-in"), default=0.0,
+                   help="uncounted warm-up, s (20 tau0 removes about half of the horizon bias, the start's)")
     b.add_argument("--max-events", type=_int_at_least("max-events", 1, 2**62, "2^62"), default=None,
                    help="PDMP only: events per path before t (default 10x the expected count + 1000); a path "
                         "that reaches it fails the run, which says so")

@@ -290,11 +290,13 @@ def simulate_pdmp_bruteforce(model: PDMPModel, key, n_paths: int, t: float, *, b
         ``(U, events, n_unfinished)``: displacements over [burn_in, burn_in + t], total events,
         and the number of paths stopped by ``max_events`` (reported, never hidden).
     """
+    from .bruteforce import path_keys  # (bruteforce imports the DI; the PDMP's chain needs none of it)
+
     lanes = min(chunk_lanes, n_paths)
     Us, ev, unf = [], 0, 0
     for c in range(-(-n_paths // lanes)):
-        # the last chunk runs only its paths, with the keys of a full chunk (as the DI's brute force does)
-        keys = jax.random.split(jax.random.fold_in(key, c), lanes)[: n_paths - c * lanes]
+        # the last chunk runs only its paths; path k's key does not depend on the chunking (as the DI's brute force)
+        keys = path_keys(key, c * lanes, min((c + 1) * lanes, n_paths))
         U, n, fin = _bruteforce_paths(model, keys, jnp.asarray(burn_in, jnp.float64),
                                       jnp.asarray(burn_in + t, jnp.float64), jnp.asarray(max_events, jnp.int64),
                                       block=block)

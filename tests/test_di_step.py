@@ -125,8 +125,8 @@ def test_advance_flags_a_candidate_only_for_a_stuck_lane_released_out_of_its_set
 
 
 def test_a_bruteforce_path_is_the_chain_by_hand():
-    r"""``simulate_bruteforce``'s U of each path, rebuilt here from its documented numbers (path l of
-    chunk c: key ``split(fold_in(key, c), chunk_lanes)[l]``, block b's normals
+    r"""``simulate_bruteforce``'s U of each path, rebuilt here from its documented numbers (path l's
+    key ``split(fold_in(key, l // 4096), 4096)[l % 4096]``, whatever its chunk; block b's normals
     ``rng.normal(fold_in(path_key, b), (block, 2))``) and the by-hand step: from
     :math:`(x_\Delta, 0)`, steps ``[burn, burn + n)`` counted, with a burn-in and horizon that end
     inside blocks and two chunks, the last one short.  float64, to 1e-12 of the sum of :math:`|dU|`."""
@@ -137,8 +137,7 @@ def test_a_bruteforce_path_is_the_chain_by_hand():
     U, t = simulate_bruteforce(m, key, n_paths, n_steps, burn_in_steps=burn, block=block, chunk_lanes=chunk)
     assert U.shape == (n_paths,) and t == pytest.approx(n_steps * H, rel=1e-14)
     for p in range(n_paths):
-        c, l = divmod(p, chunk)
-        pkey = jax.random.split(jax.random.fold_in(key, c), chunk)[l]
+        pkey = jax.random.split(jax.random.fold_in(key, p // 4096), 4096)[p % 4096]
         z = np.concatenate([np.asarray(rng.normal(jax.random.fold_in(pkey, b), (block, 2), jnp.float64))
                             for b in range(-(-(burn + n_steps) // block))])
         x, v, u, scale = float(m.x_plus), 0.0, 0.0, 0.0

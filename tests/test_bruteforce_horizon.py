@@ -1,0 +1,139 @@
+r"""Brute force's horizon bias, its zero-width interval, and what fixes its random streams.
+
+A brute-force audit found three defects, each pinned here by a test that failed before the fix:
+
+1. :math:`\hat D^t` is biased low by O(1/t) and nothing said so: with white noise and
+   :math:`\tau_L = \infty` at t = 20 tau0 it came out 27% low with a CI that covered the exact D in
+   6% of runs.  Now a horizon under 100 correlation times is warned about, and the coefficient the
+   warning quotes is checked against the exact D of the chain.
+2. ``chunk_lanes`` changed a seed's numbers (4096, 1000 and 7 gave D_t = 0.8346, 0.8346 and 0.8555)
+   and ``block`` did too, unrecorded.  Now a path's key does not depend on the chunk, and the block
+   is in the result (and its JSON) with the version.
+3. A PDMP run of t = 1e-9 s returned D_t = 1.9e-77 with a CI of 0, exit 0, silently.
+"""
+import json
+import math
+import warnings
+
+import jax
+import numpy as np
+import pytest
+
+import dryfric_jax as dj
+from dryfric_jax import bruteforce
+from dryfric_jax.api import MIN_HORIZON, correlation_time, short_horizon_note
+from dryfric_jax.chain_law import white_chain_law
+from dryfric_jax.di import make_di_model
+from dryfric_jax.pdmp import make_pdmp_model, simulate_pdmp_bruteforce
+
+#: tau0 = 1 s, v0 = 1 m/s: physical = nondimensional; white noise (tau = 1e-5 tau0), no damping
+WHITE = dj.Params(Gamma=1.0, Delta=1.0, tau=1e-5, tau_L=math.inf, gamma_bar=0.0)
+H = 0.01
+
+
+def _kd(keys):
+    return np.asarray(jax.random.key_data(keys))
+
+
+def _notes(record, text):
+    return [str(w.message) for w in record if text in str(w.message)]
+
+
+# ---------------------------------------------------------------- 2. the random streams
+def test_a_paths_key_does_not_depend_on_the_chunking():
+    """Path k's key is ``split(fold_in(key, k // 4096), 4096)[k % 4096]``, so any cut of 0..8199 into
+    chunks gives the same keys (before, chunk c's keys were split from ``fold_in(key, c)``)."""
+    key = jax.random.key(3)
+    whole = bruteforce.path_keys(key, 0, 8200)
+    parts = [bruteforce.path_keys(key, a, b) for a, b in ((0, 7), (7, 4100), (4100, 4096 * 2), (8192, 8200))]
+    assert np.array_equal(_kd(whole), np.concatenate([_kd(p) for p in parts]))
+    for k in (0, 4095, 4096, 8199):
+        want = jax.random.split(jax.random.fold_in(key, k // 4096), 4096)[k % 4096]
+        assert np.array_equal(_kd(whole[k]), _kd(want)), k
+
+
+def test_chunk_lanes_does_not_change_a_seeds_numbers_di_and_pdmp():
+    """20 paths in one chunk, in chunks of 7 and of 3 (a short last chunk each): the same paths, for the
+    DI and the PDMP, to rounding: XLA:CPU compiles each chunk's shape to its own code, which may differ
+    in the last bits (README "Reproducibility"; 1e-12 of the largest |U|).  Before, chunks of 7 gave
+    other paths from the 8th on."""
+    p = dj.Params.from_nondim(0.5, 2.0, 0.2)
+    key = jax.random.key(4)
+    m = make_di_model(p, 0.05 * p.tau0)
+    U = [bruteforce.simulate_bruteforce(m, key, 20, 50, burn_in_steps=3, block=16, chunk_lanes=c)[0]
+         for c in (4096, 7, 3)]
+    assert np.abs(U[0]).max() > 0 and len(set(U[0].tolist())) == 20
+    for u in U[1:]:
+        np.testing.assert_allclose(u, U[0], rtol=0, atol=1e-12 * np.abs(U[0]).max())
+    pm = make_pdmp_model(p, 0.2)
+    V = [simulate_pdmp_bruteforce(pm, key, 20, 2.0, burn_in=0.5, block=16, chunk_lanes=c) for c in (4096, 7, 3)]
+    assert all(v[2] == 0 for v in V) and V[0][1] == V[1][1] == V[2][1]
+    assert len(set(V[0][0].tolist())) == 20
+    for v in V[1:]:
+        np.testing.assert_allclose(v[0], V[0][0], rtol=0, atol=1e-12 * np.abs(V[0][0]).max())
+
+
+def test_the_block_and_version_are_recorded_and_the_block_changes_the_numbers():
+    """The block size, which with the seed fixes the numbers, is in the result and its JSON (with the
+    package version); another block gives other numbers and says so."""
+    kw = dict(t=2.0, n_paths=600)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", dj.DryfricWarning)
+        a = dj.bruteforce_diffusivity(dj.Params(**dj.FIG3), 1, **kw)
+        b = dj.bruteforce_diffusivity(dj.Params(**dj.FIG3), 1, block=64, **kw)
+    assert a.block == bruteforce.BLOCK and b.block == 64 and a.block != 64
+    assert a.version == b.version == dj.__version__
+    got = json.loads(a.to_json())
+    assert got["block"] == a.block and got["version"] == dj.__version__
+    assert a.D_t != b.D_t
+
+
+# ---------------------------------------------------------------- 1. the horizon bias
+def test_the_correlation_time_is_the_longer_of_the_noise_and_the_relaxation():
+    """tau_c = max(min(tau0, tau_L), tau), in s, for each regime."""
+    assert correlation_time(WHITE) == 1.0
+    assert correlation_time(dj.Params(1.0, 1.0, 1e-5, 0.1, 0.0)) == 0.1
+    assert correlation_time(dj.Params(1.0, 1.0, 3.0, 0.1, 0.0)) == 3.0
+    fig3 = dj.Params(**dj.FIG3)
+    assert correlation_time(fig3) == fig3.tau == 0.5
+
+
+def test_a_horizon_under_100_correlation_times_is_warned_about_and_not_one_at_100():
+    """The API warns (and the result carries the note) at t = 99.9 tau_c, not at 100 tau_c."""
+    assert short_horizon_note(WHITE, MIN_HORIZON * 1.0) is None
+    note = short_horizon_note(WHITE, 99.9)
+    assert note.startswith("t = 99.9 s is 99.9 < 100 correlation times") and "5.4 tau0/t" in note
+    for t, warned in ((99.9, True), (100.0, False)):
+        with warnings.catch_warnings(record=True) as rec:
+            warnings.simplefilter("always")
+            r = dj.bruteforce_diffusivity(WHITE, 0, t=t, n_paths=3, h=0.1)
+        assert bool(_notes(rec, "correlation times")) == warned, t
+        assert any("correlation times" in w for w in r.warnings) == warned
+
+
+@pytest.mark.parametrize("burn_in, coefficient", [(0.0, 5.4), (20.0, 2.8)])
+def test_the_bias_the_warning_quotes_is_there(burn_in, coefficient):
+    r"""At t = 20 tau0 (white noise, tau_L = inf, h = 0.01 tau0, 4000 paths, seed 0) the exact D of
+    the chain at h lies above the CI of D_t (the bias is beyond the interval, which does not include it), and
+    D_t is :math:`D (1 - c\,\tau_0/t)` within its 95% half-width with the note's c: 5.4 from rest,
+    2.8 after a burn-in of 20 tau0."""
+    D = white_chain_law(WHITE, H).D
+    assert D == pytest.approx(10.0, rel=0.02)  # the continuum's 10 Gamma^3/Delta^4, step bias < 2%
+    with warnings.catch_warnings(record=True) as rec:
+        warnings.simplefilter("always")
+        r = dj.bruteforce_diffusivity(WHITE, 0, t=20.0, n_paths=4000, h=H, burn_in=burn_in)
+    assert _notes(rec, "correlation times")
+    assert r.D_t + r.D_t_ci < D, (r.D_t, r.D_t_ci, D)
+    assert abs(r.D_t - D * (1 - coefficient / 20.0)) <= r.D_t_ci, (r.D_t, r.D_t_ci, D)
+
+
+# ---------------------------------------------------------------- 3. a CI of 0
+def test_a_zero_width_interval_is_warned_about():
+    """PDMP paths of t = 1e-9 tau0 see no noise event: their U(t) are equal to rounding and the CI is
+    0.  The API warns and the result carries the note (it returned D_t = 1.9e-77 +- 0 silently)."""
+    with warnings.catch_warnings(record=True) as rec:
+        warnings.simplefilter("always")
+        r = dj.bruteforce_diffusivity(dj.Params(**dj.FIG3), 0, t=1e-9, n_paths=10, method="pdmp")
+    assert r.D_t_ci == 0.0
+    assert _notes(rec, "the D_t CI is 0") and any(w.startswith("the D_t CI is 0") for w in r.warnings)
+    assert all(math.isfinite(x) for x in (r.D_t, r.M0_t, r.M0_t_ci))
