@@ -50,6 +50,12 @@ def test_a_paths_key_does_not_depend_on_the_chunking():
     for k in (0, 4095, 4096, 8199):
         want = jax.random.split(jax.random.fold_in(key, k // 4096), 4096)[k % 4096]
         assert np.array_equal(_kd(whole[k]), _kd(want)), k
+    # 0.2.5's keys at the default chunk of 4096 (chunk c's split at min(4096, n_paths)): the same, so default
+    # runs give the numbers they gave (threefry's split(k, n) is the first n keys of split(k, 4096))
+    for n in (3, 4096):
+        assert np.array_equal(_kd(bruteforce.path_keys(key, 0, n)), _kd(jax.random.split(jax.random.fold_in(key, 0), n)))
+    old = jax.random.split(jax.random.fold_in(key, 1), 8)  # the second chunk of 4104 paths, 0.2.5
+    assert np.array_equal(_kd(whole[4096:4104]), _kd(old))
 
 
 def test_chunk_lanes_does_not_change_a_seeds_numbers_di_and_pdmp():
