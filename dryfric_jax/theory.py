@@ -180,12 +180,34 @@ def _velocity_moment_nd(itl, g, k=1):
         mean, var = lin
         return mean if k == 1 else mean * mean + var
     if k == 1 and itl >= 1.0:
-        return _mean_strong_damping(itl, g)
+        return _mean_strong_damping_numerator(itl, g) / itl
+    if k == 1 and abs(g) <= 1.0:
+        return _mean_weak_damping(itl, g)
     return _moment_quad(itl, g, k)
 
 
-def _mean_strong_damping(itl, g):
-    r"""The mean for :math:`\tau_L' \le 1` from :math:`\int \psi'(v)\,p(v)\,dv = 0`:
+def _mean_weak_damping(itl, g):
+    r"""The mean for :math:`\tau_L' > 1, |\bar\gamma'| \le 1` as one integral over :math:`v > 0` of
+    :math:`v\,(p(v) - p(-v)) = \operatorname{sgn}(\bar\gamma')\,v\,p(\operatorname{sgn}(\bar\gamma') v)\,
+    (1 - e^{-2|\bar\gamma'| v})` (:math:`\psi(v) - \psi(-v) = 2\bar\gamma' v`), the bracket by
+    ``expm1``: :math:`\int v\,p` over both half-lines subtracted two near-equal halves and lost
+    :math:`\epsilon/|\bar\gamma'|` of M0 (1.1e-4 relative at :math:`\bar\gamma' = 10^{-12}`, and 0.0 at
+    :math:`10^{-300}`, where M0' = 7.2e-301; a theory audit against mpmath)."""
+    if g == 0.0:
+        return 0.0
+    sg, logZ = math.copysign(1.0, g), _log_norm(itl, g)
+    def f(v):
+        return v * math.exp(float(_log_p_unnorm(sg * v, itl, g)) - logZ) * -math.expm1(-2.0 * abs(g) * v)
+
+    tail = _tail_scales(itl, g)[1 if g > 0 else 0]
+    return sg * _quad(f, 0.0, math.inf, (tail, tail), 1e-13)
+
+
+def _mean_strong_damping_numerator(itl, g):
+    r"""The mean for :math:`\tau_L' \le 1` from :math:`\int \psi'(v)\,p(v)\,dv = 0`, returned as
+    :math:`m/\tau_L' = \bar\gamma' - E[\mathrm{sgn}\,V]` (:func:`exact_M0` scales it by
+    :math:`\tau_L'\Gamma/\Delta` in one product: M0' itself left float64's normal range at
+    :math:`\tau_L' = 10^{-300}` and came back 0.0 or with 1e-5 of it lost):
     :math:`m = \tau_L'(\bar\gamma' - E[\mathrm{sgn}\,V])`, with :math:`P(V<0) - P(V>0) =
     \tanh((\log J(1 + \bar\gamma') - \log J(1 - \bar\gamma'))/2)` from the half-line masses
     :math:`J` (:func:`_log_half_line_mass`; their common terms cancel exactly and are left out).
@@ -202,7 +224,7 @@ def _mean_strong_damping(itl, g):
         d = g * x * integrate.quad(lambda s: dlog(x + g * x * s), -1.0, 1.0, epsabs=0, epsrel=2e-14)[0]
     else:
         d = _log_erfcx((1.0 + g) * x) - _log_erfcx((1.0 - g) * x)
-    return (g + math.tanh(0.5 * d)) / itl
+    return g + math.tanh(0.5 * d)
 
 
 def _moment_quad(itl, g, k):
@@ -246,6 +268,12 @@ def exact_M0(params: Params) -> float:
     _white_only(params, "exact_M0")
     if itl == 0.0:
         return M0_constant_bias(params.Gamma, params.Delta, params.gamma_bar)
+    if itl >= 1.0 and _linear_limit(itl, g) is None:  # M0 = (m/tau_L') tau_L' Gamma/Delta, one product
+        num = _mean_strong_damping_numerator(itl, g)
+        if num == 0.0:
+            return 0.0
+        return _product("M0", _phys_args(params), [(abs(num), 1), (itl, -1), (float(params.Gamma), 1),
+                                                   (float(params.Delta), -1)], sign=num)
     with _round_off_ignored():
         return _in_units("M0", _velocity_moment_nd(itl, g, 1), (1, -1), params, positive=False)
 
@@ -281,8 +309,40 @@ def exact_D(params: Params) -> float:
     _white_only(params, "exact_D")
     if itl == 0.0:
         return D_constant_bias(params.Gamma, params.Delta, params.gamma_bar)
+    viscous = _viscous_D_factor(itl, g)
+    if viscous is not None:  # D = 2 tau_L'^2 c Gamma^3/Delta^4 in one product (D' itself may leave the range)
+        return _product("D", _phys_args(params), [(2.0 * viscous, 1), (itl, -2), (float(params.Gamma), 3),
+                                                  (float(params.Delta), -4)])
     with _round_off_ignored():
-        return _in_units("D", _exact_D_nd(itl, g), (3, -4), params, positive=True)
+        try:
+            D_nd = _exact_D_nd(itl, g)
+        except OverflowError:  # G(v)^2 past 1.8e308 (|gamma_bar'| = 1, tau_L' >= 1e160): D' = 3.4 tau_L'^2
+            raise ValueError(f"D overflows float64 in nondimensional units (D' = D Delta^4/Gamma^3 at tau_L' = "
+                             f"{1.0 / itl:.3g}, gamma_bar' = {g:.6g} is past 1.8e308, whatever the units; the "
+                             "quadrature cannot hold it)") from None
+        return _in_units("D", D_nd, (3, -4), params, positive=True)
+
+
+#: :math:`\tau_L'` at and below which :func:`exact_D` takes the strong-damping asymptote
+#: :math:`D' = 2\tau_L'^2(1 - 2\sqrt{2\tau_L'/\pi})` (where :math:`|\bar\gamma'|\sqrt{\tau_L'} \le 10^{-5}`):
+#: the quadrature agrees with it to 4e-15 from 1e-20 to 1e-45 at :math:`\bar\gamma'` = 0 to 1e5, and the
+#: next term is :math:`O(\tau_L')`
+VISCOUS_TAU_L_ND = 1e-30
+
+
+def _viscous_D_factor(itl, g):
+    r""":math:`c` in :math:`D' = 2\tau_L'^2 c`, or None for the quadrature: c = 1 in the linear limit
+    (:func:`_linear_limit`: the friction never acts), :math:`c = 1 - 2\sqrt{2\tau_L'/\pi}` at
+    :math:`\tau_L' \le` :data:`VISCOUS_TAU_L_ND` (the friction's effect on D is :math:`O(\sqrt{\tau_L'})`,
+    found by a theory audit with mpmath and matched by the quadrature).  :func:`exact_D` multiplies
+    by :math:`\tau_L'^2\Gamma^3/\Delta^4` in one product: D' alone left float64's range (D' = 2e-320 at
+    :math:`\tau_L' = 10^{-160}` lost 1e-5 of D; D' = 2e400 at :math:`\tau_L' = 10^{200}` refused a D of 2e300)."""
+    if _linear_limit(itl, g) is not None:
+        return 1.0
+    tl = 1.0 / itl
+    if tl <= VISCOUS_TAU_L_ND and abs(g) * math.sqrt(tl) <= 1e-5:
+        return 1.0 - 2.0 * math.sqrt(2.0 * tl / math.pi)
+    return None
 
 
 def _exact_D_nd(itl, g):
