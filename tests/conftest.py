@@ -22,6 +22,32 @@ import pytest  # noqa: E402
 jax.config.update("jax_enable_x64", True)
 
 
+_approx = pytest.approx
+
+
+def _nonzero(x) -> bool:
+    """Every number in ``x`` (a number, a sequence, a dict's values, an array) is non-zero."""
+    if isinstance(x, dict):
+        return all(_nonzero(v) for v in x.values())
+    try:
+        a = np.asarray(x, dtype=float)
+    except (TypeError, ValueError):
+        return False
+    return a.size > 0 and bool(np.all(a != 0))
+
+
+def _relative_approx(expected, rel=None, abs=None, nan_ok=False):
+    """``pytest.approx`` whose ``rel`` alone means relative: pytest adds its default absolute 1e-12 to
+    a ``rel`` given without ``abs``, so ``approx(1e-280, rel=1e-14)`` passed 0.0 (a theory audit's
+    M0 test).  An expected 0 (where a relative tolerance means nothing) keeps pytest's default."""
+    if rel is not None and abs is None and _nonzero(expected):
+        abs = 0.0
+    return _approx(expected, rel=rel, abs=abs, nan_ok=nan_ok)
+
+
+pytest.approx = _relative_approx
+
+
 @pytest.fixture(autouse=True, scope="session")
 def python_handles_ctrl_c():
     """The Ctrl-C tests need Python's own SIGINT handler in this process and in the commands they
