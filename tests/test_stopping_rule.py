@@ -14,7 +14,7 @@ import dryfric_jax as dj
 CASES = {  # tau/h: (tau', h', tau_L', gamma_bar', N excursions, N' paths, horizon / tau0)
     "tau/h=1e-3": (1e-5, 1e-2, math.inf, 0.3, 120_000, 3000, 200.0),
     "tau/h=1": (0.05, 0.05, 1.0, 0.3, 60_000, 3000, 200.0),
-    "tau/h=1e3": (1.0, 1e-3, 1.0, 0.3, 8_000, 1500, 40.0),
+    "tau/h=1e3": (1.0, 1e-3, 1.0, 0.3, 8_000, 1500, 100.0),  # 100 tau_c (tau_c = tau = tau0): no horizon warning
 }
 
 
