@@ -257,7 +257,8 @@ def build_parser() -> argparse.ArgumentParser:
     b = sub.add_parser("bruteforce", parents=[model, sim], help="fixed-horizon (brute force) D^t")
     b.add_argument("--t", type=_number("t"), required=True,
                    help="horizon, s; D_t is biased low by O(1/t) (white noise, tau_L = inf: D (1 - 5.4 tau0/t)), "
-                        "warned about below 100 correlation times max(min(tau0, tau_L), tau)")
+                        "warned about below 100 correlation times "
+                        "max(min(tau0/(1 - |gamma_bar'|)^2, tau_L), tau)")
     b.add_argument("--n-paths", type=_int_at_least("n-paths", MIN_PATHS, 2**62, "2^62"), required=True,
                    help=f"independent paths (>= {MIN_PATHS}; the CI under-covers below {MIN_RELIABLE_PATHS})")
     b.add_argument("--burn-in", type=_number("burn-in"), default=0.0,

@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 import dryfric_jax as dj
-from dryfric_jax import bruteforce
+from dryfric_jax import bruteforce, theory
 from dryfric_jax.api import MIN_HORIZON, correlation_time, short_horizon_note
 from dryfric_jax.chain_law import white_chain_law
 from dryfric_jax.di import make_di_model
@@ -96,12 +96,27 @@ def test_the_block_and_version_are_recorded_and_the_block_changes_the_numbers():
 
 # ---------------------------------------------------------------- 1. the horizon bias
 def test_the_correlation_time_is_the_longer_of_the_noise_and_the_relaxation():
-    """tau_c = max(min(tau0, tau_L), tau), in s, for each regime."""
+    """tau_c = max(min(tau0/(1 - |gamma_bar'|)^2, tau_L), tau), in s, for each regime."""
     assert correlation_time(WHITE) == 1.0
     assert correlation_time(dj.Params(1.0, 1.0, 1e-5, 0.1, 0.0)) == 0.1
     assert correlation_time(dj.Params(1.0, 1.0, 3.0, 0.1, 0.0)) == 3.0
+    assert correlation_time(dj.Params(1.0, 1.0, 1e-5, math.inf, -0.9)) == pytest.approx(100.0, rel=1e-12)
+    assert correlation_time(dj.Params(1.0, 2.0, 1e-5, 1e3, 3.0)) == 1e3  # |gamma_bar'| > 1: the damping bounds it
     fig3 = dj.Params(**dj.FIG3)
     assert correlation_time(fig3) == fig3.tau == 0.5
+
+
+def test_near_the_runaway_the_bias_lasts_longer_and_is_warned_about():
+    """gamma_bar' = 0.9, white noise, tau_L = inf (tau_c = 100 tau0): at t = 1000 tau0, past the old rule's
+    100 max(tau0, tau) and unwarned before, D_t is half the exact D (2000 paths, h = 0.02 tau0, seed 0),
+    far outside its CI; the note says so."""
+    p = dj.Params(Gamma=1.0, Delta=1.0, tau=1e-5, tau_L=math.inf, gamma_bar=0.9)
+    D = theory.exact_D(p)  # the continuum's; the chain's at h = 0.02 is within 0.3% of it (0.2% at 0.5)
+    with warnings.catch_warnings(record=True) as rec:
+        warnings.simplefilter("always")
+        r = dj.bruteforce_diffusivity(p, 0, t=1000.0, n_paths=2000, h=0.02)
+    assert _notes(rec, "is 10 < 100 correlation times")
+    assert r.D_t + r.D_t_ci < 0.8 * D, (r.D_t, r.D_t_ci, D)
 
 
 def test_a_horizon_under_100_correlation_times_is_warned_about_and_not_one_at_100():
