@@ -33,6 +33,7 @@ the continuum value, which is most of the gap Fig. 5 shows.
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -46,12 +47,21 @@ MAX_NODES = 6001  # dense Nystrom: O(n^3) solves; at 6001 nodes 0.29 GB per n x 
 #: fewest grid nodes per step-noise sd: the O(dv^2) grid error of D and E[V^2] is 5e-4 relative at 4
 #: (measured at Fig. 5's point and b = 0, h' = 0.1, against 24), 1e-4 at the default 8, 8e-3 at 1
 MIN_NODES_PER_SD = 4
-#: the grid spans at least 10 step-noise sds on each side of 0, so more than this always exceeds MAX_NODES
-MAX_NODES_PER_SD = (MAX_NODES - 3) // 20
 #: narrowest grid, in widths of the continuum law on each side of 0: the tails beyond 15 widths
-#: (exponential at worst, b = 0) change D by 7e-6 and E[V^2] by 8e-7 relative (measured, h' = 0.1),
-#: a tenth of the default grid's error; beyond the default 30, by < 1e-11
+#: (exponential at worst, b = 0) change D by 6e-6 at h' = 0.1 (where the 10 sds of padding add ~4.5
+#: widths) but by 5e-5, 8e-5 and 1.1e-4 at h' = 0.02, 0.01, 0.005, and by 6e-5 to 1.5e-4 at gamma_bar' = 0.5
+#: (h' = 0.1, 0.03; a chain-law audit against 45 widths): about the default grid's own error; beyond the
+#: default 30, by < 1e-10
 MIN_WIDTH = 15.0
+#: the grid spans at least MIN_WIDTH widths plus 10 step-noise sds on each side of 0, and a width is at
+#: least sqrt(5) sds at any admissible h (h' <= 0.1 min(1, tau_L')), so more nodes per sd than this always
+#: exceed MAX_NODES: (MAX_NODES - 3) / 2 / (10 + 15 sqrt(5)) = 68.9 (it was 299, from the 10 sds alone:
+#: 69-299 passed the check and were refused later as "the law is too wide")
+MAX_NODES_PER_SD = int((MAX_NODES - 3) / 2 / (10 + MIN_WIDTH * math.sqrt(5)))
+#: below this mean against the law's sd, :math:`|E V|/\mathrm{sd}\,V`, the solve's round-off in
+#: :math:`\pi` (about 1.5e3 eps / that ratio, relative: 0.7% at tau_L' = 1e-20, a factor 460 at 1e-30,
+#: gamma_bar' = 0.5; a chain-law audit) makes M0 unreliable to 1e-4: a warning says so
+M0_MIN_RATIO = 1.5e3 * 2.2e-16 / 1e-4
 
 
 @dataclass(frozen=True)
@@ -100,8 +110,8 @@ def white_chain_law(params: Params, h: float, *, nodes_per_sd: int = 8, width: f
     w = real_or_none(width)
     if w is None or not (math.isfinite(w) and w >= MIN_WIDTH):
         raise ValueError(f"width must be a finite number >= {MIN_WIDTH:g} (widths of the law on each side of 0: "
-                         f"the tails beyond {MIN_WIDTH:g} change D by < 1e-5 relative, a tenth of the default grid's "
-                         f"error) (got {shown(width)})")
+                         f"the tails beyond {MIN_WIDTH:g} change D by ~1e-5 to 1.5e-4 relative, about the default "
+                         f"grid's error) (got {shown(width)})")
     width = w
     itl, g = _nd(params)
     hn = h / params.tau0
@@ -118,9 +128,15 @@ def white_chain_law(params: Params, h: float, *, nodes_per_sd: int = 8, width: f
         # exactly: ceil(W nps / s + 10 nps) <= (MAX_NODES - 3) / 2 with W = L - 10 s, the law's part of the
         # span (h-free); room > 0 as nodes_per_sd <= MAX_NODES_PER_SD; 1% up: the message prints 3 digits
         room = (MAX_NODES - 3) // 2 - 10 * nodes_per_sd
-        need = 0.5 * ((L - 10 * s) * nodes_per_sd / room) ** 2 * params.tau0
-        fix = (f"use h >= {min(1.01 * need, h_max(params)):.3g} s or fewer nodes_per_sd" if need <= h_max(params) else
-               f"no admissible h (<= {h_max(params):.3g} s) is large enough: the law is too wide")
+        span = (L - 10 * s) * nodes_per_sd / room
+        need = 0.5 * span * span * params.tau0 if span < 1e150 else math.inf  # a huge width: no OverflowError
+        if need <= h_max(params):
+            fix = f"use h >= {min(1.01 * need, h_max(params)):.3g} s or fewer nodes_per_sd"
+        elif width > 30.0 or nodes_per_sd > 8:  # the caller's grid, not the law, is what does not fit
+            fix = (f"no admissible h (<= {h_max(params):.3g} s) is large enough at width = {width:g} and "
+                   f"nodes_per_sd = {nodes_per_sd}: lower them (defaults 30 and 8)")
+        else:
+            fix = f"no admissible h (<= {h_max(params):.3g} s) is large enough: the law is too wide"
         raise ValueError(f"h = {h:.4g} s: the dense chain law would need {nodes:.3g} grid nodes > {MAX_NODES} (the "
                          f"law spans +-{L:.3g} against a step noise sd of {s:.3g}, nondimensional); {fix}")
     k = int(kf)
@@ -144,6 +160,14 @@ def white_chain_law(params: Params, h: float, *, nodes_per_sd: int = 8, width: f
     rhs[0] = 1.0
     pi = linalg.solve(A, rhs)
     mean_v = pi @ y
+    sd_v = math.sqrt(max(float(pi @ (y * y)) - float(mean_v) ** 2, 0.0))
+    if g != 0.0 and abs(float(mean_v)) < M0_MIN_RATIO * sd_v:
+        from .api import DryfricWarning  # (api imports the package's modules; this one is imported by it)
+
+        ratio = abs(float(mean_v)) / sd_v
+        warnings.warn(f"the chain law's M0 is unreliable here: E[V] is {ratio:.2g} sds of V from 0, "
+                      f"below {M0_MIN_RATIO:.2g}, and the solve's round-off is ~1.5e3 eps / that, relative (D and "
+                      "E[V^2] are not affected; theory.exact_M0 gives the continuum's)", DryfricWarning, stacklevel=2)
     mu = hn * mean_v  # E_pi[dU]
     dU = 0.5 * hn * (y[None, :] + y[:, None])  # [i, j]: step j -> i
     fbar = (P * dU).sum(0)

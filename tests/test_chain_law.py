@@ -93,7 +93,7 @@ def test_chain_law_refuses_a_step_too_small_or_too_large():
 
 
 @pytest.mark.parametrize("kw,match", [
-    (dict(nodes_per_sd=0), r"^nodes_per_sd must be an integer in \[4, 299\]"),  # was a ZeroDivisionError
+    (dict(nodes_per_sd=0), r"^nodes_per_sd must be an integer in \[4, 68\]"),  # was a ZeroDivisionError
     (dict(nodes_per_sd=2), "^nodes_per_sd must"),  # grid error 2e-3
     (dict(nodes_per_sd=True), "^nodes_per_sd must"),  # was taken for 1
     (dict(nodes_per_sd=1.5), "^nodes_per_sd must"),  # was taken as it came
