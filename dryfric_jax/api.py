@@ -54,7 +54,7 @@ def correlation_time(params: Params) -> float:
     for :math:`|\bar\gamma'| \ge 1`, where only the damping bounds it).  White noise, tau_L = inf:
     the measured bias coefficient b/D grew from 5.4 tau0 at gamma_bar' = 0 to ~11-17 at 0.5 and
     ~300-500 at 0.9 (a brute-force audit), as :math:`(1 - |\bar\gamma'|)^{-2}`."""
-    g = abs(params.gamma_bar) / params.Delta
+    g = abs(params.gamma_bar_nd)
     relax = params.tau0 / (1.0 - g) ** 2 if g < 1.0 else math.inf
     return max(min(relax, params.tau_L), params.tau)
 

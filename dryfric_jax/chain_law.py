@@ -33,6 +33,7 @@ the continuum value, which is most of the gap Fig. 5 shows.
 from __future__ import annotations
 
 import math
+import sys
 import warnings
 from dataclasses import dataclass
 
@@ -61,7 +62,9 @@ MAX_NODES_PER_SD = int((MAX_NODES - 3) / 2 / (10 + MIN_WIDTH * math.sqrt(5)))
 #: below this mean against the law's sd, :math:`|E V|/\mathrm{sd}\,V`, the solve's round-off in
 #: :math:`\pi` (about 1.5e3 eps / that ratio, relative: 0.7% at tau_L' = 1e-20, a factor 460 at 1e-30,
 #: gamma_bar' = 0.5; a chain-law audit) makes M0 unreliable to 1e-4: a warning says so
-M0_MIN_RATIO = 1.5e3 * 2.2e-16 / 1e-4
+M0_MIN_RATIO = 1.5e3 * sys.float_info.epsilon / 1e-4
+#: the grid's defaults (:func:`white_chain_law`); a refusal past them names the caller's grid
+DEFAULT_NODES_PER_SD, DEFAULT_WIDTH = 8, 30.0
 
 
 @dataclass(frozen=True)
@@ -84,7 +87,8 @@ def _norm_cdf(z):
     return 0.5 * special.erfc(-z / math.sqrt(2))
 
 
-def white_chain_law(params: Params, h: float, *, nodes_per_sd: int = 8, width: float = 30.0) -> ChainLaw:
+def white_chain_law(params: Params, h: float, *, nodes_per_sd: int = DEFAULT_NODES_PER_SD,
+                    width: float = DEFAULT_WIDTH) -> ChainLaw:
     r"""Stationary :math:`E[V]`, :math:`E[V^2]`, :math:`P(V = 0)` and the diffusivity of the
     white-noise DI chain at step ``h`` (s), by Nystrom's method (module docstring).
 
@@ -132,9 +136,9 @@ def white_chain_law(params: Params, h: float, *, nodes_per_sd: int = 8, width: f
         need = 0.5 * span * span * params.tau0 if span < 1e150 else math.inf  # a huge width: no OverflowError
         if need <= h_max(params):
             fix = f"use h >= {min(1.01 * need, h_max(params)):.3g} s or fewer nodes_per_sd"
-        elif width > 30.0 or nodes_per_sd > 8:  # the caller's grid, not the law, is what does not fit
+        elif width > DEFAULT_WIDTH or nodes_per_sd > DEFAULT_NODES_PER_SD:  # the caller's grid does not fit
             fix = (f"no admissible h (<= {h_max(params):.3g} s) is large enough at width = {width:g} and "
-                   f"nodes_per_sd = {nodes_per_sd}: lower them (defaults 30 and 8)")
+                   f"nodes_per_sd = {nodes_per_sd}: lower them (defaults {DEFAULT_WIDTH:g} and {DEFAULT_NODES_PER_SD})")
         else:
             fix = f"no admissible h (<= {h_max(params):.3g} s) is large enough: the law is too wide"
         raise ValueError(f"h = {h:.4g} s: the dense chain law would need {nodes:.3g} grid nodes > {MAX_NODES} (the "
@@ -160,7 +164,8 @@ def white_chain_law(params: Params, h: float, *, nodes_per_sd: int = 8, width: f
     rhs[0] = 1.0
     pi = linalg.solve(A, rhs)
     mean_v = pi @ y
-    sd_v = math.sqrt(max(float(pi @ (y * y)) - float(mean_v) ** 2, 0.0))
+    mean_v2 = float(pi @ (y * y))
+    sd_v = math.sqrt(max(mean_v2 - float(mean_v) ** 2, 0.0))
     if g != 0.0 and abs(float(mean_v)) < M0_MIN_RATIO * sd_v:
         from .api import DryfricWarning  # (api imports the package's modules; this one is imported by it)
 
@@ -175,5 +180,5 @@ def white_chain_law(params: Params, h: float, *, nodes_per_sd: int = 8, width: f
     gsol = linalg.solve(np.eye(n) - P.T + np.outer(np.ones(n), pi), fbar - mu)
     a = dU - mu - gsol[None, :] + gsol[:, None]
     D_nd = float(((P * a * a).sum(0) @ pi) / hn)
-    return ChainLaw(h=h, M0=float(mean_v) * params.v0, mean_v2=float(pi @ (y * y)) * params.v0**2,
+    return ChainLaw(h=h, M0=float(mean_v) * params.v0, mean_v2=mean_v2 * params.v0**2,
                     D=D_nd * params.D0, p_stuck=float(pi[atom]), n_nodes=n)

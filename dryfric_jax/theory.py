@@ -346,9 +346,8 @@ def _viscous_D_factor(itl, g):
 
 
 def _exact_D_nd(itl, g):
-    lin = _linear_limit(itl, g)
-    if lin is not None:
-        return 2.0 * lin[1] * lin[1]
+    """D' by quadrature (:func:`exact_D` takes the linear limit and strong damping in closed form,
+    :func:`_viscous_D_factor`, before it gets here)."""
     m = _velocity_moment_nd(itl, g, 1)
     logZ = _log_norm(itl, g)
     tails = _tail_scales(itl, g)
