@@ -278,8 +278,9 @@ class EstimateResult(_Record):
             :mod:`~dryfric_jax.regeneration`, which spans one or more of the paper's excursions (about 2-4 times
             longer at Fig. 3's parameters, and h-dependent).  D and M0 do not depend on the rule.
         n_excursions: N, the complete excursions behind the estimate; ``n_requested`` what was asked for.
-        n_truncated: excursions that hit the work bound ``max_steps`` (or the final round's deadline
-            under ``max_time``): excluded from the sums, so the estimate is biased low; a warning says so.
+        n_truncated: excursions that hit the work bound ``max_steps``, that the final round's deadline
+            cut (``max_time``, or the grace after a Ctrl-C) or that a second Ctrl-C dropped in flight:
+            excluded from the sums, so the estimate is biased low; a warning says so.
         stopped_by: what ended the rounds: ``"n_excursions"`` (N reached), ``"target"`` (``rtol`` met),
             ``"max_time"``, ``"work_bound"`` (``max_work``), ``"interrupted"`` (Ctrl-C, and SIGTERM
             under the ``dryfric`` command; the rounds already run are kept) or ``"combined"``
@@ -527,14 +528,17 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
     wall = time.perf_counter() - t0
     # a lane the final round's deadline (max_time) or its block bound (never expected) stopped lost
     # its in-flight excursion: count it too
-    n_truncated = sim.n_truncated + sim.n_unfinished
     # the final round's deadline: max_time's, or the grace after a Ctrl-C (the block bound never binds)
     cut = sim.n_unfinished > 0 and (max_time is not None or stopped == "interrupted")
+    # a second Ctrl-C left the paused round's in-flight excursions unfinished: dropped, and counted as
+    # truncated too (they were not, so 'dryfric combine' pooled such a run as unbiased, exit 0: a sweep audit)
+    dropped = max(sim.n_in_flight - sim.n_unfinished, 0)
+    n_truncated = sim.n_truncated + sim.n_unfinished + dropped
     if stopped == "interrupted":
         notes.append(f"interrupted: result of the {sim.n_excursions} excursions completed by then")
-    if sim.n_in_flight and not cut:
-        notes.append(f"{sim.n_in_flight} in-flight excursions dropped (a second interrupt): D is biased low by "
-                     f"O(lanes/N) = O({sim.n_in_flight / max(sim.n_excursions, 1):.2g})")
+    if dropped:
+        notes.append(f"{dropped} in-flight excursions dropped (a second interrupt) and counted as truncated: D is "
+                     f"biased low by O(lanes/N) = O({dropped / max(sim.n_excursions, 1):.2g})")
     elif stopped in ("max_time", "work_bound"):
         what = f"max_time reached ({max_time} s)" if stopped == "max_time" else \
             f"work bound reached (max_work = {max_work:.3g} {unit}, predicted >= {plan.predicted_work:.3g})"
@@ -549,7 +553,7 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
         notes.append(f"{CUT_NOTE} {FINAL_DEADLINE:g} x "
                      f"max_time: {sim.n_unfinished} excursions still running are excluded and counted as truncated: "
                      "the estimate is biased low (the excursions are far longer than planned; raise max_time)")
-    hit_bound = n_truncated - (sim.n_unfinished if cut else 0)
+    hit_bound = n_truncated - (sim.n_unfinished if cut else 0) - dropped
     if hit_bound:
         notes.append(f"{hit_bound} of {n_truncated + sim.n_excursions} "
                      f"excursions {BOUND_NOTE} (max_steps = {plan.max_steps} {unit} per excursion) and are "

@@ -103,14 +103,16 @@ def test_the_result_is_the_engines_sums_in_physical_units(monkeypatch, stopped):
 
 
 def test_without_max_time_nothing_is_cut_and_in_flight_drops_are_said(monkeypatch):
-    """No time limit: nothing counted as cut (all truncated hit the work bound), max_time recorded as
-    None (inf too); in-flight excursions left (a second Ctrl-C) are said, not taken for a cut."""
+    """No time limit: nothing counted as cut, max_time recorded as None (inf too); in-flight excursions
+    left (a second Ctrl-C) are said, not taken for a cut nor for the work bound, and counted as truncated
+    (they were not: 'dryfric combine' then pooled the run as unbiased, exit 0; a sweep audit)."""
     _fake_engine(monkeypatch, lambda kw: (_stats(U5, T5, truncated=3, in_flight=4), "interrupted"))
     for max_time in (None, math.inf):
         r, ws = _run(max_time=max_time)
-        assert (r.n_truncated, r.max_time, r.stopped_by) == (3, None, "interrupted")
-        assert sum(w.startswith("3 of 8 excursions hit the work bound") for w in ws) == 1
-        assert sum(w.startswith("4 in-flight excursions dropped (a second interrupt)") for w in ws) == 1
+        assert (r.n_truncated, r.max_time, r.stopped_by) == (3 + 4, None, "interrupted")
+        assert sum(w.startswith("3 of 12 excursions hit the work bound") for w in ws) == 1
+        assert sum(w.startswith("4 in-flight excursions dropped (a second interrupt) and counted as truncated")
+                   for w in ws) == 1
         assert not any("cut at" in w for w in ws)
 
 
