@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import sys
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import partial
 
@@ -45,6 +46,21 @@ FINAL_DEADLINE = 2.0
 #: is cut this many seconds later (between calls; the cut ones are reported as truncated): without it, a
 #: run far harder than planned (Gamma = 1e8 at Fig. 3's point) finished them for over 10 minutes, silent
 INTERRUPT_GRACE_S = 20.0
+# > 0 inside abandon_on_interrupt(): a Ctrl-C then ends the run at once (KeyboardInterrupt), no final round
+_ABANDON = [0]
+
+
+@contextmanager
+def abandon_on_interrupt():
+    """Within it, a Ctrl-C (SIGTERM under ``dryfric``) inside :func:`simulate_long_excursions` raises
+    ``KeyboardInterrupt`` at once instead of finishing the excursions in flight: for callers that keep
+    finished runs only (a sweep's points, a figure's runs), which threw that result away after waiting up
+    to :data:`INTERRUPT_GRACE_S` for it, and said "finishing the ... excursions in flight" (a sweep audit)."""
+    _ABANDON[0] += 1
+    try:
+        yield
+    finally:
+        _ABANDON[0] -= 1
 
 
 @dataclass
@@ -272,7 +288,8 @@ def simulate_long_excursions(chain, key, n_excursions: int, *, lanes: int | None
         ``(stats, stopped_by)`` with ``stopped_by`` in ``{"n_excursions", "target", "max_time",
         "interrupted", "work_bound"}``.  Completed rounds are never lost: on Ctrl-C the in-flight
         excursions are finished (a second Ctrl-C drops them, see ``n_in_flight``), within
-        :data:`INTERRUPT_GRACE_S` of the first Ctrl-C (those still running then are left unfinished).
+        :data:`INTERRUPT_GRACE_S` of the first Ctrl-C (those still running then are left unfinished);
+        under :func:`abandon_on_interrupt` the Ctrl-C is raised at once.
         A first Ctrl-C that comes during the final round (a Ctrl-C acts between its calls) runs that
         round again from its start, which gives the same excursions where the grace suffices (fewer
         where the round needed longer); it was taken for the second.
@@ -322,7 +339,7 @@ def simulate_long_excursions(chain, key, n_excursions: int, *, lanes: int | None
                     budget = max(block, min(budget, int((max_work - ln.paid) // ln.n_real) + block))
         except KeyboardInterrupt:
             stopped = "interrupted"
-            if total is None:
+            if total is None or _ABANDON[0]:
                 raise
             deadline = _grace(deadline, total.n_in_flight)
         first_ctrl_c = stopped != "interrupted"  # the run's first Ctrl-C may still come, in this round
@@ -334,6 +351,8 @@ def simulate_long_excursions(chain, key, n_excursions: int, *, lanes: int | None
                     stopped = "max_time"  # the deadline cut the final round (whatever ended the rounds)
             except KeyboardInterrupt:
                 stopped = "interrupted"
+                if _ABANDON[0]:
+                    raise
                 if first_ctrl_c:  # the first Ctrl-C finishes the in-flight excursions: the final round
                     first_ctrl_c = False  # runs again from its start (same key, lanes unchanged: same chains)
                     deadline = _grace(deadline, total.n_in_flight)

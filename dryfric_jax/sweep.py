@@ -67,6 +67,7 @@ from .limits import MAX_WORK
 from .outfiles import check_writable, claim, drop_claims_dir, dumps, locked, put_record, read_records, write_records
 from .params import FIG3, Params, plain_number, real_or_none
 from .plan import check_max_time, check_settings, plan_estimate
+from .rounds import abandon_on_interrupt
 
 PARAM_KEYS = ("Gamma", "Delta", "tau", "tau_L", "gamma_bar")
 #: settings that determine a point's result (with its parameters and seed)
@@ -358,8 +359,10 @@ def _compute(out: str, ident: str, pt: dict, seed: int, settings: dict, max_time
             warnings.simplefilter("ignore", DryfricWarning)
             warnings.simplefilter("always", ProjectionWarning)  # ... except this one, said at once
             warnings.showwarning = _at_point(warnings.showwarning, pt)
-            r = estimate_diffusivity(Params(**pt), s, method=method, h=h, delta=delta, dtype=dtype,
-                                     n_excursions=n_excursions, rtol=rtol, max_work=max_work, max_time=max_time)
+            with abandon_on_interrupt():  # a point stopped short is not kept: no grace spent finishing it
+                r = estimate_diffusivity(Params(**pt), s, method=method, h=h, delta=delta, dtype=dtype,
+                                         n_excursions=n_excursions, rtol=rtol, max_work=max_work,
+                                         max_time=max_time)
     except KeyboardInterrupt:
         return None
     except NoEstimateError as e:  # deterministic (unless max_time stopped it): recorded, not rerun on resume

@@ -333,6 +333,30 @@ def test_a_run_stopped_by_ctrl_c_is_not_kept(tmp_path, monkeypatch):
     assert again.estimate(Params(**FIG3), 1).stopped_by == "n_excursions" and again.computed == 1
 
 
+def test_a_ctrl_c_in_a_run_stops_it_at_once(tmp_path, monkeypatch):
+    """The real engine, Ctrl-C in its second paused round: the scene keeps finished runs only, so the run
+    is dropped at once (no final round, which finished the excursions in flight for up to 20 s and was then
+    thrown away; a sweep audit) and nothing is written."""
+    from dryfric_jax import rounds
+
+    calls = {"advance": 0, "finish": 0}
+    real = {m: getattr(rounds.Lanes, m) for m in calls}
+
+    def wrap(m):
+        def f(self, *a, **k):
+            calls[m] += 1
+            if m == "advance" and calls[m] == 2:
+                raise KeyboardInterrupt
+            return real[m](self, *a, **k)
+        return f
+
+    for m in calls:
+        monkeypatch.setattr(rounds.Lanes, m, wrap(m))
+    with pytest.raises(KeyboardInterrupt):
+        points.Points(str(tmp_path), "s").estimate(Params(**FIG3), 1, n_excursions=3000)
+    assert calls == {"advance": 2, "finish": 0} and not (tmp_path / "s.points.jsonl").exists()
+
+
 def test_a_kept_result_with_an_extra_key_is_reused(tmp_path, monkeypatch):
     """A kept result with a key its class lacks (a hand-added note) is reused with the class's fields only.
     Kills: the result's keys not filtered by the class's fields (P30: a TypeError traceback)."""

@@ -626,3 +626,37 @@ def test_a_point_another_sweep_is_computing_is_not_computed_twice(tmp_path, monk
     assert sorted(got) == [2.0, 3.0]
     assert ("by" in got[2.0]) == finished  # the other's record, kept
     assert not os.path.exists(claims_dir(out))  # its claim files removed once the points were written
+
+
+@pytest.mark.parametrize("where", ["advance", "finish"])
+def test_a_ctrl_c_in_a_point_does_not_finish_its_excursions_in_flight(tmp_path, monkeypatch, capsys, where):
+    """The real engine, Ctrl-C in its second paused round (or its final round): a sweep keeps finished
+    points only, so it drops the point at once. It used to run the final round for up to
+    rounds.INTERRUPT_GRACE_S, saying "finishing the ... excursions in flight", then threw the result
+    away (a sweep audit: SIGTERM exited 10 s later, 0 records). A plain estimate still finishes them."""
+    from dryfric_jax import rounds
+
+    calls = {"advance": 0, "finish": 0}
+    real = {m: getattr(rounds.Lanes, m) for m in calls}
+
+    def wrap(m):
+        def f(self, *a, **k):
+            calls[m] += 1
+            if m == where and calls[m] == (2 if m == "advance" else 1):
+                raise KeyboardInterrupt
+            return real[m](self, *a, **k)
+        return f
+
+    for m in calls:
+        monkeypatch.setattr(rounds.Lanes, m, wrap(m))
+    out = tmp_path / "s.jsonl"
+    r = sweep.run_sweep(sweep.grid(Gamma=[2.0, 3.0]), str(out), n_excursions=3000)
+    assert r["interrupted"] and r["computed"] == 0 and not out.exists()
+    assert calls == {"advance": 2, "finish": 0} if where == "advance" else calls["finish"] == 1
+    assert "finishing the" not in capsys.readouterr().err
+    # outside a sweep the same Ctrl-C finishes the excursions in flight (the run's result is kept)
+    calls.update(advance=0, finish=0)
+    with pytest.warns(dj.DryfricWarning, match="interrupted: result of the"):
+        e = dj.estimate_diffusivity(dj.Params(**{**sweep.FIG3, "Gamma": 2.0}), 0, n_excursions=3000)
+    assert e.stopped_by == "interrupted" and calls["finish"] >= 1 and e.n_truncated == 0 and e.n_excursions > 0
+    assert "finishing the" in capsys.readouterr().err

@@ -13,10 +13,12 @@ Running the same scene again into the same directory reuses every run already th
 kind, parameters, seed, settings and package version) instead of computing it: the seeds are
 fixed by the scene, so the resumed figure is bit-identical to an uninterrupted one (tested).
 
-A Ctrl-C inside a run makes :func:`~dryfric_jax.api.estimate_diffusivity` return what its
-completed rounds reached (``stopped_by = "interrupted"``).  A scene must not plot such a point as
-if it were finished, so :class:`Points` does not keep it and raises ``KeyboardInterrupt``: the
-scene stops, and the runs already written stay.  Delete the file to recompute from scratch.
+A Ctrl-C inside a run would make :func:`~dryfric_jax.api.estimate_diffusivity` finish the
+excursions in flight and return what it reached (``stopped_by = "interrupted"``).  A scene must
+not plot such a point as if it were finished, so :class:`Points` runs it under
+:func:`~dryfric_jax.rounds.abandon_on_interrupt` (the ``KeyboardInterrupt`` comes at once) and
+keeps no interrupted result: the scene stops, and the runs already written stay.  Delete the file
+to recompute from scratch.
 """
 from __future__ import annotations
 
@@ -33,6 +35,7 @@ from ..api import (
     BruteForceResult, DryfricWarning, EstimateResult, bruteforce_diffusivity, estimate_diffusivity, missing_fields,
 )
 from ..outfiles import claim, put_record, read_records
+from ..rounds import abandon_on_interrupt
 
 _KINDS = {"estimate": (estimate_diffusivity, EstimateResult), "bruteforce": (bruteforce_diffusivity, BruteForceResult)}
 
@@ -122,7 +125,8 @@ class Points:
                     return self._reuse(ident, cls)
             with warnings.catch_warnings():  # a scene reports its numbers; the notes stay in the record
                 warnings.simplefilter("ignore", DryfricWarning)
-                r = fn(params, seed, **kw)
+                with abandon_on_interrupt():  # a run stopped short is not kept: no grace spent finishing it
+                    r = fn(params, seed, **kw)
             if getattr(r, "stopped_by", None) == "interrupted":  # Ctrl-C inside the run: not a finished point
                 raise KeyboardInterrupt
             rec = dict(ident=ident, kind=kind, version=__version__, finished_at=time.strftime("%Y-%m-%dT%H:%M:%S"),
