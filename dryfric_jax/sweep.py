@@ -49,23 +49,26 @@ the file then keeps one record (the same result unless ``max_time`` stopped one)
 """
 from __future__ import annotations
 
+import decimal
 import functools
 import itertools
 import json
 import math
+import numbers
 import os
 import sys
 import time
 import warnings
 import zlib
 
+import jax
 import numpy as np
 
 from ._version import __version__
 from .api import DryfricWarning, NoEstimateError, ProjectionWarning, check_progress, check_seed, estimate_diffusivity
 from .limits import MAX_WORK
 from .outfiles import check_writable, claim, drop_claims_dir, dumps, locked, put_record, read_records, write_records
-from .params import FIG3, Params, plain_number, real_or_none
+from .params import FIG3, Params, plain_number, real_or_none, shown
 from .plan import check_max_time, check_settings, plan_estimate
 from .rounds import abandon_on_interrupt
 
@@ -161,7 +164,19 @@ def _check_points(points) -> list[dict]:
         if unknown:
             raise ValueError(f"points[{i}] has unknown parameters {unknown} (known: {list(PARAM_KEYS)})")
     # -0.0 as 0.0 (gamma_bar = -0.0 was another point, with its own seed and record, of the same physics)
-    return [{k: _no_negative_zero(plain_number(v)) for k, v in pt.items()} for pt in points]
+    return [{k: _no_negative_zero(_real_value(v, i, k)) for k, v in pt.items()} for i, pt in enumerate(points)]
+
+
+def _real_value(v, i: int, name: str):
+    """A point's value as a Python float (a Fraction or Decimal too: their points were a TypeError from the
+    JSON encoder, as was a complex one, while its refusal was being written; a sweep audit); a string or
+    None is left for ``Params`` to refuse by name, anything else is refused here."""
+    v = plain_number(v)
+    if isinstance(v, (int, float, str)) or v is None or isinstance(v, jax.core.Tracer):
+        return v
+    if isinstance(v, (numbers.Real, decimal.Decimal)) and not isinstance(v, (bool, np.bool_)):
+        return float(v)
+    raise ValueError(f"points[{i}] {name} must be a real number (got {shown(v)})")
 
 
 def _no_negative_zero(x):

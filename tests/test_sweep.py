@@ -660,3 +660,19 @@ def test_a_ctrl_c_in_a_point_does_not_finish_its_excursions_in_flight(tmp_path, 
         e = dj.estimate_diffusivity(dj.Params(**{**sweep.FIG3, "Gamma": 2.0}), 0, n_excursions=3000)
     assert e.stopped_by == "interrupted" and calls["finish"] >= 1 and e.n_truncated == 0 and e.n_excursions > 0
     assert "finishing the" in capsys.readouterr().err
+
+
+def test_point_values_of_other_number_types(tmp_path):
+    """A Fraction or Decimal value is the float it stands for (same point, seed and record as the float);
+    a complex one is refused by name. All three were a TypeError from the JSON encoder (a sweep audit)."""
+    from decimal import Decimal
+    from fractions import Fraction
+
+    import numpy as np
+
+    pts = sweep._check_points([dict(Gamma=Fraction(5, 2)), dict(Gamma=Decimal("2.5"), tau=np.float32(0.5))])
+    assert pts == [dict(Gamma=2.5), dict(Gamma=2.5, tau=0.5)] and all(type(v) is float for p in pts for v in p.values())
+    for bad in (1 + 2j, np.complex128(1.0), object()):
+        with pytest.raises(ValueError, match=r"^points\[1\] Gamma must be a real number \(got "):
+            sweep.run_sweep([dict(Gamma=2.0), dict(Gamma=bad)], str(tmp_path / "s.jsonl"), n_excursions=50)
+    assert not (tmp_path / "s.jsonl").exists()  # refused before any point ran
