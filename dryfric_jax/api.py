@@ -169,6 +169,15 @@ def _key(key):
     return (jax.random.wrap_key_data(jax.numpy.asarray(key)) if raw else key), None
 
 
+def key_id(key) -> str:
+    """A ``jax.random`` key as text: its dtype and data words in hex.  Seed ``s`` runs on
+    ``jax.random.key(s)``, so a key-made run and a seeded one draw the same stream exactly when
+    ``key_id(key) == key_id(jax.random.key(s))`` (``'key<fry>:00000000:00000005'`` for seed 5):
+    what :func:`~dryfric_jax.combine_estimates` compares to refuse a stream pooled twice."""
+    data = np.asarray(jax.random.key_data(key)).ravel()
+    return str(key.dtype) + "".join(f":{int(w):08x}" for w in data)
+
+
 def require_x64() -> None:
     """``RuntimeError`` unless JAX's 64-bit mode is on.  Importing dryfric_jax turns it on (the sums are
     float64 whatever the simulation dtype); a notebook that turned it off afterwards got five "float64
@@ -296,7 +305,8 @@ class EstimateResult(_Record):
         rtol, max_time: the precision target and time limit of the run (None when not given).
         warnings: every note the run issued (also issued as :class:`DryfricWarning`).
         sums: the excursions' sufficient statistics (nondimensional), which runs pool by adding.
-        combined_from: the seeds a pooled result was made from.
+        combined_from: the seeds a pooled result was made from (for runs made from a key, their ``key``).
+        key: for a run made from a ``jax.random`` key (``seed`` None), the key (:func:`key_id`); else None.
         params: the physical parameters as a dict.
     """
 
@@ -331,7 +341,8 @@ class EstimateResult(_Record):
     # the sufficient statistics behind D and M0: totals over the complete excursions of
     # STAT_NAMES, nondimensional (U in u0, t in tau0); runs combine by adding them (combine.py)
     sums: dict = field(default_factory=dict)
-    combined_from: list = field(default_factory=list)  # seeds of the runs a combined result pools
+    combined_from: list = field(default_factory=list)  # seeds (or keys) of the runs a combined result pools
+    key: str | None = None  # a key-made run's key (key_id); None for a seed
     lanes: int = 0  # the engine's layout (with the seed, it fixes the random streams)
     block: int = 0
     # what reproduces the run with the seed and the fields above: the n_excursions asked for (N is
@@ -349,7 +360,8 @@ class EstimateResult(_Record):
                 + ("\n" if self.method == "pdmp" else
                    " (DI: regeneration cycles, each >= 1 of the paper's excursions)\n")
                 + f"N = {self.n_excursions} excursions, {self.n_truncated} truncated, {_resolution(self)}, "
-                f"{self.dtype}, " + (f"seeds {self.combined_from}" if self.combined_from else f"seed {self.seed}")
+                f"{self.dtype}, " + (f"seeds {self.combined_from}" if self.combined_from
+                                    else f"seed {self.seed}" if self.key is None else f"key {self.key}")
                 + f"\nwall {self.wall_s:.1f} s, {self.lane_steps_per_s:.3g} "
                 f"{'lane-steps' if self.delta is None else 'events'}/s, stopped by: {self.stopped_by}")
 
@@ -593,7 +605,8 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
         max_steps=plan.max_steps, max_work=plan.max_work, predicted_work=plan.predicted_work,
         work=int(sim.slot_steps), sums={k: float(v) for k, v in sim.total().items()}, lanes=plan.lanes,
         block=plan.block, n_requested=n_excursions,
-        max_time=None if max_time == math.inf else max_time, version=__version__)
+        max_time=None if max_time == math.inf else max_time, version=__version__,
+        key=None if seed is not None else key_id(key))
 
 
 def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, method: str = "di",

@@ -322,6 +322,9 @@ def build_parser() -> argparse.ArgumentParser:
     cb.add_argument("--allow-truncated", action="store_true",
                     help="exit 0 even when runs had excursions that hit the work bound (the pooled result is biased "
                          "low; exit 3 otherwise, as for 'estimate')")
+    cb.add_argument("--allow-mixed-versions", action="store_true",
+                    help="pool runs of different dryfric_jax versions as the same model (refused otherwise, exit 2: "
+                         "a version may change a seed's numbers or fix a result)")
     bn = sub.add_parser("bench", help="throughput: DI engine vs RNG bound vs compiled baseline")
     bn.add_argument("--json", action="store_true", help="print one JSON object")
     bn.add_argument("--n-excursions", type=_count_option("n-excursions"), default=10_000,
@@ -508,7 +511,7 @@ def _run(a) -> int:
         _check_out(a.out)
         with _warnings_kept_in_result():
             results, labels = _read_results(a.files)
-            r = combine_estimates(results, labels=labels)
+            r = combine_estimates(results, labels=labels, allow_mixed_versions=a.allow_mixed_versions)
         _report(a, r, _print_estimate)
         return _truncation_exit(a, r, "")
     params = _params(a)

@@ -20,9 +20,10 @@ import math
 import warnings
 from typing import Sequence
 
+import jax
 import numpy as np
 
-from .api import MAX_SEED, DryfricWarning, EstimateResult, missing_fields, small_n_note
+from .api import MAX_SEED, DryfricWarning, EstimateResult, key_id, missing_fields, small_n_note
 from .estimators import MIN_RELIABLE_N, ROUNDING_NOTE, long_excursion_estimates, rounding_note
 from .excursions import STAT_NAMES
 from .outfiles import from_strict
@@ -78,6 +79,16 @@ def _seed(x) -> bool:
     return x is None or (_count(x) and x <= MAX_SEED)
 
 
+def _key_text(x) -> bool:
+    return x is None or (isinstance(x, str) and 0 < len(x) <= 200)
+
+
+def _stream(x) -> str | None:
+    """The random stream of a run made from seed or key ``x`` (:func:`~dryfric_jax.api.key_id`), None
+    when unknown (a key-made run written before keys were recorded)."""
+    return key_id(jax.random.key(x)) if isinstance(x, int) else x
+
+
 def _step(x) -> bool:
     return x is None or (_real(x) and x > 0)
 
@@ -92,7 +103,9 @@ _FIELDS = (
     ("n_truncated", _count, "an integer >= 0"),
     ("ci_level", lambda x: _real(x) and 0 < x < 1, "a number in (0, 1)"),
     ("seed", _seed, "an integer in [0, 2^62] or null"),
-    ("combined_from", lambda x: isinstance(x, list) and all(map(_seed, x)), "a list of seeds in [0, 2^62]"),
+    ("combined_from", lambda x: isinstance(x, list) and all(_seed(v) or _key_text(v) for v in x),
+     "a list of seeds in [0, 2^62] (or keys)"),
+    ("key", _key_text, "a key's text (api.key_id) or null"),
     ("method", lambda x: x in ("di", "pdmp"), "'di' or 'pdmp'"),
     ("dtype", lambda x: isinstance(x, str) and x in DTYPES, f"one of {sorted(DTYPES)}"),
     ("h", _step, "a number > 0 (s) or null"),
@@ -133,7 +146,8 @@ def _check_fields(r: EstimateResult, label: str) -> None:
                          f"sums of squares >= 0 (got {', '.join(f'{k} = {str(r.sums[k])[:24]}' for k in bad[:4])})")
 
 
-def combine_estimates(results: Sequence, *, labels: Sequence[str] | None = None) -> EstimateResult:
+def combine_estimates(results: Sequence, *, labels: Sequence[str] | None = None,
+                      allow_mixed_versions: bool = False) -> EstimateResult:
     """One estimate from the pooled excursions of independent runs of the same model.
 
     Args:
@@ -144,16 +158,22 @@ def combine_estimates(results: Sequence, *, labels: Sequence[str] | None = None)
             step (``h`` or ``delta``) and dtype, and different seeds.
         labels: names of the results for the messages (``dryfric combine`` passes the file
             names); default ``results[i]``.
+        allow_mixed_versions: pool runs of different package versions (the pool's ``version`` is
+            then ``"mixed"``, and a note says so); refused by default, since a version may change a
+            seed's numbers or fix a result.
 
     Returns an :class:`EstimateResult` whose D, M0, CIs and mean duration are those of all the
     runs' complete excursions together (their sums added by ``math.fsum``, correctly rounded, so
     the same to the last bit in any order of the runs); counts, work and wall time are sums (``wall_s`` is the
     compute spent, not the elapsed time of runs made side by side), ``combined_from`` lists the
-    seeds.  Raises ``ValueError`` naming what differs, for a field of the wrong type or range
-    (a hand-edited file: every field combining reads is checked), for results without sums (made
-    before they were recorded) and for a seed used twice (the same random stream twice is not
-    independent).  Results made from a ``jax.random`` key carry no seed: their independence is
-    the caller's to ensure, and a :class:`DryfricWarning` says so.
+    seeds (a key-made run's key).  Raises ``ValueError`` naming what differs, for a field of the wrong
+    type or range (a hand-edited file: every field combining reads is checked), for results without
+    sums (made before they were recorded), for runs of different versions (unless
+    ``allow_mixed_versions``) and for a random stream used twice: a seed twice, a key twice, or a
+    key and the seed it is the key of (``jax.random.key(5)`` and seed 5), also inside a pool.  Two
+    different keys, like two different seeds, are taken as independent streams.  Results made from
+    a key written before keys were recorded carry neither: their independence is the caller's to
+    ensure, and a :class:`DryfricWarning` says so.
     """
     if isinstance(results, (str, bytes, dict, EstimateResult)) or not hasattr(results, "__iter__"):
         raise ValueError(f"results must be a list of EstimateResult objects (got {type(results).__name__})")
@@ -180,12 +200,23 @@ def combine_estimates(results: Sequence, *, labels: Sequence[str] | None = None)
             a, b = getattr(first, name), getattr(r, name)
             if not _same(a, b):
                 raise ValueError(f"results must share {name}: {labels[0]} has {a!r}, {labels[i]} has {b!r}")
-    seeds = [s for r in rs for s in (r.combined_from or [r.seed])]
-    known = [s for s in seeds if s is not None]
+    # what made each run: its seed, or the key of a key-made one (None: a key-made run written before keys were recorded)
+    seeds = [s for r in rs for s in (r.combined_from or [r.seed if r.seed is not None else r.key])]
+    known = [s for s in seeds if isinstance(s, int)]
     if len(set(known)) < len(known):
         dup = sorted({s for s in known if known.count(s) > 1})
         raise ValueError(f"seeds must differ between the runs combined (seed(s) {dup} used more than once): "
                          "the same seed gives the same excursions")
+    # a key-made run against a seed (key(5) is seed 5's key) or against a pool it is part of: its
+    # stream counted twice, and pooled with only the "assumed independent" note (a sweep audit)
+    streams = [_stream(s) for s in seeds]
+    for i, a in enumerate(streams):
+        j = next((j for j in range(i) if a is not None and streams[j] == a), None)
+        if j is not None:
+            what = lambda s: f"seed {s}" if isinstance(s, int) else f"key {s}"
+            raise ValueError(f"results must draw different random streams: {what(seeds[j])} and {what(seeds[i])} "
+                             "are the same stream (a seed s runs on jax.random.key(s)), so pooling would count its "
+                             "excursions twice")
     seen = {}
     for i, r in enumerate(rs):  # the same run twice (a key-made run has no seed to compare)
         j = seen.setdefault(tuple(r.sums[k] for k in STAT_NAMES), i)
@@ -195,10 +226,17 @@ def combine_estimates(results: Sequence, *, labels: Sequence[str] | None = None)
                              "twice")
     # said twice: warned now, and kept in the pool's ``warnings`` (which ``dryfric combine`` prints and writes)
     said = []
-    if len(known) < len(seeds):
-        said.append("some results were made from a jax.random key, not a seed: their streams are assumed independent")
+    if None in seeds:
+        said.append("some results were made from a jax.random key that they do not record (written before keys were "
+                    "recorded): their streams are assumed independent")
     versions = sorted({r.version for r in rs})
-    if len(versions) > 1:  # pooled as before, but said: a seed's numbers may differ between versions
+    if len(versions) > 1 and not allow_mixed_versions:  # a sweep reruns older points for the same reason
+        i = next(i for i, r in enumerate(rs) if r.version != first.version)
+        raise ValueError(f"results must share version: {labels[0]} has {first.version!r}, {labels[i]} has "
+                         f"{rs[i].version!r}: a new version may change a seed's numbers or fix a result (a sweep reruns "
+                         "the points of older ones); rerun the older runs, or pool them as the same model with "
+                         "allow_mixed_versions=True (dryfric combine --allow-mixed-versions)")
+    if len(versions) > 1:  # pooled, but said
         said.append(f"results come from versions {', '.join(map(repr, versions))} of dryfric_jax: pooled as the same "
                     "model (the pool's version is 'mixed'); rerun the older ones for a single-version result")
     for note in said:
@@ -272,7 +310,8 @@ def gather_hosts(result: EstimateResult) -> EstimateResult:
 
     # the counts and seeds as int64 (through float64 a seed above 2^53 was rounded: 2^62 - 1 came back
     # as 2^62), and the seeds of a pooled result padded to the longest list (they came back as [None])
-    seeds = [-1 if s is None else s for s in (r.combined_from or [r.seed])]
+    # (a key-made run's key, text, is not gathered: None on every host, pooled with the "assumed independent" note)
+    seeds = [s if isinstance(s, int) else -1 for s in (r.combined_from or [r.seed])]
     width = int(gather(np.array([len(seeds)], np.int64)).max())
     # every per-host field combining adds up or compares, each host's own (n_requested, lanes, block and max_work
     # were this host's, copied for every host: two hosts returned different pools)

@@ -58,6 +58,38 @@ def test_one_run_combines_to_itself_and_round_trips_through_json(runs):
     assert again.D == pytest.approx(combine_estimates(runs).D, rel=1e-13) and again.combined_from == [41, 42, 43]
 
 
+def test_a_stream_pooled_twice_is_refused_whatever_made_it(runs):
+    """A key-made run records its key (api.key_id), so its stream is known: seed 5 runs on jax.random.key(5),
+    and a pool remembers the keys it holds. Both pairs below were pooled with only the "assumed independent"
+    note, counting excursions twice (a sweep audit: key(5) with N = 1000 against seed 5 with N = 3000, and a
+    pool of two key-made runs pooled again with one of them)."""
+    import jax
+
+    p = P
+    k5 = dj.estimate_diffusivity(p, jax.random.key(5), n_excursions=600)
+    assert k5.seed is None and k5.key == dj.api.key_id(jax.random.key(5)) == "key<fry>:00000000:00000005"
+    assert k5.sums == dj.estimate_diffusivity(p, 5, n_excursions=600).sums  # the same stream, to the bit
+    s5 = dj.estimate_diffusivity(p, 5, n_excursions=1200)  # more excursions: other sums, the same stream
+    assert s5.key is None and "key " not in s5.summary() and "key key<fry>" in k5.summary()
+    with pytest.raises(ValueError, match=r"^results must draw different random streams: seed 5 and key "
+                                         r"key<fry>:00000000:00000005 are the same stream"):
+        combine_estimates([s5, k5])
+    # a raw PRNGKey is the same key
+    raw = dj.estimate_diffusivity(p, jax.random.PRNGKey(7), n_excursions=600)
+    other = dj.estimate_diffusivity(p, jax.random.split(jax.random.key(7))[1], n_excursions=600)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", dj.DryfricWarning)  # different keys are independent streams: no note
+        warnings.simplefilter("ignore", dj.SmallSampleWarning)
+        pool = combine_estimates([raw, other])
+    assert pool.combined_from == [raw.key, other.key] and raw.key.endswith(":00000000:00000007")
+    with pytest.raises(ValueError, match="are the same stream"):
+        combine_estimates([pool, other])
+    with pytest.raises(ValueError, match="are the same stream"):
+        combine_estimates([pool, dj.estimate_diffusivity(p, 7, n_excursions=600)])
+    # through JSON too
+    assert combine_estimates([json.loads(json.dumps(pool.to_dict())), runs[0]]).combined_from == [*pool.combined_from, 41]
+
+
 def test_refusals_name_what_differs(runs):
     with pytest.raises(ValueError, match="seeds must differ .*41"):
         combine_estimates([runs[0], runs[0]])
@@ -248,11 +280,19 @@ def test_a_file_saved_with_a_byte_order_mark_is_read(tmp_path, runs, capsys):
     assert (got["computed"], got["skipped"]) == (0, 1)
 
 
-def test_runs_of_other_versions_are_pooled_with_a_warning(runs):
+def test_runs_of_other_versions_are_refused_unless_allowed(runs):
+    """A version may change a seed's numbers or fix a result (a sweep reruns older points), so pooling
+    versions is refused by name unless asked for; then it is said, and the pool's version is "mixed"
+    (it was pooled with a warning only: a sweep audit)."""
     old = dataclasses.replace(runs[1], version="0.1.0")
+    with pytest.raises(ValueError, match=r"^results must share version: results\[0\] has '0\.2.*, results\[1\] has "
+                                         r"'0\.1\.0'.*allow_mixed_versions=True"):
+        combine_estimates([runs[0], old])
     with pytest.warns(dj.DryfricWarning, match=r"versions '0.1.0', '0.2"):
-        c = combine_estimates([runs[0], old])
+        c = combine_estimates([runs[0], old], allow_mixed_versions=True)
     assert c.version == "mixed" and c.D == combine_estimates(runs[:2]).D
+    with pytest.raises(ValueError, match="results must share version"):  # a mixed pool is a version of its own
+        combine_estimates([c, runs[2]])
 
 
 def test_the_cli_says_and_keeps_the_pools_own_notes(tmp_path, runs, capsys):
@@ -266,7 +306,10 @@ def test_the_cli_says_and_keeps_the_pools_own_notes(tmp_path, runs, capsys):
     files = [tmp_path / "old.json", tmp_path / "keyed.json"]
     files[0].write_text(dumps(dataclasses.replace(runs[0], version="0.1.0").to_dict()))
     files[1].write_text(dumps(dataclasses.replace(runs[1], seed=None).to_dict()))
-    assert main(["combine", *map(str, files), "--json", "--out", str(tmp_path / "pool.json")]) == 0
+    assert main(["combine", *map(str, files), "--json"]) == 2  # versions: refused by name
+    assert "results must share version" in capsys.readouterr().err
+    assert main(["combine", *map(str, files), "--json", "--out", str(tmp_path / "pool.json"),
+                 "--allow-mixed-versions"]) == 0
     cap = capsys.readouterr()
     got = json.loads(cap.out)
     notes = [w for w in got["warnings"] if "versions '0.1.0', '0.2" in w or "assumed independent" in w]
@@ -275,7 +318,8 @@ def test_the_cli_says_and_keeps_the_pools_own_notes(tmp_path, runs, capsys):
     assert json.loads((tmp_path / "pool.json").read_text())["warnings"] == got["warnings"]
     # the pool pooled again with a third run: the key note, the same words again, is kept once
     (tmp_path / "third.json").write_text(dumps(runs[2].to_dict()))
-    assert main(["combine", str(tmp_path / "pool.json"), str(tmp_path / "third.json"), "--json"]) == 0
+    assert main(["combine", str(tmp_path / "pool.json"), str(tmp_path / "third.json"), "--json",
+                 "--allow-mixed-versions"]) == 0
     again = json.loads(capsys.readouterr().out)["warnings"]
     assert sum("assumed independent" in w for w in again) == 1 and notes[0] in again, again
 
