@@ -257,7 +257,7 @@ def choose(params: Params, method: str, h, delta, dtype) -> Plan:
     else:
         delta = default_delta(params) if defaulted else delta
         grid = pdmp_grid_info(params, delta)
-        unsafe = pdmp_float32_unsafe_reason(params.tau_L_nd)
+        unsafe = pdmp_float32_unsafe_reason(params.tau_L_nd, grid["rate_nd"])
         # every noise jump is an event: the jump rate Lambda' is a lower estimate of the events per tau0
         plan = Plan("pdmp", None, grid["delta"], grid, dtype, reason, "events", grid["rate_nd"])
         if defaulted and (note := default_delta_note(params)):

@@ -260,3 +260,26 @@ def test_passage_time_against_the_double_quadrature_on_both_sides_of_the_dawson_
     """u_b = b sqrt(tau/2) = -3.5, -6.4, -7.0: the erfcx quadrature and the Dawson form (u < -6) to
     1e-9 of the quadrature here (the Dawson form used from u = -3 leaves out 2e-5 at the first)."""
     assert math.exp(limits.log_ou_passage_time(a, b, tau)) == pytest.approx(_passage(a, b, tau), rel=1e-9)
+
+
+def test_pdmp_float32_falls_back_where_events_are_too_short():
+    """The PDMP's velocity increments are of order its event time 1/Lambda' = (tau' delta')^2/2: below the DI's
+    bound on h' (1e-5) float32 rounds them away (a PDMP audit: U 1% low on every path at 5e-7 tau0, paired
+    with float64 arithmetic on the same uniforms), and the plan kept float32 with no note. The bound is
+    inclusive, and the reason names the event time."""
+    import jax.numpy as jnp
+
+    from dryfric_jax.pdmp import flow
+
+    f = limits.pdmp_float32_unsafe_reason
+    assert f(1.0, 1e5) is None and f(1.0) is None
+    assert f(1.0, 1e5 / BELOW).startswith("mean time between events (tau delta)^2/2 = 1e-05 tau0 < 1e-05 tau0")
+    p = dj.Params.from_nondim(1.0, 10.0, 3.0)
+    for delta, dtype in ((1e-3, "float64"), (0.0045, "float32"), (0.05, "float32")):
+        plan = plan_estimate(p, method="pdmp", delta=delta, dtype="float32", n_excursions=100, max_work=1e300)
+        assert plan.dtype == dtype, delta
+        assert [n.startswith("float32 is not safe here (mean time between events") for n in plan.notes] == \
+            ([True] if dtype == "float64" else [])
+    # why: at v = 0.5 an increment 0.3 s of s = 5e-9 (delta' = 1e-4) is lost in float32, kept in float64
+    assert float(flow(jnp.float32(0.5), jnp.float32(0.3), jnp.float32(0.0), jnp.float32(5e-9))) == 0.5
+    assert float(flow(0.5, 0.3, 0.0, 5e-9)) - 0.5 == pytest.approx(1.5e-9, rel=1e-6)
