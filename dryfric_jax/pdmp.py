@@ -151,8 +151,18 @@ class PDMPModel(eqx.Module):
         jump = e < t_star
         dt = jnp.where(jump, e, t_star)
         vn = jnp.where(moving & jump, flow(v, a, self.inv_tau_L, dt), 0.0).astype(v.dtype)
-        alpha = jnp.where(k >= self.N, 0.0, jnp.where(k <= -self.N, 1.0, 0.5 - self.c_alpha * k.astype(u2.dtype)))
-        kn = jnp.where(jump, k + jnp.where(u2 < alpha, 1, -1), k).astype(k.dtype)
+        # the side: toward 0 with probability beta = 1/2 + c |k| (alpha_k = 1/2 - c k up), drawn the same way
+        # on both sides: up iff u2 < beta for k <= 0, down iff the mirrored uniform 1 - 2^-m - u2 (the same
+        # grid of values, j -> 2^m - 1 - j) is < beta for k > 0.  The law is then exactly symmetric under
+        # k -> -k whatever the uniforms' resolution: with 'u2 < alpha_k' on both sides, P(up) was
+        # ceil(alpha 2^m)/2^m >= alpha, a drift up that gave float32 a stationary E[X] of 2.9e-6 (delta' =
+        # 0.05) to 5e-4 (3e-4) at tau' = 1, gamma_bar = 0 (a PDMP audit, from the exact law of the chain
+        # with the model's float32 alpha_k); float64's 2^-52 made it ~1e-14
+        ud = u2.dtype
+        beta = jnp.where(jnp.abs(k) >= self.N, 1.0, 0.5 + self.c_alpha * jnp.abs(k).astype(ud))
+        mirrored = jnp.asarray(1.0 - float(jnp.finfo(self.random_dtype).eps), ud) - u2  # exact: 2^-m grid
+        up = jnp.where(k > 0, mirrored >= beta, u2 < beta)
+        kn = jnp.where(jump, k + jnp.where(up, 1, -1), k).astype(k.dtype)
         stuck = y == 0
         theta = lambda kk: jnp.where(kk > self.kp, 1, jnp.where(kk < self.km, -1, 0)).astype(y.dtype)
         yn = jnp.where(jump, jnp.where(stuck, theta(kn), y), theta(k))

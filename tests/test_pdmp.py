@@ -284,3 +284,35 @@ def test_default_delta_warns_beyond_the_thresholds_it_was_checked_at():
         (n,) = notes(0.9, method=method)
         assert f"here one lies {depth:.3g} SD out" in n and "up to stick thresholds 4.2 SD" in n
     assert notes(0.9, method="pdmp", delta=0.05) == [] and notes(0.9, method="di") == []
+
+
+@pytest.mark.parametrize("dtype", ["float32", "float64"])
+def test_the_jump_side_is_exactly_symmetric_on_the_uniforms_grid(dtype):
+    """The uniform j/2^m (0 drawn as tiny) jumps up from -k exactly when the uniform (2^m - 1 - j)/2^m jumps
+    down from k: every float32 uniform, and in float64 the 2^22 uniforms nearest the threshold. So P(up at
+    -k) = P(down at k) and the chain's stationary E[X] is 0 at gamma_bar = 0 whatever the uniforms'
+    resolution. Comparing u2 < alpha_k on both sides gave P(up) = ceil(alpha 2^m)/2^m >= alpha: a drift up,
+    E[X] = 2.9e-6 at delta' = 0.05 and 5e-4 at 3e-4 in float32 (a PDMP audit, from the chain's exact law
+    with the model's float32 alpha_k)."""
+    dt = jnp.dtype(dtype)
+    m = make_pdmp_model(dj.Params.from_nondim(1.0, math.inf, 0.0), 0.01, dt)
+    N, M = int(m.N), 2 ** (23 if dtype == "float32" else 52)
+    tiny = float(jnp.finfo(dt).tiny)
+
+    @jax.jit
+    def side(k, j):  # +1 up, -1 down from k, for the uniforms j/M (0 as tiny, as jax.random.uniform draws it)
+        u2 = jnp.maximum(j.astype(dt) / M, tiny).astype(dt)
+        state = (jnp.full(j.shape, k, jnp.int32), jnp.zeros(j.shape, jnp.int32), jnp.zeros(j.shape, dt))
+        kn = m.event(state, (jnp.full(j.shape, 0.5, dt), u2))[2][0]  # stuck: every event is a jump
+        return kn - k
+
+    for k in (0, 1, 2, 37, 500, N - 1, N):
+        beta = 0.5 + float(m.c_alpha) * k  # P(up at -k)
+        lo = 0 if dtype == "float32" else int(beta * M) - 2**21
+        j = jnp.arange(lo, lo + (M if dtype == "float32" else 2**22), dtype=jnp.int64)
+        up = side(-k, j)
+        assert bool(jnp.all(up == -side(k, M - 1 - j))), k
+        assert bool(jnp.any(up == 1)) and bool(jnp.any(up == -1)) or k == N, k  # the threshold is inside
+        if dtype == "float32":
+            # P(up at -k) is beta to a cell, 2^-23 (beta itself is rounded to float32, 2^-24)
+            assert abs(int(jnp.sum(up == 1)) - (M if k == N else beta * M)) <= 1.5, k
