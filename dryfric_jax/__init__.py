@@ -47,11 +47,13 @@ from .di import DIModel, make_di_model  # noqa: E402
 from .estimators import MIN_RELIABLE_N, MIN_RELIABLE_PATHS, delta_method, psi_D, psi_M  # noqa: E402
 from .ou import OUStep, ou_moments, ou_step  # noqa: E402
 from .params import FIG3, Params  # noqa: E402
+from .pdmp import PDMPModel, make_pdmp_model  # noqa: E402
 from .plan import Plan, plan_estimate  # noqa: E402
 from ._version import __version__  # noqa: E402, F401
 
 __all__ = [
     "Params", "FIG3", "OUStep", "ou_step", "ou_moments", "DIModel", "make_di_model",
+    "PDMPModel", "make_pdmp_model",
     "estimate_diffusivity", "bruteforce_diffusivity", "EstimateResult", "BruteForceResult",
     "DryfricWarning", "ProjectionWarning", "SmallSampleWarning", "NoEstimateError", "default_h", "Plan",
     "plan_estimate",

@@ -627,7 +627,8 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
     (:func:`short_horizon_note`: D_t = D (1 - 5.4 tau0/t) from rest with white noise and tau_L = inf),
     and so is a D_t CI of 0 (paths too short for the noise to spread them).  With the seed, ``block``
     (steps whose numbers are drawn at once) fixes the numbers and is recorded; ``chunk_lanes`` (paths
-    compiled and run at once) does not change them.
+    compiled and run at once) does not change the random numbers, and the results only to rounding
+    (each chunk shape is compiled to its own code: 2.6e-16 relative in a path's U, measured).
     """
     require_x64()
     if method == "auto":

@@ -404,3 +404,22 @@ def test_di_excursion_is_one_excursion_from_c_plus_through_c_minus_to_c_plus(tau
     short = di_excursion(m, seed, k + 1)  # stopped in the -HLE: the same states so far, not complete
     assert not short["complete"] and len(short["t"]) == k + 2
     np.testing.assert_array_equal(short["x"], e["x"][: k + 2])
+
+
+def test_the_model_refusals_name_functions_that_exist():
+    """Each path function's refusal of a wrong model names the constructor to use, and that constructor is
+    what it says: dryfric_jax.make_pdmp_model did not exist (a PDMP audit: an AttributeError for a user who
+    followed the message)."""
+    import re
+
+    import dryfric_jax as dj
+    from dryfric_jax import paths
+
+    di = dj.make_di_model(dj.Params.from_nondim(1.0, 1.0, 0.0), 0.01)
+    pd = dj.make_pdmp_model(dj.Params.from_nondim(1.0, 1.0, 0.0), 0.1)
+    for call, wrong in ((lambda m: paths.pdmp_stationary(m, 0, n_paths=2, n_records=2, dt_rec=0.1, burn=0.0), di),
+                        (lambda m: paths.di_stationary(m, 0, n_paths=2, n_records=2, every=1, burn_steps=0), pd)):
+        with pytest.raises(ValueError) as e:
+            call(wrong)
+        name = re.search(r"from dryfric_jax\.(\w+)\(", str(e.value)).group(1)
+        assert callable(getattr(dj, name)) and name in dj.__all__, str(e.value)
