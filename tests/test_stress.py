@@ -178,8 +178,22 @@ def test_bias_equal_to_the_friction_without_damping_is_refused_before_planning()
 @pytest.mark.parametrize("tl", [0.05, 0.5, 100.0, math.inf])
 def test_predicted_duration_is_floored_at_min_1_tau_L_for_fast_noise(tl):
     """limits docstring: for fast noise (tau' = 1e-3, OU passage sum ~1e-4 tau0) the predicted
-    duration is the floor min(1, tau_L') (a max(1, tau_L') predicted 100x the work at tau_L' = 100)."""
-    assert math.exp(dj.limits.log_duration_scale(1e-3, tl, 0.3)) == pytest.approx(min(1.0, tl), rel=1e-12)
+    duration is the floor min(1, tau_L') (a max(1, tau_L') predicted 100x the work at tau_L' = 100), or the
+    deceleration floor 1/((1 - |gamma_bar'|) + 0.5/sqrt(tau_L')) where that is larger (here from tau_L' = 0.05)."""
+    floor = max(min(1.0, tl), 1.0 / (0.7 + 0.5 / math.sqrt(tl)))
+    assert math.exp(dj.limits.log_duration_scale(1e-3, tl, 0.3)) == pytest.approx(floor, rel=1e-12)
+
+
+def test_predicted_duration_grows_near_the_runaway_bias():
+    """limits docstring: near |gamma_bar'| = 1 a moving particle decelerates at the net rate 1 - |gamma_bar'|, so
+    the prediction is floored at 1/((1 - |gamma_bar'|) + 0.5/sqrt(tau_L')): at tau_L = inf, 0.99 it is 100 tau0
+    (the passage sum alone gave 11.5, and a PDMP audit's run did 320x its predicted work). Each measured
+    mean duration (tau' = 1, seed 0, N = 2000, PDMP) stays above the prediction: a lower estimate."""
+    f = lambda tl, g: math.exp(dj.limits.log_duration_scale(1.0, tl, g))
+    assert f(math.inf, 0.99) == pytest.approx(100.0, rel=1e-12) and f(math.inf, 0.0) < 6.0
+    for tl, g, measured in ((math.inf, 0.8, 22.2), (math.inf, 0.9, 43.8), (math.inf, 0.98, 222.0), (10.0, 0.95, 20.7),
+                            (100.0, 0.95, 41.3), (3.0, 0.9, 14.0), (1.0, 0.9, 11.8), (0.3, 0.95, 12.0)):
+        assert f(tl, g) < measured, (tl, g)
 
 
 @pytest.mark.parametrize("tau,a,b,rel", [(1.0, 0.0, -4.0, 1e-6), (2.0, 1.0, -3.0, 1e-6), (1.0, 0.0, -9.5, 1e-6),
