@@ -310,7 +310,8 @@ def gather_hosts(result: EstimateResult) -> EstimateResult:
 
     # the counts and seeds as int64 (through float64 a seed above 2^53 was rounded: 2^62 - 1 came back
     # as 2^62), and the seeds of a pooled result padded to the longest list (they came back as [None])
-    # (a key-made run's key, text, is not gathered: None on every host, pooled with the "assumed independent" note)
+    # (a key-made run's key, text, is not gathered: None on every host, pooled with the "assumed independent" note;
+    # this host's key copied to every host would be refused as one stream used twice)
     seeds = [s if isinstance(s, int) else -1 for s in (r.combined_from or [r.seed])]
     width = int(gather(np.array([len(seeds)], np.int64)).max())
     # every per-host field combining adds up or compares, each host's own (n_requested, lanes, block and max_work
@@ -326,6 +327,6 @@ def gather_hosts(result: EstimateResult) -> EstimateResult:
         got = [None if s < 0 else int(s) for s in i[c + 1:c + 1 + int(i[c])]]
         per_host.append(dataclasses.replace(
             r, sums=dict(zip(STAT_NAMES, map(float, x[:k]))), **{n: int(v) for n, v in zip(counts, i)},
-            **{f: float(v) for f, v in zip(floats, x[k:])}, seed=got[0] if len(got) == 1 else None,
+            **{f: float(v) for f, v in zip(floats, x[k:])}, seed=got[0] if len(got) == 1 else None, key=None,
             combined_from=got if len(got) > 1 else []))
     return combine_estimates(per_host)

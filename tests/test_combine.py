@@ -431,3 +431,17 @@ def test_a_result_writes_strict_json_that_combine_reads_back():
     assert pooled.params["tau_L"] == math.inf and pooled.n_excursions == r1.n_excursions + r2.n_excursions
     bf = dj.bruteforce_diffusivity(p, 3, t=1.0 * p.tau0, n_paths=8)
     assert '"tau_L": "inf"' in bf.to_json()
+
+
+def test_gather_hosts_of_a_key_made_run_does_not_copy_its_key():
+    """gather_hosts does not gather keys (text): each host's entry has key None, as before keys were recorded,
+    and is pooled with the "assumed independent" note. Copying this host's key to every host's entry would
+    refuse every multi-host pool of key-made runs as one stream used twice."""
+    import jax
+
+    from dryfric_jax.combine import gather_hosts
+
+    r = dj.estimate_diffusivity(P, jax.random.key(3), n_excursions=300)
+    with pytest.warns(dj.DryfricWarning, match="assumed independent"):
+        g = gather_hosts(r)
+    assert g.key is None and g.D == r.D and g.n_excursions == r.n_excursions
