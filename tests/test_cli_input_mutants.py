@@ -122,7 +122,7 @@ def test_combine_refuses_a_file_that_holds_no_object_and_reads_records_by_line(c
     recs.write_text('{"seed": 1}\n\n{"seed": 2}\n')
     assert main(["combine", str(recs), "--json"]) == 0
     (results,), kw = _only(calls, "combine")
-    assert results == [{"seed": 1}, {"seed": 2}] and kw == dict(labels=[f"{recs}:1", f"{recs}:3"])
+    assert results == [{"seed": 1}, {"seed": 2}] and kw == dict(labels=[f"{recs}:1", f"{recs}:3"], allow_mixed_versions=False)
     capsys.readouterr()
 
 

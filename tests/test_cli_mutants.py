@@ -273,7 +273,7 @@ def test_combine_passes_each_result_with_its_file_as_label(calls, tmp_path, caps
             json.dump(dict(seed=seed), f)
     assert main(["combine", *files, "--json"]) == 0
     (results,), kw = _only(calls, "combine")
-    assert results == [dict(seed=1), dict(seed=2)] and kw == dict(labels=files)
+    assert results == [dict(seed=1), dict(seed=2)] and kw == dict(labels=files, allow_mixed_versions=False)
     calls.result.update(n_truncated=3)
     assert main(["combine", *files]) == 3
     assert "3 truncated excursions" in capsys.readouterr().err

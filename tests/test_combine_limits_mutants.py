@@ -299,11 +299,12 @@ def test_a_work_refusal_past_float_range_by_the_duration_alone_suggests_nothing_
 
 def test_max_steps_is_the_ceiling_of_1e4_tail_time_scales():
     r"""max_steps_per_excursion = ceil(1e4 x tail x steps per tau0), at least 64, at most cap (docstring).
-    gamma_bar' = -0.9, tau_L' = 1.23456 (< 1/(1 - 0.9)^2 = 100): tail = tau_L', 12345.6 steps -> 12346.
+    gamma_bar' = -0.9, tau_L' = 12.3456 (< 1/(1 - 0.9)^2 = 100; the runaway floor 1/(0.1 + 0.5/sqrt(tau_L')) = 4.1 is
+    below it): tail = tau_L', 123456 steps.
     Fast noise with tau_L' = 0.1: every part of the tail (tau', drift, duration floor min(1, tau_L')) is
     below 1, and the tail scale is 1: 1e4 x 1 x 100 = 1e6.  Kills L28 (int for ceil), L25 (the 1 dropped
     from the tail's max), L30 (at least 1, not 64); L21, L27, L54 too."""
-    assert limits.max_steps_per_excursion(1e-3, 1.23456, -0.9, 1.0) == math.ceil(1e4 * 1.23456) == 12346
+    assert limits.max_steps_per_excursion(1e-3, 12.3456, -0.9, 1.0) == math.ceil(1e4 * 12.3456) == 123456
     assert limits.tail_time_scale(1e-3, 0.1, 0.3) == 1.0
     assert limits.max_steps_per_excursion(1e-3, 0.1, 0.3, 100.0) == 1_000_000
     assert limits.max_steps_per_excursion(1e-3, 0.1, 0.3, 1e-9) == 64
