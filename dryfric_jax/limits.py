@@ -31,10 +31,14 @@ rate :math:`1 - |\bar\gamma'|` (plus the viscous :math:`v/\tau_L'`), and the exc
 :math:`\tau' = 1`, N = 2000, seed 0): undamped, the PDMP's excursions last 4.4-4.9 times it at
 :math:`|\bar\gamma'| = 0.8`-0.98 (22-222 :math:`\tau_0`, where the passage sum predicted 9-12), the DI's
 cycles 15-15.5 times; damped, the PDMP's 4.3, 4.3 and 1.4 times at :math:`(\tau_L', |\bar\gamma'|) =
-(10, 0.95), (100, 0.95), (3, 0.9)`; at :math:`\tau' = 0.1`, 0.9 at least 1.04 times (a run cut by
-``max_time``) and the DI's at :math:`\tau' = 0.01` 12.5 times.  The factor 1 keeps it a lower estimate
-(the fits were 4.4 for the PDMP); before it, a PDMP run at :math:`\tau_L = \infty, |\bar\gamma'| = 0.99`
-did 320 times its predicted work.
+(10, 0.95), (100, 0.95), (3, 0.9)`.  Faster noise comes closer to it (:math:`\tau_L = \infty`, N = 1000-3000,
+a coarse :math:`\delta'` to keep the runs to minutes): the PDMP's excursions last 1.17 (CI 0.57-1.8), 1.28 and
+1.33-1.6 times it at :math:`\tau' = 0.1` and :math:`|\bar\gamma'| = 0.98, 0.95, 0.9` (:math:`\delta' = 0.15`-0.3),
+1.45 times at :math:`\tau' = 0.3`, 0.95, and 1.9-3.2 times at :math:`\tau' = 0.01` (:math:`\delta' = 0.5`-1; the finer
+:math:`\delta'` the longer); the DI's cycles 10-12.6 times at :math:`\tau' = 0.01`-0.1.  The factor 1 keeps it a
+lower estimate on every point measured, narrowly at :math:`\tau' = 0.1`, 0.98 (the fits at :math:`\tau' = 1` were
+4.4 for the PDMP); before it, a PDMP run at :math:`\tau_L = \infty, |\bar\gamma'| = 0.99` did 320 times its
+predicted work.
 
 With :math:`|\bar\gamma'| \ge 1` the bias alone drives a moving particle: it relaxes to
 :math:`v^* = (|\bar\gamma'| - 1)\tau_L'`, and must come back to rest against a Gaussian barrier

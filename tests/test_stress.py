@@ -188,12 +188,16 @@ def test_predicted_duration_grows_near_the_runaway_bias():
     """limits docstring: near |gamma_bar'| = 1 a moving particle decelerates at the net rate 1 - |gamma_bar'|, so
     the prediction is floored at 1/((1 - |gamma_bar'|) + 0.5/sqrt(tau_L')): at tau_L = inf, 0.99 it is 100 tau0
     (the passage sum alone gave 11.5, and a PDMP audit's run did 320x its predicted work). Each measured
-    mean duration (tau' = 1, seed 0, N = 2000, PDMP) stays above the prediction: a lower estimate."""
-    f = lambda tl, g: math.exp(dj.limits.log_duration_scale(1.0, tl, g))
+    mean duration (PDMP, seed 0 or 1, tau' = 1 with N = 2000, faster noise with N = 1000-3000 and a coarse delta')
+    stays above the prediction: a lower estimate."""
+    f = lambda tl, g, tau=1.0: math.exp(dj.limits.log_duration_scale(tau, tl, g))
     assert f(math.inf, 0.99) == pytest.approx(100.0, rel=1e-12) and f(math.inf, 0.0) < 6.0
     for tl, g, measured in ((math.inf, 0.8, 22.2), (math.inf, 0.9, 43.8), (math.inf, 0.98, 222.0), (10.0, 0.95, 20.7),
                             (100.0, 0.95, 41.3), (3.0, 0.9, 14.0), (1.0, 0.9, 11.8), (0.3, 0.95, 12.0)):
         assert f(tl, g) < measured, (tl, g)
+    for tau, g, measured in ((0.1, 0.98, 58.7), (0.1, 0.95, 25.5), (0.1, 0.9, 13.3), (0.3, 0.95, 28.9), (0.01, 0.9, 26.0),
+                             (0.01, 0.98, 94.2)):
+        assert f(math.inf, g, tau) < measured, (tau, g)
 
 
 @pytest.mark.parametrize("tau,a,b,rel", [(1.0, 0.0, -4.0, 1e-6), (2.0, 1.0, -3.0, 1e-6), (1.0, 0.0, -9.5, 1e-6),
