@@ -169,7 +169,7 @@ def test_fig9_streams_reference_line_and_theory_slopes(tmp_path, monkeypatch):
     theory slope -1/2 (S21); and D_true left in m^2/s (S19, test_figure_numbers.py's too)."""
     keys = []
     rng = np.random.default_rng(5)
-    e, Ub = rng.normal(0, 0.05, 1024), rng.normal(0, 0.05, (2048, 16))
+    e, Ub = rng.normal(0, 0.05, 1024), rng.normal(0, 0.05, (2**16, 32))
     G, Dl = FIG3["Gamma"], FIG3["Delta"]
     p = Params(G, Dl, 1e-5 * G / Dl**2, FIG3["tau_L"], FIG3["gamma_bar"])
     D_true = 0.3 / p.D0
@@ -191,13 +191,17 @@ def test_fig9_streams_reference_line_and_theory_slopes(tmp_path, monkeypatch):
         def estimate(self, params, seed, **kw):
             return _result(EstimateResult, D=1.0, D_ci=0.1, wall_s=1.0)
 
+        def kept(self, params, seed, **kw):  # every run kept: no warm-up (estimate_diffusivity below would fail)
+            return True
+
         def summary(self):
             return {}
 
     lines = []
     for name, fake in (("run_round", run_round), ("di_stationary", stationary), ("Points", FakePoints),
+                       ("estimate_diffusivity", None),
                        ("long_excursion_estimates", lambda T: dict(D=T["U"] / T["n"])),
-                       ("bruteforce_estimates", lambda U, t: dict(D_t=D_true + np.mean(U) + 0.001 * t)),
+                       ("bruteforce_estimates", lambda U, t: dict(D_t=D_true + np.mean(U) + 0.001 * t, D_t_ci=0.01)),
                        ("make_di_model", lambda params, h: None)):
         monkeypatch.setattr(speed_error, name, fake)
     monkeypatch.setattr(theory, "exact_D", lambda params: 0.3)

@@ -292,6 +292,9 @@ def _fake_points(module, monkeypatch, estimate, bruteforce=None):
             runs.append(("bruteforce", params, seed, kw))
             return bruteforce(params, seed, kw)
 
+        def kept(self, params, seed, **kw):
+            return False
+
         def summary(self):
             return {}
 
@@ -434,14 +437,18 @@ def test_fig5_histogram_total_variation_and_u_paths(tmp_path, monkeypatch):
 
 def test_fig9_numbers_from_known_runs(tmp_path, monkeypatch):
     """(a) Lane i closes 1 + i mod 3 excursions of mean D_true + e_i (e_i known, N(0, 0.05)) in 100 + i steps;
-    a replicate of g lanes has D = its excursion-weighted mean, its cost the sum of its steps; brute-force
-    path k's D_t at horizon t is D_true + U_k(t) + 0.001 t (bias growing with t).  The RMSEs over the
-    replicates, in m^2/s like D_true (D0 = 0.57 m^2/s here), the costs, the envelope (best RMSE as the
-    cost grows) and the slopes (fit_slope, weighted by the replicates) follow.  (b) h in min(tau0,
-    tau_L), delta in Delta / sqrt(Gamma), one seed per run, the PDMP's runs are PDMP runs."""
-    made, rounds, recs, bfs = [], [], [], []
+    a replicate of g lanes has D = its excursion-weighted mean, its cost the sum of its steps.  Brute force:
+    2^16 known paths recorded every 0.5 tau0 (32 records, quick); at horizon t = (j + 1) 0.5 tau0 a replicate of
+    G paths has D_t = Var U(t) / t (numpy's, ddof 0), its error D_t - D_true, and bruteforce_estimates of all
+    paths gives the bias row.  The RMSEs over the replicates, in m^2/s like D_true (D0 = 0.57 m^2/s here), the
+    costs, the envelope (per cost level G (j + 1), chosen on the first half of the replicates, measured on the
+    second) and the slopes (fit_slope, weighted by the replicates) follow.  (b) h in min(tau0, tau_L), delta in
+    Delta / sqrt(Gamma), one seed per run, the PDMP's runs are PDMP runs, each method warmed up once first."""
+    made, rounds, recs, bfs, warm = [], [], [], [], []
     rng = np.random.default_rng(3)
-    e, Ub = rng.normal(0, 0.05, 1024), rng.normal(0, 0.05, (2048, 16))
+    e = rng.normal(0, 0.05, 1024)
+    n_paths, n_rec, groups = 2**16, 32, (16, 64, 256, 1024)
+    Ub = rng.normal(0, 1.0, (n_paths, n_rec)) * np.sqrt(np.arange(1, n_rec + 1))
     G, Dl = FIG3["Gamma"], FIG3["Delta"]
     p = Params(G, Dl, 1e-5 * G / Dl**2, FIG3["tau_L"], FIG3["gamma_bar"])
     D_true = 0.3 / p.D0  # exact_D is faked at 0.3 m^2/s: nondimensional
@@ -463,12 +470,14 @@ def test_fig9_numbers_from_known_runs(tmp_path, monkeypatch):
 
     def bf_est(U, t):
         bfs.append(t)
-        return dict(D_t=D_true + np.mean(U) + 0.001 * t)
+        return dict(D_t=np.var(U) / t + 0.01, D_t_ci=0.02)
 
     _fake_models(monkeypatch, speed_error, made)
     for name, fake in (("run_round", run_round), ("long_excursion_estimates", le_est), ("di_stationary", stationary),
                        ("bruteforce_estimates", bf_est)):
         monkeypatch.setattr(speed_error, name, fake)
+    monkeypatch.setattr(speed_error, "estimate_diffusivity",
+                        lambda q, seed, **kw: warm.append((q, seed, kw)) or SimpleNamespace(stopped_by="n_excursions"))
     monkeypatch.setattr(theory, "exact_D", lambda params: 0.3 if params == p else math.nan)
     runs = _fake_points(speed_error, monkeypatch, lambda q, seed, kw: SimpleNamespace(
         D=1.0 + seed, D_ci=0.1 * seed, wall_s=2.0 + seed))
@@ -476,8 +485,9 @@ def test_fig9_numbers_from_known_runs(tmp_path, monkeypatch):
     f = speed_error.fig9(str(tmp_path), True, 0)
     (_, pm, h), = made
     hn = h / p.tau0
+    every = round(0.5 / hn)
     assert pm == p and h == default_h(p) and f["D_true"] == pytest.approx(0.3, rel=1e-12)
-    assert rounds == [(made[0], 1024, 80_000)] and recs == [(made[0], 2048, 16, round(3.75 / hn))]
+    assert rounds == [(made[0], 1024, 80_000)] and recs == [(made[0], n_paths, n_rec, every)]
     want = []
     for g in (1, 4, 16, 64):
         n = (1.0 + np.arange(1024) % 3).reshape(-1, g)
@@ -486,23 +496,28 @@ def test_fig9_numbers_from_known_runs(tmp_path, monkeypatch):
         want.append(dict(lanes=g, n_excursions=n.sum(1).mean(), cost=cost,
                          rmse=np.sqrt(np.mean(err**2)) * p.D0, replicates=1024 // g))
     assert f["le"] == [pytest.approx(w, rel=1e-9) for w in want]
-    every = recs[0][3]
-    pts = []
-    for t, j in (("3.75", 0), ("15", 3), ("60", 15)):
+    levels, js = {}, [0, 1, 3, 7, 15, 31]
+    assert list(f["bf"]) == ["0.5", "1", "2", "4", "8", "16"]
+    for t, j in zip(f["bf"], js):
         tt = (j + 1) * every * hn
         rows = []
-        for g in (16, 64, 256):
-            err = Ub[:, j].reshape(-1, g).mean(1) + 0.001 * tt
+        for g in groups:
+            err = np.var(Ub[:, j].reshape(-1, g), axis=1) / tt - D_true
             rows.append(dict(paths=g, cost=g * (j + 1) * every, rmse=np.sqrt(np.mean(err**2)) * p.D0,
-                             replicates=2048 // g))
-            pts.append((rows[-1]["cost"], rows[-1]["rmse"], 2048 // g))
+                             replicates=n_paths // g))
+            a, b = np.sqrt(np.mean(err[:err.size // 2] ** 2)), np.sqrt(np.mean(err[err.size // 2:] ** 2))
+            levels.setdefault(g * (j + 1), []).append((a, b * p.D0, err.size // 2, rows[-1]["cost"], tt, g))
         assert f["bf"][t] == [pytest.approx(r, rel=1e-9) for r in rows]
-    ts = [(j + 1) * every * hn for j in (0, 3, 15) for g in (16, 64, 256) for _ in range(2048 // g)]
-    assert bfs == pytest.approx(ts, rel=1e-12)
-    pts.sort()
-    env = [q for k, q in enumerate(pts) if q[1] < min([r[1] for r in pts[:k]], default=math.inf)]
-    assert len(env) >= 3 and np.array(f["bf_envelope"]) == pytest.approx(np.array(env)[:, :2], rel=1e-9)
-    assert (f["bf_slope"], f["bf_slope_se"]) == pytest.approx(fit_slope(*zip(*env)), rel=1e-9)
+    assert bfs == pytest.approx([(j + 1) * every * hn for j in js], rel=1e-12)
+    assert f["bf_bias"] == [pytest.approx(dict(t=(j + 1) * every * hn, D_t_over_D=(np.var(Ub[:, j]) / ((j + 1) * every * hn)
+                                                                                  + 0.01) / D_true, ci=0.02 / D_true),
+                                          rel=1e-9) for j in js]
+    env = [min(c) for lv, c in sorted(levels.items()) if len(c) >= 2]
+    assert len(env) >= 3 and f["bf_envelope"] == [pytest.approx(dict(cost=c, rmse=b, replicates=r, t=tt, paths=g,
+                                                                     candidates=len(levels[c / every])), rel=1e-9)
+                                                  for _, b, r, c, tt, g in env]
+    assert (f["bf_slope"], f["bf_slope_se"]) == pytest.approx(fit_slope(*zip(*[(c, b, r) for _, b, r, c, _, _ in env])),
+                                                              rel=1e-9)
     le = [(w["cost"], w["rmse"], w["replicates"]) for w in want]
     assert (f["le_slope"], f["le_slope_se"]) == pytest.approx(fit_slope(*zip(*le)), rel=1e-9)
     pf = Params(**FIG3)
@@ -512,5 +527,8 @@ def test_fig9_numbers_from_known_runs(tmp_path, monkeypatch):
                                                  + [(pf, dict(method="pdmp", delta=d, n_excursions=2000)) for d in ds])
     seeds = [r[2] for r in runs]
     assert len(set(seeds)) == 8
+    lanes = speed_error.lanes_for(2000)
+    assert warm == [(pf, 0, dict(n_excursions=lanes, lanes=lanes, method="di", h=hs[0])),
+                    (pf, 0, dict(n_excursions=lanes, lanes=lanes, method="pdmp", delta=ds[0]))]
     assert f["di"] + f["pdmp"] == [dict(D=1.0 + s, D_ci=0.1 * s, wall_s=2.0 + s, **x) for s, x in
                                    zip(seeds, [dict(h=x) for x in hs] + [dict(delta=d) for d in ds])]

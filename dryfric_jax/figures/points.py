@@ -109,6 +109,10 @@ class Points:
         """:func:`~dryfric_jax.api.bruteforce_diffusivity` ``(params, seed, **kw)``, or its kept result."""
         return self._run("bruteforce", params, seed, kw)
 
+    def kept(self, params, seed: int, kind: str = "estimate", **kw) -> bool:
+        """Whether the run ``(params, seed, **kw)`` of ``kind`` is already in the file (read at creation)."""
+        return _ident(kind, params, seed, kw) in self._done
+
     def _run(self, kind, params, seed, kw):
         fn, cls = _KINDS[kind]
         ident = _ident(kind, params, seed, kw)
