@@ -277,7 +277,12 @@ def build_parser() -> argparse.ArgumentParser:
     fg.add_argument("--quick", action="store_true", help="small settings: all figures in minutes on a CPU")
     fg.add_argument("--out", required=True, help="output directory (created if its parent exists); Figs. 3, 8 "
                     "and 9 keep each finished run there (fig3.points.jsonl, ...), so rerunning an interrupted "
-                    "command resumes")
+                    "command resumes; a figure already written there by this version with the same --seed and "
+                    "--quick is not made again")
+    fg.add_argument("--allow-truncated", action="store_true",
+                    help="exit 0 even if runs of Figs. 3, 8 or 9 had truncated excursions (default: exit 3)")
+    fg.add_argument("--redo", action="store_true", help="make every figure again even if it is already in --out "
+                    "(the kept runs of Figs. 3, 8 and 9 are still reused)")
     fg.add_argument("--seed", type=_seed, default=0, help="the figures' seed (each run's is derived from it; "
                                                           "default 0): the same seed gives the same numbers")
     sw = sub.add_parser("sweep", help="D and M0 with CIs over a grid of parameters, resumable (JSON Lines file)")
@@ -491,10 +496,10 @@ def _run(a) -> int:
         except ValueError as e:
             raise _UserError("--" + str(e)) from None
         try:
-            run_figures(a.fig, a.out, quick=a.quick, seed=a.seed)
+            nums = run_figures(a.fig, a.out, quick=a.quick, seed=a.seed, redo=a.redo)
         except KeyboardInterrupt:
-            print(f"dryfric: interrupted; the finished runs of Figs. 3, 8 and 9 are kept in {a.out}/*.points.jsonl: "
-                  "the same command resumes from them", file=sys.stderr)
+            print(f"dryfric: interrupted; the figures already written and the finished runs of Figs. 3, 8 and 9 "
+                  f"({a.out}/*.points.jsonl) are kept: the same command resumes from them", file=sys.stderr)
             return 130
         except ValueError as e:  # a points file that is not one: the option's name, as for --out's other errors
             if str(e).startswith("out must"):
@@ -504,6 +509,13 @@ def _run(a) -> int:
             raise RuntimeError(f"could not write a figure into --out {a.out!r} ({e}); the finished runs of Figs. 3, "
                                "8 and 9 are kept in *.points.jsonl there: the same command resumes") from None
         print(f"figures written to {a.out}")
+        cut = {n: v["runs"]["n_truncated"] for n, v in (nums or {}).items()
+               if isinstance(v, dict) and v.get("runs", {}).get("n_truncated")}
+        if cut and not a.allow_truncated:
+            print("dryfric: warning: truncated excursions in " + ", ".join(f"{n} ({k})" for n, k in cut.items())
+                  + ": those points are biased low (see their *.points.jsonl records); exit 3 (--allow-truncated "
+                  "accepts them)", file=sys.stderr)
+            return 3
         return 0
     if a.cmd == "combine":
         from .combine import combine_estimates

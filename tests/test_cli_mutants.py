@@ -285,10 +285,10 @@ def test_figures_options_reach_run_figures(calls, tmp_path, capsys, monkeypatch)
     """Mutants: run_figures given seed 0 instead of --seed; quick=True without --quick; a Ctrl-C exiting 1."""
     out = str(tmp_path / "figs")
     assert main(["figures", "--fig", "3", "--out", out, "--seed", "4"]) == 0
-    assert calls.list == [("figures", ("3", out), dict(quick=False, seed=4))]
+    assert calls.list == [("figures", ("3", out), dict(quick=False, seed=4, redo=False))]
     calls.list.clear()
-    assert main(["figures", "--fig", "table1", "--quick", "--out", out]) == 0
-    assert calls.list == [("figures", ("table1", out), dict(quick=True, seed=0))]
+    assert main(["figures", "--fig", "table1", "--quick", "--out", out, "--redo"]) == 0
+    assert calls.list == [("figures", ("table1", out), dict(quick=True, seed=0, redo=True))]
     monkeypatch.setattr(figures, "run_figures", calls.rec("figures", KeyboardInterrupt()))
     assert main(["figures", "--fig", "3", "--out", out]) == 130
     assert "interrupted" in capsys.readouterr().err

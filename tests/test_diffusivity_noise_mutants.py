@@ -65,7 +65,7 @@ def _bars(container):
 def _capture(monkeypatch, store):
     """The scene's ``save``: keeps each axes' errorbar calls (x, y, half-width), its plain lines, scales and
     texts in ``store``, writes no files and returns the numbers."""
-    def save(fig, out_dir, name, numbers, t0):
+    def save(fig, out_dir, name, numbers, t0, **meta):
         bars = {id(c.lines[0]) for ax in fig.axes for c in ax.containers}
         store.append([dict(bars=[_bars(c) for c in ax.containers],
                            lines=[(np.asarray(ln.get_xdata(), float), np.asarray(ln.get_ydata(), float))

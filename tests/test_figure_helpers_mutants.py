@@ -113,11 +113,11 @@ def test_points_summary_counts_and_wall_time(tmp_path, monkeypatch):
     first = points.Points(str(tmp_path), "s")
     first.estimate(p, 1)
     first.estimate(p, 2)
-    assert first.summary() == dict(file="s.points.jsonl", reused=0, computed=2, runs_wall_s=2.5 + 3.5)
+    assert first.summary() == dict(file="s.points.jsonl", reused=0, computed=2, runs_wall_s=2.5 + 3.5, n_truncated=0)
     again = points.Points(str(tmp_path), "s")
     again.estimate(p, 1)
     again.estimate(p, 3)
-    assert again.summary() == dict(file="s.points.jsonl", reused=1, computed=1, runs_wall_s=2.5 + 4.5)
+    assert again.summary() == dict(file="s.points.jsonl", reused=1, computed=1, runs_wall_s=2.5 + 4.5, n_truncated=0)
 
 
 def test_a_runs_notes_are_not_shown_by_the_scene(tmp_path, monkeypatch):
@@ -152,7 +152,7 @@ def test_a_record_of_another_shape_is_refused_by_name(tmp_path, change):
 
 def _no_files(module, monkeypatch, lines):
     """The scene's ``save`` keeps its plotted lines (label, x, y) in ``lines`` and returns its numbers."""
-    def save(fig, out_dir, name, numbers, t0):
+    def save(fig, out_dir, name, numbers, t0, **meta):
         lines.extend((ln.get_label(), np.asarray(ln.get_xdata(), float), np.asarray(ln.get_ydata(), float))
                      for ax in fig.axes for ln in ax.lines)
         module.plt.close(fig)

@@ -305,7 +305,7 @@ def _fake_points(module, monkeypatch, estimate, bruteforce=None):
 def _no_files(module, monkeypatch, figs):
     """The scene's ``save`` keeps the figure's plotted lines in ``figs`` and returns its numbers, writing no
     files (PNG and PDF of many points took 2-8 s here; the files are test_figures.py's)."""
-    def save(fig, out_dir, name, numbers, t0):
+    def save(fig, out_dir, name, numbers, t0, **meta):
         figs.append([[(np.asarray(ln.get_xdata(), float), np.asarray(ln.get_ydata(), float)) for ln in ax.lines]
                      for ax in fig.axes])
         module.plt.close(fig)

@@ -270,7 +270,7 @@ def test_save_writes_png_pdf_and_the_json_it_returns(tmp_path):
     fig, ax = common.plt.subplots()
     ax.plot([0, 1], [1, 2])
     t0 = time.perf_counter()
-    out = common.save(fig, str(tmp_path), "scene", dict(a=1.5, b=[1, 2], c="x"), t0)
+    out = common.save(fig, str(tmp_path), "scene", dict(a=1.5, b=[1, 2], c="x"), t0, quick=True, seed=0)
     after = time.perf_counter() - t0
     assert fig.number not in common.plt.get_fignums()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["scene.json", "scene.pdf", "scene.png"]
@@ -331,7 +331,7 @@ def test_table1_is_drawn_in_a_readable_font(monkeypatch, tmp_path):
     drawn = {}
     monkeypatch.setattr(touchette, "di_transient",
                         lambda model, key, n, steps: np.tile(1.0 - np.asarray(touchette.T_TABLE), (8, 1)))
-    monkeypatch.setattr(touchette, "save", lambda fig, out, name, nums, t0: drawn.update(fig=fig) or {})
+    monkeypatch.setattr(touchette, "save", lambda fig, out, name, nums, t0, **meta: drawn.update(fig=fig) or {})
     touchette.table1(str(tmp_path), True, 0)
     (ax,) = drawn["fig"].axes
     cells = ax.tables[0].get_celld()

@@ -10,6 +10,7 @@ import os
 
 from ..api import MAX_FIGURE_SEED, check_seed
 from ..outfiles import check_writable_dir
+from .common import finished
 from .covariance import fig4
 from .diffusivity import fig3, fig5, fig8
 from .excursion import fig1_2
@@ -19,12 +20,21 @@ from .touchette import fig6, fig7, table1
 SCENES = {"1": fig1_2, "3": fig3, "4": fig4, "5": fig5, "6": fig6, "table1": table1, "7": fig7, "8": fig8, "9": fig9}
 
 
-def run_figures(which: str, out_dir: str, quick: bool = False, seed: int = 0) -> dict:
-    """Run one scene (``which`` a key of :data:`SCENES`) or ``"all"``; returns their numbers."""
+def run_figures(which: str, out_dir: str, quick: bool = False, seed: int = 0, redo: bool = False) -> dict:
+    """Run one scene (``which`` a key of :data:`SCENES`) or ``"all"``; returns their numbers.
+
+    A scene whose PNG, PDF and JSON are already in ``out_dir``, made by this version with the same seed
+    and ``quick``, is not run again (its numbers are read back; ``redo=True`` runs it anyway): a rerun
+    after an interruption computes only the scenes not yet written, and inside Figs. 3, 8 and 9 only
+    the runs not yet kept in their ``*.points.jsonl``."""
     if which != "all" and which not in SCENES:
         raise ValueError(f"fig must be one of {['all', *SCENES]} (got {which!r})")
     seed = check_seed(seed, MAX_FIGURE_SEED, "2^62 - 2^20 (the scenes add offsets)")
     check_writable_dir(out_dir)
     os.makedirs(out_dir, exist_ok=True)
     names = list(SCENES) if which == "all" else [which]
-    return {n: SCENES[n](out_dir, quick, seed) for n in names}
+    out = {}
+    for n in names:
+        kept = None if redo else finished(out_dir, SCENES[n].__name__, quick, seed)
+        out[n] = kept if kept is not None else SCENES[n](out_dir, quick, seed)
+    return out

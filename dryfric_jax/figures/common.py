@@ -1,6 +1,7 @@
 """Shared by the scenes: output files (PNG, PDF and the JSON of the numbers behind the figure)."""
 from __future__ import annotations
 
+import json
 import math
 import os
 import time
@@ -29,12 +30,48 @@ def exact_steps(t: float, h: float) -> int:
     return n
 
 
-def save(fig, out_dir: str, name: str, numbers: dict, t0: float) -> dict:
-    """Write ``name.png``, ``name.pdf`` and ``name.json`` (numbers, wall time) into ``out_dir``."""
-    numbers = dict(numbers, wall_s=time.perf_counter() - t0)
+def save(fig, out_dir: str, name: str, numbers: dict, t0: float, *, quick: bool, seed: int) -> dict:
+    """Write ``name.png``, ``name.pdf`` and, last, ``name.json`` into ``out_dir``: the numbers, the wall
+    time and what made them (seed, quick, the package's and JAX's versions: :func:`finished` reads them).
+    Each file is written to a temporary name and renamed, so an interrupted write leaves the old file or
+    none, never a torn one (a Ctrl-C inside ``savefig`` left a PDF cut at 848 bytes)."""
+    numbers = dict(numbers, wall_s=time.perf_counter() - t0, **_meta(quick, seed))
     fig.tight_layout()
-    fig.savefig(os.path.join(out_dir, f"{name}.png"), dpi=120)
-    fig.savefig(os.path.join(out_dir, f"{name}.pdf"))
-    plt.close(fig)
+    try:
+        for ext, kw in (("png", dict(dpi=120)), ("pdf", {})):
+            path = os.path.join(out_dir, f"{name}.{ext}")
+            tmp = f"{path}.tmp{os.getpid()}"
+            try:
+                fig.savefig(tmp, format=ext, **kw)
+                os.replace(tmp, path)
+            finally:
+                if os.path.exists(tmp):
+                    os.unlink(tmp)
+    finally:
+        plt.close(fig)
     write_atomic(os.path.join(out_dir, f"{name}.json"), dumps(numbers, indent=1))  # never a torn file
     return numbers
+
+
+def _meta(quick: bool, seed: int) -> dict:
+    import jax
+
+    from .._version import __version__
+    return dict(seed=int(seed), quick=bool(quick), version=__version__, jax_version=jax.__version__)
+
+
+def finished(out_dir: str, name: str, quick: bool, seed: int) -> dict | None:
+    """The numbers of scene ``name`` if ``out_dir`` holds its PNG, PDF and JSON, written by this version
+    with the same seed and ``quick`` (a rerun then skips it); else None."""
+    paths = [os.path.join(out_dir, f"{name}.{ext}") for ext in ("png", "pdf", "json")]
+    if not all(os.path.isfile(p) for p in paths):
+        return None
+    try:
+        with open(paths[2]) as f:
+            nums = json.load(f)
+    except (OSError, ValueError):
+        return None
+    want = _meta(quick, seed)
+    if not isinstance(nums, dict) or any(nums.get(k) != want[k] for k in ("seed", "quick", "version")):
+        return None
+    return nums

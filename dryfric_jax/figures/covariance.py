@@ -70,4 +70,4 @@ def fig4(out_dir, quick, seed):
     ax.set_title(f"bands: estimate +- 2 SE; lags where the estimate is <= 0 are gaps (log axis, from {FLOOR:g})",
                  fontsize=8)
     ax.legend(fontsize=7)
-    return save(fig, out_dir, "fig4", nums, t0)
+    return save(fig, out_dir, "fig4", nums, t0, quick=quick, seed=seed)

@@ -94,7 +94,7 @@ def fig3(out_dir, quick, seed):
     a2.set_title("dots: PDMP, the paper's long excursion\n"
                  "lines: DI regeneration cycle, >= 1 such excursion each (not the same quantity)", fontsize=8)
     nums["runs"] = pts.summary()
-    return save(fig, out_dir, "fig3", nums, t0)
+    return save(fig, out_dir, "fig3", nums, t0, quick=quick, seed=seed)
 
 
 def local_exponent(G, D, D_ci):
@@ -163,7 +163,7 @@ def fig8(out_dir, quick, seed):
         ax.legend(fontsize=7, title="lines LE, dots BF (t = 10 s)", title_fontsize=7)
         nums["cases"][name] = cnum
     nums["runs"] = pts.summary()
-    return save(fig, out_dir, "fig8", nums, t0)
+    return save(fig, out_dir, "fig8", nums, t0, quick=quick, seed=seed)
 
 
 def fig5(out_dir, quick, seed):
@@ -223,4 +223,4 @@ def fig5(out_dir, quick, seed):
                 total_variation=float(0.5 * np.abs(prob - exact).sum()),
                 zero_bin=dict(v=float(mid[k0]), measured=float(prob[k0]), exact_density=float(exact[k0]),
                               with_chain_atom=float(exact[k0] + law.p_stuck)) if has_zero else None)
-    return save(fig, out_dir, "fig5", nums, t0)
+    return save(fig, out_dir, "fig5", nums, t0, quick=quick, seed=seed)

@@ -44,4 +44,4 @@ def fig1_2(out_dir, quick, seed):
         row[0].legend(fontsize=7)
         nums[name] = dict(duration_s=float(t[-1]), half_s=float(t[k]), U_m=float(U[-1]), steps_or_events=len(t) - 1,
                           complete=e["complete"], x_start=float(x[0]), x_half=float(x[k]))
-    return save(fig, out_dir, "fig1_2", nums, t0)
+    return save(fig, out_dir, "fig1_2", nums, t0, quick=quick, seed=seed)

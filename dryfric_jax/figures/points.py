@@ -96,7 +96,7 @@ class Points:
 
     def __init__(self, out_dir: str, scene: str):
         self.path = points_path(out_dir, scene)
-        self.reused, self.computed, self.runs_wall_s = 0, 0, 0.0
+        self.reused, self.computed, self.runs_wall_s, self.n_truncated = 0, 0, 0.0, 0
         # the stamp before the read: a write between the two makes the next run read the file again
         self._seen = _stamp(self.path)
         self._done = {rec["ident"]: rec for rec in _read(self.path)}
@@ -142,6 +142,7 @@ class Points:
         self._done[ident] = rec
         self.computed += 1
         self.runs_wall_s += r.wall_s
+        self.n_truncated += getattr(r, "n_truncated", 0)
         return r
 
     def _reuse(self, ident, cls):
@@ -149,6 +150,7 @@ class Points:
         names = {f.name for f in dataclasses.fields(cls)}
         r = cls(**{k: v for k, v in self._done[ident]["result"].items() if k in names})
         self.runs_wall_s += r.wall_s
+        self.n_truncated += getattr(r, "n_truncated", 0)
         return r
 
     def _changed(self) -> bool:
@@ -156,6 +158,7 @@ class Points:
 
     def summary(self) -> dict:
         """For the scene's JSON: the file, the runs reused and computed, and the wall time of the
-        runs the scene used, reused ones included (the scene's own ``wall_s`` counts this call only)."""
+        runs the scene used, reused ones included (the scene's own ``wall_s`` counts this call only), and their
+        truncated excursions (biased low where > 0; ``dryfric figures`` then exits 3)."""
         return dict(file=os.path.basename(self.path), reused=self.reused, computed=self.computed,
-                    runs_wall_s=self.runs_wall_s)
+                    runs_wall_s=self.runs_wall_s, n_truncated=self.n_truncated)

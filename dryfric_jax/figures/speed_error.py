@@ -211,4 +211,4 @@ def fig9(out_dir, quick, seed):
                 di=[dict(h=hh, D=r.D, D_ci=r.D_ci, wall_s=r.wall_s) for hh, r in zip(hs, di)],
                 pdmp=[dict(delta=dd, D=r.D, D_ci=r.D_ci, wall_s=r.wall_s) for dd, r in zip(ds, pd)],
                 runs=pts.summary())
-    return save(fig, out_dir, "fig9", nums, t0)
+    return save(fig, out_dir, "fig9", nums, t0, quick=quick, seed=seed)

@@ -58,7 +58,7 @@ def table1(out_dir, quick, seed):
                 max_abs_err=float(np.max(np.abs(mc - exact))), max_err_in_se=float(np.max(np.abs(mc - exact) / se)),
                 tau_nd=tau, h_nd=h, n_paths=n)
     print("\n".join(f"{r[0]:>48s} " + " ".join(f"{v:6.3f}" for v in r[1]) for r in rows))
-    return save(fig, out_dir, "table1", nums, t0)
+    return save(fig, out_dir, "table1", nums, t0, quick=quick, seed=seed)
 
 
 def freeman_tukey(count, expected):
@@ -97,7 +97,7 @@ def fig6(out_dir, quick, seed):
         ax.set_xlabel("v'")
     axs[0].set_ylabel("density (bands: MC ± 2 SE; lines: Touchette)")
     axs[0].legend()
-    return save(fig, out_dir, "fig6", nums, t0)
+    return save(fig, out_dir, "fig6", nums, t0, quick=quick, seed=seed)
 
 
 def fig7(out_dir, quick, seed):
@@ -122,4 +122,4 @@ def fig7(out_dir, quick, seed):
     ax.set_xlabel("t'")
     ax.set_ylabel("<V'(0) V'(t')>")
     ax.legend(title="dots: DI, bars +- 2 SE", title_fontsize=8)
-    return save(fig, out_dir, "fig7", nums, t0)
+    return save(fig, out_dir, "fig7", nums, t0, quick=quick, seed=seed)

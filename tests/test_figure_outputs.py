@@ -1,0 +1,108 @@
+"""What ``dryfric figures`` leaves in ``--out`` and how a rerun treats it (an audit, 2026-12-05): each
+scene's JSON records what made it, a finished scene is not made again, its files are never torn, and
+truncated excursions behind a figure exit 3.  Fake scenes and runs: no simulation here."""
+import dataclasses
+import json
+
+import matplotlib.pyplot as plt
+import pytest
+
+import dryfric_jax
+from dryfric_jax import figures
+from dryfric_jax.api import EstimateResult
+from dryfric_jax.cli import main
+from dryfric_jax.figures import common, points
+from dryfric_jax.params import FIG3, Params
+
+
+def _scene(calls):
+    """A stand-in for Fig. 1-2's scene (same name, so the same files) that records its calls."""
+    def fig1_2(out_dir, quick, seed):
+        calls.append((quick, seed))
+        fig, ax = plt.subplots()
+        ax.plot([0, 1], [0, 1])
+        return common.save(fig, out_dir, "fig1_2", dict(x=1.0), 0.0, quick=quick, seed=seed)
+    return fig1_2
+
+
+def test_scene_json_records_seed_quick_and_versions(tmp_path):
+    fig, _ = plt.subplots()
+    common.save(fig, str(tmp_path), "s", dict(a=1), 0.0, quick=True, seed=7)
+    got = json.loads((tmp_path / "s.json").read_text())
+    import jax
+    assert {k: got[k] for k in ("a", "seed", "quick", "version", "jax_version")} == dict(
+        a=1, seed=7, quick=True, version=dryfric_jax.__version__, jax_version=jax.__version__)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.json", "s.pdf", "s.png"]
+
+
+def test_a_finished_scene_is_not_made_again_unless_its_seed_quick_or_version_differ(tmp_path, monkeypatch):
+    """A rerun of ``--fig all`` after an interruption made every finished scene again (~900 s at full
+    settings); now only a scene whose files are missing, or were made by another version, seed or quick
+    setting, is made (``redo=True`` makes it anyway)."""
+    calls = []
+    monkeypatch.setitem(figures.SCENES, "1", _scene(calls))
+    out = str(tmp_path)
+    first = figures.run_figures("1", out, quick=True, seed=3)
+    assert calls == [(True, 3)]
+    assert figures.run_figures("1", out, quick=True, seed=3) == first and calls == [(True, 3)]  # read back
+    figures.run_figures("1", out, quick=True, seed=4)
+    figures.run_figures("1", out, quick=False, seed=4)
+    figures.run_figures("1", out, quick=False, seed=4, redo=True)
+    assert calls == [(True, 3), (True, 4), (False, 4), (False, 4)]
+    path = tmp_path / "fig1_2.json"
+    path.write_text(json.dumps(dict(json.loads(path.read_text()), version="0.0.1")))  # another version's
+    figures.run_figures("1", out, quick=False, seed=4)
+    (tmp_path / "fig1_2.pdf").unlink()  # a file missing
+    figures.run_figures("1", out, quick=False, seed=4)
+    path.write_text("{torn")  # not JSON
+    figures.run_figures("1", out, quick=False, seed=4)
+    assert calls[4:] == [(False, 4)] * 3
+
+
+def test_an_interrupted_savefig_leaves_the_old_file_whole(tmp_path, monkeypatch):
+    """A Ctrl-C inside ``savefig`` of the PDF left it cut at 848 bytes beside a new PNG; now each file is
+    written under a temporary name and renamed: the old PDF and JSON stay as they were, nothing else is left."""
+    fig, _ = plt.subplots()
+    common.save(fig, str(tmp_path), "s", dict(a=1), 0.0, quick=True, seed=0)
+    old = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+    real = plt.Figure.savefig
+
+    def savefig(self, fname, *a, **kw):
+        if kw.get("format") == "pdf" or str(fname).endswith(".pdf"):
+            with open(fname, "wb") as f:
+                f.write(b"%PDF-1.4 cut")
+            raise KeyboardInterrupt
+        return real(self, fname, *a, **kw)
+
+    monkeypatch.setattr(plt.Figure, "savefig", savefig)
+    fig, _ = plt.subplots()
+    with pytest.raises(KeyboardInterrupt):
+        common.save(fig, str(tmp_path), "s", dict(a=2), 0.0, quick=True, seed=1)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.json", "s.pdf", "s.png"]
+    assert (tmp_path / "s.pdf").read_bytes() == old["s.pdf"] and (tmp_path / "s.json").read_bytes() == old["s.json"]
+
+
+def test_points_summary_counts_the_truncated_excursions_of_the_runs_used(tmp_path, monkeypatch):
+    """Computed and reused runs alike: a figure whose runs lost excursions says so in its JSON."""
+    base = EstimateResult(D=1.0, D_ci=0.1, M0=0.0, M0_ci=0.1, mean_duration=1.0, n_excursions=10, n_truncated=0,
+                          method="di", h=1e-3, dtype="float64", seed=0, wall_s=1.0, lane_steps_per_s=1.0, params={})
+    monkeypatch.setitem(points._KINDS, "estimate",
+                        (lambda params, seed, **kw: dataclasses.replace(base, seed=seed, n_truncated=seed),
+                         EstimateResult))
+    p = Params(**FIG3)
+    pts = points.Points(str(tmp_path), "s")
+    pts.estimate(p, 2, n_excursions=10)
+    pts.estimate(p, 3, n_excursions=10)
+    assert pts.summary()["n_truncated"] == 5
+    again = points.Points(str(tmp_path), "s")
+    again.estimate(p, 3, n_excursions=10)
+    assert again.summary()["n_truncated"] == 3 and again.summary()["reused"] == 1
+
+
+@pytest.mark.parametrize("extra,code", [([], 3), (["--allow-truncated"], 0)])
+def test_figures_with_truncated_runs_exit_3(tmp_path, monkeypatch, capsys, extra, code):
+    monkeypatch.setattr(figures, "run_figures", lambda *a, **k: {"3": dict(runs=dict(n_truncated=2)),
+                                                                  "4": dict(x=1), "8": dict(runs=dict(n_truncated=0))})
+    assert main(["figures", "--out", str(tmp_path), *extra]) == code
+    err = capsys.readouterr().err
+    assert ("truncated excursions in 3 (2)" in err) == (code == 3) and "Traceback" not in err
