@@ -106,3 +106,14 @@ def test_figures_with_truncated_runs_exit_3(tmp_path, monkeypatch, capsys, extra
     assert main(["figures", "--out", str(tmp_path), *extra]) == code
     err = capsys.readouterr().err
     assert ("truncated excursions in 3 (2)" in err) == (code == 3) and "Traceback" not in err
+
+
+def test_a_bad_points_file_is_refused_before_any_scene_runs(tmp_path, monkeypatch, capsys):
+    """``garbage`` in fig9.points.jsonl was refused only after the eight other scenes had run (~2 h at full
+    settings); now at once, exit 2, naming the file, with no scene run."""
+    calls = []
+    monkeypatch.setitem(figures.SCENES, "1", _scene(calls))
+    (tmp_path / "fig9.points.jsonl").write_text("garbage\n")
+    assert main(["figures", "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert "fig9.points.jsonl" in err and "Traceback" not in err and calls == []
