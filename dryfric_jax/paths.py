@@ -183,6 +183,10 @@ def autocovariance(V: np.ndarray, max_lag: int, center: bool = False) -> tuple[n
     return acf.mean(0), acf.std(0, ddof=1) / np.sqrt(V.shape[0])
 
 
+#: largest |V| the autocovariance takes: its products (V^2) and their spread (V^4, the SE) stay inside float64
+ACF_MAX_ABS = 1e75
+
+
 def _acf_args(V, max_lag, center):
     """``(V as a float64 array, max_lag as an int)``; ``ValueError`` naming the argument that is wrong
     (a max_lag beyond the series gave numpy's broadcast error, -1 an IndexError, one path an
@@ -197,6 +201,9 @@ def _acf_args(V, max_lag, center):
                          f"error is their spread) and 1 sample (got {what})")
     if not np.all(np.isfinite(a)):
         raise ValueError("V must be finite (got a NaN or an inf)")
+    if a.size and np.max(np.abs(a)) > ACF_MAX_ABS:  # products of 1e200s overflowed to inf and NaN, silently
+        raise ValueError(f"V must have |V| <= {ACF_MAX_ABS:g} (its products overflow float64; got |V| up to "
+                         f"{float(np.max(np.abs(a))):.3g}): rescale it")
     lag = check_count("max_lag", max_lag, 0, a.shape[1] - 1, " (samples - 1 of V)")
     if not isinstance(center, (bool, np.bool_)):
         raise ValueError(f"center must be True or False (got {shown(center)})")

@@ -342,7 +342,8 @@ def test_fit_slope_of_exact_power_laws_and_bad_input():
     assert se == pytest.approx(200**-0.5 / (math.log(10) * 5**0.5), rel=1e-9)
     for args, match in (((x[:2], [1.0, 2.0]), "length >= 3"),  # two points: a zero SE
                         ((x[:3], [1.0, 0.0, 2.0]), "^y must be finite and > 0"),  # a zero RMSE: a nan slope
-                        ((x[:3], [1.0, 2.0, 3.0], [5, 0, 5]), "^replicates must be finite and >= 1")):
+                        ((x[:3], [1.0, 2.0, 3.0], [5, 0, 5]), "^replicates must be finite and >= 1"),
+                        (([2.0] * 3, [1.0, 2.0, 3.0]), "^x must take at least 2 distinct values")):  # LinAlgError
         with pytest.raises(ValueError, match=match):
             fit_slope(*args)
 

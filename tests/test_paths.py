@@ -243,6 +243,7 @@ _V_NAN = np.where(np.arange(50) == 3, np.nan, _V)
     (lambda m: autocovariance(_V[:1], 5), "^V must be a real array .* at least 2 paths"),
     (lambda m: autocorrelation(_V[0], 5), "^V must be a real array of shape"),
     (lambda m: autocorrelation(_V_NAN, 5), "^V must be finite"),
+    (lambda m: autocovariance(_V * 1e200, 5), r"^V must have \|V\| <= 1e\+75"),  # was inf and NaN, silently
     (lambda m: autocorrelation(np.ones((3, 10)), 2), "^V must vary"),  # r = 0/0
     (lambda m: autocorrelation(_V, 5, center="yes"), "^center must be True or False"),
     # "a recorded segment must have fewer than 2**31 steps", naming none of them

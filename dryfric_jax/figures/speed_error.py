@@ -62,6 +62,8 @@ def fit_slope(x, y, replicates=None):
     for name, a in (("x", x), ("y", y)):
         if not np.all(np.isfinite(a) & (a > 0)):  # a zero RMSE gave a nan slope
             raise ValueError(f"{name} must be finite and > 0 (a log-log fit) (got {a.tolist()[:6]})")
+    if np.all(x == x[0]):  # a singular fit: numpy's LinAlgError named no argument
+        raise ValueError(f"x must take at least 2 distinct values (got {x.tolist()[:6]})")
     if r is not None and not np.all(np.isfinite(r) & (r >= 1)):
         raise ValueError(f"replicates must be finite and >= 1 (got {r.tolist()[:6]})")
     lx, ly = np.log(x), np.log(y)
