@@ -112,7 +112,7 @@ def test_fig3_interrupted_then_resumed_is_bit_identical(figs, tmp_path, monkeypa
             for k in ("D", "D_ci", "dur", "dur_ci", "n_excursions"):  # wall_s differs, the numbers do not
                 assert got[m][tau][k] == row[k], (m, tau, k)
     calls.clear()
-    assert main(argv) == 0 and calls == []  # a finished figure is redrawn from its runs alone
+    assert main(argv) == 0 and calls == []  # a finished figure is not made again (test_figure_outputs.py)
 
 
 def test_figure_points_file_that_is_not_one_is_refused_not_overwritten(tmp_path, capsys):

@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import math
 import time
-
 import warnings
 
 import jax
@@ -33,12 +32,10 @@ import numpy as np
 
 from .. import theory
 from ..api import DryfricWarning, estimate_diffusivity
-from ..excursions import lanes_for
-from ..rounds import abandon_on_interrupt
 from ..di import make_di_model
 from ..estimators import bruteforce_estimates, long_excursion_estimates
-from ..excursions import STAT_NAMES
-from ..rounds import run_round
+from ..excursions import STAT_NAMES, lanes_for
+from ..rounds import abandon_on_interrupt, run_round
 from ..params import FIG3, Params
 from ..paths import di_stationary
 from ..plan import default_h
