@@ -49,6 +49,27 @@ def test_fig6_density_tends_to_touchette_as_tau_to_0(figs):
     assert max(dev["0.05"]) > 6  # the paper's "significant departure" at tau' = 0.05
 
 
+def test_fig5_and_fig6_json_hold_the_plotted_histograms(figs):
+    """The numbers behind the histograms (an audit: the JSONs held summary deviations only): Fig. 5's
+    bins sum to the share inside the 1e-4 quantiles and its zero bin is the one reported; Fig. 6's
+    deviations are recomputed from its counts and exact densities."""
+    import numpy as np
+
+    from dryfric_jax.figures.touchette import freeman_tukey
+
+    f = figs["fig5"]["histogram"]
+    assert len(f["edges"]) == len(f["measured"]) + 1 == len(f["exact"]) + 1
+    assert 1 - 3e-4 < sum(f["measured"]) <= 1 - 1e-4 + 1e-12
+    assert figs["fig5"]["zero_bin"]["measured"] in f["measured"]
+    g = figs["fig6"]
+    w = g["edges"][1] - g["edges"][0]
+    for tau, rows in g["counts"].items():
+        for i, (cnt, ex) in enumerate(zip(rows, g["exact_density"][tau])):
+            assert sum(cnt) <= g["n_paths"]
+            dev = np.max(np.abs(freeman_tukey(np.array(cnt), g["n_paths"] * w * np.array(ex))))
+            assert dev == pytest.approx(g["max_ft_dev"][tau][i], rel=1e-12), (tau, i)
+
+
 def test_fig7_correlation_matches_touchette(figs):
     dev = figs["fig7"]["max_dev_in_se"]
     for tau in ("5e-05", "0.0005", "0.005"):

@@ -221,6 +221,7 @@ def fig5(out_dir, quick, seed):
                 mean_v_chain=law.M0, mean_v2_chain=law.mean_v2, p_stuck=float((V == 0).mean()),
                 p_stuck_chain=law.p_stuck,
                 total_variation=float(0.5 * np.abs(prob - exact).sum()),
+                histogram=dict(edges=edges.tolist(), measured=prob.tolist(), exact=exact.tolist()),  # as plotted
                 zero_bin=dict(v=float(mid[k0]), measured=float(prob[k0]), exact_density=float(exact[k0]),
                               with_chain_atom=float(exact[k0] + law.p_stuck)) if has_zero else None)
     return save(fig, out_dir, "fig5", nums, t0, quick=quick, seed=seed)

@@ -78,11 +78,13 @@ def fig6(out_dir, quick, seed):
     edges = np.linspace(-4, 4, 81)
     mid, w = 0.5 * (edges[1:] + edges[:-1]), edges[1] - edges[0]
     fig, axs = plt.subplots(1, len(TAUS), figsize=(4 * len(TAUS), 3.4), sharey=True)
-    nums = dict(tau_nd=TAUS, t=T_DENSITY, h_nd=h, n_paths=n, max_dev_in_se={}, max_ft_dev={})
+    nums = dict(tau_nd=TAUS, t=T_DENSITY, h_nd=h, n_paths=n, max_dev_in_se={}, max_ft_dev={},
+                edges=edges.tolist(), counts={}, exact_density={})  # the plotted numbers: density = counts/(n w)
     for j, (tau, ax) in enumerate(zip(TAUS, axs)):
         V = di_transient(_model(tau, h), jax.random.fold_in(jax.random.key(seed), j), n,
                          [exact_steps(t, h) for t in T_DENSITY])
         devs, ft = [], []
+        nums["counts"][f"{tau:g}"], nums["exact_density"][f"{tau:g}"] = [], []
         for i, t in enumerate(T_DENSITY):
             cnt, _ = np.histogram(V[:, i], edges)
             dens, se = cnt / (n * w), np.sqrt(np.maximum(cnt, 1)) / (n * w)
@@ -91,6 +93,8 @@ def fig6(out_dir, quick, seed):
             ax.plot(mid, ex, color=f"C{i}", lw=1, label=f"t'={t:g}")
             devs.append(float(np.max(np.abs(dens - ex) / se)))
             ft.append(float(np.max(np.abs(freeman_tukey(cnt, n * w * ex)))))
+            nums["counts"][f"{tau:g}"].append(cnt.tolist())
+            nums["exact_density"][f"{tau:g}"].append(ex.tolist())
         nums["max_dev_in_se"][f"{tau:g}"] = devs
         nums["max_ft_dev"][f"{tau:g}"] = ft
         ax.set_title(f"tau' = {tau:g}")
