@@ -365,13 +365,15 @@ def pdmp_stationary(model, key, n_paths: int, n_records: int, dt_rec: float, bur
     if max_events is not None:
         max_events = check_count("max_events", max_events, 1, MAX_COUNT)
     t_end = burn + n_records * dt_rec
-    if max_events is None:
-        bound = 10 * float(model.rate) * t_end + 10_000  # an OverflowError past int64 (burn = 1e30)
-        if not bound <= MAX_COUNT:
-            most = rounded_bound((MAX_COUNT - 10_000) / 10 / float(model.rate), lower=False, digits=3)
-            raise ValueError(f"burn + n_records * dt_rec must be at most {most} (tau0): its default event bound, "
-                             f"10x the expected jumps, must be at most 2^62 (got {t_end:.3g})")
-        max_events = int(bound)
+    # the event times are summed in float64: past this the rounding of T exceeds a thousandth of the mean
+    # time between events and T stalls (an audit: burn ~7e12 tau0 ran on to max_events, ~7e16 events)
+    t_most = 1e-3 * 2.0**52 / float(model.rate)
+    if not t_end <= t_most:
+        raise ValueError(f"burn + n_records * dt_rec must be at most {rounded_bound(t_most, lower=False, digits=3)} "
+                         f"(tau0) for this model (got {t_end:.3g}): beyond it float64 cannot resolve the time "
+                         f"between its events (1/rate = {1 / float(model.rate):.3g} tau0)")
+    if max_events is None:  # 10x the expected jumps, < 2^62 by the bound on t_end above (< 4.6e13 jumps)
+        max_events = int(10 * float(model.rate) * t_end + 10_000)
     V, ok = _pdmp_sampled(model, jax.random.split(key, n_paths), jnp.asarray(burn, jnp.float64),
                           jnp.asarray(dt_rec, jnp.float64), jnp.asarray(max_events, jnp.int64),
                           n_records=int(n_records))
