@@ -145,14 +145,14 @@ def check_writable_dir(path: str, name: str = "out") -> None:
         raise ValueError(f"{name} must be a writable directory, or a new one in an existing directory (got {path!r})")
 
 
-def write_atomic(path: str, text: str) -> None:
-    """Write ``text`` to a temporary file in the same directory, fsync, then rename over ``path``:
-    a reader (or a kill at any moment) sees the old file or the new one, never a part."""
+def write_atomic(path: str, text: str | bytes) -> None:
+    """Write ``text`` (or bytes: a figure's PNG or PDF) to a temporary file in the same directory, fsync,
+    then rename over ``path``: a reader (or a kill at any moment) sees the old file or the new one, never a part."""
     path = os.path.realpath(path)  # a symlinked file is replaced where it lies; the link stays
     d = os.path.dirname(path)
     fd, tmp = tempfile.mkstemp(dir=d, prefix=".dryfric-", suffix=".tmp")
     try:
-        with os.fdopen(fd, "w") as f:
+        with os.fdopen(fd, "wb" if isinstance(text, bytes) else "w") as f:
             f.write(text)
             f.flush()
             os.fsync(f.fileno())

@@ -61,16 +61,19 @@ def test_a_finished_scene_is_not_made_again_unless_its_seed_quick_or_version_dif
 
 def test_an_interrupted_savefig_leaves_the_old_file_whole(tmp_path, monkeypatch):
     """A Ctrl-C inside ``savefig`` of the PDF left it cut at 848 bytes beside a new PNG; now each file is
-    written under a temporary name and renamed: the old PDF and JSON stay as they were, nothing else is left."""
+    drawn in memory and written atomically: the old PDF and JSON stay as they were, nothing else is left."""
     fig, _ = plt.subplots()
     common.save(fig, str(tmp_path), "s", dict(a=1), 0.0, quick=True, seed=0)
     old = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
     real = plt.Figure.savefig
 
     def savefig(self, fname, *a, **kw):
-        if kw.get("format") == "pdf" or str(fname).endswith(".pdf"):
-            with open(fname, "wb") as f:
-                f.write(b"%PDF-1.4 cut")
+        if kw.get("format") == "pdf" or str(fname).endswith(".pdf"):  # part of the PDF, then the Ctrl-C
+            if hasattr(fname, "write"):
+                fname.write(b"%PDF-1.4 cut")
+            else:
+                with open(fname, "wb") as f:
+                    f.write(b"%PDF-1.4 cut")
             raise KeyboardInterrupt
         return real(self, fname, *a, **kw)
 

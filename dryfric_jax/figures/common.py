@@ -1,6 +1,7 @@
 """Shared by the scenes: output files (PNG, PDF and the JSON of the numbers behind the figure)."""
 from __future__ import annotations
 
+import io
 import json
 import math
 import os
@@ -33,20 +34,15 @@ def exact_steps(t: float, h: float) -> int:
 def save(fig, out_dir: str, name: str, numbers: dict, t0: float, *, quick: bool, seed: int) -> dict:
     """Write ``name.png``, ``name.pdf`` and, last, ``name.json`` into ``out_dir``: the numbers, the wall
     time and what made them (seed, quick, the package's and JAX's versions: :func:`finished` reads them).
-    Each file is written to a temporary name and renamed, so an interrupted write leaves the old file or
-    none, never a torn one (a Ctrl-C inside ``savefig`` left a PDF cut at 848 bytes)."""
+    Each file is drawn in memory and written by :func:`~dryfric_jax.outfiles.write_atomic`, so an interrupted
+    write leaves the old file or none, never a torn one (a Ctrl-C inside ``savefig`` left a PDF cut at 848 bytes)."""
     numbers = dict(numbers, wall_s=time.perf_counter() - t0, **_meta(quick, seed))
     fig.tight_layout()
     try:
         for ext, kw in (("png", dict(dpi=120)), ("pdf", {})):
-            path = os.path.join(out_dir, f"{name}.{ext}")
-            tmp = f"{path}.tmp{os.getpid()}"
-            try:
-                fig.savefig(tmp, format=ext, **kw)
-                os.replace(tmp, path)
-            finally:
-                if os.path.exists(tmp):
-                    os.unlink(tmp)
+            buf = io.BytesIO()
+            fig.savefig(buf, format=ext, **kw)
+            write_atomic(os.path.join(out_dir, f"{name}.{ext}"), buf.getvalue())
     finally:
         plt.close(fig)
     write_atomic(os.path.join(out_dir, f"{name}.json"), dumps(numbers, indent=1))  # never a torn file
