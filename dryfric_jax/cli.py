@@ -509,8 +509,7 @@ def _run(a) -> int:
             raise RuntimeError(f"could not write a figure into --out {a.out!r} ({e}); the finished runs of Figs. 3, "
                                "8 and 9 are kept in *.points.jsonl there: the same command resumes") from None
         print(f"figures written to {a.out}")
-        cut = {n: v["runs"]["n_truncated"] for n, v in (nums or {}).items()
-               if isinstance(v, dict) and v.get("runs", {}).get("n_truncated")}
+        cut = {n: v["runs"]["n_truncated"] for n, v in nums.items() if v.get("runs", {}).get("n_truncated")}
         if cut and not a.allow_truncated:
             print("dryfric: warning: truncated excursions in " + ", ".join(f"{n} ({k})" for n, k in cut.items())
                   + ": those points are biased low (see their *.points.jsonl records); exit 3 (--allow-truncated "

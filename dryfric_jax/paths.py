@@ -201,9 +201,10 @@ def _acf_args(V, max_lag, center):
                          f"error is their spread) and 1 sample (got {what})")
     if not np.all(np.isfinite(a)):
         raise ValueError("V must be finite (got a NaN or an inf)")
-    if a.size and np.max(np.abs(a)) > ACF_MAX_ABS:  # products of 1e200s overflowed to inf and NaN, silently
+    top = float(np.max(np.abs(a))) if a.size else 0.0
+    if top > ACF_MAX_ABS:  # products of 1e200s overflowed to inf and NaN, silently
         raise ValueError(f"V must have |V| <= {ACF_MAX_ABS:g} (its products overflow float64; got |V| up to "
-                         f"{float(np.max(np.abs(a))):.3g}): rescale it")
+                         f"{top:.3g}): rescale it")
     lag = check_count("max_lag", max_lag, 0, a.shape[1] - 1, " (samples - 1 of V)")
     if not isinstance(center, (bool, np.bool_)):
         raise ValueError(f"center must be True or False (got {shown(center)})")

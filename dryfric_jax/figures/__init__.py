@@ -14,7 +14,7 @@ from .common import finished
 from .covariance import fig4
 from .diffusivity import fig3, fig5, fig8
 from .excursion import fig1_2
-from .points import _read as read_points, points_path
+from .points import check_points_file
 from .speed_error import fig9
 from .touchette import fig6, fig7, table1
 
@@ -35,9 +35,7 @@ def run_figures(which: str, out_dir: str, quick: bool = False, seed: int = 0, re
     os.makedirs(out_dir, exist_ok=True)
     names = list(SCENES) if which == "all" else [which]
     for n in names:  # a points file that is not one is refused before any scene runs, not after the others
-        path = points_path(out_dir, SCENES[n].__name__)
-        if os.path.exists(path):
-            read_points(path)
+        check_points_file(out_dir, SCENES[n].__name__)
     out = {}
     for n in names:
         kept = None if redo else finished(out_dir, SCENES[n].__name__, quick, seed)

@@ -87,6 +87,12 @@ def points_path(out_dir: str, scene: str) -> str:
     return os.path.join(out_dir, f"{scene}.points.jsonl")
 
 
+def check_points_file(out_dir: str, scene: str) -> None:
+    """Refuse (``ValueError``, as :class:`Points` does) a ``<scene>.points.jsonl`` in ``out_dir`` that is not one;
+    no file is fine."""
+    _read(points_path(out_dir, scene))
+
+
 class Points:
     """The finished runs of one scene in ``out_dir`` (read at creation, appended after each run).
 

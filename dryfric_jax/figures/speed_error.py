@@ -95,12 +95,13 @@ def _rmse_le(model, key, lanes, budget, D_true, sizes):
 BF_GRID = {True: (2**16, 32, (16, 64, 256, 1024)), False: (2**18, 64, (16, 64, 256, 1024, 4096))}
 
 
-def _rmse_bf(model, key, quick, h_nd, D_true):
+def _rmse_bf(model, key, quick, h_nd, D_true, unit):
     """Fig. 9(a)'s brute force (module docstring): stationary paths recorded every 0.5 tau0; at the
     horizons t = 0.5 * 2^k tau0 the RMSE of D_t over replicates of G paths (D_t = Var U(t) / t,
     :func:`~dryfric_jax.estimators.bruteforce_estimates`'s y2 - y1^2, per replicate), the bias of D_t
     from all paths with its 95% CI, and the envelope over cost levels G t with >= 2 candidates: the
-    best (G, t) by the RMSE on the first half of the replicates, its RMSE on the second half.  Nondimensional."""
+    best (G, t) by the RMSE on the first half of the replicates, its RMSE on the second half.  ``D_true``
+    nondimensional, the RMSEs in units of ``unit`` (D0 in m^2/s: the JSON's), the costs in lane-steps."""
     n_paths, n_records, groups = BF_GRID[bool(quick)]
     every = round(0.5 / h_nd)
     _, U = di_stationary(model, key, n_paths, n_records, every)
@@ -113,10 +114,10 @@ def _rmse_bf(model, key, quick, h_nd, D_true):
         rows = []
         for g in groups:
             err = U[:, j].reshape(-1, g).var(1) / tt - D_true
-            half = err.size // 2
-            ms = [float(np.sqrt(np.mean(np.square(x)))) for x in (err, err[:half], err[half:])]
-            rows.append(dict(paths=g, cost=g * (j + 1) * every, rmse=ms[0], replicates=err.size))
-            levels.setdefault(g * (j + 1), []).append((ms[1], ms[2], half, rows[-1]["cost"], tt, g))
+            half, cost = err.size // 2, g * (j + 1) * every
+            ms = [float(np.sqrt(np.mean(np.square(x)))) * unit for x in (err, err[:half], err[half:])]
+            rows.append(dict(paths=g, cost=cost, rmse=ms[0], replicates=err.size))
+            levels.setdefault(cost, []).append((ms[1], ms[2], half, cost, tt, g))
         bf[f"{(j + 1) * 0.5:g}"] = rows  # the nominal horizon in tau0
     env = []
     for lv in sorted(levels):
@@ -156,12 +157,7 @@ def fig9(out_dir, quick, seed):
     # RMSEs in m^2/s, like D_true in the JSON (they were in units of D0 = 0.57 m^2/s, 1.74x too large)
     le = [dict(r, rmse=r["rmse"] * p.D0) for r in _rmse_le(model, jax.random.key(seed), lanes, budget, D_true,
                                                             [1, 4, 16, 64])]
-    bf, bias, env = _rmse_bf(model, jax.random.key(seed + 1), quick, h_nd, D_true)
-    for rows in bf.values():
-        for r in rows:
-            r["rmse"] *= p.D0
-    for r in env:
-        r["rmse"] *= p.D0
+    bf, bias, env = _rmse_bf(model, jax.random.key(seed + 1), quick, h_nd, D_true, p.D0)
     le_slope = fit_slope([r["cost"] for r in le], [r["rmse"] for r in le], [r["replicates"] for r in le])
     bf_slope = fit_slope(*zip(*[(r["cost"], r["rmse"], r["replicates"]) for r in env]))
     # (b) -------------------------------------------------------------------------------------
