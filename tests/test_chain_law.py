@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 import dryfric_jax as dj
-from dryfric_jax.chain_law import white_chain_law
+from dryfric_jax.chain_law import white_chain_atom, white_chain_law
 from dryfric_jax.paths import di_stationary
 
 Z = 2.81
@@ -192,3 +192,17 @@ def test_long_excursion_D_matches_the_chain_law_at_a_coarse_step():
     # teeth: the chain and the continuum are more than two CIs apart (measured: D within 0.01 SE
     # of the chain's, the continuum's 2.5 CIs = 4.9 SE away)
     assert abs(law.D - dj.theory.exact_D(p)) > 2 * r.D_ci
+
+
+@pytest.mark.parametrize("h_nd", [0.005, 0.05])
+def test_white_chain_atom_is_the_leading_order_of_the_chains_exact_atom(h_nd):
+    """Fig. 6's mark at v' = 0, 2 h' p(0), against the exact stationary atom of the chain (b = 0,
+    p(0) = 1/2): their ratio is 1 - c sqrt(h') with c = 0.80 and 0.75 at h' = 0.005 and 0.05 (the
+    function's docstring), so it tends to 1 as h' -> 0.  Teeth: an atom of h' p(0) or 4 h' p(0)
+    (half or twice) is outside."""
+    p = dj.Params.from_nondim(5e-5)
+    exact = white_chain_law(p, h_nd * p.tau0).p_stuck
+    lead = float(white_chain_atom(0.5, h_nd))
+    c = (1 - exact / lead) / math.sqrt(h_nd)
+    assert 0.65 < c < 0.9, c
+    assert white_chain_atom([0.5, 0.25], h_nd) == pytest.approx([h_nd, h_nd / 2], rel=1e-15)

@@ -197,6 +197,10 @@ def test_fig6_numbers_from_known_paths(tmp_path, monkeypatch):
         want_ft = [np.max(np.abs(np.sqrt(c) + np.sqrt(c + 1) - np.sqrt(4 * n * w * theory.propagator(mids, t, 1.0) + 1)))
                    for c, t in ((counts(t, 1.0, n), t) for t in steps * h)]
         assert f["max_ft_dev"][f"{touchette.TAUS[j]:g}"] == pytest.approx(want_ft, rel=1e-9)
+        assert f["p_zero"][f"{touchette.TAUS[j]:g}"] == [0.0] * 3  # no path is at exactly 0 here
+    h = f["h_nd"]
+    assert f["p_zero_step"] == pytest.approx([2 * h * theory.propagator(np.zeros(1), t, 1.0)[0]
+                                              for t in touchette.T_DENSITY], rel=1e-12)
 
 
 def test_fig6s_freeman_tukey_deviates_are_calibrated_where_count_ses_are_not():

@@ -5,7 +5,10 @@ DI with colored noise :math:`\tau' = 0.5\cdot10^{-i}` against Touchette's white-
 * Table 1: :math:`E[V'(t')]` from :math:`v'_i = 1`, :math:`x'_i \sim \mathcal N(0, 1/\tau')`,
   against the exact first moment of the model (and, for the record, of unit-intensity noise,
   the paper's printed row);
-* Fig. 6: the transient velocity density at several t' against the propagator;
+* Fig. 6: the transient velocity density at several t' against the propagator, and the atom
+  :math:`P(V' = 0)` the simulation adds in the bin [0, w): the step's own :math:`2h'p(0, t')`
+  (:func:`~dryfric_jax.chain_law.white_chain_atom`; it vanishes as h' -> 0) where the noise is
+  white at the step, and more at :math:`\tau' = 0.05`, where the colored noise holds V' at 0;
 * Fig. 7: the stationary correlation :math:`\langle V'(0)V'(t')\rangle` (burn-in of
   ``BURN_TAU0`` :math:`\tau_0` from V = 0 and stationary noise; FFT autocorrelation per path) against
   :math:`C(t')`.
@@ -20,6 +23,7 @@ import jax
 import numpy as np
 
 from .. import theory
+from ..chain_law import white_chain_atom
 from ..di import make_di_model
 from ..params import Params
 from ..paths import autocovariance, di_stationary, di_transient
@@ -78,19 +82,27 @@ def fig6(out_dir, quick, seed):
     edges = np.linspace(-4, 4, 81)
     mid, w = 0.5 * (edges[1:] + edges[:-1]), edges[1] - edges[0]
     fig, axs = plt.subplots(1, len(TAUS), figsize=(4 * len(TAUS), 3.4), sharey=True)
+    k0 = int(np.searchsorted(edges, 0.0, side="right")) - 1  # the bin [0, w), where V' = 0 is counted
+    # the step's atom at V' = 0 (the propagator has none): marked on top of the exact bin
+    atom = white_chain_atom([theory.propagator(np.zeros(1), t, 1.0)[0] for t in T_DENSITY], h)
     nums = dict(tau_nd=TAUS, t=T_DENSITY, h_nd=h, n_paths=n, max_dev_in_se={}, max_ft_dev={},
-                edges=edges.tolist(), counts={}, exact_density={})  # the plotted numbers: density = counts/(n w)
+                edges=edges.tolist(), counts={}, exact_density={},  # the plotted numbers: density = counts/(n w)
+                p_zero={}, p_zero_se={}, p_zero_step=atom.tolist())  # P(V' = 0): measured, its SE, 2 h' p(0, t')
     for j, (tau, ax) in enumerate(zip(TAUS, axs)):
         V = di_transient(_model(tau, h), jax.random.fold_in(jax.random.key(seed), j), n,
                          [exact_steps(t, h) for t in T_DENSITY])
         devs, ft = [], []
         nums["counts"][f"{tau:g}"], nums["exact_density"][f"{tau:g}"] = [], []
+        p0 = (V == 0).mean(0)
+        nums["p_zero"][f"{tau:g}"], nums["p_zero_se"][f"{tau:g}"] = p0.tolist(), np.sqrt(p0 * (1 - p0) / n).tolist()
         for i, t in enumerate(T_DENSITY):
             cnt, _ = np.histogram(V[:, i], edges)
             dens, se = cnt / (n * w), np.sqrt(np.maximum(cnt, 1)) / (n * w)
             ex = theory.propagator(mid, t, 1.0)
             ax.fill_between(mid, dens - 2 * se, dens + 2 * se, color=f"C{i}", alpha=0.3)
             ax.plot(mid, ex, color=f"C{i}", lw=1, label=f"t'={t:g}")
+            ax.plot([mid[k0]], [ex[k0] + atom[i] / w], "s", color=f"C{i}", mfc="none", ms=6,
+                    label="+ the step's atom 2h'p(0,t')" if i == len(T_DENSITY) - 1 else None)
             devs.append(float(np.max(np.abs(dens - ex) / se)))
             ft.append(float(np.max(np.abs(freeman_tukey(cnt, n * w * ex)))))
             nums["counts"][f"{tau:g}"].append(cnt.tolist())
@@ -100,7 +112,7 @@ def fig6(out_dir, quick, seed):
         ax.set_title(f"tau' = {tau:g}")
         ax.set_xlabel("v'")
     axs[0].set_ylabel("density (bands: MC ± 2 SE; lines: Touchette)")
-    axs[0].legend()
+    axs[0].legend(fontsize=7, loc="upper left")
     return save(fig, out_dir, "fig6", nums, t0, quick=quick, seed=seed)
 
 
