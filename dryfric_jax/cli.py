@@ -437,6 +437,26 @@ def _warnings_kept_in_result():
         yield
 
 
+@contextlib.contextmanager
+def _warnings_as_lines():
+    """The library's DryfricWarnings as one ``dryfric: warning:`` line each on stderr (``dryfric
+    figures``: its scenes keep their runs' notes in their records; what is left is said to the user)."""
+    from .api import DryfricWarning
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", DryfricWarning)  # said each time, also on a second call in one process
+        shown = warnings.showwarning
+
+        def show(message, category, *args, **kw):
+            if issubclass(category, DryfricWarning):
+                print(f"dryfric: warning: {message}", file=sys.stderr, flush=True)
+            else:
+                shown(message, category, *args, **kw)
+
+        warnings.showwarning = show
+        yield
+
+
 def _report(a, r, print_text):
     """A result's warnings on stderr, its JSON by ``--json`` to stdout (otherwise
     ``print_text(r)``), then to ``--out`` (atomically): printed first, so a failed write loses
@@ -496,7 +516,8 @@ def _run(a) -> int:
         except ValueError as e:
             raise _UserError("--" + str(e)) from None
         try:
-            nums = run_figures(a.fig, a.out, quick=a.quick, seed=a.seed, redo=a.redo)
+            with _warnings_as_lines():
+                nums = run_figures(a.fig, a.out, quick=a.quick, seed=a.seed, redo=a.redo)
         except KeyboardInterrupt:
             print(f"dryfric: interrupted; the figures already written and the finished runs of Figs. 3, 8 and 9 "
                   f"({a.out}/*.points.jsonl) are kept: the same command resumes from them", file=sys.stderr)

@@ -141,3 +141,38 @@ def test_the_script_is_quiet_on_a_ctrl_c_while_starting():
     out, err = p.communicate(timeout=300)
     assert "Traceback" not in err, err[-800:]
     assert p.returncode in (130, 2), (p.returncode, err)  # 2: JAX loaded before the signal, --out refused
+
+
+def test_runs_of_another_version_are_said_before_the_scene_computes_them_again(tmp_path, monkeypatch, capsys):
+    """After an upgrade a scene's kept runs were computed again without a word (Fig. 3: 87 min at full
+    settings); now ``dryfric figures`` says, before the scene runs, how many runs of which version it
+    will not reuse, and the scene's JSON records them.  A finished scene, not run again, says nothing."""
+    base = EstimateResult(D=1.0, D_ci=0.1, M0=0.0, M0_ci=0.1, mean_duration=1.0, n_excursions=10, n_truncated=0,
+                          method="di", h=1e-3, dtype="float64", seed=0, wall_s=1.0, lane_steps_per_s=1.0, params={})
+    monkeypatch.setitem(points._KINDS, "estimate",
+                        (lambda params, seed, **kw: dataclasses.replace(base, seed=seed), EstimateResult))
+    p, out = Params(**FIG3), str(tmp_path)
+    monkeypatch.setattr(points, "__version__", "0.0.1")
+    old = points.Points(out, "fig1_2")
+    old.estimate(p, 1, n_excursions=10)
+    old.estimate(p, 2, n_excursions=10)
+    monkeypatch.setattr(points, "__version__", dryfric_jax.__version__)
+    assert points.other_versions(out, "fig1_2") == {"0.0.1": 2} and points.other_versions(out, "fig3") == {}
+
+    def fig1_2(out_dir, quick, seed):  # a scene of kept runs under Fig. 1-2's name
+        pts = points.Points(out_dir, "fig1_2")
+        pts.estimate(p, 1, n_excursions=10)
+        fig, _ = plt.subplots()
+        return common.save(fig, out_dir, "fig1_2", dict(runs=pts.summary()), 0.0, quick=quick, seed=seed)
+
+    monkeypatch.setitem(figures.SCENES, "1", fig1_2)
+    assert main(["figures", "--fig", "1", "--out", out]) == 0
+    err = capsys.readouterr().err
+    assert (f"dryfric: warning: fig1_2.points.jsonl holds 2 runs made by other versions (0.0.1: 2), which version "
+            f"{dryfric_jax.__version__} does not reuse") in err and "computes its runs again" in err, err
+    runs = json.loads((tmp_path / "fig1_2.json").read_text())["runs"]
+    assert (runs["other_versions"], runs["computed"], runs["reused"]) == ({"0.0.1": 2}, 1, 0)
+    assert main(["figures", "--fig", "1", "--out", out]) == 0  # finished: read back, nothing to say
+    assert "warning" not in capsys.readouterr().err
+    assert main(["figures", "--fig", "1", "--out", out, "--redo"]) == 0  # made again: said again
+    assert "holds 2 runs made by other versions (0.0.1: 2)" in capsys.readouterr().err

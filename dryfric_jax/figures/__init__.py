@@ -7,14 +7,16 @@ without ``--quick`` the paper's settings (README "Reproducing the paper").
 from __future__ import annotations
 
 import os
+import warnings
 
-from ..api import MAX_FIGURE_SEED, check_seed
+from .._version import __version__
+from ..api import MAX_FIGURE_SEED, DryfricWarning, check_seed
 from ..outfiles import check_writable_dir
 from .common import finished
 from .covariance import fig4
 from .diffusivity import fig3, fig5, fig8
 from .excursion import fig1_2
-from .points import check_points_file
+from .points import check_points_file, other_versions, points_path
 from .speed_error import fig9
 from .touchette import fig6, fig7, table1
 
@@ -39,5 +41,19 @@ def run_figures(which: str, out_dir: str, quick: bool = False, seed: int = 0, re
     out = {}
     for n in names:
         kept = None if redo else finished(out_dir, SCENES[n].__name__, quick, seed)
+        if kept is None:
+            _say_other_versions(out_dir, SCENES[n].__name__)
         out[n] = kept if kept is not None else SCENES[n](out_dir, quick, seed)
     return out
+
+
+def _say_other_versions(out_dir: str, scene: str) -> None:
+    """Warn (``DryfricWarning``) before a scene runs when its points file holds runs of other versions:
+    they are computed again (an upgrade would otherwise recompute an 87-minute Fig. 3 without a word)."""
+    old = other_versions(out_dir, scene)
+    if old:
+        n, vs = sum(old.values()), ", ".join(f"{k}: {c}" for k, c in sorted(old.items()))
+        name = os.path.basename(points_path(out_dir, scene))
+        warnings.warn(f"{name} holds {n} runs made by other versions ({vs}), which "
+                      f"version {__version__} does not reuse (their numbers may differ): {scene} computes its runs "
+                      "again; the old records stay in the file (delete it to drop them)", DryfricWarning, stacklevel=3)

@@ -93,6 +93,22 @@ def check_points_file(out_dir: str, scene: str) -> None:
     _read(points_path(out_dir, scene))
 
 
+def other_versions(out_dir: str, scene: str) -> dict:
+    """``{version: count}`` of the runs in the scene's points file made by another package version
+    (empty without a file): this version does not reuse them, since their numbers may differ, but
+    leaves them in the file."""
+    return _other_versions(_read(points_path(out_dir, scene)))
+
+
+def _other_versions(records: list[dict]) -> dict:
+    out: dict = {}
+    for rec in records:
+        if rec.get("version") != __version__:
+            v = str(rec.get("version"))
+            out[v] = out.get(v, 0) + 1
+    return out
+
+
 class Points:
     """The finished runs of one scene in ``out_dir`` (read at creation, appended after each run).
 
@@ -105,7 +121,9 @@ class Points:
         self.reused, self.computed, self.runs_wall_s, self.n_truncated = 0, 0, 0.0, 0
         # the stamp before the read: a write between the two makes the next run read the file again
         self._seen = _stamp(self.path)
-        self._done = {rec["ident"]: rec for rec in _read(self.path)}
+        records = _read(self.path)
+        self._done = {rec["ident"]: rec for rec in records}
+        self.other_versions = _other_versions(records)
 
     def estimate(self, params, seed: int, **kw) -> EstimateResult:
         """:func:`~dryfric_jax.api.estimate_diffusivity` ``(params, seed, **kw)``, or its kept result."""
@@ -165,6 +183,7 @@ class Points:
     def summary(self) -> dict:
         """For the scene's JSON: the file, the runs reused and computed, and the wall time of the
         runs the scene used, reused ones included (the scene's own ``wall_s`` counts this call only), and their
-        truncated excursions (biased low where > 0; ``dryfric figures`` then exits 3)."""
+        truncated excursions (biased low where > 0; ``dryfric figures`` then exits 3), and the runs in the
+        file made by other versions, not reused (``{version: count}``, read at creation)."""
         return dict(file=os.path.basename(self.path), reused=self.reused, computed=self.computed,
-                    runs_wall_s=self.runs_wall_s, n_truncated=self.n_truncated)
+                    runs_wall_s=self.runs_wall_s, n_truncated=self.n_truncated, other_versions=self.other_versions)
