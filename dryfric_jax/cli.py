@@ -530,7 +530,10 @@ def _run(a) -> int:
             raise RuntimeError(f"could not write a figure into --out {a.out!r} ({e}); the finished runs of Figs. 3, "
                                "8 and 9 are kept in *.points.jsonl there: the same command resumes") from None
         print(f"figures written to {a.out}")
-        cut = {n: v["runs"]["n_truncated"] for n, v in nums.items() if v.get("runs", {}).get("n_truncated")}
+        # truncated excursions of the scenes' runs, and Fig. 3's DI duration lanes stopped by their bound
+        cut = {n: k for n, v in nums.items()
+               if (k := v.get("runs", {}).get("n_truncated", 0) + v.get("le_dur_truncated", 0)
+                   + v.get("le_dur_missing", 0))}
         if cut and not a.allow_truncated:
             print("dryfric: warning: truncated excursions in " + ", ".join(f"{n} ({k})" for n, k in cut.items())
                   + ": those points are biased low (see their *.points.jsonl records); exit 3 (--allow-truncated "

@@ -335,7 +335,21 @@ def test_fig3_numbers_from_known_runs(tmp_path, monkeypatch):
     monkeypatch.setattr(diffusivity, "plan_estimate", _fake_plan(calls, fits))
     runs = _fake_points(diffusivity, monkeypatch, est)
     _no_files(diffusivity, monkeypatch, [])
+    durs = []
+
+    def dur(p, seed, cycle_s, quick):  # the paper's duration: half the cycle; none at Gamma = 1, tau = 1 s
+        durs.append((p.Gamma, p.tau, seed, cycle_s, quick))
+        return None if (p.Gamma, p.tau) == (1.0, 1.0) else SimpleNamespace(
+            mean=cycle_s / 2, ci=0.05 * p.Gamma, h=1e-4, n_lanes=64, n_half=4, n_truncated=1)
+
+    monkeypatch.setattr(diffusivity, "_di_durations", dur)
     f = diffusivity.fig3(str(tmp_path), False, 0)
+    assert len({d[2] for d in durs}) == len(durs) == len(f["Gamma"]) * 4 and all(d[4] is False for d in durs)
+    assert all(d[3] == pytest.approx(2 * d[0]) for d in durs)  # planned from the DI run's cycle
+    assert f["le_dur_missing"] == 1 and f["le_dur_truncated"] == len(durs) - 1
+    assert f["di"]["1"]["le_dur"][0] is None and f["agree_dur"]["1"][0] is None
+    # PDMP durations 2 Gamma +- 0.1 Gamma against the DI's Gamma +- 0.05 Gamma: |diff| / hypot = 1 / hypot(0.1, 0.05)
+    assert f["agree_dur"]["0.5"] == pytest.approx([1 / math.hypot(0.1, 0.05)] * len(f["Gamma"]))
     G = f["Gamma"]
     assert len(runs) == 2 * len(G) * len(f["tau"]) and len({r[2] for r in runs}) == len(runs)
     assert {(p.tau, p.Gamma, kw["method"]) for _, p, _, kw in runs} == {(t, g, m) for t in f["tau"] for g in G
