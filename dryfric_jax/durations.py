@@ -10,8 +10,8 @@ state there, :math:`(x_{\mp\Delta}, 0)`, is the same every time: the HLEs after 
 direction are independent, alternating + and -.
 
 Here each lane runs the DI chain (:meth:`~dryfric_jax.di.DIModel.move`; noise stationary,
-:math:`V_0 = 0`) and counts releases (:math:`V_n = 0 \ne V_{n+1}`) whose direction differs from the
-previous release's.  From its first such change to its :math:`(n_{1/2} + 1)`-th it holds
+:math:`V_0 = 0`) and counts releases (:math:`V_{n-1} = V_n = 0 \ne V_{n+1}`: stuck a whole step,
+then moving) whose direction differs from the previous release's.  From its first such change to its :math:`(n_{1/2} + 1)`-th it holds
 :math:`n_{1/2}` whole HLEs (:math:`n_{1/2}` even: as many + as -), so
 
 .. math::
@@ -20,10 +20,13 @@ previous release's.  From its first such change to its :math:`(n_{1/2} + 1)`-th 
 is the mean of :math:`n_{1/2}/2` i.i.d. long-excursion durations, and the lanes' :math:`d_l` are
 i.i.d.: their mean, with a 95% CI of :math:`1.96\,\mathrm{sd}/\sqrt{L}`.  Each lane runs a fixed
 number of HLEs, not a fixed time, so nothing is cut at a horizon (a fixed horizon would weigh short
-excursions more).  In discrete time a release is not exactly at the threshold (X overshoots by
-:math:`O(\sqrt h)` for :math:`\tau \gg h`) and V may land on 0 while passing through it, so the
-count is the continuum's up to :math:`O(\sqrt h)`.  Where :math:`\tau \ll h` releases happen at any X
-and the count is not the paper's quantity; Fig. 3 has :math:`\tau/h \ge 18`.
+excursions more).  A V that lands on 0 for one step while passing through it (the force beyond the
+threshold) is not a release: counting those (a first version) ended half excursions early, 15 SE
+below the PDMP at Gamma = 10, tau = 0.125 s, h/16, and further below as h fell.  In discrete time a
+release is still not exactly at the threshold (X overshoots it), so the count has a bias that falls
+with h: at that point 0.548, 0.479, 0.452 s (+- 0.009) at h, h/4, h/16 against the PDMP's 0.442
+(``tests/test_durations.py``).  Where :math:`\tau \ll h` releases happen at any X and the count is
+not the paper's quantity; Fig. 3 has :math:`\tau/h \ge 187` at the default h.
 
 Loops are bounded: a lane that has not reached its count after ``max_steps`` steps is counted in
 ``n_truncated`` and left out of the mean (which it would have raised: it is biased low then, and
@@ -43,7 +46,7 @@ from .api import _key
 from .di import make_di_model
 from .excursions import BLOCK, block_keys
 from .params import check_params
-from .plan import MAX_COUNT, check_count, check_h, default_h
+from .plan import check_count, check_h, default_h
 
 
 @dataclass(frozen=True)
@@ -62,7 +65,7 @@ class LEDuration:
         return asdict(self)
 
 
-def _lane_loop(model, keys, n_half: int, max_blocks: int, block: int):
+def _lane_loop(model, keys, n_half, max_blocks, block: int):
     dt = model.h.dtype
     lanes = keys.shape[0]
     x0 = jax.vmap(lambda k: jax.random.normal(jax.random.fold_in(k, 2**31 - 1), (), dt))(keys)
@@ -103,7 +106,10 @@ def _lane_loop(model, keys, n_half: int, max_blocks: int, block: int):
     return c[4] > n_half, c[7] - c[6], c[5]
 
 
-_run = jax.jit(_lane_loop, static_argnames=("n_half", "max_blocks", "block"))
+# n_half and the bound are traced: a figure's points differ in them and share one compiled loop per lane count
+_run = jax.jit(_lane_loop, static_argnames=("block",))
+#: each lane's bound in steps: whole blocks, counted in int32 and folded into its key
+MAX_STEPS = (2**31 - 2) * BLOCK
 
 
 def di_long_excursion_duration(params, key, h: float | None = None, n_lanes: int = 256, n_half: int = 20,
@@ -117,7 +123,8 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_lanes: int
         h: DI step in seconds (default :func:`~dryfric_jax.plan.default_h`, as the D estimator's).
         n_lanes: independent lanes, an integer >= 2 (the CI is their spread).
         n_half: HLEs per lane, an even integer >= 2.
-        max_steps: bound on each lane's steps, an integer >= 1 (rounded up to whole blocks of 128).
+        max_steps: bound on each lane's steps, an integer in [1, :data:`MAX_STEPS`] (rounded up to whole
+            blocks of 128).
         dtype: ``"float64"`` or ``"float32"``, the chain's.
 
     ``ValueError`` naming the argument; the result's ``n_truncated`` counts lanes stopped by ``max_steps``.
@@ -128,14 +135,14 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_lanes: int
     n_half = check_count("n_half", n_half, 2, 2**30, " (HLEs per lane)")
     if n_half % 2:
         raise ValueError(f"n_half must be even, as many +HLEs as -HLEs (got {n_half})")
-    max_steps = check_count("max_steps", max_steps, 1, MAX_COUNT, "")
+    max_steps = check_count("max_steps", max_steps, 1, MAX_STEPS, " (blocks of 128 steps counted in 32 bits)")
     if dtype not in ("float64", "float32"):
         raise ValueError(f"dtype must be 'float64' or 'float32' (got {dtype!r})")
     h = default_h(params) if h is None else check_h(params, h)
     model = make_di_model(params, h, jnp.dtype(dtype))
     max_blocks = -(-max_steps // BLOCK)
-    done, span, steps = (np.asarray(a) for a in _run(model, jax.random.split(key, n_lanes), n_half=n_half,
-                                                     max_blocks=max_blocks, block=BLOCK))
+    done, span, steps = (np.asarray(a) for a in _run(model, jax.random.split(key, n_lanes), jnp.int32(n_half),
+                                                     jnp.int32(max_blocks), block=BLOCK))
     d = 2.0 * span[done] * h / n_half
     k = int(done.sum())
     if k < 2:  # no mean or no spread: say why rather than return a NaN

@@ -73,3 +73,21 @@ def test_float32_agrees_with_float64():
     b = di_long_excursion_duration(p, 5, n_lanes=256, n_half=4, dtype="float32")
     assert abs(a.mean - b.mean) <= 3 * math.hypot(a.ci, b.ci) / 1.96, (a, b)
     assert np.isfinite([b.mean, b.ci]).all()
+
+
+def test_other_counts_and_bounds_do_not_recompile():
+    """A figure's points differ in n_half and max_steps: one compiled loop per lane count serves them."""
+    from dryfric_jax import durations
+
+    p = Params(**FIG3)
+    di_long_excursion_duration(p, 0, n_lanes=32, n_half=2, max_steps=10**6)
+    n = durations._run._cache_size()
+    di_long_excursion_duration(p, 1, n_lanes=32, n_half=4, max_steps=10**7)
+    assert durations._run._cache_size() == n
+
+
+def test_max_steps_beyond_the_32_bit_block_count_is_refused():
+    from dryfric_jax import durations
+
+    with pytest.raises(ValueError, match="max_steps"):
+        di_long_excursion_duration(Params(**FIG3), 0, n_lanes=8, max_steps=durations.MAX_STEPS + 1)

@@ -53,7 +53,7 @@ def _di_durations(p, seed, cycle_s, quick):
     hle_steps = max(cycle_s / 2 / h, 1.0)
     halves = DUR_WORK[quick] / hle_steps
     n_half = int(min(20, max(2, halves // 32 // 2 * 2)))
-    lanes = int(min(512, max(32, halves // n_half)))
+    lanes = 2 ** int(np.clip(np.log2(max(halves // n_half, 1)), 5, 9))  # 32..512, a power of 2: few compiled shapes
     try:
         return di_long_excursion_duration(p, seed, h=h, n_lanes=lanes, n_half=n_half,
                                           max_steps=int(max(50 * n_half * hle_steps, 10_000)))
