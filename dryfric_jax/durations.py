@@ -11,8 +11,8 @@ direction are independent, alternating + and -.
 
 Here each lane runs the DI chain (:meth:`~dryfric_jax.di.DIModel.move`; noise stationary,
 :math:`V_0 = 0`) and counts releases (:math:`V_{n-1} = V_n = 0 \ne V_{n+1}`: stuck a whole step,
-then moving) whose direction differs from the previous release's.  From its first such change to its :math:`(n_{1/2} + 1)`-th it holds
-:math:`n_{1/2}` whole HLEs (:math:`n_{1/2}` even: as many + as -), so
+then moving) whose direction differs from the previous release's.  From its first such change to
+its :math:`(n_{1/2} + 1)`-th it holds :math:`n_{1/2}` whole HLEs (:math:`n_{1/2}` even: as many + as -), so
 
 .. math::
     d_l = \frac{2 h\,(n_b - n_a)}{n_{1/2}}
