@@ -97,15 +97,18 @@ def _fig3(tmp_path, monkeypatch, quick):
 def test_fig3_each_panel_plots_each_methods_own_numbers_on_log_log_axes(tmp_path, monkeypatch):
     """Fig. 3's caption: left D against Gamma, right the mean excursion duration, PDMP dots and DI lines, four
     curves (tau = 0.125 .. 1 s), both panels in log-log scale.  With the fake runs of ``_fig3`` each curve
-    must be exactly its method's numbers with its own CI; the JSON's wall_s are the runs' own.  Kills: the PDMP
+    must be exactly its method's numbers with its own CI (the DI's durations: the paper's, its cycles dashed); the
+    JSON's wall_s are the runs' own.  Kills: the PDMP
     dots at the DI's D (A01), with the DI's CI (A02), the DI line of D at the durations (A03), the PDMP
     duration dots at D (A04), the DI duration line with D's CI (A05), the DI duration line at the PDMP's
     durations (A06), the rows' wall_s the runs' durations (A07), only the left panel in log-log (A43)."""
     f, runs, figs = _fig3(tmp_path, monkeypatch, True)
     (a1, a2), = figs
     G = np.array(f["Gamma"], float)
-    assert len(a1["bars"]) == len(a2["bars"]) == 2 * 4 and not a1["lines"] and not a2["lines"]
-    for panel, want in ((a1, ((2, 0.125), (1, 0.25))), (a2, ((5, 0.75), (3, 0.5)))):
+    assert len(a1["bars"]) == len(a2["bars"]) == 2 * 4 and not a1["lines"]
+    # right: PDMP dots, the DI's paper duration (fake: 4 Gamma +- 0.625) as lines, its cycle (3 Gamma) dashed
+    assert len(a2["lines"]) == 4 and all(np.array_equal(x, G) and np.array_equal(y, 3 * G) for x, y in a2["lines"])
+    for panel, want in ((a1, ((2, 0.125), (1, 0.25))), (a2, ((5, 0.75), (4, 0.625)))):
         assert panel["scales"] == ("log", "log")
         for j in range(4):
             for (x, y, e), (c, ci) in zip(panel["bars"][2 * j: 2 * j + 2], want):  # PDMP dots, then the DI line

@@ -113,11 +113,13 @@ def test_points_summary_counts_and_wall_time(tmp_path, monkeypatch):
     first = points.Points(str(tmp_path), "s")
     first.estimate(p, 1)
     first.estimate(p, 2)
-    assert first.summary() == dict(file="s.points.jsonl", reused=0, computed=2, runs_wall_s=2.5 + 3.5, n_truncated=0)
+    assert first.summary() == dict(file="s.points.jsonl", reused=0, computed=2, runs_wall_s=2.5 + 3.5, n_truncated=0,
+                                   other_versions={})
     again = points.Points(str(tmp_path), "s")
     again.estimate(p, 1)
     again.estimate(p, 3)
-    assert again.summary() == dict(file="s.points.jsonl", reused=1, computed=1, runs_wall_s=2.5 + 4.5, n_truncated=0)
+    assert again.summary() == dict(file="s.points.jsonl", reused=1, computed=1, runs_wall_s=2.5 + 4.5, n_truncated=0,
+                                   other_versions={})
 
 
 def test_a_runs_notes_are_not_shown_by_the_scene(tmp_path, monkeypatch):
