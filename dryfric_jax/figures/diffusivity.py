@@ -6,7 +6,8 @@ stationary velocity law.
   or 1e3 (quick), lowered by 4x steps (not below 1e3) where the run would exceed the default
   ``max_work`` (the N used is in the JSON).  The PDMP's durations are its excursions'; the DI's come
   from counting releases (:mod:`dryfric_jax.durations`, at h/8, ``DUR_H_DIV``: its bias falls slowly with h),
-  since its regeneration cycles (thin dashed lines) span one or more of the paper's excursions;
+  since its regeneration cycles (thin dashed lines) span one or more of the paper's excursions.  At the
+  paper's delta the PDMP's durations are up to ~10% long at some Gamma (its delta-grid; RESULTS.md);
 * Fig. 8: D for b = 0 and for b = -v/tau_L + gamma_bar, tau = 1e-5 .. 1e-2 s: brute force
   (t = 10 s) dots, long excursions lines, the exact white-noise D as reference, and the local
   exponent d ln D / d ln Gamma (finite differences of the long-excursion D, delta-method CI);
@@ -41,7 +42,8 @@ N_FLOOR = 1000
 #: 1/4 and 1/16 times the default h, the PDMP's 4.17, 4.14 and 4.11 (+- 0.035) at delta = 0.125, 0.0625,
 #: 0.03125; at Gamma = 10, tau = 0.125 s 0.68, 0.55, 0.48, 0.45 (+- 0.01) against 0.442 (tests/test_durations.py)
 DUR_H_DIV = 8
-#: lane-steps a DI duration point may take (lanes x half excursions planned from the D run's cycle duration)
+#: lane-steps a DI duration point may take (lanes x half excursions planned from the D run's cycle duration); the
+#: floor of 32 lanes x 2 half excursions can exceed it (full tau = 1 s, Gamma = 1: 3.3e9 steps, 304 s, CI +-33%)
 DUR_WORK = {True: 3e7, False: 1e9}
 
 
