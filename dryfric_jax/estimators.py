@@ -136,6 +136,55 @@ def z_quantile(level: float) -> float:
     return -NormalDist().inv_cdf((1 - v) / 2)  # the lower tail: 0.5 + level / 2 rounded to 1 near level = 1
 
 
+#: degrees of freedom above which :func:`t_quantile` uses its series (the CDF's sum has df / 2 terms)
+T_SERIES_DF = 200
+
+
+def _t_central(t: float, df: int) -> float:
+    r""":math:`P(|T| \le t)` for Student's T with integer ``df`` degrees of freedom, in closed form
+    (Abramowitz & Stegun 26.7.3-4): with :math:`\theta = \arctan(t/\sqrt{\nu})` and :math:`c = \cos^2\theta`,
+    :math:`\sin\theta\,(1 + \tfrac12 c + \tfrac{1\cdot3}{2\cdot4}c^2 + \dots)` (:math:`\nu - 2` over 2 terms past
+    1) for even :math:`\nu`, :math:`\tfrac2\pi(\theta + \sin\theta\cos\theta\,(1 + \tfrac23 c + \tfrac{2\cdot4}{3\cdot5}
+    c^2 + \dots))` (:math:`(\nu - 3)/2` terms past 1) for odd :math:`\nu > 1`, :math:`2\theta/\pi` at 1."""
+    th = math.atan(t / math.sqrt(df))
+    c, s = math.cos(th) ** 2, math.sin(th)
+    term, total = 1.0, 1.0
+    if df % 2 == 0:
+        for k in range(1, df // 2):
+            term *= (2 * k - 1) / (2 * k) * c
+            total += term
+        return s * total
+    if df == 1:
+        return 2 * th / math.pi
+    for k in range(1, (df - 1) // 2):
+        term *= (2 * k) / (2 * k + 1) * c
+        total += term
+    return 2 / math.pi * (th + s * math.cos(th) * total)
+
+
+def t_quantile(level: float, df: int) -> float:
+    r""":math:`t_{\nu,\,1-\alpha/2}`, the two-sided ``level`` = 1 - alpha quantile of Student's t with ``df``
+    = :math:`\nu \ge 1` degrees of freedom: the CI of a mean of :math:`\nu + 1` i.i.d. values (normal ones:
+    exactly), :math:`\bar d \pm t_{\nu}\,s/\sqrt{\nu + 1}`.  Up to :data:`T_SERIES_DF`, bisection on the
+    closed-form CDF (:func:`_t_central`) to 1e-12; above, the Cornish-Fisher series in :math:`1/\nu` about
+    :func:`z_quantile` (Abramowitz & Stegun 26.7.5, four terms: error :math:`O(\nu^{-5})`)."""
+    z = z_quantile(level)
+    if isinstance(df, (bool, np.bool_)) or not isinstance(df, (int, np.integer)) or df < 1:
+        raise ValueError(f"df must be an integer >= 1 (got {shown(df)})")
+    df = int(df)
+    if df > T_SERIES_DF:
+        g = ((z**3 + z) / 4, (5 * z**5 + 16 * z**3 + 3 * z) / 96, (3 * z**7 + 19 * z**5 + 17 * z**3 - 15 * z) / 384,
+             (79 * z**9 + 776 * z**7 + 1482 * z**5 - 1920 * z**3 - 945 * z) / 92160)
+        return z + sum(gk / df ** (k + 1) for k, gk in enumerate(g))
+    lo, hi = z, z
+    while _t_central(hi, df) < level:
+        hi *= 2
+    while hi - lo > 1e-12 * hi:
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if _t_central(mid, df) < level else (lo, mid)
+    return 0.5 * (lo + hi)
+
+
 def delta_method(psi, mean, cov, n: int, level: float = 0.95):
     r"""Estimate :math:`\Psi(\hat S)` and the half-width of its asymptotic ``level`` CI.
 

@@ -321,3 +321,40 @@ def test_a_d_interval_lost_to_rounding_is_flagged_not_reported_as_zero_silently(
     T = sums_from_samples(U, t)
     assert long_excursion_estimates(T)["D_ci"] == 0.0
     assert ci_rounding(T) == float("inf") and "half-width is 0 and means nothing" in rounding_note(T)
+
+
+@pytest.mark.parametrize("df,level,table", [(1, 0.95, 12.706), (2, 0.95, 4.303), (3, 0.95, 3.182), (10, 0.95, 2.228),
+                                            (31, 0.95, 2.040), (120, 0.95, 1.980), (5, 0.99, 4.032), (20, 0.9, 1.725),
+                                            (1000, 0.95, 1.962)])
+def test_t_quantile_against_a_table(df, level, table):
+    """Student's t quantiles as printed in statistics tables (3 decimals)."""
+    from dryfric_jax.estimators import t_quantile
+
+    assert abs(t_quantile(level, df) - table) < 6e-4
+
+
+@pytest.mark.parametrize("df", [1, 2, 7, 31, 200, 201, 5000])
+def test_t_quantile_integrates_to_its_level(df):
+    """An independent check: the t density, integrated numerically (Simpson, on [0, q] after t = q u), holds
+    ``level`` / 2 below the quantile; both sides of the switch to the series (T_SERIES_DF = 200) included."""
+    from math import gamma, lgamma, pi, sqrt
+
+    from dryfric_jax.estimators import t_quantile
+
+    q = t_quantile(0.95, df)
+    c = np.exp(lgamma((df + 1) / 2) - lgamma(df / 2)) / sqrt(df * pi) if df > 100 else gamma((df + 1) / 2) / (
+        gamma(df / 2) * sqrt(df * pi))
+    x = np.linspace(0.0, q, 20001)
+    f = c * (1 + x**2 / df) ** (-(df + 1) / 2)
+    simpson = (x[1] - x[0]) / 3 * (f[0] + f[-1] + 4 * f[1:-1:2].sum() + 2 * f[2:-1:2].sum())
+    assert abs(2 * simpson - 0.95) < 1e-9
+
+
+def test_t_quantile_refuses_bad_degrees_of_freedom():
+    from dryfric_jax.estimators import t_quantile
+
+    for bad in (0, -1, 2.5, True, None):
+        with pytest.raises(ValueError, match="df must be an integer"):
+            t_quantile(0.95, bad)
+    with pytest.raises(ValueError, match="level"):
+        t_quantile(1.0, 5)
