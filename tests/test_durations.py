@@ -91,3 +91,44 @@ def test_max_steps_beyond_the_32_bit_block_count_is_refused():
 
     with pytest.raises(ValueError, match="max_steps"):
         di_long_excursion_duration(Params(**FIG3), 0, n_lanes=8, max_steps=durations.MAX_STEPS + 1)
+
+
+def test_bad_lane_counts_and_dtypes():
+    """2^24 lanes ran out of memory instead of a ValueError (an audit): the engine's lane cap holds here too.
+    A dtype object is taken like its name (``jnp.float32`` was refused)."""
+    import jax.numpy as jnp
+
+    from dryfric_jax.plan import MAX_LANES
+
+    p = Params(**FIG3)
+    with pytest.raises(ValueError, match="n_lanes"):
+        di_long_excursion_duration(p, 0, n_lanes=MAX_LANES + 1)
+    a = di_long_excursion_duration(p, 2, n_lanes=16, n_half=2, dtype=jnp.float32)
+    assert a == di_long_excursion_duration(p, 2, n_lanes=16, n_half=2, dtype="float32")
+    with pytest.raises(ValueError, match="dtype"):
+        di_long_excursion_duration(p, 0, n_lanes=8, dtype=jnp.float16)
+
+
+def test_mean_ci_and_step_counts_from_the_lanes(monkeypatch):
+    """The arithmetic after the loop, on a fake loop: d_l = 2 h span_l / n_half over the lanes that reached
+    their count, the CI Student's t_{k-1} sd / sqrt(k) (with 3 lanes t_2 = 4.303, a table's value), lane_steps the
+    lanes' steps and loop_steps lanes x the blocks the loop ran (finished lanes stand still in it)."""
+    from dryfric_jax import durations
+
+    done = np.array([True, True, False, True])
+    span = np.array([100, 200, 0, 300])
+    steps = np.array([500, 700, 1280, 900])
+    monkeypatch.setattr(durations, "_run", lambda *a, **k: (done, span, steps, np.int32(10)))
+    h = 1e-3
+    r = di_long_excursion_duration(Params(**FIG3), 0, h=h, n_lanes=4, n_half=4)
+    d = 2 * h * np.array([100, 200, 300]) / 4
+    assert r.mean == pytest.approx(d.mean(), rel=1e-12)
+    assert r.ci == pytest.approx(4.303 * d.std(ddof=1) / math.sqrt(3), rel=1e-3)
+    assert (r.n_lanes, r.n_truncated, r.lane_steps, r.loop_steps) == (3, 1, 3380, 4 * 10 * 128)
+
+
+def test_loop_steps_count_the_idle_lanes_too():
+    """Each lane runs its own number of steps; the loop runs until the slowest is done: loop_steps is lanes x the
+    slowest lane's steps rounded up to whole blocks, > lane_steps (2.2-2.4x at 20 HLEs per lane in an audit)."""
+    r = di_long_excursion_duration(FAST, 5, n_lanes=64, n_half=4)
+    assert r.loop_steps % (64 * 128) == 0 and r.loop_steps > r.lane_steps
