@@ -367,6 +367,34 @@ def test_fig3_numbers_from_known_runs(tmp_path, monkeypatch):
         assert f["agree"][f"{tau:g}"] == pytest.approx([1.0] * len(G), rel=1e-12)
 
 
+
+@pytest.mark.parametrize("cycle", [float("nan"), float("inf"), None, 0.0, -1.0, "x"])
+def test_fig3_duration_plan_without_a_cycle_is_a_missing_point(monkeypatch, cycle):
+    """A D run with no finite cycle duration gave _di_durations' plan a NaN (ValueError outside its try),
+    an inf (OverflowError) or None (TypeError) and lost the figure (an audit): no plan, no run, a missing point."""
+    monkeypatch.setattr(diffusivity, "di_long_excursion_duration", lambda *a, **k: pytest.fail("ran"))
+    assert diffusivity._di_durations(Params(**FIG3), 0, cycle, True) is None
+
+
+@pytest.mark.parametrize("quick,cycle,lanes,n_half", [(True, 4.0, 32, 20), (True, 40.0, 32, 2), (False, 4.0, 512, 20),
+                                                       (False, 1e9, 32, 2)])
+def test_fig3_duration_plan(monkeypatch, quick, cycle, lanes, n_half):
+    """Lanes and HLEs per lane from DUR_WORK and the cycle (an HLE takes at most half a cycle), h = default_h / 8,
+    a bound of 50x the expected steps (>= 1e4); a cycle so long that the bound passes durations.MAX_STEPS is
+    clipped to it (it was refused: a missing point).  By hand: at Fig. 3's point (h = 6.7e-4 / 8, cycle 4 s) an
+    HLE takes 2.4e4 steps: 3e7 (quick) is 1256 HLEs, 20 x 62.8 lanes, rounded down to a power of 2: 32; at a 40 s
+    cycle 125.6 HLEs, below 32 x 4: the floor 32 x 2; 1e9 (full) 4.2e4 HLEs, 20 x 2093 lanes, capped at 512."""
+    from dryfric_jax.durations import MAX_STEPS
+
+    seen = {}
+    monkeypatch.setattr(diffusivity, "di_long_excursion_duration", lambda p, seed, **kw: seen.update(kw) or "run")
+    p = Params(**FIG3)
+    assert diffusivity._di_durations(p, 0, cycle, quick) == "run"
+    h = default_h(p) / 8
+    assert seen["h"] == h and (seen["n_lanes"], seen["n_half"]) == (lanes, n_half)
+    assert seen["max_steps"] == min(max(int(50 * n_half * cycle / 2 / h), 10_000), MAX_STEPS)
+
+
 def test_fig8_numbers_from_known_runs(tmp_path, monkeypatch):
     """Fake long-excursion runs D = 2 Gamma^3 tau^0.1 with relative CIs 1% at even, 3% at odd points:
     exponents exactly 3 at the geometric midpoints, half-widths hypot(0.01, 0.03) / ln 2 (Gamma doubles);

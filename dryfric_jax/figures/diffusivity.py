@@ -25,8 +25,9 @@ import numpy as np
 from .. import theory
 from ..chain_law import white_chain_law
 from ..di import make_di_model
+from ..durations import MAX_STEPS as DUR_MAX_STEPS
 from ..durations import di_long_excursion_duration
-from ..params import Params
+from ..params import Params, real_or_none
 from ..paths import di_stationary
 from ..plan import default_h, plan_estimate
 from .common import plt, save
@@ -50,16 +51,22 @@ DUR_WORK = {True: 3e7, False: 1e9}
 def _di_durations(p, seed, cycle_s, quick):
     """The paper's mean long-excursion duration of the DI at ``p`` (:mod:`dryfric_jax.durations`), its
     lanes and half excursions per lane chosen so that the expected steps stay within ``DUR_WORK``: a
-    cycle spans at least one long excursion, two HLEs, so an HLE takes at most ``cycle_s / 2``."""
+    cycle spans at least one long excursion, two HLEs, so an HLE takes at most ``cycle_s / 2``.  None (counted in
+    ``le_dur_missing``) where there is no plan (a cycle duration that is not a finite number > 0) or fewer than 2
+    lanes reached their count within the bound: a missing point, not a lost figure.  The runs are not kept in the
+    points file: a resumed Fig. 3 runs them again (620 s of the full setting, 304 s of it at tau = 1 s, Gamma = 1)."""
+    c = real_or_none(cycle_s)
+    if c is None or not math.isfinite(c) or c <= 0:
+        return None
     h = default_h(p) / DUR_H_DIV
-    hle_steps = max(cycle_s / 2 / h, 1.0)
+    hle_steps = max(c / 2 / h, 1.0)
     halves = DUR_WORK[quick] / hle_steps
     n_half = int(min(20, max(2, halves // 32 // 2 * 2)))
     lanes = 2 ** int(np.clip(np.log2(max(halves // n_half, 1)), 5, 9))  # 32..512, a power of 2: few compiled shapes
     try:
         return di_long_excursion_duration(p, seed, h=h, n_lanes=lanes, n_half=n_half,
-                                          max_steps=int(max(50 * n_half * hle_steps, 10_000)))
-    except ValueError:  # fewer than 2 lanes within the bound: no point (counted in le_dur_missing), not a lost figure
+                                          max_steps=int(min(max(50 * n_half * hle_steps, 10_000), DUR_MAX_STEPS)))
+    except ValueError:  # fewer than 2 lanes within the bound
         return None
 
 
