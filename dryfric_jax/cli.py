@@ -530,14 +530,19 @@ def _run(a) -> int:
             raise RuntimeError(f"could not write a figure into --out {a.out!r} ({e}); the finished runs of Figs. 3, "
                                "8 and 9 are kept in *.points.jsonl there: the same command resumes") from None
         print(f"figures written to {a.out}")
-        # truncated excursions of the scenes' runs, and Fig. 3's DI duration lanes stopped by their bound
-        cut = {n: k for n, v in nums.items()
-               if (k := v.get("runs", {}).get("n_truncated", 0) + v.get("le_dur_truncated", 0)
-                   + v.get("le_dur_missing", 0))}
+        # truncated excursions of the scenes' runs, Fig. 3's DI duration lanes stopped by their bound and its missing
+        # DI duration points
+        what = (("n_truncated", "truncated excursions"),
+                ("le_dur_truncated", "DI duration lanes stopped by their bound"),
+                ("le_dur_missing", "DI duration points missing"))
+        cut = {n: ", ".join(f"{k} {text}" for key, text in what
+                            if (k := (v.get("runs", {}) if key == "n_truncated" else v).get(key, 0)))
+               for n, v in nums.items()}
+        cut = {n: t for n, t in cut.items() if t}
         if cut and not a.allow_truncated:
-            print("dryfric: warning: truncated excursions in " + ", ".join(f"{n} ({k})" for n, k in cut.items())
-                  + ": those points are biased low (see their *.points.jsonl records); exit 3 (--allow-truncated "
-                  "accepts them)", file=sys.stderr)
+            print("dryfric: warning: " + "; ".join(f"{n}: {t}" for n, t in cut.items())
+                  + ": those points are biased low or missing (see the scene's JSON and *.points.jsonl); exit 3 "
+                  "(--allow-truncated accepts them)", file=sys.stderr)
             return 3
         return 0
     if a.cmd == "combine":

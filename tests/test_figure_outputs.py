@@ -108,7 +108,20 @@ def test_figures_with_truncated_runs_exit_3(tmp_path, monkeypatch, capsys, extra
                                                                   "4": dict(x=1), "8": dict(runs=dict(n_truncated=0))})
     assert main(["figures", "--out", str(tmp_path), *extra]) == code
     err = capsys.readouterr().err
-    assert ("truncated excursions in 3 (2)" in err) == (code == 3) and "Traceback" not in err
+    assert ("3: 2 truncated excursions: " in err) == (code == 3) and "Traceback" not in err and "8:" not in err
+
+
+@pytest.mark.parametrize("nums,said", [
+    ({"3": dict(runs=dict(n_truncated=0), le_dur_truncated=0, le_dur_missing=1)}, "3: 1 DI duration points missing:"),
+    ({"3": dict(runs=dict(n_truncated=4), le_dur_truncated=5, le_dur_missing=0)},
+     "3: 4 truncated excursions, 5 DI duration lanes stopped by their bound:")])
+def test_figures_name_what_was_cut_in_fig3s_durations(tmp_path, monkeypatch, capsys, nums, said):
+    """A missing DI duration point (no lane reached its count) exited 3 with "truncated excursions in 3 (1)": the
+    message now says which of the three it was."""
+    monkeypatch.setattr(figures, "run_figures", lambda *a, **k: nums)
+    assert main(["figures", "--out", str(tmp_path)]) == 3
+    err = capsys.readouterr().err
+    assert said in err and "biased low or missing" in err and "Traceback" not in err
 
 
 def test_a_bad_points_file_is_refused_before_any_scene_runs(tmp_path, monkeypatch, capsys):
@@ -176,3 +189,20 @@ def test_runs_of_another_version_are_said_before_the_scene_computes_them_again(t
     assert "warning" not in capsys.readouterr().err
     assert main(["figures", "--fig", "1", "--out", out, "--redo"]) == 0  # made again: said again
     assert "holds 2 runs made by other versions (0.0.1: 2)" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("name,layout,kept", [("fig3", None, False), ("fig3", 1, False), ("fig3", 2, True),
+                                              ("fig6", None, False), ("fig4", None, True), ("fig4", 1, True)])
+def test_a_scene_json_of_an_older_layout_is_not_finished(tmp_path, name, layout, kept):
+    """Fig. 3's JSON of 0.2.7 made before the DI durations by counting releases (no ``le_dur``) was taken
+    as finished, so a rerun kept a figure without them: a scene's layout (common.SCENE_LAYOUT) is checked too;
+    a JSON without one is of layout 1."""
+    fig, _ = plt.subplots()
+    nums = common.save(fig, str(tmp_path), name, dict(a=1), 0.0, quick=True, seed=3)
+    assert nums["layout"] == common.SCENE_LAYOUT.get(name, 1)
+    if layout is None:
+        del nums["layout"]
+    else:
+        nums["layout"] = layout
+    (tmp_path / f"{name}.json").write_text(json.dumps(nums))
+    assert (common.finished(str(tmp_path), name, True, 3) is not None) == kept

@@ -36,7 +36,7 @@ def save(fig, out_dir: str, name: str, numbers: dict, t0: float, *, quick: bool,
     time and what made them (seed, quick, the package's and JAX's versions: :func:`finished` reads them).
     Each file is drawn in memory and written by :func:`~dryfric_jax.outfiles.write_atomic`, so an interrupted
     write leaves the old file or none, never a torn one (a Ctrl-C inside ``savefig`` left a PDF cut at 848 bytes)."""
-    numbers = dict(numbers, wall_s=time.perf_counter() - t0, **_meta(quick, seed))
+    numbers = dict(numbers, wall_s=time.perf_counter() - t0, **_meta(quick, seed, name))
     fig.tight_layout()
     try:
         for ext, kw in (("png", dict(dpi=120)), ("pdf", {})):
@@ -49,16 +49,23 @@ def save(fig, out_dir: str, name: str, numbers: dict, t0: float, *, quick: bool,
     return numbers
 
 
-def _meta(quick: bool, seed: int) -> dict:
+#: a scene's JSON layout, raised when a scene gains numbers without a new package version (its points, D and M0,
+#: unchanged): a JSON of an older layout is not taken as finished.  2: Fig. 3's DI durations by counting releases
+#: (``le_dur``), Fig. 6's velocity atom at 0 (``p_zero``); both came in 0.2.7
+SCENE_LAYOUT = {"fig3": 2, "fig6": 2}
+
+
+def _meta(quick: bool, seed: int, name: str) -> dict:
     import jax
 
     from .._version import __version__
-    return dict(seed=int(seed), quick=bool(quick), version=__version__, jax_version=jax.__version__)
+    return dict(seed=int(seed), quick=bool(quick), version=__version__, jax_version=jax.__version__,
+                layout=SCENE_LAYOUT.get(name, 1))
 
 
 def finished(out_dir: str, name: str, quick: bool, seed: int) -> dict | None:
     """The numbers of scene ``name`` if ``out_dir`` holds its PNG, PDF and JSON, written by this version
-    with the same seed and ``quick`` (a rerun then skips it); else None."""
+    with the same seed, ``quick`` and :data:`SCENE_LAYOUT` (a rerun then skips it); else None."""
     paths = [os.path.join(out_dir, f"{name}.{ext}") for ext in ("png", "pdf", "json")]
     if not all(os.path.isfile(p) for p in paths):
         return None
@@ -67,7 +74,8 @@ def finished(out_dir: str, name: str, quick: bool, seed: int) -> dict | None:
             nums = json.load(f)
     except (OSError, ValueError):
         return None
-    want = _meta(quick, seed)
-    if not isinstance(nums, dict) or any(nums.get(k) != want[k] for k in ("seed", "quick", "version")):
+    want = _meta(quick, seed, name)
+    if not isinstance(nums, dict) or any(nums.get(k, 1 if k == "layout" else None) != want[k]
+                                         for k in ("seed", "quick", "version", "layout")):
         return None
     return nums
