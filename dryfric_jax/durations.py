@@ -17,20 +17,21 @@ its :math:`(n_{1/2} + 1)`-th it holds :math:`n_{1/2}` whole HLEs (:math:`n_{1/2}
 .. math::
     d_l = \frac{2 h\,(n_b - n_a)}{n_{1/2}}
 
-is the mean of :math:`n_{1/2}/2` i.i.d. long-excursion durations, and the lanes' :math:`d_l` are
-i.i.d.: their mean, with a 95% CI of :math:`t_{L-1}\,\mathrm{sd}/\sqrt{L}` (Student's quantile,
-:func:`~dryfric_jax.estimators.t_quantile`).  The durations are right-skewed, so with few excursions in
-all the CI covers less than 95%: measured at Gamma = 10, tau = 0.125 s over 1000 replicates (against a pooled
+is the mean of :math:`n_{1/2}/2` i.i.d. long-excursion durations, and the lanes' :math:`d_l` are i.i.d.:
+their mean, with a 95% CI of :math:`t_{L-1}\,\mathrm{sd}/\sqrt{L}` (Student's quantile,
+:func:`~dryfric_jax.estimators.t_quantile`). The durations are right-skewed, so with few excursions in all
+the CI covers less than 95%: measured at Gamma = 10, tau = 0.125 s over 1000 replicates (against a pooled
 0.5353 +- 0.0016 s), 0.929 +- 0.008 with 32 lanes x 2 HLEs (Fig. 3's floor; 0.913 with 1.96 in place of
 :math:`t_{31}`), 0.943 +- 0.007 with 64 x 2, 0.932 with 32 x 4 and, with 1.96, 0.943 with 32 x 20 (the
-default 20 HLEs).  Each lane runs a fixed number of HLEs, not a fixed time, so nothing is cut at a
-horizon (a fixed horizon would weigh short excursions more).  A V that lands on 0 for one step while passing through it (the force beyond the
-threshold) is not a release: counting those (a first version) ended half excursions early, 15 SE
-below the PDMP at Gamma = 10, tau = 0.125 s, h/16, and further below as h fell.  In discrete time a
-release is still not exactly at the threshold (X overshoots it), so the count has a bias that falls
+default 20 HLEs). Each lane runs a fixed number of HLEs, not a fixed time, so nothing is cut at a horizon (a
+fixed horizon would weigh short excursions more). A V that lands on 0 for one step while passing through it
+(the force beyond the threshold) is not a release: counting those (a first version) ended half excursions
+early, 15 SE below the PDMP at Gamma = 10, tau = 0.125 s, h/16, and further below as h fell. In discrete
+time a release is still not exactly at the threshold (X overshoots it), so the count has a bias that falls
 with h: at that point 0.548, 0.479, 0.452 s (+- 0.009) at h, h/4, h/16 against the PDMP's 0.442
-(``tests/test_durations.py``).  Where :math:`\tau \ll h` releases happen at any X and the count is
-not the paper's quantity; Fig. 3 has :math:`\tau/h \ge 187` at the default h.
+(``tests/test_durations.py``). Where :math:`\tau \ll h` releases happen at any X and the count is not the
+paper's quantity: below :data:`MIN_TAU_STEPS` steps per :math:`\tau` a :class:`~dryfric_jax.DryfricWarning`
+says so; Fig. 3 has :math:`\tau/h \ge 187` at the default h.
 
 Loops are bounded: a lane that has not reached its count after ``max_steps`` steps is counted in
 ``n_truncated`` and left out of the mean (which it would have raised: it is biased low then, and
@@ -39,6 +40,7 @@ the result says so).
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import asdict, dataclass
 
 import jax
@@ -46,12 +48,11 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import rng
-from .api import _key
+from .api import DryfricWarning, _key
 from .di import make_di_model
 from .excursions import BLOCK, block_keys
-from .params import check_params
 from .estimators import t_quantile
-from .plan import MAX_LANES, check_count, check_h, default_h, dtype_name
+from .plan import MAX_LANES, check_count, choose
 
 
 @dataclass(frozen=True)
@@ -64,6 +65,7 @@ class LEDuration:
     n_half: int  # HLEs per lane
     n_truncated: int  # lanes stopped by max_steps (left out: the mean is then biased low)
     h: float
+    dtype: str  # the chain's: float32 where asked and safe (else float64, with a warning)
     lane_steps: int  # steps the lanes ran until each reached its count (or its bound), all lanes
     loop_steps: int  # steps computed: lanes x the slowest lane's, as a lane that finished stands still in the loop
 
@@ -114,6 +116,9 @@ def _lane_loop(model, keys, n_half, max_blocks, block: int):
 
 # n_half and the bound are traced: a figure's points differ in them and share one compiled loop per lane count
 _run = jax.jit(_lane_loop, static_argnames=("block",))
+#: steps per tau below which a warning says the count is not the paper's long excursion.  The count's bias is
+#: already +24% at tau/h = 187 (Gamma = 10, tau = 0.125 s, the default h), +2.4% at 746 (Fig. 3's point)
+MIN_TAU_STEPS = 10
 #: each lane's bound in steps: whole blocks, counted in int32 and folded into its key
 MAX_STEPS = (2**31 - 2) * BLOCK
 
@@ -131,28 +136,36 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_lanes: int
         n_half: HLEs per lane, an even integer >= 2.
         max_steps: bound on each lane's steps, an integer in [1, :data:`MAX_STEPS`] (rounded up to whole
             blocks of 128).
-        dtype: ``"float64"`` or ``"float32"`` (or the dtype), the chain's.
+        dtype: ``"float64"`` or ``"float32"`` (or the dtype), the chain's; float32 where it is not safe runs in
+            float64 with a :class:`~dryfric_jax.DryfricWarning`, as :func:`~dryfric_jax.estimate_diffusivity` does.
 
-    ``ValueError`` naming the argument; the result's ``n_truncated`` counts lanes stopped by ``max_steps``.
+    ``ValueError`` naming the argument, also where the estimator refuses the parameters (tau_L = inf with
+    :math:`|\bar\gamma| \ge \Delta`: the particle runs away; it gave a number here, 9 of 32 lanes truncated);
+    the result's ``n_truncated`` counts lanes stopped by ``max_steps``.
     """
-    check_params(params)
-    key = _key(key)[0]
+    plan = choose(params, "di", h, None, dtype)  # the estimator's checks: a stationary state, a simulable tau_L,
+    key = _key(key)[0]  # h, the dtype (float32 only where safe)
     n_lanes = check_count("n_lanes", n_lanes, 2, MAX_LANES)
     n_half = check_count("n_half", n_half, 2, 2**30, " (HLEs per lane)")
     if n_half % 2:
         raise ValueError(f"n_half must be even, as many +HLEs as -HLEs (got {n_half})")
     max_steps = check_count("max_steps", max_steps, 1, MAX_STEPS, " (blocks of 128 steps counted in 32 bits)")
-    dtype = dtype_name(dtype)
-    h = default_h(params) if h is None else check_h(params, h)
+    h, dtype = plan.h, plan.dtype
+    notes = plan.notes + ([f"tau/h = {params.tau / h:.3g} < {MIN_TAU_STEPS}: the noise decorrelates within a few "
+                           "steps, so releases happen at any X and the count of their changes of direction is not "
+                           "the paper's long excursion (threshold to threshold); lower h"]
+                          if params.tau / h < MIN_TAU_STEPS else [])
+    for note in notes:
+        warnings.warn(note, DryfricWarning, stacklevel=2)
     model = make_di_model(params, h, jnp.dtype(dtype))
     max_blocks = -(-max_steps // BLOCK)
-    done, span, steps, blocks = (np.asarray(a) for a in _run(model, jax.random.split(key, n_lanes), jnp.int32(n_half),
-                                                     jnp.int32(max_blocks), block=BLOCK))
+    done, span, steps, blocks = (np.asarray(a) for a in _run(model, jax.random.split(key, n_lanes),
+                                                             jnp.int32(n_half), jnp.int32(max_blocks), block=BLOCK))
     d = 2.0 * span[done] * h / n_half
     k = int(done.sum())
     if k < 2:  # no mean or no spread: say why rather than return a NaN
         raise ValueError(f"max_steps = {max_steps} is too small here: {k} of {n_lanes} lanes ran {n_half} half "
                          f"excursions within it (at least 2 must); raise max_steps or lower n_half")
-    return LEDuration(mean=float(d.mean()), ci=float(t_quantile(0.95, k - 1) * d.std(ddof=1) / math.sqrt(k)), n_lanes=k,
-                      n_half=n_half, n_truncated=n_lanes - k, h=float(h), lane_steps=int(steps.sum()),
-                      loop_steps=n_lanes * int(blocks) * BLOCK)
+    ci = t_quantile(0.95, k - 1) * d.std(ddof=1) / math.sqrt(k)
+    return LEDuration(mean=float(d.mean()), ci=float(ci), n_lanes=k, n_half=n_half, n_truncated=n_lanes - k,
+                      h=float(h), dtype=dtype, lane_steps=int(steps.sum()), loop_steps=n_lanes * int(blocks) * BLOCK)

@@ -132,3 +132,53 @@ def test_loop_steps_count_the_idle_lanes_too():
     slowest lane's steps rounded up to whole blocks, > lane_steps (2.2-2.4x at 20 HLEs per lane in an audit)."""
     r = di_long_excursion_duration(FAST, 5, n_lanes=64, n_half=4)
     assert r.loop_steps % (64 * 128) == 0 and r.loop_steps > r.lane_steps
+
+
+def test_the_estimators_refusals_hold_here():
+    """tau_L = inf with |gamma_bar| >= Delta has no stationary state (the particle runs away): it gave a number
+    here (20.8 s, 9 of 32 lanes truncated) where estimate_diffusivity refuses; tau_L below the simulable range too."""
+    with pytest.raises(ValueError, match="gamma_bar must satisfy"):
+        di_long_excursion_duration(Params(10.0, 3.84, 0.125, math.inf, 1.05 * 3.84), 0, n_lanes=8)
+    with pytest.raises(ValueError, match="tau_L must be >= 1e-60 tau0"):
+        di_long_excursion_duration(Params(10.0, 3.84, 0.125, 1e-70, 0.0), 0, n_lanes=8)
+
+
+def _fake_loop(monkeypatch, seen):
+    from dryfric_jax import durations
+
+    def run(model, keys, n_half, max_blocks, block):
+        seen.append(model.h.dtype)
+        n = keys.shape[0]
+        return np.ones(n, bool), np.arange(1, n + 1) * 100, np.full(n, 1000), np.int32(8)
+    monkeypatch.setattr(durations, "_run", run)
+
+
+def test_float32_where_unsafe_runs_float64_and_says_so(monkeypatch):
+    """As the estimator: h/tau below 1e-4 rounds the OU decay in float32, so the chain runs in float64 with a
+    DryfricWarning, and the result says which dtype ran."""
+    import jax.numpy as jnp
+
+    seen = []
+    _fake_loop(monkeypatch, seen)
+    p = Params(**FIG3)
+    with pytest.warns(dj.DryfricWarning, match="float32 is not safe here"):
+        r = di_long_excursion_duration(p, 0, h=3e-5, n_lanes=4, n_half=2, dtype="float32")
+    assert r.dtype == "float64" and seen == [jnp.float64]
+    r = di_long_excursion_duration(p, 0, n_lanes=4, n_half=2, dtype="float32")
+    assert r.dtype == "float32" and seen[-1] == jnp.float32
+
+
+def test_tau_below_a_few_steps_is_flagged(monkeypatch):
+    """At tau / h < MIN_TAU_STEPS the noise decorrelates within a few steps: releases happen at any X and the
+    count is not the paper's long excursion (white noise at tau = 1e-5 s, h = 1.6e-3 s gave 14 s); warned."""
+    from dryfric_jax.durations import MIN_TAU_STEPS
+
+    _fake_loop(monkeypatch, [])
+    p = Params(0.16, 1.0, 1e-5, math.inf, 0.0)
+    with pytest.warns(dj.DryfricWarning, match=f"tau/h = .* < {MIN_TAU_STEPS}: the noise decorrelates"):
+        di_long_excursion_duration(p, 0, n_lanes=4, n_half=2)
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        di_long_excursion_duration(p, 0, h=p.tau / (2 * MIN_TAU_STEPS), n_lanes=4, n_half=2)
