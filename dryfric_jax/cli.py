@@ -272,6 +272,26 @@ def build_parser() -> argparse.ArgumentParser:
     th.add_argument("--h", type=_number("h"), default=None,
                     help="also the exact white-noise D, M0 and E[V^2] of the DI chain at this step, s (its "
                          "step bias; seconds for small h)")
+    du = sub.add_parser("duration", parents=[model],
+                        help="the paper's mean long-excursion duration of the DI (Fig. 3's right panel), by counting "
+                             "releases", description="The DI's mean long-excursion duration in the paper's sense "
+                        "(threshold to threshold; dryfric_jax/durations.py): lanes of the DI chain count the changes "
+                        "of direction of their releases; the 95%% CI is Student's t over the lanes.  Its bias falls "
+                        "slowly with h (Fig. 3 runs at h/8: RESULTS.md).  'dryfric estimate' prints the mean "
+                        "duration of its regeneration cycles, each one or more of these.")
+    du.add_argument("--h", type=_number("h"), default=None, help="DI step, s (default 0.01*min(tau0, tau_L))")
+    du.add_argument("--seed", type=_seed, default=0, help="random seed, an integer in [0, 2^62 - 2^20] (default 0)")
+    du.add_argument("--dtype", default="float64", help="float64 or float32 (float64 where float32 is not safe)")
+    du.add_argument("--n-lanes", type=_int_at_least("n-lanes", 2, 2**22, "2^22"), default=256,
+                    help="independent lanes (default 256); the CI is their spread")
+    du.add_argument("--n-half", type=_int_at_least("n-half", 2, 2**30, "2^30"), default=20,
+                    help="half excursions per lane, even (default 20)")
+    du.add_argument("--max-steps", type=_int_at_least("max-steps", 1), default=10**8,
+                    help="bound on each lane's steps (default 1e8); a lane that reaches it is left out and counted "
+                         "(the mean is then biased low: exit 3)")
+    du.add_argument("--out", default=None, help="also write the JSON result to this file (atomically)")
+    du.add_argument("--allow-truncated", action="store_true",
+                    help="exit 0 even when lanes hit --max-steps (the mean is biased low; exit 3 otherwise)")
     fg = sub.add_parser("figures", help="reproduce the paper's figures and tables (PNG, PDF, JSON)")
     fg.add_argument("--fig", default="all", help="all, 1 (Figs. 1-2), 3, 4, 5, 6, 7, 8, 9 or table1")
     fg.add_argument("--quick", action="store_true", help="small settings: all figures in minutes on a CPU")
@@ -578,6 +598,18 @@ def _run(a) -> int:
         if r.stopped_by == "interrupted":
             return 130
         return _truncation_exit(a, r, _truncation_remedy(r))
+    if a.cmd == "duration":
+        from .durations import di_long_excursion_duration
+
+        with _warnings_kept_in_result():
+            r = di_long_excursion_duration(params, a.seed, h=a.h, n_lanes=a.n_lanes, n_half=a.n_half,
+                                           max_steps=a.max_steps, dtype=a.dtype)
+        _report(a, r, lambda r: print(r.summary()))
+        if r.n_truncated and not a.allow_truncated:
+            print(f"dryfric: warning: {r.n_truncated} lanes truncated: the mean above is biased low; exit 3 "
+                  "(--allow-truncated accepts it, a larger --max-steps spares it)", file=sys.stderr)
+            return 3
+        return 0
     if a.cmd == "bruteforce":
         with _warnings_kept_in_result():
             r = api.bruteforce_diffusivity(params, a.seed, t=a.t, n_paths=a.n_paths, method=a.method, h=a.h,

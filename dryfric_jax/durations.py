@@ -40,15 +40,17 @@ the result says so).
 from __future__ import annotations
 
 import math
+import time
 import warnings
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass, field
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from . import rng
-from .api import DryfricWarning, _key
+from ._version import __version__
+from .api import DryfricWarning, _key, _Record, _with_warnings, key_id
 from .di import make_di_model
 from .excursions import BLOCK, block_keys
 from .estimators import t_quantile
@@ -56,8 +58,10 @@ from .plan import MAX_LANES, check_count, choose
 
 
 @dataclass(frozen=True)
-class LEDuration:
-    """Mean duration (s) of the paper's long excursion of the DI, its 95% CI half-width, and what made it."""
+class LEDuration(_Record):
+    """Mean duration (s) of the paper's long excursion of the DI, its 95% CI half-width, and what made it;
+    ``print`` shows :meth:`summary` and the warnings, ``to_dict``/``to_json`` every field (what ``dryfric
+    duration --json`` prints).  The same seed (key) and settings give the same numbers to the last bit."""
 
     mean: float
     ci: float
@@ -68,9 +72,27 @@ class LEDuration:
     dtype: str  # the chain's: float32 where asked and safe (else float64, with a warning)
     lane_steps: int  # steps the lanes ran until each reached its count (or its bound), all lanes
     loop_steps: int  # steps computed: lanes x the slowest lane's, as a lane that finished stands still in the loop
+    max_steps: int = 0  # each lane's bound (whole blocks of 128)
+    seed: int | None = None  # None for a jax.random key
+    key: str | None = None  # a key-made run's key (api.key_id); None for a seed
+    params: dict = field(default_factory=dict)
+    version: str = __version__
+    warnings: tuple = ()  # every note the run issued (also issued as DryfricWarning)
+    wall_s: float = field(default=0.0, compare=False)
 
-    def to_dict(self) -> dict:
-        return asdict(self)
+    def summary(self) -> str:
+        """The mean with its CI, the lanes behind it, the step and what made it (what ``dryfric duration``
+        prints)."""
+        rel = f"  ({100 * self.ci / self.mean:.1f}%)" if self.mean else ""
+        return (f"mean long-excursion duration = {self.mean:.6g} ± {self.ci:.2g} s{rel}   (95% CI, Student t over "
+                f"the lanes)\n{self.n_lanes} lanes x {self.n_half} half excursions (releases counted), "
+                f"{self.n_truncated} lanes truncated, h = {self.h:.3g} s, {self.dtype}, "
+                + (f"seed {self.seed}" if self.key is None else f"key {self.key}")
+                + f"\nwall {self.wall_s:.1f} s, {self.loop_steps:.3g} lane-steps computed "
+                f"({self.lane_steps:.3g} needed by the lanes)")
+
+    def __str__(self) -> str:
+        return _with_warnings(self.summary(), self.warnings)
 
 
 def _lane_loop(model, keys, n_half, max_blocks, block: int):
@@ -143,8 +165,9 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_lanes: int
     :math:`|\bar\gamma| \ge \Delta`: the particle runs away; it gave a number here, 9 of 32 lanes truncated);
     the result's ``n_truncated`` counts lanes stopped by ``max_steps``.
     """
+    t0 = time.perf_counter()
     plan = choose(params, "di", h, None, dtype)  # the estimator's checks: a stationary state, a simulable tau_L,
-    key = _key(key)[0]  # h, the dtype (float32 only where safe)
+    key, seed = _key(key)  # h, the dtype (float32 only where safe)
     n_lanes = check_count("n_lanes", n_lanes, 2, MAX_LANES)
     n_half = check_count("n_half", n_half, 2, 2**30, " (HLEs per lane)")
     if n_half % 2:
@@ -166,6 +189,13 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_lanes: int
     if k < 2:  # no mean or no spread: say why rather than return a NaN
         raise ValueError(f"max_steps = {max_steps} is too small here: {k} of {n_lanes} lanes ran {n_half} half "
                          f"excursions within it (at least 2 must); raise max_steps or lower n_half")
+    if k < n_lanes:
+        note = (f"{n_lanes - k} of {n_lanes} lanes stopped by max_steps = {max_steps} before their {n_half} half "
+                "excursions: left out, so the mean is biased low; raise max_steps")
+        warnings.warn(note, DryfricWarning, stacklevel=2)
+        notes.append(note)
     ci = t_quantile(0.95, k - 1) * d.std(ddof=1) / math.sqrt(k)
     return LEDuration(mean=float(d.mean()), ci=float(ci), n_lanes=k, n_half=n_half, n_truncated=n_lanes - k,
-                      h=float(h), dtype=dtype, lane_steps=int(steps.sum()), loop_steps=n_lanes * int(blocks) * BLOCK)
+                      h=float(h), dtype=dtype, lane_steps=int(steps.sum()), loop_steps=n_lanes * int(blocks) * BLOCK,
+                      max_steps=max_blocks * BLOCK, seed=seed, key=None if seed is not None else key_id(key),
+                      params=params.as_dict(), warnings=tuple(notes), wall_s=time.perf_counter() - t0)

@@ -1017,12 +1017,13 @@ def test_sigterm_keeps_its_default_action_in_commands_with_nothing_to_keep(monke
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     try:
         for argv in (["estimate"], ["sweep", "--out", "s.jsonl"], ["figures", "--out", "d"], ["bench"],
-                     ["bruteforce", "--t", "1", "--n-paths", "10"], ["theory"], ["combine", "a.json"]):
+                     ["bruteforce", "--t", "1", "--n-paths", "10"], ["theory"], ["combine", "a.json"], ["duration"]):
             main(argv)
     finally:
         signal.signal(signal.SIGTERM, before)
     assert {c for c, h in seen.items() if h is interrupts._terminate} == {"estimate", "sweep", "figures"}
-    assert {c for c, h in seen.items() if h is signal.SIG_DFL} == {"bench", "bruteforce", "theory", "combine"}
+    assert {c for c, h in seen.items() if h is signal.SIG_DFL} == {"bench", "bruteforce", "theory", "combine",
+                                                                    "duration"}
 
 
 @pytest.mark.parametrize("argv, hint", [
@@ -1052,7 +1053,8 @@ def test_every_option_of_every_command_says_what_it_is():
                    for s in a.option_strings})
     assert bare == [], bare
     seeds = [a.help for a in _all_actions(build_parser()) if "--seed" in a.option_strings]
-    assert len(seeds) == 4 and "[0, 2^62 - 2^20]" in seeds[0]  # estimate, bruteforce, figures, sweep
+    assert len(seeds) == 5 and "[0, 2^62 - 2^20]" in seeds[0]  # estimate, bruteforce, duration, figures, sweep
+    assert all("[0, 2^62 - 2^20]" in s for s in seeds[:3])
 
 
 def test_version_option_prints_the_package_version(capsys):

@@ -1,0 +1,51 @@
+"""``dryfric duration``: the DI's mean long-excursion duration (dryfric_jax.durations) from the command line."""
+import json
+
+import pytest
+
+from dryfric_jax.cli import main
+from dryfric_jax.durations import di_long_excursion_duration
+from dryfric_jax.params import FIG3, Params
+
+SMALL = ["--n-lanes", "32", "--n-half", "2"]
+
+
+def test_prints_the_mean_with_its_ci_and_is_the_python_result(capsys):
+    """The text and the JSON are the library's result for the same seed and settings, to the last bit."""
+    assert main(["duration", *SMALL, "--seed", "4"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("mean long-excursion duration = ") and "32 lanes x 2 half excursions" in out
+    assert main(["duration", *SMALL, "--seed", "4", "--json"]) == 0
+    got = json.loads(capsys.readouterr().out)
+    want = json.loads(di_long_excursion_duration(Params(**FIG3), 4, n_lanes=32, n_half=2).to_json())
+    assert {k: v for k, v in got.items() if k != "wall_s"} == {k: v for k, v in want.items() if k != "wall_s"}
+    assert got["params"] == FIG3 and got["seed"] == 4 and got["warnings"] == []
+
+
+def test_out_file_and_strict_json_for_tau_L_inf(tmp_path, capsys):
+    out = tmp_path / "d.json"
+    assert main(["duration", *SMALL, "--tau-L", "inf", "--gamma-bar", "0", "--out", str(out), "--json"]) == 0
+    printed = capsys.readouterr().out
+    assert json.loads(out.read_text()) == json.loads(printed) and '"tau_L": "inf"' in printed
+
+
+def test_truncated_lanes_exit_3_unless_allowed(capsys):
+    """Lanes stopped by --max-steps are counted, said and exit 3 (the mean is biased low), as 'estimate' does with
+    truncated excursions; --allow-truncated accepts them."""
+    argv = ["duration", *SMALL, "--max-steps", "15000"]
+    assert main(argv) == 3
+    err = capsys.readouterr().err
+    assert "lanes stopped by max_steps = 15000" in err and "lanes truncated: the mean above is biased low" in err
+    assert main([*argv, "--allow-truncated"]) == 0
+
+
+@pytest.mark.parametrize("argv,said", [
+    (["--n-half", "3"], "n_half must be even"), (["--n-lanes", "1"], "--n-lanes"),
+    (["--max-steps", "0"], "--max-steps"),
+    (["--max-steps", "128"], "max_steps = 128 is too small"), (["--dtype", "float16"], "dtype must be one of"),
+    (["--tau-L", "inf", "--gamma-bar", "4"], "gamma_bar must satisfy |gamma_bar| < Delta"), (["--h", "-1"], "h must"),
+    (["--seed", "-1"], "--seed")])
+def test_bad_input_exits_2_with_one_line(capsys, argv, said):
+    assert main(["duration", *SMALL[:2], *argv]) == 2
+    err = capsys.readouterr().err
+    assert said in err and "Traceback" not in err and err.startswith("dryfric: error: ")
