@@ -1,4 +1,4 @@
-"""Command line: ``dryfric estimate | bruteforce | theory | combine | sweep | figures | bench``.
+"""Command line: ``dryfric estimate | bruteforce | theory | duration | combine | sweep | figures | bench``.
 
 Exit codes: 0 success; 2 a user mistake (one line on stderr naming the parameter and its valid
 range, no traceback, nothing simulated); 3 a result was printed (and written to ``--out``) but
@@ -9,7 +9,8 @@ excursions hit the work bound, so it is biased (``--allow-truncated`` accepts it
 141 stdout's reader closed the pipe (``dryfric estimate | head -1``), quietly, as SIGPIPE would.
 ``sweep`` runs every point it can: 1 if a point ended without a result, else 3 if a point's
 excursions were truncated (``--allow-truncated``), else 0; its refused and failed points are
-recorded in the results file with their reasons.
+recorded in the results file with their reasons.  ``duration``: 3 when lanes hit ``--max-steps`` (the mean
+printed is biased low), 2 when fewer than 2 lanes reached their count within it (its ``ValueError`` in Python).
 """
 from __future__ import annotations
 
