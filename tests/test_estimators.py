@@ -358,3 +358,19 @@ def test_t_quantile_refuses_bad_degrees_of_freedom():
             t_quantile(0.95, bad)
     with pytest.raises(ValueError, match="level"):
         t_quantile(1.0, 5)
+
+
+def test_t_quantile_at_the_edges():
+    """An audit: a level below ~1e-16 looped for ever (z_quantile rounds it to 0, and doubling 0 stays 0), a df
+    beyond float range raised OverflowError, a 0-d integer array was refused.  Near level 0 the quantile is
+    level x its density's reciprocal at 0, sqrt(df pi) Gamma(df/2) / Gamma((df + 1)/2) / 2 (5: 1.3172); a huge
+    df gives the normal quantile."""
+    from math import gamma, pi, sqrt
+
+    from dryfric_jax.estimators import t_quantile, z_quantile
+
+    slope = sqrt(5 * pi) * gamma(2.5) / gamma(3.0) / 2
+    for level in (1e-17, 1e-300):
+        assert t_quantile(level, 5) == pytest.approx(level * slope, rel=1e-9)
+    assert t_quantile(0.95, 10**400) == z_quantile(0.95)
+    assert t_quantile(0.95, np.array(5)) == t_quantile(0.95, 5) == t_quantile(0.95, np.int8(5))
