@@ -54,7 +54,8 @@ from .api import DryfricWarning, _key, _Record, _with_warnings, key_id
 from .di import make_di_model
 from .excursions import BLOCK, block_keys
 from .estimators import t_quantile
-from .plan import MAX_LANES, check_count, choose
+from .limits import MAX_WORK, check_work
+from .plan import MAX_LANES, check_count, check_max_work, choose
 
 
 @dataclass(frozen=True)
@@ -146,7 +147,8 @@ MAX_STEPS = (2**31 - 2) * BLOCK
 
 
 def di_long_excursion_duration(params, key, h: float | None = None, n_lanes: int = 256, n_half: int = 20,
-                               max_steps: int = 10**8, dtype: str = "float64") -> LEDuration:
+                               max_steps: int = 10**8, dtype: str = "float64",
+                               max_work: float = MAX_WORK) -> LEDuration:
     r"""Mean duration of the paper's long excursion of the DI at step ``h`` (module docstring), in seconds.
 
     Args:
@@ -160,6 +162,9 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_lanes: int
             blocks of 128).
         dtype: ``"float64"`` or ``"float32"`` (or the dtype), the chain's; float32 where it is not safe runs in
             float64 with a :class:`~dryfric_jax.DryfricWarning`, as :func:`~dryfric_jax.estimate_diffusivity` does.
+        max_work: a run whose predicted lane-steps (:func:`~dryfric_jax.limits.check_work`, for the
+            ``n_lanes * n_half / 2`` long excursions) exceed it is refused before it starts, as the estimator's
+            (h = 1e-10 s at Fig. 3's point would run ~15 min to its bound, then fail: an audit).
 
     ``ValueError`` naming the argument, also where the estimator refuses the parameters (tau_L = inf with
     :math:`|\bar\gamma| \ge \Delta`: the particle runs away; it gave a number here, 9 of 32 lanes truncated);
@@ -174,6 +179,12 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_lanes: int
         raise ValueError(f"n_half must be even, as many +HLEs as -HLEs (got {n_half})")
     max_steps = check_count("max_steps", max_steps, 1, MAX_STEPS, " (blocks of 128 steps counted in 32 bits)")
     h, dtype = plan.h, plan.dtype
+    max_work = check_max_work(max_work)
+    try:
+        check_work(params.tau_nd, params.tau_L_nd, params.gamma_bar_nd, params.tau0 / h, n_lanes * n_half // 2,
+                   max_work)
+    except ValueError as e:
+        raise ValueError(f"{e} (here the excursions are n_lanes x n_half / 2: lower n_lanes or n_half)") from None
     notes = plan.notes + ([f"tau/h = {params.tau / h:.3g} < {MIN_TAU_STEPS}: the noise decorrelates within a few "
                            "steps, so releases happen at any X and the count of their changes of direction is not "
                            "the paper's long excursion (threshold to threshold); lower h"]
@@ -182,20 +193,21 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_lanes: int
         warnings.warn(note, DryfricWarning, stacklevel=2)
     model = make_di_model(params, h, jnp.dtype(dtype))
     max_blocks = -(-max_steps // BLOCK)
+    bound = max_blocks * BLOCK  # the bound used: max_steps rounded up to whole blocks
     done, span, steps, blocks = (np.asarray(a) for a in _run(model, jax.random.split(key, n_lanes),
                                                              jnp.int32(n_half), jnp.int32(max_blocks), block=BLOCK))
     d = 2.0 * span[done] * h / n_half
     k = int(done.sum())
     if k < 2:  # no mean or no spread: say why rather than return a NaN
-        raise ValueError(f"max_steps = {max_steps} is too small here: {k} of {n_lanes} lanes ran {n_half} half "
+        raise ValueError(f"max_steps = {bound} is too small here: {k} of {n_lanes} lanes ran {n_half} half "
                          f"excursions within it (at least 2 must); raise max_steps or lower n_half")
     if k < n_lanes:
-        note = (f"{n_lanes - k} of {n_lanes} lanes stopped by max_steps = {max_steps} before their {n_half} half "
+        note = (f"{n_lanes - k} of {n_lanes} lanes stopped by max_steps = {bound} before their {n_half} half "
                 "excursions: left out, so the mean is biased low; raise max_steps")
         warnings.warn(note, DryfricWarning, stacklevel=2)
         notes.append(note)
     ci = t_quantile(0.95, k - 1) * d.std(ddof=1) / math.sqrt(k)
     return LEDuration(mean=float(d.mean()), ci=float(ci), n_lanes=k, n_half=n_half, n_truncated=n_lanes - k,
                       h=float(h), dtype=dtype, lane_steps=int(steps.sum()), loop_steps=n_lanes * int(blocks) * BLOCK,
-                      max_steps=max_blocks * BLOCK, seed=seed, key=None if seed is not None else key_id(key),
+                      max_steps=bound, seed=seed, key=None if seed is not None else key_id(key),
                       params=params.as_dict(), warnings=tuple(notes), wall_s=time.perf_counter() - t0)

@@ -182,3 +182,16 @@ def test_tau_below_a_few_steps_is_flagged(monkeypatch):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         di_long_excursion_duration(p, 0, h=p.tau / (2 * MIN_TAU_STEPS), n_lanes=4, n_half=2)
+
+
+def test_a_run_predicted_beyond_max_work_is_refused_before_it_starts(monkeypatch):
+    """h = 1e-10 s at Fig. 3's point ran to its bound (~15 min on 2 cores, an audit estimate) and then failed: the
+    estimator's work prediction (limits.check_work, for n_lanes x n_half / 2 excursions) refuses it at once."""
+    from dryfric_jax import durations
+
+    monkeypatch.setattr(durations, "_run", lambda *a, **k: pytest.fail("ran"))
+    p = Params(**FIG3)
+    with pytest.raises(ValueError, match=r"max_work must be >= .* \(here the excursions are n_lanes x n_half / 2"):
+        di_long_excursion_duration(p, 0, h=1e-10)
+    with pytest.raises(ValueError, match="max_work must be a finite number"):
+        di_long_excursion_duration(p, 0, max_work=float("nan"))
