@@ -206,3 +206,14 @@ def test_a_scene_json_of_an_older_layout_is_not_finished(tmp_path, name, layout,
         nums["layout"] = layout
     (tmp_path / f"{name}.json").write_text(json.dumps(nums))
     assert (common.finished(str(tmp_path), name, True, 3) is not None) == kept
+
+
+
+@pytest.mark.parametrize("key,value", [("seed", True), ("layout", 2.0), ("layout", True), ("quick", 1), ("seed", 1.0)])
+def test_a_scene_json_whose_meta_has_another_type_is_not_finished(tmp_path, key, value):
+    """seed = true passed for seed 1, layout = 2.0 for 2 (Python's == across bool, int and float; an audit)."""
+    fig, _ = plt.subplots()
+    nums = common.save(fig, str(tmp_path), "fig3", dict(a=1), 0.0, quick=True, seed=1)
+    assert common.finished(str(tmp_path), "fig3", True, 1) is not None
+    (tmp_path / "fig3.json").write_text(json.dumps(dict(nums, **{key: value})))
+    assert common.finished(str(tmp_path), "fig3", True, 1) is None

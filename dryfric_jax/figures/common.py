@@ -75,7 +75,9 @@ def finished(out_dir: str, name: str, quick: bool, seed: int) -> dict | None:
     except (OSError, ValueError):
         return None
     want = _meta(quick, seed, name)
-    if not isinstance(nums, dict) or any(nums.get(k, 1 if k == "layout" else None) != want[k]
-                                         for k in ("seed", "quick", "version", "layout")):
+    # of the same type too: Python's == took a JSON true for seed 1 and 2.0 for layout 2 (an audit)
+    same = lambda k, got: type(got) is type(want[k]) and got == want[k]  # noqa: E731
+    if not isinstance(nums, dict) or not all(same(k, nums.get(k, 1 if k == "layout" else None))
+                                             for k in ("seed", "quick", "version", "layout")):
         return None
     return nums
