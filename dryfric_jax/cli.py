@@ -281,7 +281,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "of direction of their releases; the 95% CI is Student's t over the lanes.  Its bias falls "
                         "slowly with h (Fig. 3 runs at h/8: RESULTS.md).  'dryfric estimate' prints the mean "
                         "duration of its regeneration cycles, each one or more of these.")
-    du.add_argument("--h", type=_number("h"), default=None, help="DI step, s (default 0.01*min(tau0, tau_L))")
+    du.add_argument("--h", type=_number("h"), default=None,
+                    help="DI step, s (default 0.01*min(tau0, tau_L)/8: the count's bias falls slowly with h)")
     du.add_argument("--seed", type=_seed, default=0, help="random seed, an integer in [0, 2^62 - 2^20] (default 0)")
     du.add_argument("--dtype", default="float64", help="float64 or float32 (float64 where float32 is not safe)")
     du.add_argument("--n-lanes", type=_int_at_least("n-lanes", 2, 2**22, "2^22"), default=256,

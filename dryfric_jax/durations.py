@@ -31,7 +31,8 @@ time a release is still not exactly at the threshold (X overshoots it), so the c
 with h: at that point 0.548, 0.479, 0.452 s (+- 0.009) at h, h/4, h/16 against the PDMP's 0.442
 (``tests/test_durations.py``). Where :math:`\tau \ll h` releases happen at any X and the count is not the
 paper's quantity: below :data:`MIN_TAU_STEPS` steps per :math:`\tau` a :class:`~dryfric_jax.DryfricWarning`
-says so; Fig. 3 has :math:`\tau/h \ge 187` at the default h.
+says so; Fig. 3 has :math:`\tau/h \ge 187` at the D estimator's default h, 8 times that at the count's
+(:data:`H_DIV`).
 
 Loops are bounded: a lane that has not reached its count after ``max_steps`` steps is counted in
 ``n_truncated`` and left out of the mean (which it would have raised: it is biased low then, and
@@ -55,7 +56,8 @@ from .di import make_di_model
 from .excursions import BLOCK, block_keys
 from .estimators import t_quantile
 from .limits import MAX_WORK, check_work
-from .plan import MAX_LANES, check_count, check_max_work, choose
+from .params import Params
+from .plan import MAX_LANES, check_count, check_max_work, choose, default_h
 
 
 @dataclass(frozen=True)
@@ -139,11 +141,22 @@ def _lane_loop(model, keys, n_half, max_blocks, block: int):
 
 # n_half and the bound are traced: a figure's points differ in them and share one compiled loop per lane count
 _run = jax.jit(_lane_loop, static_argnames=("block",))
+#: the count's default step is default_h / H_DIV (near the paper's h = 1e-4 s at Fig. 3's point), as Fig. 3's: its
+#: bias falls slowly with h.  At Fig. 3's point the DI's mean duration was 4.50, 4.24, 4.15 and 4.09 s (+- 0.05) at
+#: 4, 1, 1/4 and 1/16 times default_h, the PDMP's 4.17, 4.14 and 4.11 (+- 0.035) at delta = 0.125, 0.0625, 0.03125;
+#: at Gamma = 10, tau = 0.125 s 0.68, 0.55, 0.48, 0.45 (+- 0.01) against 0.442; at Gamma = 7.74, tau = 1 s 10.01 and
+#: 10.03 (+- 0.25) at 1/8 and 1/32 against the PDMP's 10.19 (+- 0.06) at delta = 0.0156 (RESULTS.md)
+H_DIV = 8
 #: steps per tau below which a warning says the count is not the paper's long excursion.  The count's bias is
 #: already +24% at tau/h = 187 (Gamma = 10, tau = 0.125 s, the default h), +2.4% at 746 (Fig. 3's point)
 MIN_TAU_STEPS = 10
 #: each lane's bound in steps: whole blocks, counted in int32 and folded into its key
 MAX_STEPS = (2**31 - 2) * BLOCK
+
+
+def default_duration_h(params: Params) -> float:
+    """The count's default step in seconds: :func:`~dryfric_jax.plan.default_h` / :data:`H_DIV`."""
+    return default_h(params) / H_DIV
 
 
 def di_long_excursion_duration(params, key, h: float | None = None, n_lanes: int = 256, n_half: int = 20,
@@ -155,7 +168,8 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_lanes: int
         params: :class:`~dryfric_jax.Params`.
         key: a ``jax.random`` key or an integer seed in [0, 2^62]; lane l uses ``split(key, n_lanes)[l]``,
             its block b ``fold_in(lane_key, b)``.
-        h: DI step in seconds (default :func:`~dryfric_jax.plan.default_h`, as the D estimator's).
+        h: DI step in seconds (default :func:`default_duration_h`, :data:`H_DIV` times finer than the D
+            estimator's :func:`~dryfric_jax.plan.default_h`: the count's bias falls slowly with h).
         n_lanes: independent lanes, an integer in [2, 2^22] (the CI is their spread).
         n_half: HLEs per lane, an even integer >= 2.
         max_steps: bound on each lane's steps, an integer in [1, :data:`MAX_STEPS`] (rounded up to whole
@@ -171,6 +185,8 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_lanes: int
     the result's ``n_truncated`` counts lanes stopped by ``max_steps``.
     """
     t0 = time.perf_counter()
+    if h is None and isinstance(params, Params):  # a non-Params is refused by choose, by name
+        h = default_duration_h(params)
     plan = choose(params, "di", h, None, dtype)  # the estimator's checks: a stationary state, a simulable tau_L,
     key, seed = _key(key)  # h, the dtype (float32 only where safe)
     n_lanes = check_count("n_lanes", n_lanes, 2, MAX_LANES)

@@ -32,7 +32,7 @@ def test_out_file_and_strict_json_for_tau_L_inf(tmp_path, capsys):
 def test_truncated_lanes_exit_3_unless_allowed(capsys):
     """Lanes stopped by --max-steps are counted, said and exit 3 (the mean is biased low), as 'estimate' does with
     truncated excursions; --allow-truncated accepts them."""
-    argv = ["duration", *SMALL, "--max-steps", "15000"]
+    argv = ["duration", *SMALL, "--max-steps", "15000", "--h", "6.7e-4"]  # the D estimator's h: shorter runs
     assert main(argv) == 3
     err = capsys.readouterr().err
     assert "lanes stopped by max_steps = 15104" in err and "lanes truncated: the mean above is biased low" in err
@@ -62,7 +62,7 @@ def test_a_run_that_fails_still_says_its_warnings_first(capsys):
 
 
 def test_warnings_are_said_once_and_kept_in_the_json(capsys):
-    assert main(["duration", *SMALL, "--max-steps", "15000", "--json", "--allow-truncated"]) == 0
+    assert main(["duration", *SMALL, "--max-steps", "15000", "--h", "6.7e-4", "--json", "--allow-truncated"]) == 0
     cap = capsys.readouterr()
     said = [line for line in cap.err.splitlines() if "lanes stopped by max_steps = 15104" in line]
     assert len(said) == 1 and json.loads(cap.out)["warnings"] == [said[0].removeprefix("dryfric: warning: ")]

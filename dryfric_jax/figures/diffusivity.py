@@ -26,7 +26,7 @@ from .. import theory
 from ..chain_law import white_chain_law
 from ..di import make_di_model
 from ..durations import MAX_STEPS as DUR_MAX_STEPS
-from ..durations import di_long_excursion_duration
+from ..durations import H_DIV, default_duration_h, di_long_excursion_duration
 from ..params import Params, real_or_none
 from ..paths import di_stationary
 from ..plan import default_h, plan_estimate
@@ -38,11 +38,8 @@ DELTA, TAU_L, GBAR = 3.84, 0.067, 0.342
 
 #: smallest N a figure point is lowered to; below it the CI bars would say little
 N_FLOOR = 1000
-#: the DI duration runs' step, default_h / DUR_H_DIV (near the paper's h = 1e-4 s): the count's bias falls
-#: slowly with h.  At Fig. 3's point the DI's mean duration was 4.50, 4.24, 4.15 and 4.09 s (+- 0.05) at 4, 1,
-#: 1/4 and 1/16 times the default h, the PDMP's 4.17, 4.14 and 4.11 (+- 0.035) at delta = 0.125, 0.0625,
-#: 0.03125; at Gamma = 10, tau = 0.125 s 0.68, 0.55, 0.48, 0.45 (+- 0.01) against 0.442 (tests/test_durations.py)
-DUR_H_DIV = 8
+#: the DI duration runs' step is the count's default, default_h / DUR_H_DIV (durations.H_DIV, with its measurements)
+DUR_H_DIV = H_DIV
 #: lane-steps a DI duration point may take (lanes x half excursions planned from the D run's cycle duration); the
 #: floor of 32 lanes x 2 half excursions can exceed it (full tau = 1 s, Gamma = 1: 3.3e9 steps, 304 s, CI +-33%)
 DUR_WORK = {True: 3e7, False: 1e9}
@@ -58,7 +55,7 @@ def _di_durations(p, seed, cycle_s, quick):
     c = real_or_none(cycle_s)
     if c is None or not math.isfinite(c) or c <= 0:
         return None
-    h = default_h(p) / DUR_H_DIV
+    h = default_duration_h(p)
     hle_steps = max(c / 2 / h, 1.0)
     halves = DUR_WORK[quick] / hle_steps
     n_half = int(min(20, max(2, halves // 32 // 2 * 2)))
