@@ -278,21 +278,25 @@ def build_parser() -> argparse.ArgumentParser:
                         help="the paper's mean long-excursion duration of the DI (Fig. 3's right panel), by counting "
                              "releases", description="The DI's mean long-excursion duration in the paper's sense "
                         "(threshold to threshold; dryfric_jax/durations.py): lanes of the DI chain count the changes "
-                        "of direction of their releases; the 95% CI is Student's t over the lanes.  Its bias falls "
-                        "slowly with h (Fig. 3 runs at h/8: RESULTS.md).  'dryfric estimate' prints the mean "
-                        "duration of its regeneration cycles, each one or more of these.")
+                        "of direction of their releases, and stop starting new excursions once they have counted "
+                        "--n-excursions in all (those in flight are finished: no bias); the 95% CI is Student's t "
+                        "over the excursions.  Its bias falls slowly with h (Fig. 3 runs at h/8: RESULTS.md).  "
+                        "'dryfric estimate' prints the mean duration of its regeneration cycles, each one or more of "
+                        "these.")
     du.add_argument("--h", type=_number("h"), default=None,
                     help="DI step, s (default 0.01*min(tau0, tau_L)/8: the count's bias falls slowly with h)")
     du.add_argument("--seed", type=_seed, default=0, help="random seed, an integer in [0, 2^62 - 2^20] (default 0)")
     du.add_argument("--dtype", default="float64", help="float64 or float32 (float64 where float32 is not safe)")
-    du.add_argument("--n-lanes", type=_int_at_least("n-lanes", 2, 2**22, "2^22"), default=256,
-                    help="independent lanes (default 256); the CI is their spread")
-    du.add_argument("--n-half", type=_int_at_least("n-half", 2, 2**30, "2^30"), default=20,
-                    help="half excursions per lane, an even number (default 20)")
+    du.add_argument("--n-excursions", type=_int_at_least("n-excursions", 2, 2**40, "2^40"), default=2048,
+                    help="long excursions to count (default 2048); those in flight when the lanes' total reaches it "
+                         "are finished, so a few more are counted")
+    du.add_argument("--n-lanes", type=_int_at_least("n-lanes", 1, 2**22, "2^22"), default=None,
+                    help="lanes (default: the power of 2 nearest n-excursions/10, in [16, 256]); they change the "
+                         "random numbers, not the law")
     du.add_argument("--max-steps", type=_int_at_least("max-steps", 1, DUR_MAX_STEPS, "(2^31 - 2) x 128"),
                     default=10**8,
-                    help="bound on each lane's steps (default 1e8); a lane that reaches it is left out and counted "
-                         "(the mean is then biased low: exit 3)")
+                    help="bound on the loop's steps (default 1e8); an excursion in flight there is left out and "
+                         "counted (the mean is then biased low: exit 3)")
     du.add_argument("--max-work", type=_number("max-work"), default=None,
                     help="cap on the predicted lane-steps of the run; a run predicted to need more is refused before "
                          "it starts (default 1e11)")
@@ -608,15 +612,13 @@ def _run(a) -> int:
     if a.cmd == "duration":
         from .durations import di_long_excursion_duration
 
-        if a.n_half % 2:
-            raise _UserError(f"--n-half must be even, as many +HLEs as -HLEs (got {a.n_half})")
         with _warnings_as_lines():  # said as they come: a run that then fails (max_steps too small) still says why
-            r = di_long_excursion_duration(params, a.seed, h=a.h, n_lanes=a.n_lanes, n_half=a.n_half,
+            r = di_long_excursion_duration(params, a.seed, h=a.h, n_excursions=a.n_excursions, n_lanes=a.n_lanes,
                                            max_steps=a.max_steps, dtype=a.dtype, **_work_options(a))
         print(dumps(r.to_dict()) if a.json else r.summary(), flush=True)  # its warnings were said above
         _write_out(a.out, r.to_dict())
         if r.n_truncated and not a.allow_truncated:
-            print(f"dryfric: warning: {r.n_truncated} lanes truncated: the mean above is biased low; exit 3 "
+            print(f"dryfric: warning: {r.n_truncated} long excursions truncated: the mean above is biased low; exit 3 "
                   "(--allow-truncated accepts it, a larger --max-steps spares it)", file=sys.stderr)
             return 3
         return 0

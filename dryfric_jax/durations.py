@@ -11,32 +11,42 @@ direction are independent, alternating + and -.
 
 Here each lane runs the DI chain (:meth:`~dryfric_jax.di.DIModel.move`; noise stationary,
 :math:`V_0 = 0`) and counts releases (:math:`V_{n-1} = V_n = 0 \ne V_{n+1}`: stuck a whole step,
-then moving) whose direction differs from the previous release's.  From its first such change to
-its :math:`(n_{1/2} + 1)`-th it holds :math:`n_{1/2}` whole HLEs (:math:`n_{1/2}` even: as many + as -), so
+then moving) whose direction differs from the previous release's.  Its first such change starts a long
+excursion (LE); every second change after it ends one and starts the next, so the lane runs LE after LE and
+adds each one's duration :math:`d` (in steps) to its sums :math:`N, \sum d, \sum d^2`.
+
+**When the lanes stop (unbiased under a stopping rule).**  After each block of 128 steps the loop checks the
+lanes' total :math:`\sum N`; from the block where it reaches ``n_excursions`` on, a lane starts no new LE: it
+finishes the one in flight, then stands still (a lane that has not started one stops at once).  Whether an LE
+is counted is thus decided when it starts, before its duration is drawn, so by Wald's identity
+:math:`E\sum d = \mu\,E\sum N` with :math:`\mu` the mean LE duration, and the ratio
 
 .. math::
-    d_l = \frac{2 h\,(n_b - n_a)}{n_{1/2}}
+    \hat\mu = h\,\frac{\sum d}{N}, \qquad \text{95\% CI } t_{N-1}\,\frac{h\,s_d}{\sqrt N}
 
-is the mean of :math:`n_{1/2}/2` i.i.d. long-excursion durations, and the lanes' :math:`d_l` are i.i.d.:
-their mean, with a 95% CI of :math:`t_{L-1}\,\mathrm{sd}/\sqrt{L}` (Student's quantile,
-:func:`~dryfric_jax.estimators.t_quantile`). The durations are right-skewed, so with few excursions in all
-the CI covers less than 95%: measured at Gamma = 10, tau = 0.125 s over 1000 replicates (against a pooled
-0.5353 +- 0.0016 s), 0.929 +- 0.008 with 32 lanes x 2 HLEs (Fig. 3's floor; 0.913 with 1.96 in place of
-:math:`t_{31}`), 0.943 +- 0.007 with 64 x 2, 0.932 with 32 x 4 and, with 1.96, 0.943 with 32 x 20 (the
-default 20 HLEs). Each lane runs a fixed number of HLEs, not a fixed time, so nothing is cut at a horizon (a
-fixed horizon would weigh short excursions more). A V that lands on 0 for one step while passing through it
-(the force beyond the threshold) is not a release: counting those (a first version) ended half excursions
-early, 15 SE below the PDMP at Gamma = 10, tau = 0.125 s, h/16, and further below as h fell. In discrete
-time a release is still not exactly at the threshold (X overshoots it), so the count has a bias that falls
-with h: at that point 0.548, 0.479, 0.452 s (+- 0.009) at h, h/4, h/16 against the PDMP's 0.442
-(``tests/test_durations.py``). Where :math:`\tau \ll h` releases happen at any X and the count is not the
-paper's quantity: below :data:`MIN_TAU_STEPS` steps per :math:`\tau` a :class:`~dryfric_jax.DryfricWarning`
-says so; Fig. 3 has :math:`\tau/h \ge 187` at the D estimator's default h, 8 times that at the count's
-(:data:`H_DIV`).
+over the :math:`N` LEs of all lanes is consistent (its bias is :math:`O(1/N)`; :math:`s_d` their sample sd,
+Student's quantile :func:`~dryfric_jax.estimators.t_quantile`).  Stopping at a horizon and dropping the LEs
+in flight there instead would leave out the long ones: -32% at a horizon of 3 mean durations (``RESULTS.md``,
+``tests/test_durations.py``).  The old design (each lane a fixed number of LEs) was exactly unbiased but idled
+its finished lanes until the slowest was done: 1.4-2.2x more wall time per LE on 2 CPU cores (``RESULTS.md``).
+The LEs are i.i.d. in continuous time (each starts at :math:`(x_{\pm\Delta}, 0)`); in discrete time X overshoots
+the threshold a little, and the spread of the lanes' ratios matched the pooled :math:`s_d` (tested).
+Measured at Gamma = 10, tau = 0.125 s, the D estimator's h, 1000 replicates each against 0.53548 +- 0.00047 s
+(``scripts/duration_coverage.py``): coverage 0.939 +- 0.008, 0.936 +- 0.008, 0.951 +- 0.007 and bias
+-0.3 +- 0.4%, -0.03 +- 0.23%, -0.08 +- 0.06% for 32 (Fig. 3's floor; 63 counted on average, in 32 lanes), 128
+(162 counted) and 2048 (2324) asked: the durations are right-skewed, so a few dozen LEs cover a little less
+than 95%.
 
-Loops are bounded: a lane that has not reached its count after ``max_steps`` steps is counted in
-``n_truncated`` and left out of the mean (which it would have raised: it is biased low then, and
-the result says so).
+In discrete time a release is not exactly at the threshold (X overshoots it), so the count has a bias that falls
+with h: at Gamma = 10, tau = 0.125 s 0.548, 0.479, 0.452 s (+- 0.009) at h, h/4, h/16 against the PDMP's 0.442
+(``tests/test_durations.py``).  A V that lands on 0 for one step while passing through it (the force beyond the
+threshold) is not a release: counting those (a first version) ended half excursions early, 15 SE below the PDMP
+at that point, h/16.  Where :math:`\tau \ll h` releases happen at any X and the count is not the paper's
+quantity: below :data:`MIN_TAU_STEPS` steps per :math:`\tau` a :class:`~dryfric_jax.DryfricWarning` says so;
+Fig. 3 has :math:`\tau/h \ge 187` at the D estimator's default h, 8 times that at the count's (:data:`H_DIV`).
+
+Loops are bounded: the loop runs at most ``max_steps`` steps; an LE still in flight there is dropped (which
+biases the mean low), counted in ``n_truncated`` and warned about.
 """
 from __future__ import annotations
 
@@ -68,14 +78,15 @@ class LEDuration(_Record):
 
     mean: float
     ci: float
-    n_lanes: int  # lanes that reached their count
-    n_half: int  # HLEs per lane
-    n_truncated: int  # lanes stopped by max_steps (left out: the mean is then biased low)
+    n_excursions: int  # long excursions counted (>= n_requested unless the bound stopped the loop)
+    n_requested: int  # the run's n_excursions: from the block where the lanes' total reached it, none started
+    n_lanes: int
+    n_truncated: int  # excursions in flight at the bound max_steps: dropped (the mean is then biased low)
     h: float
     dtype: str  # the chain's: float32 where asked and safe (else float64, with a warning)
-    lane_steps: int  # steps the lanes ran until each reached its count (or its bound), all lanes
-    loop_steps: int  # steps computed: lanes x the slowest lane's, as a lane that finished stands still in the loop
-    max_steps: int = 0  # each lane's bound (whole blocks of 128)
+    lane_steps: int  # steps the lanes ran until each stopped (its seek for a first change included)
+    loop_steps: int  # steps computed: lanes x the loop's steps, as a lane that stopped stands still in the loop
+    max_steps: int = 0  # the loop's bound (whole blocks of 128)
     seed: int | None = None  # None for a jax.random key
     key: str | None = None  # a key-made run's key (api.key_id); None for a seed
     params: dict = field(default_factory=dict)
@@ -84,21 +95,24 @@ class LEDuration(_Record):
     wall_s: float = field(default=0.0, compare=False)
 
     def summary(self) -> str:
-        """The mean with its CI, the lanes behind it, the step and what made it (what ``dryfric duration``
+        """The mean with its CI, the excursions behind it, the step and what made it (what ``dryfric duration``
         prints)."""
         rel = f"  ({100 * self.ci / self.mean:.1f}%)" if self.mean else ""
         return (f"mean long-excursion duration = {self.mean:.6g} ± {self.ci:.2g} s{rel}   (95% CI, Student t over "
-                f"the lanes)\n{self.n_lanes} lanes x {self.n_half} half excursions (releases counted), "
-                f"{self.n_truncated} lanes truncated, h = {self.h:.3g} s, {self.dtype}, "
+                f"the excursions)\n{self.n_excursions} long excursions (releases counted; {self.n_requested} asked) "
+                f"in {self.n_lanes} lanes, {self.n_truncated} truncated, h = {self.h:.3g} s, {self.dtype}, "
                 + (f"seed {self.seed}" if self.key is None else f"key {self.key}")
                 + f"\nwall {self.wall_s:.1f} s, {self.loop_steps:.3g} lane-steps computed "
-                f"({self.lane_steps:.3g} needed by the lanes)")
+                f"({self.lane_steps:.3g} run by the lanes)")
 
     def __str__(self) -> str:
         return _with_warnings(self.summary(), self.warnings)
 
 
-def _lane_loop(model, keys, n_half, max_blocks, block: int):
+def _lane_loop(model, keys, n_excursions, max_blocks, block: int):
+    """The lanes' loop (module docstring): returns per lane the LEs counted, the sums of their durations and of
+    their squares (in steps), whether it stopped by the rule (not in flight at the bound), an LE in flight, its
+    steps; and the blocks the loop ran."""
     dt = model.h.dtype
     lanes = keys.shape[0]
     x0 = jax.vmap(lambda k: jax.random.normal(jax.random.fold_in(k, 2**31 - 1), (), dt))(keys)
@@ -106,40 +120,45 @@ def _lane_loop(model, keys, n_half, max_blocks, block: int):
                   / (1.0 - model.ou.m2.astype(jnp.float64) ** 2)).astype(dt)  # the X chain's stationary sd
     zero_i = jnp.zeros(lanes, jnp.int32)
     zero_n = jnp.zeros(lanes, jnp.int64)
-    # X, V, whether V was 0 a step before, last release direction (0: none yet), changes counted, step index,
-    # step of the first change, of the last
-    carry = (x0 * sd, jnp.zeros(lanes, dt), jnp.zeros(lanes, bool), zero_i, zero_i, zero_n, zero_n, zero_n)
+    no = jnp.zeros(lanes, bool)
+    # X, V, whether V was 0 a step before, last release direction (0: none yet), phase (0: no change of direction
+    # yet, 1 / 2: in the first / second HLE of an LE), step index, step of the LE's start, stopped, and the sums:
+    # LEs, their steps, their steps squared
+    carry = (x0 * sd, jnp.zeros(lanes, dt), no, zero_i, zero_i, zero_n, zero_n, no, zero_n, zero_n,
+             jnp.zeros(lanes, jnp.float64))
 
-    def step(z1, z2, c):
-        X, V, stuck, last, K, n, na, nb = c
-        done = K > n_half
+    def step(z1, z2, stop, c):
+        X, V, stuck, last, ph, n, s0, off, N, S, Q = c
         _, Xn, Vn, _ = model.move(X, V, z1, z2)
         s = jnp.sign(Vn).astype(jnp.int32)
         release = stuck & (V == 0) & (Vn != 0)  # stuck a whole step before: not a pass through 0
-        change = release & (last != 0) & (s != last) & ~done
+        change = release & (last != 0) & (s != last) & ~off
         n1 = n + 1
-        na = jnp.where(change & (K == 0), n1, na)
-        nb = jnp.where(change & (K == n_half), n1, nb)
-        K = K + change.astype(jnp.int32)
-        keep = lambda new, old: jnp.where(done, old, new)  # noqa: E731  (a finished lane stands still)
-        return (keep(Xn, X), keep(Vn, V), keep(V == 0, stuck), keep(jnp.where(release, s, last), last), K, keep(n1, n),
-                na, nb)
+        end = change & (ph == 2)  # an LE ends here (and the next starts, unless the lanes stop)
+        d = n1 - s0
+        keep = lambda new, old: jnp.where(off, old, new)  # noqa: E731  (a stopped lane stands still)
+        return (keep(Xn, X), keep(Vn, V), keep(V == 0, stuck), keep(jnp.where(release, s, last), last),
+                jnp.where(change, jnp.where(ph == 1, 2, 1), ph), keep(n1, n), jnp.where(change & (ph != 1), n1, s0),
+                off | (end & stop), N + end, S + jnp.where(end, d, 0),
+                Q + jnp.where(end, d.astype(jnp.float64) ** 2, 0.0))
 
-    def body(bc):
-        b, c = bc
+    def body(st):
+        b, stop, c = st
         z1, z2 = rng.normals(block_keys(keys, b), block, 2, dt)
-        c = jax.lax.fori_loop(0, block, lambda i, cc: step(z1[i], z2[i], cc), c)
-        return b + 1, c
+        c = jax.lax.fori_loop(0, block, lambda i, cc: step(z1[i], z2[i], stop, cc), c)
+        stop = stop | (c[8].sum() >= n_excursions)  # from the next block on, no lane starts an LE
+        c = c[:7] + (c[7] | (stop & (c[4] == 0)),) + c[8:]  # a lane with none started stops at once
+        return b + 1, stop, c
 
-    def cond(bc):
-        b, c = bc
-        return (b < max_blocks) & jnp.any(c[4] <= n_half)
+    def cond(st):
+        b, _, c = st
+        return (b < max_blocks) & ~jnp.all(c[7])
 
-    b, c = jax.lax.while_loop(cond, body, (jnp.int32(0), carry))
-    return c[4] > n_half, c[7] - c[6], c[5], b
+    b, _, c = jax.lax.while_loop(cond, body, (jnp.int32(0), jnp.bool_(False), carry))
+    return c[8], c[9], c[10], c[7], c[4] != 0, c[5], b
 
 
-# n_half and the bound are traced: a figure's points differ in them and share one compiled loop per lane count
+# n_excursions and the bound are traced: a figure's points differ in them and share one compiled loop per lane count
 _run = jax.jit(_lane_loop, static_argnames=("block",))
 #: the count's default step is default_h / H_DIV (near the paper's h = 1e-4 s at Fig. 3's point), as Fig. 3's: its
 #: bias falls slowly with h.  At Fig. 3's point the DI's mean duration was 4.50, 4.24, 4.15 and 4.09 s (+- 0.05) at
@@ -150,7 +169,7 @@ H_DIV = 8
 #: steps per tau below which a warning says the count is not the paper's long excursion.  The count's bias is
 #: already +24% at tau/h = 187 (Gamma = 10, tau = 0.125 s, the default h), +2.4% at 746 (Fig. 3's point)
 MIN_TAU_STEPS = 10
-#: each lane's bound in steps: whole blocks, counted in int32 and folded into its key
+#: the loop's bound in steps: whole blocks, counted in int32 and folded into the lanes' keys
 MAX_STEPS = (2**31 - 2) * BLOCK
 
 
@@ -159,8 +178,18 @@ def default_duration_h(params: Params) -> float:
     return default_h(params) / H_DIV
 
 
-def di_long_excursion_duration(params, key, h: float | None = None, n_lanes: int = 256, n_half: int = 20,
-                               max_steps: int = 10**8, dtype: str = "float64",
+def default_lanes(n_excursions: int) -> int:
+    """Lanes for ``n_excursions`` LEs: the power of 2 nearest ``n_excursions / 3``, within [32, 256].  After the
+    stop the loop runs until the longest LE in flight ends, ~ln(lanes) mean durations, so each lane should run
+    a few LEs; but a block's cost on a CPU grows far slower than its width below ~100 lanes.  Measured on 2 cores
+    (RESULTS.md), wall per LE counted: 32 asked at tau = 1 s, Gamma = 1.67 (~2.6e6 steps each), 0.42 s in 32
+    lanes against 1.0 in 16 and 0.40 in 64 (which count more: 83); 180 asked there, 0.14 s in 64 lanes against
+    0.33, 0.21, 0.15 in 16, 32, 128; 1024 at Gamma = 10, tau = 0.125 s, 0.97 and 0.90 ms in 128 and 256 lanes."""
+    return 2 ** int(min(8, max(5, round(math.log2(max(n_excursions, 1) / 3)))))
+
+
+def di_long_excursion_duration(params, key, h: float | None = None, n_excursions: int = 2048,
+                               n_lanes: int | None = None, max_steps: int = 10**8, dtype: str = "float64",
                                max_work: float = MAX_WORK) -> LEDuration:
     r"""Mean duration of the paper's long excursion of the DI at step ``h`` (module docstring), in seconds.
 
@@ -170,37 +199,36 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_lanes: int
             its block b ``fold_in(lane_key, b)``.
         h: DI step in seconds (default :func:`default_duration_h`, :data:`H_DIV` times finer than the D
             estimator's :func:`~dryfric_jax.plan.default_h`: the count's bias falls slowly with h).
-        n_lanes: independent lanes, an integer in [2, 2^22] (the CI is their spread).
-        n_half: HLEs per lane, an even integer >= 2.
-        max_steps: bound on each lane's steps, an integer in [1, :data:`MAX_STEPS`] (rounded up to whole
-            blocks of 128).
+        n_excursions: long excursions to count, an integer in [2, 2^40]: once the lanes' total reaches it no lane
+            starts another, and those in flight are finished (so a run counts a few more).
+        n_lanes: lanes, an integer in [1, 2^22] (default :func:`default_lanes`); they change the bits, not the
+            law.
+        max_steps: the loop's bound in steps, an integer in [1, :data:`MAX_STEPS`] (rounded up to whole blocks
+            of 128).
         dtype: ``"float64"`` or ``"float32"`` (or the dtype), the chain's; float32 where it is not safe runs in
             float64 with a :class:`~dryfric_jax.DryfricWarning`, as :func:`~dryfric_jax.estimate_diffusivity` does.
         max_work: a run whose predicted lane-steps (:func:`~dryfric_jax.limits.check_work`, for the
-            ``n_lanes * n_half / 2`` long excursions) exceed it is refused before it starts, as the estimator's
+            ``n_excursions`` long excursions) exceed it is refused before it starts, as the estimator's
             (h = 1e-10 s at Fig. 3's point would run ~15 min to its bound, then fail: an audit).
 
     ``ValueError`` naming the argument, also where the estimator refuses the parameters (tau_L = inf with
     :math:`|\bar\gamma| \ge \Delta`: the particle runs away; it gave a number here, 9 of 32 lanes truncated);
-    the result's ``n_truncated`` counts lanes stopped by ``max_steps``.
+    the result's ``n_truncated`` counts the LEs in flight at ``max_steps`` (dropped, with a warning).
     """
     t0 = time.perf_counter()
     if h is None and isinstance(params, Params):  # a non-Params is refused by choose, by name
         h = default_duration_h(params)
     plan = choose(params, "di", h, None, dtype)  # the estimator's checks: a stationary state, a simulable tau_L,
     key, seed = _key(key)  # h, the dtype (float32 only where safe)
-    n_lanes = check_count("n_lanes", n_lanes, 2, MAX_LANES)
-    n_half = check_count("n_half", n_half, 2, 2**30, " (HLEs per lane)")
-    if n_half % 2:
-        raise ValueError(f"n_half must be even, as many +HLEs as -HLEs (got {n_half})")
+    n_excursions = check_count("n_excursions", n_excursions, 2, 2**40, " (long excursions)")
+    n_lanes = default_lanes(n_excursions) if n_lanes is None else check_count("n_lanes", n_lanes, 1, MAX_LANES)
     max_steps = check_count("max_steps", max_steps, 1, MAX_STEPS, " (blocks of 128 steps counted in 32 bits)")
     h, dtype = plan.h, plan.dtype
     max_work = check_max_work(max_work)
     try:
-        check_work(params.tau_nd, params.tau_L_nd, params.gamma_bar_nd, params.tau0 / h, n_lanes * n_half // 2,
-                   max_work)
+        check_work(params.tau_nd, params.tau_L_nd, params.gamma_bar_nd, params.tau0 / h, n_excursions, max_work)
     except ValueError as e:
-        raise ValueError(f"{e} (here the excursions are n_lanes x n_half / 2: lower n_lanes or n_half)") from None
+        raise ValueError(f"{e} (here for n_excursions long excursions: lower it)") from None
     notes = plan.notes + ([f"tau/h = {params.tau / h:.3g} < {MIN_TAU_STEPS}: the noise decorrelates within a few "
                            "steps, so releases happen at any X and the count of their changes of direction is not "
                            "the paper's long excursion (threshold to threshold); lower h"]
@@ -210,20 +238,23 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_lanes: int
     model = make_di_model(params, h, jnp.dtype(dtype))
     max_blocks = -(-max_steps // BLOCK)
     bound = max_blocks * BLOCK  # the bound used: max_steps rounded up to whole blocks
-    done, span, steps, blocks = (np.asarray(a) for a in _run(model, jax.random.split(key, n_lanes),
-                                                             jnp.int32(n_half), jnp.int32(max_blocks), block=BLOCK))
-    d = 2.0 * span[done] * h / n_half
-    k = int(done.sum())
+    N, S, Q, off, started, steps, blocks = (np.asarray(a) for a in _run(
+        model, jax.random.split(key, n_lanes), jnp.int64(n_excursions), jnp.int32(max_blocks), block=BLOCK))
+    k, cut = int(N.sum()), int((started & ~off).sum())
     if k < 2:  # no mean or no spread: say why rather than return a NaN
-        raise ValueError(f"max_steps = {bound} is too small here: {k} of {n_lanes} lanes ran {n_half} half "
-                         f"excursions within it (at least 2 must); raise max_steps or lower n_half")
-    if k < n_lanes:
-        note = (f"{n_lanes - k} of {n_lanes} lanes stopped by max_steps = {bound} before their {n_half} half "
-                "excursions: left out, so the mean is biased low; raise max_steps")
+        raise ValueError(f"max_steps = {bound} is too small here: the {n_lanes} lanes counted {k} long excursions "
+                         f"within it (at least 2 must); raise max_steps")
+    if cut or k < n_excursions:
+        note = (f"the loop's bound max_steps = {bound} stopped {k} of the {n_excursions} long excursions asked"
+                + (f", with {cut} in flight: left out, so the mean is biased low" if cut else "")
+                + "; raise max_steps")
         warnings.warn(note, DryfricWarning, stacklevel=2)
         notes.append(note)
-    ci = t_quantile(0.95, k - 1) * d.std(ddof=1) / math.sqrt(k)
-    return LEDuration(mean=float(d.mean()), ci=float(ci), n_lanes=k, n_half=n_half, n_truncated=n_lanes - k,
-                      h=float(h), dtype=dtype, lane_steps=int(steps.sum()), loop_steps=n_lanes * int(blocks) * BLOCK,
-                      max_steps=bound, seed=seed, key=None if seed is not None else key_id(key),
-                      params=params.as_dict(), warnings=tuple(notes), wall_s=time.perf_counter() - t0)
+    s_sum = float(S.sum())  # exact: int64 sums of steps
+    m = s_sum / k
+    var = max(float(Q.sum()) - s_sum * m, 0.0) / (k - 1)
+    return LEDuration(mean=h * m, ci=float(t_quantile(0.95, k - 1) * h * math.sqrt(var / k)), n_excursions=k,
+                      n_requested=n_excursions, n_lanes=n_lanes, n_truncated=cut, h=float(h), dtype=dtype,
+                      lane_steps=int(steps.sum()), loop_steps=n_lanes * int(blocks) * BLOCK, max_steps=bound,
+                      seed=seed, key=None if seed is not None else key_id(key), params=params.as_dict(),
+                      warnings=tuple(notes), wall_s=time.perf_counter() - t0)

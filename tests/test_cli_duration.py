@@ -7,17 +7,17 @@ from dryfric_jax.cli import main
 from dryfric_jax.durations import di_long_excursion_duration
 from dryfric_jax.params import FIG3, Params
 
-SMALL = ["--n-lanes", "32", "--n-half", "2"]
+SMALL = ["--n-lanes", "32", "--n-excursions", "32"]
 
 
 def test_prints_the_mean_with_its_ci_and_is_the_python_result(capsys):
     """The text and the JSON are the library's result for the same seed and settings, to the last bit."""
     assert main(["duration", *SMALL, "--seed", "4"]) == 0
     out = capsys.readouterr().out
-    assert out.startswith("mean long-excursion duration = ") and "32 lanes x 2 half excursions" in out
+    assert out.startswith("mean long-excursion duration = ") and "(releases counted; 32 asked) in 32 lanes" in out
     assert main(["duration", *SMALL, "--seed", "4", "--json"]) == 0
     got = json.loads(capsys.readouterr().out)
-    want = json.loads(di_long_excursion_duration(Params(**FIG3), 4, n_lanes=32, n_half=2).to_json())
+    want = json.loads(di_long_excursion_duration(Params(**FIG3), 4, n_lanes=32, n_excursions=32).to_json())
     assert {k: v for k, v in got.items() if k != "wall_s"} == {k: v for k, v in want.items() if k != "wall_s"}
     assert got["params"] == FIG3 and got["seed"] == 4 and got["warnings"] == []
 
@@ -29,18 +29,18 @@ def test_out_file_and_strict_json_for_tau_L_inf(tmp_path, capsys):
     assert json.loads(out.read_text()) == json.loads(printed) and '"tau_L": "inf"' in printed
 
 
-def test_truncated_lanes_exit_3_unless_allowed(capsys):
-    """Lanes stopped by --max-steps are counted, said and exit 3 (the mean is biased low), as 'estimate' does with
-    truncated excursions; --allow-truncated accepts them."""
+def test_truncated_excursions_exit_3_unless_allowed(capsys):
+    """Excursions in flight at --max-steps are counted, said and exit 3 (the mean is biased low), as 'estimate' does
+    with truncated excursions; --allow-truncated accepts them."""
     argv = ["duration", *SMALL, "--max-steps", "15000", "--h", "6.7e-4"]  # the D estimator's h: shorter runs
     assert main(argv) == 3
     err = capsys.readouterr().err
-    assert "lanes stopped by max_steps = 15104" in err and "lanes truncated: the mean above is biased low" in err
+    assert "bound max_steps = 15104 stopped" in err and "long excursions truncated: the mean above is biased low" in err
     assert main([*argv, "--allow-truncated"]) == 0
 
 
 @pytest.mark.parametrize("argv,said", [
-    (["--n-half", "3"], "--n-half must be even"), (["--n-lanes", "1"], "--n-lanes"),
+    (["--n-excursions", "1"], "--n-excursions"), (["--n-lanes", "0"], "--n-lanes"),
     (["--max-steps", "1e20"], "--max-steps must be an integer in [1, (2^31 - 2) x 128]"),
     (["--h", "1e-10"], "max_work must be >= "), (["--max-work", "1"], "max_work must be"),
     (["--max-steps", "0"], "--max-steps"),
@@ -56,7 +56,8 @@ def test_bad_input_exits_2_with_one_line(capsys, argv, said):
 def test_a_run_that_fails_still_says_its_warnings_first(capsys):
     """The warning that explains a failure (tau/h < 10 here: the count is not the paper's excursion) was kept for the
     result, which never came: only the error was printed (an audit).  Warnings are now said as they come."""
-    assert main(["duration", "--nondim", "--tau", "1e-3", "--n-lanes", "4", "--n-half", "2", "--max-steps", "128"]) == 2
+    assert main(["duration", "--nondim", "--tau", "1e-3", "--n-lanes", "4", "--n-excursions", "2",
+                 "--max-steps", "128"]) == 2
     err = capsys.readouterr().err.splitlines()
     assert len(err) == 2 and err[0].startswith("dryfric: warning: tau/h = ") and "too small" in err[1]
 
@@ -64,5 +65,5 @@ def test_a_run_that_fails_still_says_its_warnings_first(capsys):
 def test_warnings_are_said_once_and_kept_in_the_json(capsys):
     assert main(["duration", *SMALL, "--max-steps", "15000", "--h", "6.7e-4", "--json", "--allow-truncated"]) == 0
     cap = capsys.readouterr()
-    said = [line for line in cap.err.splitlines() if "lanes stopped by max_steps = 15104" in line]
+    said = [line for line in cap.err.splitlines() if "bound max_steps = 15104 stopped" in line]
     assert len(said) == 1 and json.loads(cap.out)["warnings"] == [said[0].removeprefix("dryfric: warning: ")]

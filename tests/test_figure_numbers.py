@@ -340,7 +340,7 @@ def test_fig3_numbers_from_known_runs(tmp_path, monkeypatch):
     def dur(p, seed, cycle_s, quick):  # the paper's duration: half the cycle; none at Gamma = 1, tau = 1 s
         durs.append((p.Gamma, p.tau, seed, cycle_s, quick))
         return None if (p.Gamma, p.tau) == (1.0, 1.0) else SimpleNamespace(
-            mean=cycle_s / 2, ci=0.05 * p.Gamma, h=1e-4, n_lanes=64, n_half=4, n_truncated=1)
+            mean=cycle_s / 2, ci=0.05 * p.Gamma, h=1e-4, n_lanes=64, n_excursions=128, n_truncated=1)
 
     monkeypatch.setattr(diffusivity, "_di_durations", dur)
     f = diffusivity.fig3(str(tmp_path), False, 0)
@@ -376,23 +376,24 @@ def test_fig3_duration_plan_without_a_cycle_is_a_missing_point(monkeypatch, cycl
     assert diffusivity._di_durations(Params(**FIG3), 0, cycle, True) is None
 
 
-@pytest.mark.parametrize("quick,cycle,lanes,n_half", [(True, 4.0, 32, 20), (True, 40.0, 32, 2), (False, 4.0, 512, 20),
-                                                       (False, 1e9, 32, 2)])
-def test_fig3_duration_plan(monkeypatch, quick, cycle, lanes, n_half):
-    """Lanes and HLEs per lane from DUR_WORK and the cycle (an HLE takes at most half a cycle), h = default_h / 8,
-    a bound of 50x the expected steps (>= 1e4); a cycle so long that the bound passes durations.MAX_STEPS is
-    clipped to it (it was refused: a missing point).  By hand: at Fig. 3's point (h = 6.7e-4 / 8, cycle 4 s) an
-    HLE takes 2.4e4 steps: 3e7 (quick) is 1256 HLEs, 20 x 62.8 lanes, rounded down to a power of 2: 32; at a 40 s
-    cycle 125.6 HLEs, below 32 x 4: the floor 32 x 2; 1e9 (full) 4.2e4 HLEs, 20 x 2093 lanes, capped at 512."""
-    from dryfric_jax.durations import MAX_STEPS
+@pytest.mark.parametrize("quick,cycle,n,lanes", [(True, 4.0, 628, 256), (True, 40.0, 62, 32), (False, 4.0, 8192, 256),
+                                                  (False, 1e9, 32, 32)])
+def test_fig3_duration_plan(monkeypatch, quick, cycle, n, lanes):
+    """Long excursions from DUR_WORK and the cycle (an excursion takes at most a cycle), within DUR_N = [32, 8192],
+    the count's default lanes, h = default_h / 8, a bound of 50x the expected steps of a lane's excursions plus 2
+    (>= 1e4); a cycle so long that the bound passes durations.MAX_STEPS is clipped to it (it was refused: a missing
+    point).  By hand: at Fig. 3's point (h = 6.7e-4 / 8, cycle 4 s) an excursion takes 4.78e4 steps: 3e7 (quick) is
+    628 of them, lanes the power of 2 nearest 209: 256; at a 40 s cycle 62.8 -> 62, in 32 lanes (20.7 -> 16, the
+    floor 32); 1e9 (full) 2.1e4, capped at 8192, in 256 lanes; a 1e9 s cycle: the floor 32, in 32 lanes."""
+    from dryfric_jax.durations import MAX_STEPS, default_lanes
 
     seen = {}
     monkeypatch.setattr(diffusivity, "di_long_excursion_duration", lambda p, seed, **kw: seen.update(kw) or "run")
     p = Params(**FIG3)
     assert diffusivity._di_durations(p, 0, cycle, quick) == "run"
     h = default_h(p) / 8
-    assert seen["h"] == h and (seen["n_lanes"], seen["n_half"]) == (lanes, n_half)
-    assert seen["max_steps"] == min(max(int(50 * n_half * cycle / 2 / h), 10_000), MAX_STEPS)
+    assert seen["h"] == h and seen["n_excursions"] == n and "n_lanes" not in seen and default_lanes(n) == lanes
+    assert seen["max_steps"] == min(max(int(50 * (n / lanes + 2) * cycle / h), 10_000), MAX_STEPS)
 
 
 def test_fig8_numbers_from_known_runs(tmp_path, monkeypatch):

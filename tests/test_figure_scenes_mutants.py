@@ -173,7 +173,7 @@ def _fake_points(monkeypatch, runs, est, bf=None):
     # Fig. 3's DI duration runs: planned from the fake runs' cycle durations they would run for real (an 18-min
     # test), so they are fake too: the paper's duration 4 Gamma +- 0.625 (none of the fake runs' numbers)
     monkeypatch.setattr(diffusivity, "_di_durations", lambda p, seed, cycle_s, quick: _Run(
-        mean=4 * p.Gamma, ci=0.625, h=1e-4, n_lanes=64, n_half=4, n_truncated=0))
+        mean=4 * p.Gamma, ci=0.625, h=1e-4, n_lanes=64, n_excursions=128, n_truncated=0))
 
 
 def test_fig3_caption_parameters_and_the_json_of_the_runs(tmp_path, monkeypatch):

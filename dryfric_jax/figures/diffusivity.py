@@ -26,7 +26,7 @@ from .. import theory
 from ..chain_law import white_chain_law
 from ..di import make_di_model
 from ..durations import MAX_STEPS as DUR_MAX_STEPS
-from ..durations import H_DIV, default_duration_h, di_long_excursion_duration
+from ..durations import H_DIV, default_duration_h, default_lanes, di_long_excursion_duration
 from ..params import Params, real_or_none
 from ..paths import di_stationary
 from ..plan import default_h, plan_estimate
@@ -40,30 +40,32 @@ DELTA, TAU_L, GBAR = 3.84, 0.067, 0.342
 N_FLOOR = 1000
 #: the DI duration runs' step is the count's default, default_h / DUR_H_DIV (durations.H_DIV, with its measurements)
 DUR_H_DIV = H_DIV
-#: lane-steps a DI duration point may take (lanes x half excursions planned from the D run's cycle duration); the
-#: floor of 32 lanes x 2 half excursions can exceed it (full tau = 1 s, Gamma = 1: 3.3e9 steps, 304 s, CI +-33%)
+#: lane-steps a DI duration point may take (long excursions planned from the D run's cycle duration); the floor of
+#: 32 excursions can exceed it (full tau = 1 s, Gamma = 1: 3.3e9 steps, CI +-33%)
 DUR_WORK = {True: 3e7, False: 1e9}
+#: the fewest and the most long excursions a DI duration point counts
+DUR_N = (32, 8192)
 
 
 def _di_durations(p, seed, cycle_s, quick):
-    """The paper's mean long-excursion duration of the DI at ``p`` (:mod:`dryfric_jax.durations`), its
-    lanes and half excursions per lane chosen so that the expected steps stay within ``DUR_WORK``: a
-    cycle spans at least one long excursion, two HLEs, so an HLE takes at most ``cycle_s / 2``.  None (counted in
+    """The paper's mean long-excursion duration of the DI at ``p`` (:mod:`dryfric_jax.durations`), with as many
+    excursions (within :data:`DUR_N`) as keep the expected steps within ``DUR_WORK``: a cycle spans at least one
+    long excursion, so one takes at most ``cycle_s``; the lanes are the count's default.  None (counted in
     ``le_dur_missing``) where there is no plan (a cycle duration that is not a finite number > 0) or fewer than 2
-    lanes reached their count within the bound: a missing point, not a lost figure.  The runs are not kept in the
-    points file: a resumed Fig. 3 runs them again (620 s of the full setting, 304 s of it at tau = 1 s, Gamma = 1)."""
+    excursions ended within the bound: a missing point, not a lost figure.  The runs are not kept in the points
+    file: a resumed Fig. 3 runs them again (RESULTS.md gives their time)."""
     c = real_or_none(cycle_s)
     if c is None or not math.isfinite(c) or c <= 0:
         return None
     h = default_duration_h(p)
-    hle_steps = max(c / 2 / h, 1.0)
-    halves = DUR_WORK[quick] / hle_steps
-    n_half = int(min(20, max(2, halves // 32 // 2 * 2)))
-    lanes = 2 ** int(np.clip(np.log2(max(halves // n_half, 1)), 5, 9))  # 32..512, a power of 2: few compiled shapes
+    le_steps = max(c / h, 1.0)
+    n = int(min(DUR_N[1], max(DUR_N[0], DUR_WORK[quick] / le_steps)))
+    per_lane = n / default_lanes(n)
     try:
-        return di_long_excursion_duration(p, seed, h=h, n_lanes=lanes, n_half=n_half,
-                                          max_steps=int(min(max(50 * n_half * hle_steps, 10_000), DUR_MAX_STEPS)))
-    except ValueError:  # fewer than 2 lanes within the bound
+        return di_long_excursion_duration(p, seed, h=h, n_excursions=n,
+                                          max_steps=int(min(max(50 * (per_lane + 2) * le_steps, 10_000),
+                                                            DUR_MAX_STEPS)))
+    except ValueError:  # fewer than 2 excursions within the bound
         return None
 
 
@@ -108,7 +110,7 @@ def fig3(out_dir, quick, seed):
         ds = [_di_durations(p, seed + 9000 + 17 * i + 1000 * j, c, quick) for i, (p, c) in
               enumerate(zip(ps, rows["di"]["dur"]))]
         rows["di"].update({f"le_dur{k}": [getattr(r, a) if r else None for r in ds] for k, a in (
-            ("", "mean"), ("_ci", "ci"), ("_h", "h"), ("_lanes", "n_lanes"), ("_n_half", "n_half"),
+            ("", "mean"), ("_ci", "ci"), ("_h", "h"), ("_lanes", "n_lanes"), ("_n", "n_excursions"),
             ("_truncated", "n_truncated"))})
         nums["le_dur_truncated"] = nums.get("le_dur_truncated", 0) + sum(r.n_truncated for r in ds if r)
         nums["le_dur_missing"] = nums.get("le_dur_missing", 0) + sum(r is None for r in ds)
