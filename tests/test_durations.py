@@ -128,7 +128,7 @@ def test_mean_ci_and_step_counts_from_the_lanes(monkeypatch):
     """The arithmetic after the loop, on a fake loop: the mean and sd over all the lanes' excursions (their
     durations given through the sums N, S, Q), the CI Student's t_{N-1} s / sqrt(N) (6 excursions: t_5 = 2.571, a
     table's value), an excursion in flight at the bound counted and warned about, lane_steps the lanes' steps and
-    loop_steps lanes x the blocks the loop ran (stopped lanes stand still in it)."""
+    loop_steps lanes x the blocks the loop ran (stopped lanes idle in it)."""
     from dryfric_jax import durations
 
     d = [[100, 300], [200], [], [50, 150, 400]]
@@ -150,7 +150,7 @@ def test_mean_ci_and_step_counts_from_the_lanes(monkeypatch):
 
 
 def test_loop_steps_count_the_idle_lanes_too():
-    """After the stop each lane finishes its excursion in flight and then stands still until the last one ends:
+    """After the stop each lane finishes its excursion in flight and then idles until the last one ends:
     loop_steps is lanes x the loop's steps, whole blocks, > lane_steps."""
     r = di_long_excursion_duration(FAST, 5, n_excursions=256, n_lanes=64)
     assert r.loop_steps % (64 * 128) == 0 and r.loop_steps > r.lane_steps
