@@ -11,6 +11,10 @@ One run, one device, the paper's Fig. 3 point:
   lane-steps/s, PDMP events/s), which splits the gap to the RNG bound into the chain's own
   arithmetic (floor / bound) and the engine's (engine / floor);
 * PDMP events/s (default delta), float32 and float64;
+* the duration count's lane-steps/s (:func:`~dryfric_jax.di_long_excursion_duration`, float64, its own h
+  and default lanes; steps computed, the idle lanes' included), against the float64 chain floor: it
+  once froze a stopped lane's X and V with a select per step, which ran it at 0.27 of its speed on 2 CPU
+  cores, unseen by any test;
 * compiled scalar baselines of the same DI chain and of the same PDMP event loop (numba, 1 and 2
   threads, normals from numpy's ``Generator``: :mod:`dryfric_jax.bench_numba`), if numba is
   installed;
@@ -33,6 +37,7 @@ import numpy as np
 from jax.sharding import Mesh, PartitionSpec
 
 from .api import DryfricWarning, default_h, estimate_diffusivity
+from .durations import di_long_excursion_duration
 from .cost import default_delta
 from .di import make_di_model
 from . import rng
@@ -159,6 +164,8 @@ def _ratios(m: dict) -> dict:
         out[f"ratio_di_{dt}_to_chain_floor"] = m[f"di_{dt}_lane_steps_per_s"] / floor
         out[f"ratio_di_chain_floor_{dt}_to_rng_bound"] = floor / bound
         out[f"ratio_pdmp_{dt}_to_event_floor"] = m[f"pdmp_{dt}_events_per_s"] / m[f"pdmp_event_floor_{dt}_events_per_s"]
+    out["ratio_di_duration_to_chain_floor"] = (m["di_duration_lane_steps_per_s"]
+                                               / m["di_chain_floor_float64_lane_steps_per_s"])
     return out
 
 
@@ -201,6 +208,12 @@ def run_bench(n_excursions: int = 10_000, numba_excursions: int = 10_000, seed: 
             return {f"pdmp_{dt}_events_per_s": r.events_per_s, "pdmp_delta": r.delta}
         return f
 
+    def duration_timer(n):
+        def f():
+            r = di_long_excursion_duration(p, seed + 1, n_excursions=n)
+            return {"di_duration_lane_steps_per_s": r.loop_steps / r.wall_s}
+        return f
+
     named = lambda name, timer: (lambda: {name: timer()})
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DryfricWarning)
@@ -216,6 +229,10 @@ def run_bench(n_excursions: int = 10_000, numba_excursions: int = 10_000, seed: 
                              rng_bound_timer(jnp.dtype(dt), lanes, block, n=floor_n, via="jax")),
                        named(f"di_chain_floor_{dt}_lane_steps_per_s",
                              chain_floor_timer(make_di_model(p, default_h(p), dt), lanes, block, n=floor_n))]
+        dur_n = max(32, n_excursions // 10)  # 1000 long excursions at the default N, ~1 s on 2 cores
+        out["di_duration_excursions"] = dur_n
+        di_long_excursion_duration(p, seed, n_excursions=dur_n)  # compile, same lanes
+        timers.append(duration_timer(dur_n))
         pdmp_lanes = plan_estimate(p, method="pdmp", n_excursions=n_excursions).lanes
         out["pdmp_lanes"] = pdmp_lanes
         for dt in ("float64", "float32"):  # PDMP events/s at the default delta

@@ -270,7 +270,13 @@ def fake_engine_for_run_bench(monkeypatch, rates):
         log.append(("timer", name, lanes, block, n))
         return lambda: (log.append(("time", name)), next_value(name))[1]
 
+    def duration(p, seed, n_excursions=None):  # the first call compiles: its numbers are not used
+        log.append(("duration", seed, n_excursions))
+        first = sum(c[0] == "duration" for c in log) == 1
+        return SimpleNamespace(loop_steps=None if first else 6.0 * next_value("dur"), wall_s=6.0)
+
     monkeypatch.setattr(bench, "estimate_diffusivity", estimate)
+    monkeypatch.setattr(bench, "di_long_excursion_duration", duration)
     monkeypatch.setattr(bench, "plan_estimate", plan)
     monkeypatch.setattr(bench, "rng_bound_timer", rng_timer)
     monkeypatch.setattr(bench, "chain_floor_timer", floor_timer)
@@ -282,7 +288,7 @@ RATES = dict(di_float64=[40.0, 10.0, 20.0], rng_float64=[80.0, 80.0, 10.0], jax_
              floor_di_float64=[50.0, 20.0, 25.0], di_float32=[60.0, 30.0, 90.0], rng_float32=[120.0, 100.0, 90.0],
              jax_float32=[30.0, 50.0, 30.0], floor_di_float32=[100.0, 60.0, 90.0], pdmp_float64=[30.0, 6.0, 12.0],
              floor_pdmp_float64=[60.0, 12.0, 6.0], pdmp_float32=[50.0, 10.0, 20.0],
-             floor_pdmp_float32=[25.0, 20.0, 40.0])
+             floor_pdmp_float32=[25.0, 20.0, 40.0], dur=[10.0, 5.0, 2.0])
 
 
 def test_run_bench_times_every_number_in_rounds_and_reports_the_medians_of_each_rounds_ratios(monkeypatch):
@@ -317,6 +323,10 @@ def test_run_bench_times_every_number_in_rounds_and_reports_the_medians_of_each_
         per_round = [a / c for a, c in zip(R[num], R[den])]
         assert [r[key] for r in b["rounds"]] == per_round, key
         assert b[key] == med(per_round), key
+    # the duration count: loop_steps / wall_s = 10, 5, 2 over floors 50, 20, 25 -> 0.2, 0.25, 0.08; its N = 32
+    assert b["di_duration_lane_steps_per_s"] == 5.0 and b["ratio_di_duration_to_chain_floor"] == 0.2
+    assert [c for c in log if c[0] == "duration"] == [("duration", 4, 32)] + [("duration", 5, 32)] * 3
+    assert b["di_duration_excursions"] == 32
     assert b["ratio_di_float64_to_rng_bound"] == 0.5 and b["di_float64_lane_steps_per_s"] == 20.0
     # numba: 2 s per run, steps 1000 * threads (DI) and 500 * threads (PDMP)
     assert (b["numba_1t_steps_per_s"], b["numba_2t_steps_per_s"]) == (500.0, 1000.0)
