@@ -28,7 +28,7 @@ over the :math:`N` LEs of all lanes is consistent (its bias is :math:`O(1/N)`; :
 Student's quantile :func:`~dryfric_jax.estimators.t_quantile`).  Stopping at a horizon and dropping the LEs
 in flight there instead would leave out the long ones: -32% at a horizon of 3 mean durations (``RESULTS.md``,
 ``tests/test_durations.py``).  The old design (each lane a fixed number of LEs) was exactly unbiased but idled
-its finished lanes until the slowest was done: 1.4-2.2x more wall time per LE on 2 CPU cores (``RESULTS.md``).
+its finished lanes until the slowest was done: 1.1-1.9x more wall time per LE on 2 CPU cores (``RESULTS.md``).
 The LEs are i.i.d. in continuous time (each starts at :math:`(x_{\pm\Delta}, 0)`); in discrete time X overshoots
 the threshold a little, and the spread of the lanes' ratios matched the pooled :math:`s_d` (tested).
 Measured at Gamma = 10, tau = 0.125 s, the D estimator's h, 1000 replicates each against 0.53548 +- 0.00047 s
