@@ -584,10 +584,11 @@ def test_layout_disagreement_counts_the_twins_of_a_layout_once():
 def test_bench_ratios_of_a_round_divide_the_right_numbers():
     """Every ratio of :func:`run_bench`'s round on numbers chosen so that an inverted ratio, a wrong
     denominator or the other dtype's number gives another value (only one of the ten ratios per dtype
-    was checked, in a slow test); without numba, no numba ratio."""
+    was checked, in a slow test); without numba, no numba ratio.  The duration count's against the
+    float64 floor: 48 / 96 (float32's would give 1.2)."""
     from dryfric_jax.bench import _ratios
 
-    m = dict(numba_2t_steps_per_s=8.0, numba_pdmp_2t_events_per_s=2.0)
+    m = dict(numba_2t_steps_per_s=8.0, numba_pdmp_2t_events_per_s=2.0, di_duration_lane_steps_per_s=48.0)
     for dt, (di, floor, bound, jr, pdmp, ev_floor) in (("float64", (64, 96, 256, 32, 6, 24)),
                                                        ("float32", (30, 40, 160, 32, 10, 50))):
         m.update({f"di_{dt}_lane_steps_per_s": di, f"di_chain_floor_{dt}_lane_steps_per_s": floor,
@@ -600,7 +601,7 @@ def test_bench_ratios_of_a_round_divide_the_right_numbers():
                 ratio_pdmp_float64_to_event_floor=0.25,
                 ratio_di_float32_to_rng_bound=0.1875, ratio_rng_bound_float32_to_jax_random_normal=5.0,
                 ratio_di_float32_to_chain_floor=0.75, ratio_di_chain_floor_float32_to_rng_bound=0.25,
-                ratio_pdmp_float32_to_event_floor=0.2)
+                ratio_pdmp_float32_to_event_floor=0.2, ratio_di_duration_to_chain_floor=0.5)
     assert _ratios(m) == pytest.approx(want, rel=1e-15)
     del m["numba_2t_steps_per_s"], m["numba_pdmp_2t_events_per_s"]
     assert _ratios(m) == pytest.approx({k: v for k, v in want.items() if "numba" not in k}, rel=1e-15)
