@@ -291,7 +291,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="long excursions to count (default 2048); those in flight when the lanes' total reaches it "
                          "are finished, so a few more are counted")
     du.add_argument("--n-lanes", type=_int_at_least("n-lanes", 1, 2**22, "2^22"), default=None,
-                    help="lanes (default: the power of 2 nearest n-excursions/10, in [16, 256]); they change the "
+                    help="lanes (default: the power of 2 nearest n-excursions/3, in [32, 256]); they change the "
                          "random numbers, not the law")
     du.add_argument("--max-steps", type=_int_at_least("max-steps", 1, DUR_MAX_STEPS, "(2^31 - 2) x 128"),
                     default=10**8,

@@ -18,6 +18,7 @@ import warnings
 import dryfric_jax as dj
 from dryfric_jax.durations import MAX_STEPS
 from dryfric_jax.durations import di_long_excursion_duration as duration
+from dryfric_jax.params import FIG3
 from dryfric_jax.plan import default_h
 
 
@@ -34,7 +35,7 @@ def main():
     a = ap.parse_args()
     if min(a.sizes) < 2 or a.replicates < 2 or a.ref_excursions < 2 or not a.horizon > 0:
         ap.error("--sizes, --replicates and --ref-excursions must be >= 2, --horizon > 0")
-    p = dj.Params(a.Gamma, 3.84, a.tau, 0.067, 0.342)
+    p = dj.Params(**{**FIG3, "Gamma": a.Gamma, "tau": a.tau})
     h = default_h(p)
     warnings.simplefilter("ignore", dj.DryfricWarning)
     t0 = time.perf_counter()

@@ -41,7 +41,7 @@ N_FLOOR = 1000
 #: the DI duration runs' step is the count's default, default_h / DUR_H_DIV (durations.H_DIV, with its measurements)
 DUR_H_DIV = H_DIV
 #: lane-steps a DI duration point may take (long excursions planned from the D run's cycle duration); the floor of
-#: 32 excursions can exceed it (full tau = 1 s, Gamma = 1: 3.3e9 steps, CI +-33%)
+#: 32 excursions can exceed it (full tau = 1 s, Gamma = 1: 62 counted in 32 lanes, 326 s on 2 cores, CI +-21%)
 DUR_WORK = {True: 3e7, False: 1e9}
 #: the fewest and the most long excursions a DI duration point counts
 DUR_N = (32, 8192)
