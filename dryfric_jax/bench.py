@@ -12,9 +12,9 @@ One run, one device, the paper's Fig. 3 point:
   arithmetic (floor / bound) and the engine's (engine / floor);
 * PDMP events/s (default delta), float32 and float64;
 * the duration count's lane-steps/s (:func:`~dryfric_jax.di_long_excursion_duration`, float64, its own h
-  and default lanes; steps computed, the idle lanes' included), against the float64 chain floor: it
-  once froze a stopped lane's X and V with a select per step, which ran it at 0.27 of its speed on 2 CPU
-  cores, unseen by any test;
+  and default lanes; steps computed, the idle lanes' included), against the float64 chain floor (the count
+  draws 3 numbers a step, the bridge's uniform too, where the floor draws 2): it once froze a stopped lane's
+  X and V with a select per step, which ran it at 0.27 of its speed on 2 CPU cores, unseen by any test;
 * compiled scalar baselines of the same DI chain and of the same PDMP event loop (numba, 1 and 2
   threads, normals from numpy's ``Generator``: :mod:`dryfric_jax.bench_numba`), if numba is
   installed;
@@ -229,7 +229,7 @@ def run_bench(n_excursions: int = 10_000, numba_excursions: int = 10_000, seed: 
                              rng_bound_timer(jnp.dtype(dt), lanes, block, n=floor_n, via="jax")),
                        named(f"di_chain_floor_{dt}_lane_steps_per_s",
                              chain_floor_timer(make_di_model(p, default_h(p), dt), lanes, block, n=floor_n))]
-        dur_n = max(32, n_excursions // 10)  # 1000 long excursions at the default N, ~1 s on 2 cores
+        dur_n = max(32, n_excursions // 2)  # 5000 long excursions at the default N, ~1 s on 2 cores
         out["di_duration_excursions"] = dur_n
         di_long_excursion_duration(p, seed, n_excursions=dur_n)  # compile, same lanes
         timers.append(duration_timer(dur_n))

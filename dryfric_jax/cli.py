@@ -280,13 +280,17 @@ def build_parser() -> argparse.ArgumentParser:
                         "(threshold to threshold; dryfric_jax/durations.py): lanes of the DI chain count the changes "
                         "of direction of their releases, and stop starting new excursions once they have counted "
                         "--n-excursions in all (those in flight are finished: no bias); the 95% CI is Student's t "
-                        "over the excursions.  Its bias falls slowly with h (Fig. 3 runs at h/8: RESULTS.md).  "
+                        "over the excursions.  Crossings of the thresholds by X between two steps are counted too (a "
+                        "Brownian-bridge correction), so the bias falls like h, not sqrt(h).  "
                         "'dryfric estimate' prints the mean duration of its regeneration cycles, each one or more of "
                         "these.")
     du.add_argument("--h", type=_number("h"), default=None,
-                    help="DI step, s (default 0.01*min(tau0, tau_L)/8: the count's bias falls slowly with h)")
+                    help="DI step, s (default min(0.01*min(tau0, tau_L), tau/700): the count's bias goes like h/tau)")
     du.add_argument("--seed", type=_seed, default=0, help="random seed, an integer in [0, 2^62 - 2^20] (default 0)")
     du.add_argument("--dtype", default="float64", help="float64 or float32 (float64 where float32 is not safe)")
+    du.add_argument("--no-bridge", action="store_true",
+                    help="count only the releases the chain makes, without the bridge correction (its bias then falls "
+                         "only like sqrt(h))")
     du.add_argument("--n-excursions", type=_int_at_least("n-excursions", 2, 2**40, "2^40"), default=2048,
                     help="long excursions to count (default 2048); those in flight when the lanes' total reaches it "
                          "are finished, so a few more are counted")
@@ -614,7 +618,8 @@ def _run(a) -> int:
 
         with _warnings_as_lines():  # said as they come: a run that then fails (max_steps too small) still says why
             r = di_long_excursion_duration(params, a.seed, h=a.h, n_excursions=a.n_excursions, n_lanes=a.n_lanes,
-                                           max_steps=a.max_steps, dtype=a.dtype, **_work_options(a))
+                                           max_steps=a.max_steps, dtype=a.dtype, bridge=not a.no_bridge,
+                                           **_work_options(a))
         print(dumps(r.to_dict()) if a.json else r.summary(), flush=True)  # its warnings were said above
         _write_out(a.out, r.to_dict())
         if r.n_truncated and not a.allow_truncated:

@@ -37,13 +37,37 @@ Measured at Gamma = 10, tau = 0.125 s, the D estimator's h, 1000 replicates each
 (162 counted) and 2048 (2324) asked: the durations are right-skewed, so a few dozen LEs cover a little less
 than 95%.
 
-In discrete time a release is not exactly at the threshold (X overshoots it), so the count has a bias that falls
-with h: at Gamma = 10, tau = 0.125 s 0.548, 0.479, 0.452 s (+- 0.009) at h, h/4, h/16 against the PDMP's 0.442
-(``tests/test_durations.py``).  A V that lands on 0 for one step while passing through it (the force beyond the
-threshold) is not a release: counting those (a first version) ended half excursions early, 15 SE below the PDMP
-at that point, h/16.  Where :math:`\tau \ll h` releases happen at any X and the count is not the paper's
-quantity: below :data:`MIN_TAU_STEPS` steps per :math:`\tau` a :class:`~dryfric_jax.DryfricWarning` says so;
-Fig. 3 has :math:`\tau/h \ge 187` at the D estimator's default h, 8 times that at the count's (:data:`H_DIV`).
+**Crossings between steps (the bridge correction, version 0.2.9).**  The chain sees X only at its steps, and a
+stuck particle moves only where a step's mean force :math:`\Xi_n` passes a threshold, so it finds a change of
+direction late: between two steps X can pass the opposite threshold and come back, which in continuous time is a
+release.  Counted raw, the mean duration's bias falls like :math:`\sqrt h` (a discretely monitored barrier;
+Broadie, Glasserman and Kou 1997): at Gamma = 10, tau = 0.125 s 0.539, 0.484, 0.453 s (+- 0.009) at h, h/4, h/16
+(h the D estimator's default) against a converged 0.4346.  So at a step where the particle stays put
+(:math:`V_n = V_{n+1} = 0`) after a release in direction :math:`s`, the count also takes a release towards the
+opposite threshold :math:`a` (:math:`x_{-\Delta}` for :math:`s = +`, :math:`x_{\Delta}` for :math:`s = -`) with
+the probability that a Brownian bridge from :math:`X_n` to :math:`X_{n+1}` with the step's variance crossed it,
+
+.. math::
+    p_n = \exp\Big(-\frac{2\,d_n d_{n+1}}{\operatorname{Var}(X_{n+1}\mid X_n)}\Big), \qquad
+    \operatorname{Var}(X_{n+1}\mid X_n) = \frac{1 - e^{-2h/\tau}}{\tau},
+
+with :math:`d_n, d_{n+1}` the distances of :math:`X_n, X_{n+1}` inside :math:`a` (:math:`p_n = 1` where either
+is beyond it), from one uniform per step (of ``split(block_key)[1]``; the normals are ``split(block_key)[0]``'s,
+as in the D engine).  The chain (X, V) itself is not changed: such a release would move the particle by
+:math:`O(h^{3/2})`.  The bias then falls like h, from +1.9% at h to +0.6% at h/2 and 0.05% at h/4 at that point
+(0.4427, 0.4374, 0.4348, 0.4346 +- 0.0023 at h, h/2, h/4, h/16; the PDMP 0.4405 and 0.4376 at delta = 0.0625
+and 0.03125, +0.0029 per halving of delta, onto 0.4347).  It shrinks as tau/h grows (and as Gamma falls): at
+Gamma = 10, tau = 0.25 s (tau/h = 373 at h) 0.8379 and 0.8353 s (+- 0.0046) at h and h/4; at Fig. 3's point (746)
+4.034, 4.039, 4.029 s (+- 0.018) at h, h/2, h/4; at Gamma = 2.15, tau = 0.125 s 0.6805 and 0.6804 (+- 0.0046) at
+h and h/4.  The default step is therefore :math:`\min(h_D, \tau/\text{TAU\_STEPS})` (:func:`default_duration_h`),
+:math:`h_D` the D estimator's, :data:`TAU_STEPS` = 700.  The uniform makes a step ~1.5x as dear as the raw
+count's, which ran at h/8 for a bias of a few % (0.2.8).  (All +- here are 95% CIs; tau, h nondimensional in
+the variance.)
+
+A V that lands on 0 for one step while passing through it (the force beyond the threshold) is not a release:
+counting those (a first version) ended half excursions early, 15 SE below the PDMP at Gamma = 10, tau = 0.125 s,
+h/16.  Where :math:`\tau \ll h` releases happen at any X and the count is not the paper's quantity: below
+:data:`MIN_TAU_STEPS` steps per :math:`\tau` a :class:`~dryfric_jax.DryfricWarning` says so.
 
 Loops are bounded: the loop runs at most ``max_steps`` steps; an LE still in flight there is dropped (which
 biases the mean low), counted in ``n_truncated`` and warned about.
@@ -87,6 +111,7 @@ class LEDuration(_Record):
     lane_steps: int  # steps the lanes ran until each stopped (its seek for a first change included)
     loop_steps: int  # steps computed: lanes x the loop's steps, as a lane that stopped idles in the loop
     max_steps: int = 0  # the loop's bound (whole blocks of 128)
+    bridge: bool = True  # the crossings of X between steps counted too (module docstring); False: the raw count
     seed: int | None = None  # None for a jax.random key
     key: str | None = None  # a key-made run's key (api.key_id); None for a seed
     params: dict = field(default_factory=dict)
@@ -101,6 +126,7 @@ class LEDuration(_Record):
         return (f"mean long-excursion duration = {self.mean:.6g} ± {self.ci:.2g} s{rel}   (95% CI, Student t over "
                 f"the excursions)\n{self.n_excursions} long excursions (releases counted; {self.n_requested} asked) "
                 f"in {self.n_lanes} lanes, {self.n_truncated} truncated, h = {self.h:.3g} s, {self.dtype}, "
+                + ("" if self.bridge else "raw count (no bridge correction), ")
                 + (f"seed {self.seed}" if self.key is None else f"key {self.key}")
                 + f"\nwall {self.wall_s:.1f} s, {self.loop_steps:.3g} lane-steps computed "
                 f"({self.lane_steps:.3g} run by the lanes)")
@@ -109,15 +135,20 @@ class LEDuration(_Record):
         return _with_warnings(self.summary(), self.warnings)
 
 
-def _lane_loop(model, keys, n_excursions, max_blocks, block: int):
+def _lane_loop(model, keys, n_excursions, max_blocks, block: int, bridge: bool = True):
     """The lanes' loop (module docstring): returns per lane the LEs counted, the sums of their durations and of
     their squares (in steps), whether it stopped by the rule (not in flight at the bound), an LE in flight, its
-    steps; and the blocks the loop ran."""
+    steps; and the blocks the loop ran.  ``bridge``: also count the crossings of the opposite threshold that X
+    makes between two steps of a stuck particle (module docstring); it draws a uniform per step."""
     dt = model.h.dtype
     lanes = keys.shape[0]
     x0 = jax.vmap(lambda k: jax.random.normal(jax.random.fold_in(k, 2**31 - 1), (), dt))(keys)
+    var1 = model.ou.L21 ** 2 + model.ou.L22 ** 2  # Var(X_{n+1} | X_n), exactly (1 - e^{-2h/tau}) / tau
     sd = jnp.sqrt((model.ou.L21.astype(jnp.float64) ** 2 + model.ou.L22.astype(jnp.float64) ** 2)
                   / (1.0 - model.ou.m2.astype(jnp.float64) ** 2)).astype(dt)  # the X chain's stationary sd
+    # a stuck particle moves up once the step's mean force Xi passes x_plus = 1 - gamma_bar, down below x_minus
+    # = -1 - gamma_bar (DIModel.step with V = 0, nondimensional Delta = 1)
+    x_plus, x_minus = 1.0 - model.gamma_bar, -1.0 - model.gamma_bar
     zero_i = jnp.zeros(lanes, jnp.int32)
     zero_n = jnp.zeros(lanes, jnp.int64)
     no = jnp.zeros(lanes, bool)
@@ -127,11 +158,18 @@ def _lane_loop(model, keys, n_excursions, max_blocks, block: int):
     carry = (x0 * sd, jnp.zeros(lanes, dt), no, zero_i, zero_i, zero_n, zero_n, no, zero_n, zero_n,
              jnp.zeros(lanes, jnp.float64))
 
-    def step(z1, z2, stop, c):
+    def step(z1, z2, u, stop, c):
         X, V, stuck, last, ph, n, s0, off, N, S, Q = c
         _, Xn, Vn, _ = model.move(X, V, z1, z2)
-        s = jnp.sign(Vn).astype(jnp.int32)
         release = stuck & (V == 0) & (Vn != 0)  # stuck a whole step before: not a pass through 0
+        s = jnp.sign(Vn).astype(jnp.int32)
+        if bridge:  # X's path between X_n and X_{n+1} crossed the opposite threshold while the particle stayed put
+            up = last < 0  # the opposite threshold is x_plus after a release down, x_minus after one up
+            d0 = jnp.where(up, x_plus - X, X - x_minus)  # distances inside the threshold
+            d1 = jnp.where(up, x_plus - Xn, Xn - x_minus)
+            cross = jnp.where((d0 > 0) & (d1 > 0), jnp.exp(-2.0 * d0 * d1 / var1), 1.0)
+            virtual = (V == 0) & (Vn == 0) & (last != 0) & (u < cross)
+            release, s = release | virtual, jnp.where(virtual, -last, s)
         change = release & (last != 0) & (s != last) & ~off
         n1 = n + 1
         end = change & (ph == 2)  # an LE ends here (and the next starts, unless the lanes stop)
@@ -146,8 +184,10 @@ def _lane_loop(model, keys, n_excursions, max_blocks, block: int):
 
     def body(st):
         b, stop, c = st
-        z1, z2 = rng.normals(block_keys(keys, b), block, 2, dt)
-        c = jax.lax.fori_loop(0, block, lambda i, cc: step(z1[i], z2[i], stop, cc), c)
+        bk = block_keys(keys, b)
+        z1, z2 = model.draw_lanes(bk, block)  # the D engine's layout: normals from split(bk)[0], uniforms [1]
+        u = rng.uniforms(rng.split_at(bk, 1), block, 1, dt)[0] if bridge else z1
+        c = jax.lax.fori_loop(0, block, lambda i, cc: step(z1[i], z2[i], u[i], stop, cc), c)
         stop = stop | (c[8].sum() >= n_excursions)  # from the next block on, no lane starts an LE
         c = c[:7] + (c[7] | (stop & (c[4] == 0)),) + c[8:]  # a lane with none started stops at once
         return b + 1, stop, c
@@ -161,23 +201,22 @@ def _lane_loop(model, keys, n_excursions, max_blocks, block: int):
 
 
 # n_excursions and the bound are traced: a figure's points differ in them and share one compiled loop per lane count
-_run = jax.jit(_lane_loop, static_argnames=("block",))
-#: the count's default step is default_h / H_DIV (near the paper's h = 1e-4 s at Fig. 3's point), as Fig. 3's: its
-#: bias falls slowly with h.  At Fig. 3's point the DI's mean duration was 4.50, 4.24, 4.15 and 4.09 s (+- 0.05) at
-#: 4, 1, 1/4 and 1/16 times default_h, the PDMP's 4.17, 4.14 and 4.11 (+- 0.035) at delta = 0.125, 0.0625, 0.03125;
-#: at Gamma = 10, tau = 0.125 s 0.68, 0.55, 0.48, 0.45 (+- 0.01) against 0.442; at Gamma = 7.74, tau = 1 s 10.01 and
-#: 10.03 (+- 0.25) at 1/8 and 1/32 against the PDMP's 10.19 (+- 0.06) at delta = 0.0156 (RESULTS.md)
-H_DIV = 8
-#: steps per tau below which a warning says the count is not the paper's long excursion.  The count's bias is
-#: already +24% at tau/h = 187 (Gamma = 10, tau = 0.125 s, the default h), +2.4% at 746 (Fig. 3's point)
+_run = jax.jit(_lane_loop, static_argnames=("block", "bridge"))
+#: the count's default step keeps at least TAU_STEPS steps per tau (default_duration_h): with the bridge correction
+#: its bias falls like h, 1.9%, 0.6% and 0.05% at tau/h = 187, 373 and 746 (Gamma = 10, tau = 0.125 s), none
+#: seen (+- 0.45%) at 746 to 2984 (Fig. 3's point), nor at 187 where Gamma = 2.15; module docstring
+TAU_STEPS = 700
+#: steps per tau below which a warning says the count is not the paper's long excursion (its bias is +1.9% already
+#: at tau/h = 187, Gamma = 10, tau = 0.125 s)
 MIN_TAU_STEPS = 10
 #: the loop's bound in steps: whole blocks, counted in int32 and folded into the lanes' keys
 MAX_STEPS = (2**31 - 2) * BLOCK
 
 
 def default_duration_h(params: Params) -> float:
-    """The count's default step in seconds: :func:`~dryfric_jax.plan.default_h` / :data:`H_DIV`."""
-    return default_h(params) / H_DIV
+    """The count's default step in seconds: the D estimator's :func:`~dryfric_jax.plan.default_h`, or
+    :math:`\\tau/` :data:`TAU_STEPS` where that is smaller (the bias of the bridged count goes like h/tau)."""
+    return min(default_h(params), params.tau / TAU_STEPS)
 
 
 def default_lanes(n_excursions: int) -> int:
@@ -192,15 +231,15 @@ def default_lanes(n_excursions: int) -> int:
 
 def di_long_excursion_duration(params, key, h: float | None = None, n_excursions: int = 2048,
                                n_lanes: int | None = None, max_steps: int = 10**8, dtype: str = "float64",
-                               max_work: float = MAX_WORK) -> LEDuration:
+                               max_work: float = MAX_WORK, bridge: bool = True) -> LEDuration:
     r"""Mean duration of the paper's long excursion of the DI at step ``h`` (module docstring), in seconds.
 
     Args:
         params: :class:`~dryfric_jax.Params`.
         key: a ``jax.random`` key or an integer seed in [0, 2^62]; lane l uses ``split(key, n_lanes)[l]``,
             its block b ``fold_in(lane_key, b)``.
-        h: DI step in seconds (default :func:`default_duration_h`, :data:`H_DIV` times finer than the D
-            estimator's :func:`~dryfric_jax.plan.default_h`: the count's bias falls slowly with h).
+        h: DI step in seconds (default :func:`default_duration_h`: the D estimator's
+            :func:`~dryfric_jax.plan.default_h`, finer where tau/h would fall below :data:`TAU_STEPS`).
         n_excursions: long excursions to count, an integer in [2, 2^40]: once the lanes' total reaches it no lane
             starts another, and those in flight are finished (so a run counts a few more).
         n_lanes: lanes, an integer in [1, 2^22] (default :func:`default_lanes`); they change the bits, not the
@@ -212,6 +251,8 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
         max_work: a run whose predicted lane-steps (:func:`~dryfric_jax.limits.check_work`, for the
             ``n_excursions`` long excursions) exceed it is refused before it starts, as the estimator's
             (h = 1e-10 s at Fig. 3's point would run ~15 min to its bound, then fail: an audit).
+        bridge: count the crossings of the opposite threshold between two steps of a stuck particle too (module
+            docstring; default); ``False`` gives the raw count, whose bias falls only like :math:`\sqrt h`.
 
     ``ValueError`` naming the argument, also where the estimator refuses the parameters (tau_L = inf with
     :math:`|\bar\gamma| \ge \Delta`: the particle runs away; it gave a number here, 9 of 32 lanes truncated);
@@ -227,6 +268,9 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
     max_steps = check_count("max_steps", max_steps, 1, MAX_STEPS, " (blocks of 128 steps counted in 32 bits)")
     h, dtype = plan.h, plan.dtype
     max_work = check_max_work(max_work)
+    if not isinstance(bridge, (bool, np.bool_)):
+        raise ValueError(f"bridge must be True or False, got {bridge!r}")
+    bridge = bool(bridge)
     try:
         check_work(params.tau_nd, params.tau_L_nd, params.gamma_bar_nd, params.tau0 / h, n_excursions, max_work)
     except ValueError as e:
@@ -241,7 +285,8 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
     max_blocks = -(-max_steps // BLOCK)
     bound = max_blocks * BLOCK  # the bound used: max_steps rounded up to whole blocks
     N, S, Q, off, started, steps, blocks = (np.asarray(a) for a in _run(
-        model, jax.random.split(key, n_lanes), jnp.int64(n_excursions), jnp.int32(max_blocks), block=BLOCK))
+        model, jax.random.split(key, n_lanes), jnp.int64(n_excursions), jnp.int32(max_blocks), block=BLOCK,
+        bridge=bridge))
     k, cut = int(N.sum()), int((started & ~off).sum())
     if k < 2:  # no mean or no spread: say why rather than return a NaN
         raise ValueError(f"max_steps = {bound} is too small here: the {n_lanes} lanes counted {k} long excursions "
@@ -258,5 +303,5 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
     return LEDuration(mean=h * m, ci=float(t_quantile(0.95, k - 1) * h * math.sqrt(var / k)), n_excursions=k,
                       n_requested=n_excursions, n_lanes=n_lanes, n_truncated=cut, h=float(h), dtype=dtype,
                       lane_steps=int(steps.sum()), loop_steps=n_lanes * int(blocks) * BLOCK, max_steps=bound,
-                      seed=seed, key=None if seed is not None else key_id(key), params=params.as_dict(),
+                      bridge=bridge, seed=seed, key=None if seed is not None else key_id(key), params=params.as_dict(),
                       warnings=tuple(notes), wall_s=time.perf_counter() - t0)

@@ -19,7 +19,19 @@ def test_prints_the_mean_with_its_ci_and_is_the_python_result(capsys):
     got = json.loads(capsys.readouterr().out)
     want = json.loads(di_long_excursion_duration(Params(**FIG3), 4, n_lanes=32, n_excursions=32).to_json())
     assert {k: v for k, v in got.items() if k != "wall_s"} == {k: v for k, v in want.items() if k != "wall_s"}
-    assert got["params"] == FIG3 and got["seed"] == 4 and got["warnings"] == []
+    assert got["params"] == FIG3 and got["seed"] == 4 and got["warnings"] == [] and got["bridge"]
+
+
+def test_no_bridge_is_the_raw_count(capsys):
+    """--no-bridge: the library's bridge=False, to the last bit, and said in the text."""
+    assert main(["duration", *SMALL, "--seed", "4", "--no-bridge", "--json"]) == 0
+    got = json.loads(capsys.readouterr().out)
+    want = json.loads(di_long_excursion_duration(Params(**FIG3), 4, n_lanes=32, n_excursions=32,
+                                                 bridge=False).to_json())
+    assert {k: v for k, v in got.items() if k != "wall_s"} == {k: v for k, v in want.items() if k != "wall_s"}
+    assert not got["bridge"]
+    assert main(["duration", *SMALL, "--seed", "4", "--no-bridge"]) == 0
+    assert "raw count (no bridge correction)" in capsys.readouterr().out
 
 
 def test_out_file_and_strict_json_for_tau_L_inf(tmp_path, capsys):
@@ -55,8 +67,9 @@ def test_bad_input_exits_2_with_one_line(capsys, argv, said):
 
 def test_a_run_that_fails_still_says_its_warnings_first(capsys):
     """The warning that explains a failure (tau/h < 10 here: the count is not the paper's excursion) was kept for the
-    result, which never came: only the error was printed (an audit).  Warnings are now said as they come."""
-    assert main(["duration", "--nondim", "--tau", "1e-3", "--n-lanes", "4", "--n-excursions", "2",
+    result, which never came: only the error was printed (an audit).  Warnings are now said as they come.  (h is
+    asked for: the default keeps tau/h >= 700.)"""
+    assert main(["duration", "--nondim", "--tau", "1e-3", "--h", "0.01", "--n-lanes", "4", "--n-excursions", "2",
                  "--max-steps", "128"]) == 2
     err = capsys.readouterr().err.splitlines()
     assert len(err) == 2 and err[0].startswith("dryfric: warning: tau/h = ") and "too small" in err[1]

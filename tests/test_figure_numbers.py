@@ -376,22 +376,23 @@ def test_fig3_duration_plan_without_a_cycle_is_a_missing_point(monkeypatch, cycl
     assert diffusivity._di_durations(Params(**FIG3), 0, cycle, True) is None
 
 
-@pytest.mark.parametrize("quick,cycle,n,lanes", [(True, 4.0, 628, 256), (True, 40.0, 62, 32), (False, 4.0, 8192, 256),
-                                                  (False, 1e9, 32, 32)])
+@pytest.mark.parametrize("quick,cycle,n,lanes", [(True, 4.0, 5025, 256), (True, 40.0, 502, 128),
+                                                  (False, 4.0, 8192, 256), (False, 1e9, 32, 32)])
 def test_fig3_duration_plan(monkeypatch, quick, cycle, n, lanes):
     """Long excursions from DUR_WORK and the cycle (an excursion takes at most a cycle), within DUR_N = [32, 8192],
-    the count's default lanes, h = default_h / 8, a bound of 50x the expected steps of a lane's excursions plus 2
-    (>= 1e4); a cycle so long that the bound passes durations.MAX_STEPS is clipped to it (it was refused: a missing
-    point).  By hand: at Fig. 3's point (h = 6.7e-4 / 8, cycle 4 s) an excursion takes 4.78e4 steps: 3e7 (quick) is
-    628 of them, lanes the power of 2 nearest 209: 256; at a 40 s cycle 62.8 -> 62, in 32 lanes (20.7 -> 16, the
-    floor 32); 1e9 (full) 2.1e4, capped at 8192, in 256 lanes; a 1e9 s cycle: the floor 32, in 32 lanes."""
+    the count's default lanes and step (durations.default_duration_h), a bound of 50x the expected steps of a lane's
+    excursions plus 2 (>= 1e4); a cycle so long that the bound passes durations.MAX_STEPS is clipped to it (it was
+    refused: a missing point).  By hand: at Fig. 3's point (h = 6.7e-4 s, tau/h = 746 >= 700, cycle 4 s) an
+    excursion takes 5970 steps: 3e7 (quick) is 5025 of them, lanes the power of 2 nearest 1675, within [32, 256]:
+    256; at a 40 s cycle 502.5 -> 502, in 128 lanes (167 -> 128); 1e9 (full) 1.7e5, capped at 8192, in 256 lanes;
+    a 1e9 s cycle: the floor 32, in 32 lanes."""
     from dryfric_jax.durations import MAX_STEPS, default_lanes
 
     seen = {}
     monkeypatch.setattr(diffusivity, "di_long_excursion_duration", lambda p, seed, **kw: seen.update(kw) or "run")
     p = Params(**FIG3)
     assert diffusivity._di_durations(p, 0, cycle, quick) == "run"
-    h = default_h(p) / 8
+    h = 6.7e-4
     assert seen["h"] == h and seen["n_excursions"] == n and "n_lanes" not in seen and default_lanes(n) == lanes
     assert seen["max_steps"] == min(max(int(50 * (n / lanes + 2) * cycle / h), 10_000), MAX_STEPS)
 

@@ -121,15 +121,22 @@ def test_fig3_pdmp_and_di_agree(figs):
 
 
 def test_fig3_durations_are_the_papers_for_both_models(figs):
-    """The right panel's DI lines count the paper's excursions (dryfric_jax.durations), so they agree
-    with the PDMP dots within 3 SE for tau <= 0.5 s (quick, measured: at most 2.6 SE; the DI's h/8 bias is
-    ~+5% at Gamma = 10, tau = 0.125 s: test_durations), and every one lies below the DI's regeneration
-    cycle (which spans >= 1 of them; before, the panel plotted the cycles, 2-4x the PDMP's)."""
+    """The right panel's DI lines count the paper's excursions (dryfric_jax.durations, bridged: its bias ~0.1% at
+    its step, test_durations), so they agree with the PDMP dots within 3 SE at tau <= 0.25 s.  At the paper's
+    delta = 0.125 the PDMP's releases wait for the first grid level beyond a threshold, so its excursions are
+    longer, by more as tau grows (+12% at tau = 0.5 s, Gamma = 2.5 here; converging onto the DI's as delta falls:
+    RESULTS.md): at every tau the DI lies below the PDMP + 3 SE.  Every DI line lies below the DI's regeneration
+    cycle (which spans >= 1 of them; before, the panel plotted the cycles, 2-4x the PDMP's).  Measured (quick):
+    at most 1.22 joint half-widths at tau <= 0.25 s; the raw count at the D estimator's h (+24% at tau = 0.125 s,
+    Gamma = 10) would fail both."""
     f = figs["fig3"]
-    assert f["le_dur_truncated"] == 0
-    for tau in ("0.125", "0.25", "0.5"):
+    assert f["le_dur_truncated"] == 0 and f["le_dur_missing"] == 0
+    for tau in ("0.125", "0.25"):
         assert max(f["agree_dur"][tau]) <= 3 / 1.96, (tau, f["agree_dur"][tau])
     for tau, d in f["di"].items():
+        pd = f["pdmp"][tau]
+        assert all(a - b <= 3 / 1.96 * math.hypot(c, e)
+                   for a, b, c, e in zip(d["le_dur"], pd["dur"], d["le_dur_ci"], pd["dur_ci"])), (tau, d, pd)
         assert all(a + c < b for a, c, b in zip(d["le_dur"], d["le_dur_ci"], d["dur"])), (tau, d)
 
 

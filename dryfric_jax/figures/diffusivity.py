@@ -5,7 +5,7 @@ stationary velocity law.
   Delta = 3.84, gamma_bar = 0.342): PDMP (delta = 0.125 s^-1/2) dots, DI lines; N = 1e5 (full)
   or 1e3 (quick), lowered by 4x steps (not below 1e3) where the run would exceed the default
   ``max_work`` (the N used is in the JSON).  The PDMP's durations are its excursions'; the DI's come
-  from counting releases (:mod:`dryfric_jax.durations`, at h/8, ``DUR_H_DIV``: its bias falls slowly with h),
+  from counting releases (:mod:`dryfric_jax.durations`, with its bridge correction, at its default step),
   since its regeneration cycles (thin dashed lines) span one or more of the paper's excursions.  At the
   paper's delta the PDMP's durations are up to ~10% long at some Gamma (its delta-grid; RESULTS.md);
 * Fig. 8: D for b = 0 and for b = -v/tau_L + gamma_bar, tau = 1e-5 .. 1e-2 s: brute force
@@ -26,7 +26,7 @@ from .. import theory
 from ..chain_law import white_chain_law
 from ..di import make_di_model
 from ..durations import MAX_STEPS as DUR_MAX_STEPS
-from ..durations import H_DIV, default_duration_h, default_lanes, di_long_excursion_duration
+from ..durations import default_duration_h, default_lanes, di_long_excursion_duration
 from ..params import Params, real_or_none
 from ..paths import di_stationary
 from ..plan import default_h, plan_estimate
@@ -38,8 +38,6 @@ DELTA, TAU_L, GBAR = 3.84, 0.067, 0.342
 
 #: smallest N a figure point is lowered to; below it the CI bars would say little
 N_FLOOR = 1000
-#: the DI duration runs' step is the count's default, default_h / DUR_H_DIV (durations.H_DIV, with its measurements)
-DUR_H_DIV = H_DIV
 #: lane-steps a DI duration point may take (long excursions planned from the D run's cycle duration); the floor of
 #: 32 excursions can exceed it (full tau = 1 s, Gamma = 1: 62 counted in 32 lanes, 326 s on 2 cores, CI +-21%)
 DUR_WORK = {True: 3e7, False: 1e9}
@@ -137,7 +135,7 @@ def fig3(out_dir, quick, seed):
     # the DI's cycle runs from one Nummelin regeneration to the next (regeneration.py), a coin at each release near a
     # threshold, so a cycle spans a random number (>= 1) of the paper's excursions and is about 2-4x longer here (D
     # and M0 do not depend on the rule); the solid lines count the paper's excursions by their releases (durations.py)
-    a2.set_title("the paper's long excursion: dots PDMP, lines DI (releases counted, h/8)\n"
+    a2.set_title("the paper's long excursion: dots PDMP, lines DI (releases counted, bridged)\n"
                  "dashed: the DI's regeneration cycle, >= 1 such excursion each", fontsize=8)
     nums["runs"] = pts.summary()
     return save(fig, out_dir, "fig3", nums, t0, quick=quick, seed=seed)
