@@ -53,8 +53,9 @@ the probability that a Brownian bridge from :math:`X_n` to :math:`X_{n+1}` with 
     \operatorname{Var}(X_{n+1}\mid X_n) = \frac{1 - e^{-2h/\tau}}{\tau},
 
 with :math:`d_n, d_{n+1}` the distances of :math:`X_n, X_{n+1}` inside :math:`a` (:math:`p_n = 1` where either
-is beyond it), from one uniform per step (of ``split(block_key)[1]``; the normals are ``split(block_key)[0]``'s,
-as in the D engine).  The chain (X, V) itself is not changed: such a release would move the particle by
+is beyond it), from one uniform per step, made of the low bits that the step's two normals leave unused
+(:func:`~dryfric_jax.rng.normals_and_spare`: 24 bits in float64, 18 in float32, independent of the normals), so
+the bridge draws nothing more and the chain's path is the raw count's, step for step.  The chain (X, V) itself is not changed: such a release would move the particle by
 :math:`O(h^{3/2})`.  The bias then falls like h, from +1.9% at h to +0.6% at h/2 and 0.05% at h/4 at that point
 (0.4427, 0.4374, 0.4348, 0.4346 +- 0.0023 at h, h/2, h/4, h/16; the PDMP 0.4405 and 0.4376 at delta = 0.0625
 and 0.03125, +0.0029 per halving of delta, onto 0.4347).  It shrinks as tau/h grows (and as Gamma falls): at
@@ -186,9 +187,9 @@ def _lane_loop(model, keys, n_excursions, max_blocks, block: int, bridge: bool =
     def body(st):
         b, stop, c = st
         bk = block_keys(keys, b)
-        z1, z2 = model.draw_lanes(bk, block)  # the D engine's layout: normals from split(bk)[0], uniforms [1]
-        u = rng.uniforms(rng.split_at(bk, 1), block, 1, dt)[0] if bridge else z1
-        c = jax.lax.fori_loop(0, block, lambda i, cc: step(z1[i], z2[i], u[i], stop, cc), c)
+        # the block key's normals (0.2.8's numbers, the raw count's); the bridge's uniform from their spare bits
+        z1, z2, u = rng.normals_and_spare(bk, block, dt) if bridge else rng.normals(bk, block, 2, dt) + (None,)
+        c = jax.lax.fori_loop(0, block, lambda i, cc: step(z1[i], z2[i], None if u is None else u[i], stop, cc), c)
         stop = stop | (c[8].sum() >= n_excursions)  # from the next block on, no lane starts an LE
         c = c[:7] + (c[7] | (stop & (c[4] == 0)),) + c[8:]  # a lane with none started stops at once
         return b + 1, stop, c

@@ -247,6 +247,43 @@ def normals(keys, block: int, n: int, dtype, start=None):
                  lambda bs: sum((_normal(bs[c], bs[c + 1], dtype) for c in range(0, n, 2)), ()), start)
 
 
+def _spare(bits_u, bits_t, dtype):
+    r"""A uniform in [0, 1) from the low bits of a pair's two numbers that :func:`_normal` leaves unused (it reads
+    only their top m bits): :math:`(l_u 2^s + l_t)\,2^{-2s}`, :math:`l` the low :math:`s = 64 - 52 = 12` (float64) or
+    :math:`32 - 23 = 9` (float32) bits, so one of :math:`2^{24}` or :math:`2^{18}` equally likely values,
+    independent of the pair (the bits of a hash are)."""
+    dtype = np.dtype(dtype)
+    ut = _uint(dtype)
+    s = 8 * dtype.itemsize - np.finfo(dtype).nmant
+    low = ut((1 << s) - 1)
+    k = ((bits_u & low) << ut(s)) | (bits_t & low)
+    return k.astype(dtype) * np.array(2.0 ** (-2 * s), dtype)
+
+
+def normal_pair_and_spare(key, block: int, dtype):
+    """One key's ``(block, 3)``: columns 0, 1 are :func:`normal` ``(key, (block, 2), dtype)`` and column 2 the
+    uniform of :func:`_spare` from the same bits: a third number per row at no extra hash (the per-key
+    definition that :func:`normals_and_spare` computes for every lane at once)."""
+    _check_dtype(dtype)
+    b = jax.random.bits(key, (block, 2), _uint(dtype))
+    return jnp.stack(_normal(b[:, 0], b[:, 1], dtype) + (_spare(b[:, 0], b[:, 1], dtype),), -1)
+
+
+def normals_and_spare(keys, block: int, dtype):
+    """Every lane's :func:`normal_pair_and_spare` as 3 arrays of shape (block, lanes): the two normals are
+    exactly :func:`normals` ``(keys, block, 2, dtype)``'s."""
+    _check_dtype(dtype)
+    via_jax = lambda ks: per_lane(lambda k: normal_pair_and_spare(k, block, dtype), ks, 3)
+    if not is_threefry(keys):
+        return via_jax(keys)
+
+    def fused(ks):
+        b = _bits(jax.random.key_data(ks), block, 2, dtype)
+        return _normal(b[0], b[1], dtype) + (_spare(b[0], b[1], dtype),)
+
+    return lax.platform_dependent(keys, cpu=fused, default=via_jax)
+
+
 def uniforms(keys, block: int, n: int, dtype, minval: float = 0.0, maxval: float = 1.0):
     """Every lane's ``jax.random.uniform(key, (block, n), dtype, minval, maxval)``, laid out as
     :func:`normals`."""

@@ -138,3 +138,58 @@ def test_key_derivations_are_jax_random_bit_for_bit(impl):
         ref = jax.vmap(lambda k: jax.random.uniform(k, (), dtype, minval=tiny))(keys)
         np.testing.assert_array_equal(jax.jit(lambda k: rng.uniform(k, dtype, tiny))(keys), ref)
         np.testing.assert_array_equal(jax.jit(jax.vmap(lambda k: rng.uniform(k, dtype, tiny)))(keys), ref)
+
+
+@pytest.mark.parametrize("dtype", [jnp.float32, jnp.float64])
+def test_the_spare_uniform_is_the_unused_low_bits(key, dtype):
+    """normals_and_spare: the two normals are normals(keys, block, 2)'s bit for bit, and the third number is made
+    of the low bits the Box-Muller transform does not read, (l_u 2^s + l_t) 2^-2s with s = 12 (float64) or 9
+    (float32), computed here from jax.random.bits; the CPU path, the per-key definition and the path a GPU
+    takes (rbg keys through vmap) agree bit for bit."""
+    s = 8 * np.dtype(dtype).itemsize - np.finfo(dtype).nmant
+    assert s == (12 if dtype == jnp.float64 else 9)
+    keys = jax.random.split(key, 19)
+    got = jax.jit(lambda ks: rng.normals_and_spare(ks, 64, dtype))(keys)
+    plain = rng.normals(keys, 64, 2, dtype)
+    bits = np.asarray(jax.vmap(lambda k: jax.random.bits(k, (64, 2), _uint(dtype)))(keys))  # (lanes, block, 2)
+    low = (1 << s) - 1
+    k = ((bits[:, :, 0] & low).astype(np.int64) << s) | (bits[:, :, 1] & low).astype(np.int64)
+    for c in range(2):
+        np.testing.assert_array_equal(np.asarray(got[c]), np.asarray(plain[c]))
+    np.testing.assert_array_equal(np.asarray(got[2]), (k * 2.0 ** (-2 * s)).astype(dtype).T)
+    ref = jax.vmap(lambda kk: rng.normal_pair_and_spare(kk, 64, dtype))(keys)
+    for c in range(3):
+        np.testing.assert_array_equal(np.asarray(got[c]), np.asarray(ref[:, :, c]).T)
+    rbg = jax.random.split(jax.random.key(5, impl="rbg"), 9)
+    via = rng.normals_and_spare(rbg, 6, dtype)
+    ref = jax.vmap(lambda kk: rng.normal_pair_and_spare(kk, 6, dtype))(rbg)
+    for c in range(3):
+        np.testing.assert_array_equal(np.asarray(via[c]), np.asarray(ref[:, :, c]).T)
+
+
+def test_the_spare_uniform_is_uniform_and_independent_of_its_normals(key):
+    """2^20 float64 draws (fixed key): the spare uniform's 64 equal bins and its 8 bins crossed with the pair's
+    8 angle sectors (the normals' t) and with 4 radius classes (their u) pass a chi^2 test at the 99.9% level
+    (Wilson-Hilferty): the bits of a hash are independent, so the bridge's coin is independent of its step."""
+    z1, z2, u = (np.asarray(a).ravel() for a in rng.normals_and_spare(jax.random.split(key, 1024), 1024,
+                                                                      jnp.float64))
+    assert u.min() >= 0.0 and u.max() < 1.0
+
+    def chi2_ok(counts):
+        counts = np.asarray(counts, float)
+        exp = counts.sum(1, keepdims=True) * counts.sum(0, keepdims=True) / counts.sum() if counts.ndim == 2 \
+            else np.full_like(counts, counts.mean())
+        df = counts.size - 1 if counts.ndim == 1 else (counts.shape[0] - 1) * (counts.shape[1] - 1)
+        stat = ((counts - exp) ** 2 / exp).sum()
+        hi = df * (1 - 2 / (9 * df) + 3.09 * np.sqrt(2 / (9 * df))) ** 3
+        return stat < hi, (stat, hi)
+
+    ok, why = chi2_ok(np.bincount((u * 64).astype(int), minlength=64))
+    assert ok, why
+    sector = ((np.arctan2(z2, z1) + np.pi) / (2 * np.pi) * 8).astype(int) % 8
+    radius = np.digitize(z1**2 + z2**2, [0.575, 1.386, 2.773])  # chi^2_2 quartiles
+    for cls, n in ((sector, 8), (radius, 4)):
+        table = np.zeros((8, n))
+        np.add.at(table, ((u * 8).astype(int), cls), 1)
+        ok, why = chi2_ok(table)
+        assert ok, why
