@@ -365,6 +365,13 @@ def test_fig3_numbers_from_known_runs(tmp_path, monkeypatch):
             assert r["D"] == pytest.approx([g - off for g in G], abs=1e-12) and r["D_ci"] == [ci] * len(G)
             assert r["dur"] == pytest.approx([2 * g for g in G]) and r["dur_ci"] == pytest.approx([0.1 * g for g in G])
         assert f["agree"][f"{tau:g}"] == pytest.approx([1.0] * len(G), rel=1e-12)
+    # the PDMP grid's widening of the stuck set per Gamma (pdmp.threshold_widening; test_pdmp checks it by hand)
+    from dryfric_jax.pdmp import threshold_widening
+
+    gb = diffusivity.GBAR / diffusivity.DELTA
+    assert f["pdmp_grid_widening"] == pytest.approx([sum(threshold_widening(0.125 * math.sqrt(g) / diffusivity.DELTA,
+                                                                            gb)) for g in G], rel=1e-9)
+    assert max(f["pdmp_grid_widening"]) == pytest.approx(1.92, abs=0.005)
 
 
 

@@ -356,3 +356,22 @@ def test_the_jump_side_is_exactly_symmetric_on_the_uniforms_grid(dtype):
         if dtype == "float32":
             # P(up at -k) is beta to a cell, 2^-23 (beta itself is rounded to float32, 2^-24)
             assert abs(int(jnp.sum(up == 1)) - (M if k == N else beta * M)) <= 1.5, k
+
+
+def test_threshold_widening_is_the_distance_to_the_first_level_past_each_threshold():
+    """By hand for Fig. 3's Gamma (delta' = 0.125 sqrt(Gamma) / 3.84, thresholds 1 - gamma_bar' and -1 - gamma_bar',
+    gamma_bar' = 0.342 / 3.84): the first grid level strictly past the upper threshold q_+ (in steps) is
+    floor(q_+) + 1, past the lower one ceil(q_-) - 1; a threshold on the grid is widened by a whole step.  At
+    Gamma = 7.74 both are ~1 step (1.92 in all), the Gamma where the PDMP's excursions are longest against the
+    DI's at every tau (RESULTS.md)."""
+    from dryfric_jax.pdmp import threshold_widening
+
+    gb = 0.342 / 3.84
+    for G in np.geomspace(1, 10, 10):
+        d = 0.125 * math.sqrt(G) / 3.84
+        qp, qm = (1 - gb) / d, (-1 - gb) / d
+        sp, sm = threshold_widening(d, gb)
+        assert sp == pytest.approx(math.floor(qp) + 1 - qp, abs=1e-9) and 0 < sp <= 1
+        assert sm == pytest.approx(qm - math.ceil(qm) + 1, abs=1e-9) and 0 < sm <= 1
+    assert sum(threshold_widening(0.125 * math.sqrt(7.742636826811269) / 3.84, gb)) == pytest.approx(1.92, abs=0.005)
+    assert threshold_widening(0.25, 0.0) == (1.0, 1.0)  # thresholds +-1 on the grid: released one step past

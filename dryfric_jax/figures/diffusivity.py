@@ -29,6 +29,7 @@ from ..durations import MAX_STEPS as DUR_MAX_STEPS
 from ..durations import default_duration_h, default_lanes, di_long_excursion_duration
 from ..params import Params, real_or_none
 from ..paths import di_stationary
+from ..pdmp import pdmp_grid_info, threshold_widening
 from ..plan import default_h, plan_estimate
 from .common import plt, save
 from .points import Points
@@ -89,6 +90,10 @@ def fig3(out_dir, quick, seed):
     n = 1000 if quick else 100_000
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4))
     nums = dict(Gamma=gammas, tau=taus, n_excursions=n, delta=0.125, pdmp={}, di={}, agree={})
+    # the PDMP's grid releases a stuck particle one level past each threshold: s_+ + s_- grid steps wider than the
+    # DI's stuck set (pdmp.threshold_widening; it depends on Gamma alone), which lengthens its excursions
+    nums["pdmp_grid_widening"] = [sum(threshold_widening(pdmp_grid_info(p, 0.125)["delta_nd"], p.nondim().gamma_bar))
+                                  for p in (Params(G, DELTA, 0.5, TAU_L, GBAR) for G in gammas)]
     pts = Points(out_dir, "fig3")  # finished runs are kept: an interrupted figure resumes
     for j, tau in enumerate(taus):
         rows = {}
