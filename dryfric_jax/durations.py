@@ -31,22 +31,23 @@ in flight there instead would leave out the long ones: -32% at a horizon of 3 me
 its finished lanes until the slowest was done: 1.1-1.9x more wall time per LE on 2 CPU cores (``RESULTS.md``).
 The LEs are i.i.d. in continuous time (each starts at :math:`(x_{\pm\Delta}, 0)`); in discrete time X overshoots
 the threshold a little, and the spread of the lanes' ratios matched the pooled :math:`s_d` (tested).
-Measured at Gamma = 10, tau = 0.125 s, the D estimator's h, 1000 replicates each against 0.44309 +- 0.00043 s (SE;
-1,048,840 LEs; ``scripts/duration_coverage.py``, bridged count, 0.2.9): coverage 0.921 +- 0.009, 0.940 +- 0.008,
-0.942 +- 0.007 and bias -0.9 +- 0.4%, -0.18 +- 0.25%, -0.11 +- 0.06% for 32 (Fig. 3's floor; 63 counted on average,
-in 32 lanes), 128 (163 counted) and 2048 (2329) asked: the durations are right-skewed, so a few dozen LEs cover a
+Measured at Gamma = 10, tau = 0.125 s, the D estimator's h, 1000 replicates each against 0.44218 +- 0.00042 s (SE;
+1,048,849 LEs; ``scripts/duration_coverage.py``, bridged count, 0.2.10): coverage 0.932 +- 0.008, 0.943 +- 0.007,
+0.946 +- 0.007 and bias -0.6 +- 0.4%, -0.27 +- 0.25%, +0.05 +- 0.07% for 32 (Fig. 3's floor; 63 counted on average,
+in 32 lanes), 128 (163 counted) and 2048 (2330) asked: the durations are right-skewed, so a few dozen LEs cover a
 little less than 95%, and below :data:`MIN_RELIABLE_LE` counted a :class:`~dryfric_jax.SmallSampleWarning` says
-so.  (The raw count of 0.2.8: 0.939, 0.936, 0.951.)
+so.  (0.2.9's uniforms: 0.921, 0.940, 0.942; the raw count of 0.2.8: 0.939, 0.936, 0.951.)
 
 **Crossings between steps (the bridge correction, version 0.2.9).**  The chain sees X only at its steps, and a
 stuck particle moves only where a step's mean force :math:`\Xi_n` passes a threshold, so it finds a change of
 direction late: between two steps X can pass the opposite threshold and come back, which in continuous time is a
 release.  Counted raw, the mean duration's bias falls like :math:`\sqrt h` (a discretely monitored barrier;
-Broadie, Glasserman and Kou 1997): at Gamma = 10, tau = 0.125 s 0.539, 0.484, 0.453 s (+- 0.009) at h, h/4, h/16
-(h the D estimator's default) against a converged 0.4346.  So at a step where the particle stays put
-(:math:`V_n = V_{n+1} = 0`) after a release in direction :math:`s`, the count also takes a release towards the
-opposite threshold :math:`a` (:math:`x_{-\Delta}` for :math:`s = +`, :math:`x_{\Delta}` for :math:`s = -`) with
-the probability that a Brownian bridge from :math:`X_n` to :math:`X_{n+1}` with the step's variance crossed it,
+Broadie, Glasserman and Kou 1997): at Gamma = 10, tau = 0.125 s 0.533, 0.479, 0.452 s (+- 0.0025) at h, h/4,
+h/16 (h the D estimator's default, tau/h = 187), +23%, +11%, +4% against the bridged count's 0.433 at h/16.  So
+at a step where the particle stays put (:math:`V_n = V_{n+1} = 0`) after a release in direction :math:`s`, the
+count also takes a release towards the opposite threshold :math:`a` (:math:`x_{-\Delta}` for :math:`s = +`,
+:math:`x_{\Delta}` for :math:`s = -`) with the probability that a Brownian bridge from :math:`X_n` to
+:math:`X_{n+1}` with the step's variance crossed it,
 
 .. math::
     p_n = \exp\Big(-\frac{2\,d_n d_{n+1}}{\operatorname{Var}(X_{n+1}\mid X_n)}\Big), \qquad
@@ -55,16 +56,20 @@ the probability that a Brownian bridge from :math:`X_n` to :math:`X_{n+1}` with 
 with :math:`d_n, d_{n+1}` the distances of :math:`X_n, X_{n+1}` inside :math:`a` (:math:`p_n = 1` where either
 is beyond it), from one uniform per step, made of the low bits that the step's two normals leave unused
 (:func:`~dryfric_jax.rng.normals_and_spare`: 24 bits in float64, 18 in float32, independent of the normals), so
-the bridge draws nothing more and the chain's path is the raw count's, step for step.  The chain (X, V) itself is not changed: such a release would move the particle by
-:math:`O(h^{3/2})`.  The bias then falls like h, from +1.9% at h to +0.6% at h/2 and 0.05% at h/4 at that point
-(0.4427, 0.4374, 0.4348, 0.4346 +- 0.0023 at h, h/2, h/4, h/16; the PDMP 0.4405 and 0.4376 at delta = 0.0625
-and 0.03125, +0.0029 per halving of delta, onto 0.4347).  It shrinks as tau/h grows (and as Gamma falls): at
-Gamma = 10, tau = 0.25 s (tau/h = 373 at h) 0.8379 and 0.8353 s (+- 0.0046) at h and h/4; at Fig. 3's point (746)
-4.034, 4.039, 4.029 s (+- 0.018) at h, h/2, h/4; at Gamma = 2.15, tau = 0.125 s 0.6805 and 0.6804 (+- 0.0046) at
-h and h/4.  The default step is therefore :math:`\min(h_D, \tau/\text{TAU\_STEPS})` (:func:`default_duration_h`),
-:math:`h_D` the D estimator's, :data:`TAU_STEPS` = 700.  The uniform makes a step ~1.5x as dear as the raw
-count's, which ran at h/8 for a bias of a few % (0.2.8).  (All +- here are 95% CIs; tau, h nondimensional in
-the variance.)
+the bridge draws nothing more and the chain's path is the raw count's, step for step (0.2.10; 0.2.9 drew the
+uniform from another key).  The chain (X, V) itself is not changed: such a release would move the particle by
+:math:`O(h^{3/2})`.  The bias then falls like h: at that point 0.4413, 0.4378, 0.4345, 0.4326 s at h, h/2, h/4,
+h/16 (+- 0.0016: 0.2.9's and 0.2.10's runs of 131 072 LEs each, independent, pooled), +2.0%, +1.2% and +0.4%
+against h/16; the PDMP, an independent method, gives 0.4405 and 0.4376 (+- 0.0023) at delta = 0.0625 and
+0.03125, falling by 0.0029 per halving of delta.  The bias shrinks as tau/h grows (and as Gamma falls): at
+Gamma = 10, tau = 0.25 s (tau/h = 373 at h) 0.8354 and 0.8355 (+- 0.0033) at h and h/4; at Fig. 3's point
+(746) 4.035, 4.030, 4.028 s (+- 0.013) at h, h/2, h/4; at Gamma = 2.15, tau = 0.125 s 0.6807 and 0.6785
+(+- 0.0033) at h and h/4 (pooled the same way).  The default step is therefore
+:math:`\min(h_D, \tau/\text{TAU\_STEPS})` (:func:`default_duration_h`), :math:`h_D` the D estimator's,
+:data:`TAU_STEPS` = 700: a bias of ~0.5% at most over Fig. 3's grid (its worst point, Gamma = 10, tau = 0.125 s,
+at h/3.7), where its CIs are 1.2-2.1%.  The bridge's arithmetic makes a step ~1.4x as dear as the raw count's
+(51 against 73 M lane-steps/s at Fig. 3's point, 256 lanes, 2 CPU cores, medians of 5), which ran at h/8 for a
+bias of a few % (0.2.8).  (All +- here are 95% CIs; tau, h nondimensional in the variance.)
 
 A V that lands on 0 for one step while passing through it (the force beyond the threshold) is not a release:
 counting those (a first version) ended half excursions early, 15 SE below the PDMP at Gamma = 10, tau = 0.125 s,
@@ -205,15 +210,15 @@ def _lane_loop(model, keys, n_excursions, max_blocks, block: int, bridge: bool =
 # n_excursions and the bound are traced: a figure's points differ in them and share one compiled loop per lane count
 _run = jax.jit(_lane_loop, static_argnames=("block", "bridge"))
 #: the count's default step keeps at least TAU_STEPS steps per tau (default_duration_h): with the bridge correction
-#: its bias falls like h, 1.9%, 0.6% and 0.05% at tau/h = 187, 373 and 746 (Gamma = 10, tau = 0.125 s), none
-#: seen (+- 0.45%) at 746 to 2984 (Fig. 3's point), nor at 187 where Gamma = 2.15; module docstring
+#: its bias falls like h, +2.0%, +1.2% and +0.4% (+- 0.5%) at tau/h = 187, 373 and 746 (Gamma = 10, tau = 0.125 s,
+#: against tau/h = 2984), none seen (+- 0.3%) at 746 to 2984 (Fig. 3's point); module docstring
 TAU_STEPS = 700
-#: steps per tau below which a warning says the count is not the paper's long excursion (its bias is +1.9% already
+#: steps per tau below which a warning says the count is not the paper's long excursion (its bias is +2% already
 #: at tau/h = 187, Gamma = 10, tau = 0.125 s)
 MIN_TAU_STEPS = 10
 #: long excursions counted below which a SmallSampleWarning says the CI under-covers: measured (1000 replicates at
-#: Gamma = 10, tau = 0.125 s, the D estimator's h; scripts/duration_coverage.py) 0.921 +- 0.009 at 63 counted,
-#: 0.940 +- 0.008 at 163 and 0.942 +- 0.007 at 2329
+#: Gamma = 10, tau = 0.125 s, the D estimator's h; scripts/duration_coverage.py) 0.932 +- 0.008 at 63 counted,
+#: 0.943 +- 0.007 at 163 and 0.946 +- 0.007 at 2330 (0.2.9's uniforms: 0.921, 0.940, 0.942)
 MIN_RELIABLE_LE = 100
 #: the loop's bound in steps: whole blocks, counted in int32 and folded into the lanes' keys
 MAX_STEPS = (2**31 - 2) * BLOCK
@@ -305,7 +310,7 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
         notes.append(note)
     if k < MIN_RELIABLE_LE:
         note = (f"n_excursions = {k} < {MIN_RELIABLE_LE}: the t CI under-covers at this size (right-skewed durations: "
-                "0.92 at ~60 counted, 0.94 from ~160; durations.py)")
+                "0.92-0.93 at ~60 counted, 0.94 from ~160; durations.py)")
         warnings.warn(note, category(note), stacklevel=2)  # a SmallSampleWarning, as the estimator's
         notes.append(note)
     s_sum = float(S.sum())  # exact: int64 sums of steps

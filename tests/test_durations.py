@@ -17,12 +17,13 @@ FAST = Params(10.0, 3.84, 0.125, 0.067, 0.342)  # Fig. 3's fastest point: many r
 @pytest.mark.filterwarnings("ignore::dryfric_jax.DryfricWarning")
 def test_the_bridged_count_agrees_with_the_pdmp_and_the_raw_one_does_not():
     """At Gamma = 10, tau = 0.125 s (Fig. 3's fastest point, tau/h = 187 at the D estimator's h) against the PDMP
-    at delta = 0.03125, an independent method (measured 0.4376 +- 0.0023 with 131072 excursions; 0.4405 at 0.0625,
-    converging onto the DI's 0.4346 +- 0.0023 at h/16).  The count's default step here is tau/700 = h/3.7: bridged
-    (module docstring) it agrees with the PDMP within 3 SE (measured 0.4348); raw (the chain's own releases only),
-    a discretely monitored barrier, it lies > 5 SE above (measured 0.484, +11%).  At h the bridge removes at least
-    4/5 of the raw count's bias (measured: +1.9% against +24%), and the two steps agree to within that bias plus
-    3 SE (the bias falls like h)."""
+    at delta = 0.03125, an independent method (0.4376 +- 0.0023 with 131072 excursions; 0.4405 at 0.0625, falling
+    toward the DI's 0.4326 +- 0.0016 at h/16).  The count's default step here is tau/700 = h/3.7: bridged (module
+    docstring) it agrees with the PDMP within 3 SE; raw (the chain's own releases only, a discretely monitored
+    barrier) it lies > 5 SE above.  At h the bridge removes at least 4/5 of the raw count's bias, and the two steps
+    agree to within that bias plus 3 SE (the bias falls like h).  Measured (0.2.10): PDMP 0.4394 +- 0.0042; bridged
+    0.4337 (-1.9 SE), raw 0.4793 (+12.9 SE); at h 0.4428 and raw 0.5339, so coarse - fine = 0.009 against a bound
+    of 0.029."""
     from dryfric_jax.durations import default_duration_h
 
     h = default_h(FAST)
@@ -290,7 +291,7 @@ def test_the_default_step_is_the_figures():
 
 
 def test_a_few_dozen_excursions_are_said_to_under_cover(monkeypatch):
-    """Below MIN_RELIABLE_LE excursions counted the t CI under-covers (0.92 at 63 counted: module docstring): a
+    """Below MIN_RELIABLE_LE excursions counted the t CI under-covers (0.93 at 63 counted: module docstring): a
     SmallSampleWarning (the estimator's category, which a sweep can silence alone), kept in the result; at 100
     and more, none."""
     import warnings
