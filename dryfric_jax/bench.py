@@ -13,8 +13,9 @@ One run, one device, the paper's Fig. 3 point:
 * PDMP events/s (default delta), float32 and float64;
 * the duration count's lane-steps/s (:func:`~dryfric_jax.di_long_excursion_duration`, float64, its own h
   and default lanes; steps computed, the idle lanes' included), against the float64 chain floor (the count
-  draws 3 numbers a step, the bridge's uniform too, where the floor draws 2): it once froze a stopped lane's
-  X and V with a select per step, which ran it at 0.27 of its speed on 2 CPU cores, unseen by any test;
+  also computes its bridge's crossing chance at every step, ~1.4x the raw count's cost): it once froze a
+  stopped lane's X and V with a select per step, which ran it at 0.27 of its speed on 2 CPU cores, unseen
+  by any test;
 * compiled scalar baselines of the same DI chain and of the same PDMP event loop (numba, 1 and 2
   threads, normals from numpy's ``Generator``: :mod:`dryfric_jax.bench_numba`), if numba is
   installed;

@@ -285,7 +285,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "'dryfric estimate' prints the mean duration of its regeneration cycles, each one or more of "
                         "these.")
     du.add_argument("--h", type=_number("h"), default=None,
-                    help="DI step, s (default min(0.01*min(tau0, tau_L), tau/700): the count's bias goes like h/tau)")
+                    help="DI step, s (default min(0.01*min(tau0, tau_L), tau/700): the count's bias falls like h)")
     du.add_argument("--seed", type=_seed, default=0, help="random seed, an integer in [0, 2^62 - 2^20] (default 0)")
     du.add_argument("--dtype", default="float64", help="float64 or float32 (float64 where float32 is not safe)")
     du.add_argument("--no-bridge", action="store_true",

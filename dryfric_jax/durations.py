@@ -146,7 +146,8 @@ def _lane_loop(model, keys, n_excursions, max_blocks, block: int, bridge: bool =
     """The lanes' loop (module docstring): returns per lane the LEs counted, the sums of their durations and of
     their squares (in steps), whether it stopped by the rule (not in flight at the bound), an LE in flight, its
     steps; and the blocks the loop ran.  ``bridge``: also count the crossings of the opposite threshold that X
-    makes between two steps of a stuck particle (module docstring); it draws a uniform per step."""
+    makes between two steps of a stuck particle (module docstring), with a uniform per step from the spare bits of
+    the step's normals."""
     dt = model.h.dtype
     lanes = keys.shape[0]
     x0 = jax.vmap(lambda k: jax.random.normal(jax.random.fold_in(k, 2**31 - 1), (), dt))(keys)
@@ -211,7 +212,7 @@ def _lane_loop(model, keys, n_excursions, max_blocks, block: int, bridge: bool =
 _run = jax.jit(_lane_loop, static_argnames=("block", "bridge"))
 #: the count's default step keeps at least TAU_STEPS steps per tau (default_duration_h): with the bridge correction
 #: its bias falls like h, +2.0%, +1.2% and +0.4% (+- 0.5%) at tau/h = 187, 373 and 746 (Gamma = 10, tau = 0.125 s,
-#: against tau/h = 2984), none seen (+- 0.3%) at 746 to 2984 (Fig. 3's point); module docstring
+#: against tau/h = 2992), none seen (+- 0.3%) at 746 to 2984 (Fig. 3's point); module docstring
 TAU_STEPS = 700
 #: steps per tau below which a warning says the count is not the paper's long excursion (its bias is +2% already
 #: at tau/h = 187, Gamma = 10, tau = 0.125 s)
@@ -226,7 +227,8 @@ MAX_STEPS = (2**31 - 2) * BLOCK
 
 def default_duration_h(params: Params) -> float:
     """The count's default step in seconds: the D estimator's :func:`~dryfric_jax.plan.default_h`, or
-    :math:`\\tau/` :data:`TAU_STEPS` where that is smaller (the bias of the bridged count goes like h/tau)."""
+    :math:`\\tau/` :data:`TAU_STEPS` where that is smaller (the bridged count's bias falls like h and shrinks as
+    tau/h grows: module docstring)."""
     return min(default_h(params), params.tau / TAU_STEPS)
 
 
