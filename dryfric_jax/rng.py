@@ -248,16 +248,18 @@ def normals(keys, block: int, n: int, dtype, start=None):
 
 
 def _spare(bits_u, bits_t, dtype):
-    r"""A uniform in [0, 1) from the low bits of a pair's two numbers that :func:`_normal` leaves unused (it reads
-    only their top m bits): :math:`(l_u 2^s + l_t)\,2^{-2s}`, :math:`l` the low :math:`s = 64 - 52 = 12` (float64) or
-    :math:`32 - 23 = 9` (float32) bits, so one of :math:`2^{24}` or :math:`2^{18}` equally likely values,
-    independent of the pair (the bits of a hash are)."""
+    r"""A uniform in (0, 1) from the low bits of a pair's two numbers that :func:`_normal` leaves unused (it reads
+    only their top m bits): :math:`(k + \tfrac12)\,2^{-2s}` with :math:`k = l_u 2^s + l_t`, :math:`l` the low
+    :math:`s = 64 - 52 = 12` (float64) or :math:`32 - 23 = 9` (float32) bits: the midpoint of one of :math:`2^{24}`
+    or :math:`2^{18}` equally likely cells, independent of the pair (the bits of a hash are), never 0 or 1.  (With
+    :math:`k 2^{-2s}`, 0.2.10's, a draw of exactly 0, one step in :math:`2^{18}` in float32, took any crossing
+    chance above 0 as a crossing: a stuck particle far from the threshold then reversed.)"""
     dtype = np.dtype(dtype)
     ut = _uint(dtype)
     s = 8 * dtype.itemsize - np.finfo(dtype).nmant
     low = ut((1 << s) - 1)
-    k = ((bits_u & low) << ut(s)) | (bits_t & low)
-    return k.astype(dtype) * np.array(2.0 ** (-2 * s), dtype)
+    k = ((bits_u & low) << ut(s + 1)) | ((bits_t & low) << ut(1)) | ut(1)  # 2k + 1, exact
+    return k.astype(dtype) * np.array(2.0 ** (-2 * s - 1), dtype)
 
 
 def normal_pair_and_spare(key, block: int, dtype):

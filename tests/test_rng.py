@@ -143,7 +143,7 @@ def test_key_derivations_are_jax_random_bit_for_bit(impl):
 @pytest.mark.parametrize("dtype", [jnp.float32, jnp.float64])
 def test_the_spare_uniform_is_the_unused_low_bits(key, dtype):
     """normals_and_spare: the two normals are normals(keys, block, 2)'s bit for bit, and the third number is made
-    of the low bits the Box-Muller transform does not read, (l_u 2^s + l_t) 2^-2s with s = 12 (float64) or 9
+    of the low bits the Box-Muller transform does not read, (l_u 2^s + l_t + 1/2) 2^-2s with s = 12 (float64) or 9
     (float32), computed here from jax.random.bits; the CPU path, the per-key definition and the path a GPU
     takes (rbg keys through vmap) agree bit for bit."""
     s = 8 * np.dtype(dtype).itemsize - np.finfo(dtype).nmant
@@ -156,7 +156,10 @@ def test_the_spare_uniform_is_the_unused_low_bits(key, dtype):
     k = ((bits[:, :, 0] & low).astype(np.int64) << s) | (bits[:, :, 1] & low).astype(np.int64)
     for c in range(2):
         np.testing.assert_array_equal(np.asarray(got[c]), np.asarray(plain[c]))
-    np.testing.assert_array_equal(np.asarray(got[2]), (k * 2.0 ** (-2 * s)).astype(dtype).T)
+    np.testing.assert_array_equal(np.asarray(got[2]), ((k + 0.5) * 2.0 ** (-2 * s)).astype(dtype).T)
+    # the midpoints of 2^2s cells: never 0 (a 0 would take any crossing chance > 0 as a crossing), never 1
+    u = np.asarray(got[2])
+    assert u.min() >= 2.0 ** (-2 * s - 1) and u.max() <= 1 - 2.0 ** (-2 * s - 1)
     ref = jax.vmap(lambda kk: rng.normal_pair_and_spare(kk, 64, dtype))(keys)
     for c in range(3):
         np.testing.assert_array_equal(np.asarray(got[c]), np.asarray(ref[:, :, c]).T)
