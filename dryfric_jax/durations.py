@@ -61,11 +61,11 @@ uniform from another key; since 0.2.11 it is a cell's midpoint, never 0, which a
 in 33 000 in float32: 4.0132 against 4.0133 s).  The chain (X, V) itself is not changed: such a release would
 move the particle by :math:`O(h^{3/2})`.  The bias then falls like h: at that point 0.4413, 0.4378, 0.4345,
 0.4326 s at h, h/2, h/4, h/16 (+- 0.0016: 0.2.9's and 0.2.10's runs of 131 072 LEs each, independent, pooled),
-+2.0%, +1.2% and +0.4% against h/16; the PDMP, an independent method, gives 0.4405 and 0.4376 (+- 0.0023) at delta = 0.0625 and
-0.03125, falling by 0.0029 per halving of delta.  The bias shrinks as tau/h grows (and as Gamma falls): at
-Gamma = 10, tau = 0.25 s (tau/h = 373 at h) 0.8354 and 0.8355 (+- 0.0033) at h and h/4; at Fig. 3's point
-(746) 4.035, 4.030, 4.028 s (+- 0.013) at h, h/2, h/4; at Gamma = 2.15, tau = 0.125 s 0.6807 and 0.6785
-(+- 0.0033) at h and h/4 (pooled the same way).  The default step is therefore
++2.0%, +1.2% and +0.4% against h/16; the PDMP, an independent method, gives 0.4405 and 0.4376 (+- 0.0023) at
+delta = 0.0625 and 0.03125, falling by 0.0029 per halving of delta.  The bias shrinks as tau/h grows (and as
+Gamma falls): at Gamma = 10, tau = 0.25 s (tau/h = 373 at h) 0.8354 and 0.8355 (+- 0.0033) at h and h/4; at
+Fig. 3's point (746) 4.035, 4.030, 4.028 s (+- 0.013) at h, h/2, h/4; at Gamma = 2.15, tau = 0.125 s 0.6807 and
+0.6785 (+- 0.0033) at h and h/4 (pooled the same way).  The default step is therefore
 :math:`\min(h_D, \tau/\text{TAU\_STEPS})` (:func:`default_duration_h`), :math:`h_D` the D estimator's,
 :data:`TAU_STEPS` = 700: a bias of ~0.5% at most over Fig. 3's grid (its worst point, Gamma = 10, tau = 0.125 s,
 at h/3.7), where its CIs are 1.2-2.1%.  The bridge's arithmetic makes a step ~1.4x as dear as the raw count's
