@@ -228,7 +228,7 @@ def threshold_widening(delta: float, gamma_bar: float) -> tuple[float, float]:
     is released at :math:`x_{k_+ + 1}` and :math:`x_{k_- - 1}` (:func:`grid_offsets`; nondimensional ``delta``,
     ``gamma_bar``), where the DI is released at the thresholds themselves, so the grid widens the stuck set by
     their sum and lengthens the excursions (at Fig. 3's delta by up to 13% at tau <= 0.5 s: RESULTS.md)."""
-    kp, km, r_p, r_m = grid_offsets(delta, gamma_bar)
+    _, _, r_p, r_m = grid_offsets(delta, gamma_bar)
     return 1.0 + r_p / delta, 1.0 - r_m / delta
 
 

@@ -212,14 +212,14 @@ def uniform(keys, dtype, minval: float = 0.0, maxval: float = 1.0):
                    lambda ks: _each(lambda k: jax.random.uniform(k, (), dtype, minval, maxval), ks))
 
 
-def _draw(keys, block: int, n: int, dtype, sample, transform, start=None):
-    """``per_lane(sample, keys, n)``; on a CPU, for threefry keys, the same numbers as
-    ``transform`` of the fused hash's bits (all n columns; module docstring), elsewhere ``sample`` itself.  With
-    ``start``, rows ``[start, start + block)`` of the per-lane array (``sample`` is then not used):
+def _draw(keys, block: int, n: int, dtype, sample, transform, start=None, n_out=None):
+    """``per_lane(sample, keys, n_out)`` (``n_out`` columns, n unless told); on a CPU, for threefry keys, the same
+    numbers as ``transform`` of the fused hash's bits (n columns; module docstring), elsewhere ``sample`` itself.
+    With ``start``, rows ``[start, start + block)`` of the per-lane array (``sample`` is then not used):
     the fused hash on every platform, materialised on a CPU only (a GPU would read the
     ``lax.cond``'s predicate back to the host)."""
     _check_dtype(dtype)
-    via_jax = lambda ks: per_lane(sample, ks, n)
+    via_jax = lambda ks: per_lane(sample, ks, n if n_out is None else n_out)
     if not is_threefry(keys):
         if start is not None:
             raise ValueError("row offsets (start) need threefry keys, JAX's default generator")
@@ -274,16 +274,8 @@ def normal_pair_and_spare(key, block: int, dtype):
 def normals_and_spare(keys, block: int, dtype):
     """Every lane's :func:`normal_pair_and_spare` as 3 arrays of shape (block, lanes): the two normals are
     exactly :func:`normals` ``(keys, block, 2, dtype)``'s."""
-    _check_dtype(dtype)
-    via_jax = lambda ks: per_lane(lambda k: normal_pair_and_spare(k, block, dtype), ks, 3)
-    if not is_threefry(keys):
-        return via_jax(keys)
-
-    def fused(ks):
-        b = _bits(jax.random.key_data(ks), block, 2, dtype)
-        return _normal(b[0], b[1], dtype) + (_spare(b[0], b[1], dtype),)
-
-    return lax.platform_dependent(keys, cpu=fused, default=via_jax)
+    return _draw(keys, block, 2, dtype, lambda k: normal_pair_and_spare(k, block, dtype),
+                 lambda bs: _normal(bs[0], bs[1], dtype) + (_spare(bs[0], bs[1], dtype),), n_out=3)
 
 
 def uniforms(keys, block: int, n: int, dtype, minval: float = 0.0, maxval: float = 1.0):

@@ -7,7 +7,8 @@ stationary velocity law.
   ``max_work`` (the N used is in the JSON).  The PDMP's durations are its excursions'; the DI's come
   from counting releases (:mod:`dryfric_jax.durations`, with its bridge correction, at its default step),
   since its regeneration cycles (thin dashed lines) span one or more of the paper's excursions.  At the
-  paper's delta the PDMP's durations are up to ~10% long at some Gamma (its delta-grid; RESULTS.md);
+  paper's delta the PDMP's durations are 0.6-13% long at tau <= 0.5 s, more at 1 s (its delta-grid, which
+  releases one level past each threshold: ``pdmp_grid_widening`` in the JSON; RESULTS.md);
 * Fig. 8: D for b = 0 and for b = -v/tau_L + gamma_bar, tau = 1e-5 .. 1e-2 s: brute force
   (t = 10 s) dots, long excursions lines, the exact white-noise D as reference, and the local
   exponent d ln D / d ln Gamma (finite differences of the long-excursion D, delta-method CI);
@@ -89,17 +90,18 @@ def fig3(out_dir, quick, seed):
     taus = (0.125, 0.25, 0.5, 1.0)
     n = 1000 if quick else 100_000
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4))
-    nums = dict(Gamma=gammas, tau=taus, n_excursions=n, delta=0.125, pdmp={}, di={}, agree={})
+    delta = 0.125  # the PDMP's grid step (s^-1/2), the paper's
+    nums = dict(Gamma=gammas, tau=taus, n_excursions=n, delta=delta, pdmp={}, di={}, agree={})
     # the PDMP's grid releases a stuck particle one level past each threshold: s_+ + s_- grid steps wider than the
     # DI's stuck set (pdmp.threshold_widening; it depends on Gamma alone), which lengthens its excursions
-    nums["pdmp_grid_widening"] = [sum(threshold_widening(pdmp_grid_info(p, 0.125)["delta_nd"], p.nondim().gamma_bar))
+    nums["pdmp_grid_widening"] = [sum(threshold_widening(pdmp_grid_info(p, delta)["delta_nd"], p.nondim().gamma_bar))
                                   for p in (Params(G, DELTA, 0.5, TAU_L, GBAR) for G in gammas)]
     pts = Points(out_dir, "fig3")  # finished runs are kept: an interrupted figure resumes
     for j, tau in enumerate(taus):
         rows = {}
         ps = [Params(G, DELTA, tau, TAU_L, GBAR) for G in gammas]
         for m in ("pdmp", "di"):
-            kw = dict(delta=0.125) if m == "pdmp" else {}
+            kw = dict(delta=delta) if m == "pdmp" else {}
             # the PDMP's seeds 5000 past the DI's (they shared one per point: the same key's bits, used
             # otherwise, may correlate the two estimates that the agreement z compares as independent)
             off = 5000 if m == "pdmp" else 0
