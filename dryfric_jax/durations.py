@@ -243,6 +243,36 @@ def default_lanes(n_excursions: int) -> int:
     return 2 ** int(min(8, max(5, round(math.log2(max(n_excursions, 1) / 3)))))
 
 
+def check_duration_run(params, h=None, n_excursions: int = 2048, dtype: str = "float64",
+                       max_work: float = MAX_WORK, name: str = "n_excursions"):
+    """The checks :func:`di_long_excursion_duration` makes before it runs anything, for a sweep to refuse a point
+    before its grid runs: the estimator's (:func:`~dryfric_jax.plan.choose`: a stationary state, a simulable tau_L,
+    h, the dtype), ``n_excursions`` in [2, 2^40] and the predicted work within ``max_work``
+    (:func:`~dryfric_jax.limits.check_work`).  Returns the plan (its ``h``, default :func:`default_duration_h`, and
+    ``dtype``, float32 only where safe); ``ValueError`` naming the argument otherwise (``n_excursions`` as
+    ``name``: a sweep's setting is ``durations``)."""
+    if h is None and isinstance(params, Params):  # a non-Params is refused by choose, by name
+        h = default_duration_h(params)
+    plan = choose(params, "di", h, None, dtype)
+    n_excursions = check_count(name, n_excursions, 2, 2**40, " (long excursions)")
+    max_work = check_max_work(max_work)
+    try:
+        check_work(params.tau_nd, params.tau_L_nd, params.gamma_bar_nd, params.tau0 / plan.h, n_excursions,
+                   max_work)
+    except ValueError as e:
+        raise ValueError(f"{e} (here for {name} long excursions: lower it)") from None
+    return plan
+
+
+def max_steps_for(n_excursions: int, le_steps: float, n_lanes: int | None = None) -> int:
+    """A loop bound (steps) for ``n_excursions`` LEs of at most ~``le_steps`` steps each (an upper estimate, e.g.
+    the D estimator's mean cycle over h: a cycle spans at least one LE): 50 times the LEs a lane runs (two more for
+    its seek and the one in flight at the stop), at least 10 000 steps, at most :data:`MAX_STEPS`.  What Fig. 3
+    and a sweep's durations run with; a bound this loose is reached only by a wrong estimate."""
+    per_lane = n_excursions / (default_lanes(n_excursions) if n_lanes is None else n_lanes)
+    return int(min(max(50 * (per_lane + 2) * max(le_steps, 1.0), 10_000), MAX_STEPS))
+
+
 def di_long_excursion_duration(params, key, h: float | None = None, n_excursions: int = 2048,
                                n_lanes: int | None = None, max_steps: int = 10**8, dtype: str = "float64",
                                max_work: float = MAX_WORK, bridge: bool = True) -> LEDuration:
@@ -273,22 +303,15 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
     the result's ``n_truncated`` counts the LEs in flight at ``max_steps`` (dropped, with a warning).
     """
     t0 = time.perf_counter()
-    if h is None and isinstance(params, Params):  # a non-Params is refused by choose, by name
-        h = default_duration_h(params)
-    plan = choose(params, "di", h, None, dtype)  # the estimator's checks: a stationary state, a simulable tau_L,
-    key, seed = _key(key)  # h, the dtype (float32 only where safe)
-    n_excursions = check_count("n_excursions", n_excursions, 2, 2**40, " (long excursions)")
+    plan = check_duration_run(params, h, n_excursions, dtype, max_work)
+    key, seed = _key(key)
+    n_excursions = int(n_excursions)
     n_lanes = default_lanes(n_excursions) if n_lanes is None else check_count("n_lanes", n_lanes, 1, MAX_LANES)
     max_steps = check_count("max_steps", max_steps, 1, MAX_STEPS, " (blocks of 128 steps counted in 32 bits)")
     h, dtype = plan.h, plan.dtype
-    max_work = check_max_work(max_work)
     if not isinstance(bridge, (bool, np.bool_)):
         raise ValueError(f"bridge must be True or False, got {bridge!r}")
     bridge = bool(bridge)
-    try:
-        check_work(params.tau_nd, params.tau_L_nd, params.gamma_bar_nd, params.tau0 / h, n_excursions, max_work)
-    except ValueError as e:
-        raise ValueError(f"{e} (here for n_excursions long excursions: lower it)") from None
     notes = plan.notes + ([f"tau/h = {params.tau / h:.3g} < {MIN_TAU_STEPS}: the noise decorrelates within a few "
                            "steps, so releases happen at any X and the count of their changes of direction is not "
                            "the paper's long excursion (threshold to threshold); lower h"]

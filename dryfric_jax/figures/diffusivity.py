@@ -26,8 +26,7 @@ import numpy as np
 from .. import theory
 from ..chain_law import white_chain_law
 from ..di import make_di_model
-from ..durations import MAX_STEPS as DUR_MAX_STEPS
-from ..durations import default_duration_h, default_lanes, di_long_excursion_duration
+from ..durations import default_duration_h, di_long_excursion_duration, max_steps_for
 from ..params import Params, real_or_none
 from ..paths import di_stationary
 from ..pdmp import pdmp_grid_info, threshold_widening
@@ -60,11 +59,8 @@ def _di_durations(p, seed, cycle_s, quick):
     h = default_duration_h(p)
     le_steps = max(c / h, 1.0)
     n = int(min(DUR_N[1], max(DUR_N[0], DUR_WORK[quick] / le_steps)))
-    per_lane = n / default_lanes(n)
     try:
-        return di_long_excursion_duration(p, seed, h=h, n_excursions=n,
-                                          max_steps=int(min(max(50 * (per_lane + 2) * le_steps, 10_000),
-                                                            DUR_MAX_STEPS)))
+        return di_long_excursion_duration(p, seed, h=h, n_excursions=n, max_steps=max_steps_for(n, le_steps))
     except ValueError:  # fewer than 2 excursions within the bound
         return None
 
