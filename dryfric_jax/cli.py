@@ -350,6 +350,11 @@ def build_parser() -> argparse.ArgumentParser:
                     help="record the points the planner refuses (predicted work over --max-work, no stationary "
                          "state, ...) as 'refused' and run the others; without it such a grid is refused "
                          "(exit 2) and the message counts the refused points and names the first six")
+    sw.add_argument("--durations", type=_int_at_least("durations", 2, 2**40, "2^40"), default=None, metavar="N",
+                    help="also the paper's mean long-excursion duration (threshold to threshold, Fig. 3's right "
+                         "panel) at each point, counted over N long excursions of the DI as 'duration' does, e.g. "
+                         "2048; the D stays the one without it, and adding it to a finished sweep runs only the "
+                         "counts")
     sw.add_argument("--allow-truncated", action="store_true",
                     help="exit 0 even when points have truncated excursions (their results are biased low; "
                          "exit 3 otherwise)")
@@ -711,7 +716,8 @@ def _sweep(a) -> int:
 
     axes = {k: getattr(a, k) for k in ("Gamma", "Delta", "tau", "tau_L", "gamma_bar") if getattr(a, k) is not None}
     kw = dict(seed=a.seed, method=a.method, h=a.h, delta=a.delta, dtype=a.dtype, n_excursions=a.n_excursions,
-              rtol=a.rtol, max_time=a.max_time, skip_refused=a.skip_refused, **_work_options(a))
+              rtol=a.rtol, max_time=a.max_time, skip_refused=a.skip_refused, durations=a.durations,
+              **_work_options(a))
     try:
         with _warnings_kept_in_result():  # a point's ProjectionWarning on stderr at once
             points = sweep.grid(**axes)

@@ -11,7 +11,10 @@ recomputed; new points are appended.  The seed of a point is derived from the sw
 point itself (not from its position in the grid), so adding points to a grid never changes the
 others, and a resumed sweep gives bit-identical records.
 
-The settings (method, h, delta, dtype, n_excursions, rtol, max_work) are checked once, before the
+With ``durations=N`` each point also gets the paper's mean long-excursion duration, counted over N long
+excursions of the DI (:func:`~dryfric_jax.di_long_excursion_duration`; :func:`run_sweep`'s docstring says how).
+
+The settings (method, h, delta, dtype, n_excursions, rtol, max_work; durations) are checked once, before the
 grid (:func:`~dryfric_jax.plan.check_settings`): a wrong setting is a user's mistake, never a point's
 refusal.  Every point is then planned (:func:`~dryfric_jax.plan.plan_estimate`).  A point with invalid
 parameters refuses the grid before anything is simulated.  A point the planner refuses (its
@@ -66,15 +69,20 @@ import numpy as np
 
 from ._version import __version__
 from .api import DryfricWarning, NoEstimateError, ProjectionWarning, check_progress, check_seed, estimate_diffusivity
+from .durations import TAU_STEPS, check_duration_run, di_long_excursion_duration, max_steps_for
 from .limits import MAX_WORK
 from .outfiles import check_writable, claim, drop_claims_dir, dumps, locked, put_record, read_records, write_records
 from .params import FIG3, Params, plain_number, real_or_none, shown
-from .plan import check_max_time, check_settings, plan_estimate
+from .plan import check_count, check_max_time, check_settings, default_h, plan_estimate
 from .rounds import abandon_on_interrupt
 
 PARAM_KEYS = ("Gamma", "Delta", "tau", "tau_L", "gamma_bar")
 #: settings that determine a point's result (with its parameters and seed)
 SETTING_KEYS = ("method", "h", "delta", "dtype", "n_excursions", "rtol", "max_work")
+#: the optional setting of the paper's long-excursion durations (``run_sweep(durations=N)``): in a point's settings
+#: and identity only when given, and never in its D seed, so that a sweep without it keeps its identities and seeds
+#: and one with it gives the same D
+DURATIONS = "durations"
 #: the points of a refusal message named beyond the first
 MAX_NAMED = 5
 
@@ -103,14 +111,36 @@ def _canon(x):
 
 
 def _ident(seed: int, params: dict, settings: dict) -> str:
-    """Canonical text of a point: sweep seed, parameters, and the settings that determine it."""
-    return json.dumps([seed, {k: _canon(params[k]) for k in PARAM_KEYS},
-                       {k: _canon(settings.get(k)) for k in SETTING_KEYS}], sort_keys=True)
+    """Canonical text of a point: sweep seed, parameters, and the settings that determine it (:data:`DURATIONS`
+    only where given)."""
+    keyed = {k: _canon(settings.get(k)) for k in SETTING_KEYS}
+    if settings.get(DURATIONS) is not None:
+        keyed[DURATIONS] = _canon(settings[DURATIONS])
+    return json.dumps([seed, {k: _canon(params[k]) for k in PARAM_KEYS}, keyed], sort_keys=True)
+
+
+def _without_durations(settings: dict) -> dict:
+    return {k: v for k, v in settings.items() if k != DURATIONS}
 
 
 def point_seed(seed: int, params: dict, settings: dict) -> int:
-    """A 31-bit seed from the sweep seed and the point (stable under grid edits)."""
-    return zlib.crc32(_ident(seed, params, settings).encode()) & 0x7FFFFFFF
+    """A 31-bit seed from the sweep seed and the point (stable under grid edits): the seed of its D estimate, which
+    the :data:`DURATIONS` setting does not enter."""
+    return zlib.crc32(_ident(seed, params, _without_durations(settings)).encode()) & 0x7FFFFFFF
+
+
+def duration_seed(seed: int, params: dict, settings: dict) -> int:
+    """The 31-bit seed of a point's long-excursion count (``run_sweep(durations=N)``), another stream than
+    :func:`point_seed`'s."""
+    return zlib.crc32(("durations " + _ident(seed, params, settings)).encode()) & 0x7FFFFFFF
+
+
+def duration_h(params: Params, h) -> float:
+    """The step of a point's long-excursion count: the sweep's ``h`` (None: the D estimator's default) or
+    tau / :data:`~dryfric_jax.durations.TAU_STEPS` where that is smaller, i.e.
+    :func:`~dryfric_jax.durations.default_duration_h` unless ``h`` is finer (the count's bias falls like h and
+    shrinks as tau/h grows: :mod:`dryfric_jax.durations`)."""
+    return min(default_h(params) if h is None else h, params.tau / TAU_STEPS)
 
 
 def _is_real(x) -> bool:
@@ -131,11 +161,15 @@ def _check_record(rec: dict) -> None:
     ok = (isinstance(rec["params"], dict) and all(_is_real(rec["params"].get(k)) for k in PARAM_KEYS)
           and isinstance(rec["settings"], dict) and isinstance(rec["sweep_seed"], int)
           # a setting is part of the point's identity too: an integer beyond float range was the same traceback
-          and all(_is_real(v) for v in map(rec["settings"].get, SETTING_KEYS) if type(v) is int)
+          and all(_is_real(v) for v in map(rec["settings"].get, SETTING_KEYS + (DURATIONS,)) if type(v) is int)
           and not isinstance(rec["sweep_seed"], bool) and status(rec) in ("ok", "refused", "failed"))
     if ok and status(rec) == "ok":
         res = rec.get("result")
         ok = isinstance(res, dict) and all(_is_real(res.get(k)) for k in ("D", "D_ci", "M0", "M0_ci", "n_truncated"))
+        if ok and rec["settings"].get(DURATIONS) is not None:  # the count's numbers, or why there are none
+            d = rec.get(DURATIONS)
+            ok = isinstance(d, dict) and (isinstance(d.get("reason"), str) or all(
+                _is_real(d.get(k)) for k in ("mean", "ci", "n_excursions", "n_truncated")))
     elif ok:
         ok = isinstance(rec.get("reason"), str)
     if not ok:
@@ -230,7 +264,7 @@ def _refusal_text(refused: list, total: int) -> str:
 
 def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di", h=None, delta=None,
               dtype: str = "float64", n_excursions: int = 20_000, rtol=None, max_work: float = MAX_WORK,
-              max_time=None, skip_refused: bool = False, progress=None) -> dict:
+              max_time=None, skip_refused: bool = False, progress=None, durations=None) -> dict:
     r"""Estimate D and M0 at every point, one JSON line per finished point in ``out``.
 
     Args:
@@ -244,6 +278,18 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
         skip_refused: record the points the planner refuses (status ``"refused"``) and run the
             others, instead of refusing the grid (``ValueError`` counting the refused points, naming the first six).
         progress: optional ``progress(done, total, record)`` after each point (and once at start).
+        durations: None, or an integer N in [2, 2^40]: also count the paper's mean long-excursion duration
+            (threshold to threshold, Fig. 3's right panel) at each point, over N long excursions of the DI
+            (:func:`~dryfric_jax.di_long_excursion_duration`, whatever ``method``: for the DI the D estimate's
+            ``mean_duration`` is its regeneration cycle's, which spans one or more of them), at :func:`duration_h`
+            and ``dtype``, with the seed :func:`duration_seed`; the loop's bound is planned from the point's mean
+            cycle (:func:`~dryfric_jax.durations.max_steps_for`).  A point's record then holds them under
+            ``"durations"`` (``mean``, ``ci``, ``n_excursions``, ``n_truncated``, ``h``, ``seed``, ...; or a
+            ``reason`` where fewer than 2 ended within the bound), and :func:`rows` flattens them (``le_duration``,
+            ...).  It is part of a point's identity but not of its D seed: the D is the sweep's without it, and a
+            resumed sweep that adds it takes the D of a finished point's record of this version and runs only the
+            count.  The count's predicted work is checked against ``max_work`` with the grid (a point over it is
+            refused, with the reason ``"durations: ..."``); ``max_time`` bounds the D estimate only.
 
     The points' warnings are kept in their records, not shown; a
     :class:`~dryfric_jax.api.ProjectionWarning` (max_work will end a point early) is shown at
@@ -256,7 +302,8 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
         listed twice runs once; -0.0 is 0.0), k run now (``"ok"`` or ``"failed"``), s found in the
         file (``"ok"`` or ``"failed"``, not rerun); r, f, t and m count the grid's points now recorded as
         refused, failed, ``"ok"`` with truncated excursions (a result biased low), or stopped by
-        ``max_time`` (``"ok"`` short of N or rtol, or ``"failed"``).  A point another sweep
+        ``max_time`` (``"ok"`` short of N or rtol, or ``"failed"``); ``truncated`` also counts a point whose
+        long-excursion count left some out.  A point another sweep
         finished while this one ran is counted in s.  A Ctrl-C stops after the points already
         written; the point in progress is not written.
     """
@@ -271,6 +318,8 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
     settings = check_settings(method=method, h=h, delta=delta, dtype=dtype, n_excursions=n_excursions, rtol=rtol,
                               max_work=max_work)
     method, h, delta, dtype, n_excursions, rtol, max_work = (settings[k] for k in SETTING_KEYS)
+    if durations is not None:  # in the settings (and identities) only where given: older records keep theirs
+        settings[DURATIONS] = check_count("durations", durations, 2, 2**40, " (long excursions per point)")
     full = [{**{k: FIG3[k] for k in PARAM_KEYS}, **pt} for pt in points]
     refused = {}  # ident -> (point, reason); every point is planned before any work
     for pt in full:
@@ -283,6 +332,12 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
                           max_work=max_work)
         except ValueError as e:
             refused.setdefault(_ident(seed, pt, settings), (pt, str(e)))
+            continue
+        if durations is not None:
+            try:
+                check_duration_run(p, duration_h(p, h), settings[DURATIONS], dtype, max_work, name="durations")
+            except ValueError as e:
+                refused.setdefault(_ident(seed, pt, settings), (pt, f"durations: {e}"))
     if refused and not skip_refused:
         raise ValueError(_refusal_text(list(refused.values()), len(full)))
     grid_idents = [_ident(seed, pt, settings) for pt in full]
@@ -348,7 +403,8 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
     drop_claims_dir(out)
     mine = [have[i] for i in distinct if i in have]
     count = {k: sum(status(r) == k for r in mine) for k in ("refused", "failed")}
-    truncated = sum(status(r) == "ok" and r["result"].get("n_truncated", 0) > 0 for r in mine)
+    truncated = sum(status(r) == "ok" and (r["result"].get("n_truncated", 0) > 0
+                                           or (r.get(DURATIONS) or {}).get("n_truncated", 0) > 0) for r in mine)
     return dict(computed=computed, skipped=skipped, total=total, duplicates=len(full) - total,
                 interrupted=interrupted, refused=count["refused"], failed=count["failed"], truncated=truncated,
                 time_limited=sum(map(_time_limited, mine)))
@@ -369,30 +425,60 @@ def _compute(out: str, ident: str, pt: dict, seed: int, settings: dict, max_time
     """Run one point and write its record (``"ok"`` or ``"failed"``); None if Ctrl-C stopped it."""
     method, h, delta, dtype, n_excursions, rtol, max_work = (settings[k] for k in SETTING_KEYS)
     s = point_seed(seed, pt, settings)
+    # with durations: the D of this point's record without them, if this version finished it (the same seed)
+    base = (_finished_elsewhere(out, _ident(seed, pt, _without_durations(settings)), max_time)
+            if settings.get(DURATIONS) is not None else None)
     try:
         with warnings.catch_warnings():  # the warnings are kept in the record ...
             warnings.simplefilter("ignore", DryfricWarning)
             warnings.simplefilter("always", ProjectionWarning)  # ... except this one, said at once
             warnings.showwarning = _at_point(warnings.showwarning, pt)
             with abandon_on_interrupt():  # a point stopped short is not kept: no grace spent finishing it
-                r = estimate_diffusivity(Params(**pt), s, method=method, h=h, delta=delta, dtype=dtype,
-                                         n_excursions=n_excursions, rtol=rtol, max_work=max_work,
-                                         max_time=max_time)
+                if base is not None and status(base) == "failed":
+                    raise NoEstimateError(base["reason"], stopped_by=base.get("stopped_by") or "work_bound")
+                if base is not None:
+                    res = base["result"]
+                else:
+                    r = estimate_diffusivity(Params(**pt), s, method=method, h=h, delta=delta, dtype=dtype,
+                                             n_excursions=n_excursions, rtol=rtol, max_work=max_work,
+                                             max_time=max_time)
+                    if r.stopped_by == "interrupted":  # Ctrl-C inside the point: not a finished point
+                        return None
+                    res = r.to_dict()
+                    for k in ("params", "seed"):
+                        res.pop(k)
+                extra = {} if settings.get(DURATIONS) is None else {
+                    DURATIONS: _durations(pt, seed, settings, res.get("mean_duration"))}
     except KeyboardInterrupt:
         return None
     except NoEstimateError as e:  # deterministic (unless max_time stopped it): recorded, not rerun on resume
         rec = _record(seed, pt, settings, "failed", max_time, reason=str(e), stopped_by=e.stopped_by)
     else:
-        if r.stopped_by == "interrupted":  # Ctrl-C inside the point: not a finished point
-            return None
-        res = r.to_dict()
-        for k in ("params", "seed"):
-            res.pop(k)
-        rec = _record(seed, pt, settings, "ok", max_time, result=res)
+        rec = _record(seed, pt, settings, "ok", max_time, result=res, **extra)
     # the file read again under its lock: another sweep's records are kept, a record of this point
     # (a rerun with more time, or the other sweep's) is replaced in place
     put_record(out, rec, lambda old: _rec_ident(old) == ident, read_results)
     return rec
+
+
+def _durations(pt: dict, seed: int, settings: dict, cycle_s) -> dict:
+    """A point's long-excursion count (``run_sweep(durations=N)``) as its record keeps it: the
+    :class:`~dryfric_jax.LEDuration`'s fields but ``params``, or ``{"reason": ...}`` where fewer than 2 ended within
+    the loop's bound, planned from the D estimate's mean cycle ``cycle_s`` (s; 10^8 steps where it is not a number
+    > 0)."""
+    p = Params(**pt)
+    h = duration_h(p, settings["h"])
+    n = settings[DURATIONS]
+    c = real_or_none(cycle_s)
+    max_steps = max_steps_for(n, c / h) if c is not None and math.isfinite(c) and c > 0 else 10**8
+    try:
+        d = di_long_excursion_duration(p, duration_seed(seed, pt, settings), h=h, n_excursions=n,
+                                       max_steps=max_steps, dtype=settings["dtype"], max_work=settings["max_work"])
+    except ValueError as e:  # fewer than 2 within the bound (the rest was checked with the grid)
+        return dict(reason=str(e), max_steps=max_steps)
+    out = d.to_dict()
+    out.pop("params")
+    return out
 
 
 def _outdated(rec: dict) -> bool:
@@ -417,24 +503,30 @@ def failures(path: str) -> list[dict]:
 
 
 ROW_KEYS = ("D", "D_ci", "M0", "M0_ci", "mean_duration", "n_excursions", "n_truncated", "method")
+#: the row keys of a point's long-excursion count (``run_sweep(durations=N)``) and the fields they come from
+LE_ROW_KEYS = {"le_duration": "mean", "le_duration_ci": "ci", "le_n_excursions": "n_excursions",
+               "le_n_truncated": "n_truncated", "le_h": "h"}
 
 
 def rows(path: str, seed: int | None = None, **settings) -> list[dict]:
     """The records of a sweep file as flat dicts for tables and plots, sorted by the parameters:
     the parameters, ``status``, the result's :data:`ROW_KEYS` (NaN for a point without a result),
+    the long-excursion count's :data:`LE_ROW_KEYS` (``le_duration``, its CI, ...; NaN without one),
     ``reason`` and ``stopped_by`` (``"max_time"`` for a point its time limit stopped; "" if
     unknown).  ``seed`` (the sweep seed) and keyword settings keep only the matching records (e.g.
-    ``n_excursions=500``)."""
-    unknown = sorted(set(settings) - set(SETTING_KEYS))
+    ``n_excursions=500``, ``durations=2048``)."""
+    known = SETTING_KEYS + (DURATIONS,)
+    unknown = sorted(set(settings) - set(known))
     if unknown:
-        raise ValueError(f"settings must be among {list(SETTING_KEYS)} (got {unknown})")
+        raise ValueError(f"settings must be among {list(known)} (got {unknown})")
     out = []
     for r in read_results(path):
         if (seed is not None and r["sweep_seed"] != seed) or any(r["settings"].get(k) != v
                                                                  for k, v in settings.items()):
             continue
-        res = r.get("result") or {}
+        res, le = r.get("result") or {}, r.get(DURATIONS) or {}
         out.append({**r["params"], "status": status(r), **{k: res.get(k, math.nan) for k in ROW_KEYS},
+                    **{k: le.get(f, math.nan) for k, f in LE_ROW_KEYS.items()},
                     "reason": r.get("reason", ""), "stopped_by": stopped_by(r) or ""})
     return sorted(out, key=lambda r: tuple(r[k] for k in PARAM_KEYS))
 
@@ -458,6 +550,10 @@ def progress_bar(done: int, total: int, rec, axes=("Gamma", "tau")) -> None:
         last = "  " + " ".join(f"{k}={p[k]:.4g}" for k in axes) + ": "
         if status(rec) == "ok":
             last += f"D={rec['result']['D']:.4g}±{rec['result']['D_ci']:.2g}"
+            le = rec.get(DURATIONS)
+            if le is not None:
+                last += (f" LE={le['mean']:.4g}±{le['ci']:.2g}s" if "mean" in le
+                         else f" LE: none ({_first_clause(le['reason'])})")
         else:
             last += f"{status(rec)} ({_first_clause(rec['reason'])})"
         if _time_limited(rec):

@@ -1,0 +1,157 @@
+"""A sweep's long-excursion durations: ``run_sweep(durations=N)``, ``dryfric sweep --durations N``.
+
+The count itself is tested against the PDMP and for coverage in ``test_durations.py``; here: that a sweep's
+numbers are the direct count's to the bit, that they leave the D (and the identities and seeds of sweeps without
+them) as they were, and how a point without a count is refused, recorded and shown."""
+import json
+import math
+import os
+
+import pytest
+
+import dryfric_jax as dj
+from dryfric_jax import sweep
+from dryfric_jax.cli import main
+
+
+def _lines(path):
+    with open(path) as f:
+        return [json.loads(x) for x in f if x.strip()]
+
+
+def test_durations_are_the_direct_count_and_leave_the_d_as_it_was(tmp_path, monkeypatch, capsys):
+    pts = sweep.grid(Gamma=[5.0, 10.0], tau=[0.125])
+    kw = dict(n_excursions=200, seed=3)
+    plain_out, out = str(tmp_path / "plain.jsonl"), str(tmp_path / "s.jsonl")
+    sweep.run_sweep(pts, plain_out, **kw)
+    plain = _lines(plain_out)
+    # from scratch: the D is the sweep's without durations (its seed does not depend on them)
+    r = sweep.run_sweep(pts, out, durations=64, progress=sweep.progress_bar, **kw)
+    assert (r["computed"], r["total"], r["truncated"]) == (2, 2, 0)
+    assert "LE=" in capsys.readouterr().err  # the progress line shows the count
+    recs = _lines(out)
+    for rec, old in zip(recs, plain):
+        assert rec["result"]["sums"] == old["result"]["sums"] and rec["seed"] == old["seed"]
+        assert rec["settings"] == {**old["settings"], "durations": 64}
+        le, p = rec["durations"], dj.Params(**rec["params"])
+        assert le["seed"] == sweep.duration_seed(3, rec["params"], rec["settings"]) != rec["seed"]
+        assert le["h"] == dj.default_duration_h(p) and le["bridge"] and le["n_requested"] == 64
+        # the loop's bound planned from the D estimate's mean cycle, as Fig. 3's (in whole blocks of 128 steps)
+        assert le["max_steps"] == -(-dj.durations.max_steps_for(64, rec["result"]["mean_duration"] / le["h"])
+                                    // 128) * 128
+        direct = dj.di_long_excursion_duration(p, le["seed"], h=le["h"], n_excursions=64, max_steps=le["max_steps"])
+        assert (le["mean"], le["ci"], le["n_excursions"], le["n_truncated"]) == (
+            direct.mean, direct.ci, direct.n_excursions, 0)
+        # the paper's excursion, not the D estimator's cycle (which spans one or more of them)
+        assert le["mean"] < rec["result"]["mean_duration"]
+    table = sweep.rows(out, durations=64)
+    assert [t["le_duration"] for t in table] == [x["durations"]["mean"] for x in recs]
+    assert [t["le_n_excursions"] for t in table] == [x["durations"]["n_excursions"] for x in recs]
+    assert all(math.isnan(t["le_duration"]) for t in sweep.rows(plain_out))
+    assert sweep.rows(out, durations=None) == []
+
+    # added to a finished sweep of this version: only the counts run, the D is the record's
+    def not_again(*a, **k):
+        raise AssertionError("the D was estimated again")
+
+    monkeypatch.setattr(sweep, "estimate_diffusivity", not_again)
+    assert sweep.run_sweep(pts, plain_out, durations=64, **kw)["computed"] == 2
+    added = _lines(plain_out)[2:]
+    assert [x["result"] for x in added] == [x["result"] for x in plain]
+    assert [x["durations"]["mean"] for x in added] == [x["durations"]["mean"] for x in recs]
+    # resumed: nothing runs; another N is another point
+    assert sweep.run_sweep(pts, out, durations=64, **kw)["computed"] == 0
+    assert _lines(out) == recs
+    monkeypatch.undo()
+    assert sweep.run_sweep(pts[:1], out, durations=96, **kw)["computed"] == 1
+    assert _lines(out)[2]["durations"]["seed"] != recs[0]["durations"]["seed"]
+
+
+def test_durations_enter_a_points_identity_but_not_its_d_seed():
+    """Without durations a point's identity (and so its seed) is the one sweeps had before the setting existed:
+    their files resume as they were."""
+    p = dict(Gamma=2.0, Delta=3.84, tau=0.5, tau_L=0.067, gamma_bar=0.342)
+    base = dict(method="di", h=None, delta=None, dtype="float64", n_excursions=200, rtol=None, max_work=1e11)
+    assert sweep._ident(3, p, base) == json.dumps(
+        [3, {k: repr(float(v)) for k, v in p.items()}, {k: sweep._canon(v) for k, v in base.items()}], sort_keys=True)
+    with64, with128 = {**base, "durations": 64}, {**base, "durations": 128}
+    assert len({sweep._ident(3, p, s) for s in (base, with64, with128)}) == 3
+    assert sweep.point_seed(3, p, base) == sweep.point_seed(3, p, with64) == sweep.point_seed(3, p, with128)
+    seeds = {sweep.duration_seed(3, p, with64), sweep.duration_seed(3, p, with128), sweep.point_seed(3, p, base)}
+    assert len(seeds) == 3
+
+
+def test_a_point_whose_count_is_over_max_work_is_refused_with_the_grid(tmp_path):
+    """Gamma = 1, tau = 1 s: its D (50 excursions) fits max_work = 1e9, 2048 long excursions do not (predicted
+    1.35e10 steps).  Refused before anything runs, or recorded with its reason under skip_refused."""
+    out = str(tmp_path / "s.jsonl")
+    pts = [dict(Gamma=1.0, tau=1.0), dict(Gamma=10.0, tau=0.125)]
+    kw = dict(n_excursions=50, max_work=1e9, durations=2048)
+    with pytest.raises(ValueError, match=r"^durations: max_work must be >= 1\.35e\+10 steps .* \(here for "
+                                         r"durations long excursions: lower it\) \[at sweep point .*Nothing was run"):
+        sweep.run_sweep(pts, out, **kw)
+    assert not os.path.exists(out)
+    r = sweep.run_sweep(pts, out, skip_refused=True, **kw)
+    assert (r["computed"], r["refused"]) == (1, 1)
+    refused, ok = _lines(out)
+    assert refused["status"] == "refused" and refused["reason"].startswith("durations: max_work must be")
+    assert ok["status"] == "ok" and ok["durations"]["n_excursions"] >= 2048
+    assert sweep.rows(out)[0]["status"] == "refused" and math.isnan(sweep.rows(out)[0]["le_duration"])
+    # the refusal is the count's alone: the point's D fits
+    sweep.plan_estimate(dj.Params(**{**dj.FIG3, **pts[0]}), n_excursions=50, max_work=1e9)
+
+
+def test_a_count_cut_short_is_recorded_and_a_truncated_one_exits_3(tmp_path, monkeypatch, capsys):
+    """A count with fewer than 2 long excursions within its bound keeps the point's D and says why; one that left
+    excursions in flight at its bound (biased low) makes the point truncated: exit 3, as a truncated D does."""
+    out = str(tmp_path / "s.jsonl")
+    argv = ["sweep", "--Gamma", "10", "--tau", "0.125", "--n-excursions", "100", "--durations", "64", "--out", out]
+    monkeypatch.setattr(sweep, "max_steps_for", lambda n, steps, lanes=None: 128)
+    assert main(argv) == 0
+    (rec,) = _lines(out)
+    assert rec["status"] == "ok" and rec["result"]["D"] > 0 and rec["durations"]["max_steps"] == 128
+    assert rec["durations"]["reason"].startswith("max_steps = 128 is too small here")
+    assert "LE: none (max_steps = 128 is too small here" in capsys.readouterr().err
+    assert math.isnan(sweep.rows(out)[0]["le_duration"])
+    assert main(argv) == 0 and _lines(out) == [rec]  # resumed: not rerun (it would end the same way)
+    capsys.readouterr()
+    # 5 120 steps: ~2 mean excursions per lane, its seek included, so some are in flight at the bound
+    monkeypatch.setattr(sweep, "max_steps_for", lambda n, steps, lanes=None: 5_000)
+    out2 = str(tmp_path / "t.jsonl")
+    assert main(argv[:-1] + [out2, "--json"]) == 3
+    cap = capsys.readouterr()
+    assert json.loads(cap.out)["truncated"] == 1 and "1 point with truncated excursions" in cap.err
+    (rec2,) = _lines(out2)
+    assert rec2["result"]["n_truncated"] == 0 and rec2["durations"]["n_truncated"] > 0
+    assert sweep.rows(out2)[0]["le_n_truncated"] == rec2["durations"]["n_truncated"]
+
+
+@pytest.mark.parametrize("bad", [1, 2**40 + 1, 2.5, True, "8", 3.0])
+def test_bad_durations_are_refused_by_name(tmp_path, bad):
+    with pytest.raises(ValueError, match=r"^durations must be an integer in \[2, 1099511627776\] \(long "):
+        sweep.run_sweep(sweep.grid(Gamma=[5.0]), str(tmp_path / "s.jsonl"), n_excursions=50, durations=bad)
+
+
+@pytest.mark.parametrize("bad", ["1", "2.5", "x", "1_000"])
+def test_bad_durations_option_exit_2(tmp_path, bad, capsys):
+    out = tmp_path / "s.jsonl"
+    assert main(["sweep", "--Gamma", "5", "--durations", bad, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"--durations must be an integer in [2, 2^40] (got '{bad}')" in err[0], err
+    assert not out.exists()
+
+
+def test_a_record_of_a_durations_point_without_them_refuses_the_file(tmp_path, capsys):
+    good = dict(params={"Gamma": 5.0, "Delta": 3.84, "tau": 0.5, "tau_L": 0.067, "gamma_bar": 0.342},
+                settings={"method": "di", "n_excursions": 50, "durations": 64}, sweep_seed=0, status="ok",
+                result={"D": 1.0, "D_ci": 0.1, "M0": 0.0, "M0_ci": 0.1, "n_truncated": 0},
+                durations={"mean": 1.0, "ci": 0.1, "n_excursions": 64, "n_truncated": 0})
+    out = tmp_path / "s.jsonl"
+    for rec in (good, {**good, "durations": {"reason": "max_steps = 128 is too small here"}}):
+        out.write_text(json.dumps(rec) + "\n")
+        assert len(sweep.read_results(str(out))) == 1
+    for edit in (dict(durations=None), dict(durations={"mean": 1.0}), dict(settings={**good["settings"],
+                                                                                  "durations": 10**400})):
+        out.write_text(json.dumps({**good, **edit}) + "\n")
+        assert main(["sweep", "--Gamma", "6", "--n-excursions", "50", "--out", str(out)]) == 2
+        assert "--out must be a dryfric sweep file (JSON Lines)" in capsys.readouterr().err
