@@ -92,13 +92,21 @@ def test_float32_agrees_with_float64():
 
 def test_other_counts_and_bounds_do_not_recompile():
     """A figure's points differ in n_excursions and max_steps: one compiled loop per lane count serves them."""
-    from dryfric_jax import durations
+    import jax
+
+    from dryfric_jax import durations, sharding
 
     p = Params(**FIG3)
     di_long_excursion_duration(p, 0, n_lanes=32, n_excursions=32, max_steps=10**6)
-    n = durations._run._cache_size()
+    devices = tuple(jax.local_devices())
+    loops = sharding._compiled.cache_info().currsize
+    f = sharding._compiled(durations._lane_loop, (("block", 128), ("bridge", True), ("n_dev", len(devices))),
+                           (False, True, True, False, False), devices)  # the loop that call compiled
+    assert sharding._compiled.cache_info().currsize == loops
+    n = f._cache_size()
+    assert n >= 1
     di_long_excursion_duration(p, 1, n_lanes=32, n_excursions=64, max_steps=10**7)
-    assert durations._run._cache_size() == n
+    assert f._cache_size() == n and sharding._compiled.cache_info().currsize == loops
 
 
 def test_max_steps_beyond_the_32_bit_block_count_is_refused():
@@ -195,8 +203,8 @@ def test_the_lanes_spread_matches_the_pooled_sd():
     from dryfric_jax.di import make_di_model
 
     model = make_di_model(FAST, default_h(FAST), jnp.float64)
-    N, S, Q, stopped, _, _, _ = (np.asarray(a) for a in durations._run(
-        model, jax.random.split(jax.random.key(21), 64), jnp.int64(64 * 512), jnp.int32(10**6), block=128))
+    N, S, Q, stopped, _, _, _ = durations._run(model, jax.random.split(jax.random.key(21), 64), 64 * 512, 10**6,
+                                               block=128)
     assert stopped.all()
     n = N.sum()
     r = S.sum() / n

@@ -82,3 +82,34 @@ def test_three_devices_give_the_one_device_estimate_bit_for_bit():
     assert (one.pop("devices"), three.pop("devices")) == (1, 3)
     assert one["rtol"]["stopped_by"] == "work_bound" and one["rtol"]["n_excursions"] > 300
     assert one == three
+
+
+COUNT = textwrap.dedent("""
+    import json, warnings, jax
+    import dryfric_jax as dj
+    warnings.simplefilter("ignore")
+    p = dj.Params(Gamma=10.0, Delta=3.84, tau=0.125, tau_L=0.067, gamma_bar=0.342)
+    out = []
+    for kw in (dict(n_excursions=300, n_lanes=37), dict(n_excursions=200, n_lanes=64, bridge=False),
+               dict(n_excursions=128, n_lanes=128, max_steps=5000)):
+        d = dj.di_long_excursion_duration(p, 11, **kw)
+        out.append([d.mean, d.ci, d.n_excursions, d.n_truncated, d.lane_steps, d.loop_steps])
+    print(json.dumps(dict(devices=jax.device_count(), out=out)))
+""")
+
+
+def test_the_long_excursion_count_split_over_devices_is_the_one_device_count():
+    """durations._run splits the lanes over the devices, its stopping rule and loop condition summed over them
+    (psum): the same lanes must give the one-device numbers to the bit, with 37 lanes padded to 38 and 39 by
+    lanes that count nothing, the raw count, and a bound that cuts LEs in flight.  A lane counted twice, a
+    device's rule of its own (it stops on its share of the total) or a loop ended by one device changes N, the
+    steps or the mean."""
+    runs = []
+    for n in (1, 2, 3):
+        env = dict(os.environ, XLA_FLAGS=f"--xla_force_host_platform_device_count={n}")
+        p = subprocess.run([sys.executable, "-c", COUNT], env=env, capture_output=True, text=True, timeout=600)
+        assert p.returncode == 0, p.stderr[-2000:]
+        runs.append(json.loads(p.stdout.strip().splitlines()[-1]))
+    assert [r["devices"] for r in runs] == [1, 2, 3]
+    assert runs[0]["out"] == runs[1]["out"] == runs[2]["out"]
+    assert runs[0]["out"][2][3] > 0  # the bound cut some
