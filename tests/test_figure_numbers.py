@@ -337,8 +337,9 @@ def test_fig3_numbers_from_known_runs(tmp_path, monkeypatch):
     _no_files(diffusivity, monkeypatch, [])
     durs = []
 
-    def dur(p, seed, cycle_s, quick):  # the paper's duration: half the cycle; none at Gamma = 1, tau = 1 s
+    def dur(p, seed, cycle_s, quick, pts=None):  # the paper's duration: half the cycle; none at Gamma = 1, tau = 1 s
         durs.append((p.Gamma, p.tau, seed, cycle_s, quick))
+        assert pts is not None  # through the scene's points file (kept, reused when resumed)
         return None if (p.Gamma, p.tau) == (1.0, 1.0) else SimpleNamespace(
             mean=cycle_s / 2, ci=0.05 * p.Gamma, h=1e-4, n_lanes=64, n_excursions=128, n_truncated=1)
 

@@ -102,6 +102,27 @@ def test_points_summary_counts_the_truncated_excursions_of_the_runs_used(tmp_pat
     assert again.summary()["n_truncated"] == 3 and again.summary()["reused"] == 1
 
 
+def test_a_duration_count_is_kept_and_reused_to_the_bit(tmp_path, monkeypatch):
+    """Fig. 3's long-excursion counts go through the points file: a second figure run (or a resumed one) reuses
+    the kept count instead of running it again, and gets the same LEDuration, warnings and all.  Its truncated
+    excursions stay out of the summary's n_truncated (Fig. 3 counts them as le_dur_truncated: counted in both,
+    the exit message would give them twice)."""
+    from dryfric_jax.durations import LEDuration
+
+    p = Params(Gamma=10.0, Delta=3.84, tau=0.125, tau_L=0.067, gamma_bar=0.342)
+    kw = dict(n_excursions=64, n_lanes=64, max_steps=5000)  # a bound that cuts some: truncated, and a warning
+    pts = points.Points(str(tmp_path), "s")
+    a = pts.duration(p, 3, **kw)
+    assert isinstance(a, LEDuration) and a.n_truncated > 0 and a.warnings
+    assert (pts.computed, pts.summary()["n_truncated"]) == (1, 0)
+    monkeypatch.setitem(points._KINDS, "duration", (lambda *a, **k: pytest.fail("ran again"), LEDuration))
+    again = points.Points(str(tmp_path), "s")
+    b = again.duration(p, 3, **kw)
+    assert b == a and b.warnings == a.warnings and b.wall_s == a.wall_s
+    assert (again.reused, again.computed, again.summary()["n_truncated"]) == (1, 0, 0)
+    assert not again.kept(p, 3, kind="duration", **dict(kw, n_excursions=65))
+
+
 @pytest.mark.parametrize("extra,code", [([], 3), (["--allow-truncated"], 0)])
 def test_figures_with_truncated_runs_exit_3(tmp_path, monkeypatch, capsys, extra, code):
     monkeypatch.setattr(figures, "run_figures", lambda *a, **k: {"3": dict(runs=dict(n_truncated=2)),

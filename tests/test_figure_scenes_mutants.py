@@ -172,7 +172,7 @@ def _fake_points(monkeypatch, runs, est, bf=None):
     monkeypatch.setattr(diffusivity, "Points", FakePoints)
     # Fig. 3's DI duration runs: planned from the fake runs' cycle durations they would run for real (an 18-min
     # test), so they are fake too: the paper's duration 4 Gamma +- 0.625 (none of the fake runs' numbers)
-    monkeypatch.setattr(diffusivity, "_di_durations", lambda p, seed, cycle_s, quick: _Run(
+    monkeypatch.setattr(diffusivity, "_di_durations", lambda p, seed, cycle_s, quick, pts=None: _Run(
         mean=4 * p.Gamma, ci=0.625, h=1e-4, n_lanes=64, n_excursions=128, n_truncated=0))
 
 

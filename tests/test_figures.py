@@ -144,8 +144,9 @@ def test_fig3_durations_are_the_papers_for_both_models(figs):
 def test_fig3_interrupted_then_resumed_is_bit_identical(figs, tmp_path, monkeypatch, capsys):
     """A Ctrl-C inside the 7th of Fig. 3's 24 quick runs (the run returns what its rounds reached,
     ``stopped_by = "interrupted"``): the CLI exits 130, the 6 finished runs are on disk and the
-    interrupted one is not.  The same command then computes only the 18 others, and the figure's
-    numbers are exactly those of the uninterrupted run of the ``figs`` fixture."""
+    interrupted one is not, with the 3 DI duration counts of the first tau (its 6 runs).  The same
+    command then computes only the 18 other runs and 9 other counts, and the figure's numbers are
+    exactly those of the uninterrupted run of the ``figs`` fixture, the counts' too."""
     from dryfric_jax.figures import points
 
     real, cls = points._KINDS["estimate"]
@@ -162,15 +163,17 @@ def test_fig3_interrupted_then_resumed_is_bit_identical(figs, tmp_path, monkeypa
     argv = ["figures", "--fig", "3", "--quick", "--out", str(out)]
     assert main(argv) == 130
     assert "resumes" in capsys.readouterr().err
-    assert len((out / "fig3.points.jsonl").read_text().splitlines()) == 6 and not (out / "fig3.json").exists()
+    kinds = [json.loads(x)["kind"] for x in (out / "fig3.points.jsonl").read_text().splitlines()]
+    assert sorted(kinds) == ["duration"] * 3 + ["estimate"] * 6 and not (out / "fig3.json").exists()
     calls.clear()
     assert main(argv) == 0 and len(calls) == 24 - 6
     got, ref = json.loads((out / "fig3.json").read_text()), figs["fig3"]
-    assert got["runs"]["reused"] == 6 and got["runs"]["computed"] == 18
+    assert got["runs"]["reused"] == 6 + 3 and got["runs"]["computed"] == 18 + 9
     for m in ("pdmp", "di"):
         for tau, row in ref[m].items():
-            for k in ("D", "D_ci", "dur", "dur_ci", "n_excursions"):  # wall_s differs, the numbers do not
-                assert got[m][tau][k] == row[k], (m, tau, k)
+            for k in ("D", "D_ci", "dur", "dur_ci", "n_excursions") + (("le_dur", "le_dur_ci", "le_dur_n")
+                                                                       if m == "di" else ()):
+                assert got[m][tau][k] == row[k], (m, tau, k)  # wall_s differs, the numbers do not
     calls.clear()
     assert main(argv) == 0 and calls == []  # a finished figure is not made again (test_figure_outputs.py)
 

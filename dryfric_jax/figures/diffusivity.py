@@ -46,21 +46,23 @@ DUR_WORK = {True: 3e7, False: 1e9}
 DUR_N = (32, 8192)
 
 
-def _di_durations(p, seed, cycle_s, quick):
+def _di_durations(p, seed, cycle_s, quick, pts=None):
     """The paper's mean long-excursion duration of the DI at ``p`` (:mod:`dryfric_jax.durations`), with as many
     excursions (within :data:`DUR_N`) as keep the expected steps within ``DUR_WORK``: a cycle spans at least one
     long excursion, so one takes at most ``cycle_s``; the lanes are the count's default.  None (counted in
     ``le_dur_missing``) where there is no plan (a cycle duration that is not a finite number > 0) or fewer than 2
-    excursions ended within the bound: a missing point, not a lost figure.  The runs are not kept in the points
-    file: a resumed Fig. 3 runs them again (RESULTS.md gives their time)."""
+    excursions ended within the bound: a missing point, not a lost figure.  Through ``pts`` (the scene's
+    :class:`~dryfric_jax.figures.points.Points`) a finished count is kept in the points file, so a resumed or
+    repeated Fig. 3 reuses it (they ran again before 2026-12-05: ~3.5 min of the full figure)."""
     c = real_or_none(cycle_s)
     if c is None or not math.isfinite(c) or c <= 0:
         return None
     h = default_duration_h(p)
     le_steps = max(c / h, 1.0)
     n = int(min(DUR_N[1], max(DUR_N[0], DUR_WORK[quick] / le_steps)))
+    run = di_long_excursion_duration if pts is None else pts.duration
     try:
-        return di_long_excursion_duration(p, seed, h=h, n_excursions=n, max_steps=max_steps_for(n, le_steps))
+        return run(p, seed, h=h, n_excursions=n, max_steps=max_steps_for(n, le_steps))
     except ValueError:  # fewer than 2 excursions within the bound
         return None
 
@@ -108,7 +110,7 @@ def fig3(out_dir, quick, seed):
                            n_excursions=[r.n_excursions for r in rs])
             nums[m][f"{tau:g}"] = rows[m]
         # the DI's paper-excursion durations (its cycles' are rows["di"]["dur"]): seeds past the estimates'
-        ds = [_di_durations(p, seed + 9000 + 17 * i + 1000 * j, c, quick) for i, (p, c) in
+        ds = [_di_durations(p, seed + 9000 + 17 * i + 1000 * j, c, quick, pts=pts) for i, (p, c) in
               enumerate(zip(ps, rows["di"]["dur"]))]
         rows["di"].update({f"le_dur{k}": [getattr(r, a) if r else None for r in ds] for k, a in (
             ("", "mean"), ("_ci", "ci"), ("_h", "h"), ("_lanes", "n_lanes"), ("_n", "n_excursions"),

@@ -2,7 +2,8 @@ r"""Resumable scenes: each finished estimate of a scene is kept, so an interrupt
 
 The scenes of many estimates (Fig. 3: 80 runs of N = 1e5, ~1.5 h on a 2-core CPU; Fig. 8; Fig. 9 (b))
 call :func:`~dryfric_jax.api.estimate_diffusivity` and
-:func:`~dryfric_jax.api.bruteforce_diffusivity` through :class:`Points`.  Each finished run is
+:func:`~dryfric_jax.api.bruteforce_diffusivity` through :class:`Points`, and Fig. 3 its long-excursion counts
+(:func:`~dryfric_jax.di_long_excursion_duration`) too.  Each finished run is
 appended to ``<out_dir>/<scene>.points.jsonl`` (one JSON line per run: what was asked, the
 package version, the result), the whole file re-read under a lock and rewritten atomically
 (:func:`~dryfric_jax.outfiles.put_record`), so a kill at any moment leaves a valid file and two
@@ -34,10 +35,12 @@ from .._version import __version__
 from ..api import (
     BruteForceResult, DryfricWarning, EstimateResult, bruteforce_diffusivity, estimate_diffusivity, missing_fields,
 )
+from ..durations import LEDuration, di_long_excursion_duration
 from ..outfiles import claim, put_record, read_records
 from ..rounds import abandon_on_interrupt
 
-_KINDS = {"estimate": (estimate_diffusivity, EstimateResult), "bruteforce": (bruteforce_diffusivity, BruteForceResult)}
+_KINDS = {"estimate": (estimate_diffusivity, EstimateResult), "bruteforce": (bruteforce_diffusivity, BruteForceResult),
+          "duration": (di_long_excursion_duration, LEDuration)}
 
 
 def _canon(x):
@@ -133,6 +136,12 @@ class Points:
         """:func:`~dryfric_jax.api.bruteforce_diffusivity` ``(params, seed, **kw)``, or its kept result."""
         return self._run("bruteforce", params, seed, kw)
 
+    def duration(self, params, seed: int, **kw) -> LEDuration:
+        """:func:`~dryfric_jax.di_long_excursion_duration` ``(params, seed, **kw)``, or its kept result.  Its
+        ``ValueError`` (fewer than 2 long excursions within the bound) keeps nothing.  Its truncated excursions are
+        not in :meth:`summary`'s ``n_truncated`` (Fig. 3 reports them as ``le_dur_truncated``)."""
+        return self._run("duration", params, seed, kw)
+
     def kept(self, params, seed: int, kind: str = "estimate", **kw) -> bool:
         """Whether the run ``(params, seed, **kw)`` of ``kind`` is already in the file (read at creation)."""
         return _ident(kind, params, seed, kw) in self._done
@@ -166,15 +175,18 @@ class Points:
         self._done[ident] = rec
         self.computed += 1
         self.runs_wall_s += r.wall_s
-        self.n_truncated += getattr(r, "n_truncated", 0)
+        self.n_truncated += 0 if kind == "duration" else getattr(r, "n_truncated", 0)
         return r
 
     def _reuse(self, ident, cls):
         self.reused += 1
         names = {f.name for f in dataclasses.fields(cls)}
-        r = cls(**{k: v for k, v in self._done[ident]["result"].items() if k in names})
+        kept = {k: v for k, v in self._done[ident]["result"].items() if k in names}
+        if cls is LEDuration:  # a frozen record: its warnings as the tuple the run made
+            kept["warnings"] = tuple(kept.get("warnings", ()))
+        r = cls(**kept)
         self.runs_wall_s += r.wall_s
-        self.n_truncated += getattr(r, "n_truncated", 0)
+        self.n_truncated += 0 if cls is LEDuration else getattr(r, "n_truncated", 0)
         return r
 
     def _changed(self) -> bool:
