@@ -294,6 +294,9 @@ def build_parser() -> argparse.ArgumentParser:
     du.add_argument("--n-excursions", type=_int_at_least("n-excursions", 2, 2**40, "2^40"), default=2048,
                     help="long excursions to count (default 2048); those in flight when the lanes' total reaches it "
                          "are finished, so a few more are counted")
+    du.add_argument("--max-time", type=_number("max-time"), default=None,
+                    help="time limit, s: past it no excursion starts and those in flight finish (the mean stays "
+                         "unbiased, over fewer); at twice it those still in flight are left out (exit 3)")
     du.add_argument("--n-lanes", type=_int_at_least("n-lanes", 1, 2**22, "2^22"), default=None,
                     help="lanes (default: the power of 2 nearest n-excursions/3, in [32, 256]); they change the "
                          "random numbers, not the law")
@@ -624,12 +627,13 @@ def _run(a) -> int:
         with _warnings_as_lines():  # said as they come: a run that then fails (max_steps too small) still says why
             r = di_long_excursion_duration(params, a.seed, h=a.h, n_excursions=a.n_excursions, n_lanes=a.n_lanes,
                                            max_steps=a.max_steps, dtype=a.dtype, bridge=not a.no_bridge,
-                                           **_work_options(a))
+                                           max_time=a.max_time, **_work_options(a))
         print(dumps(r.to_dict()) if a.json else r.summary(), flush=True)  # its warnings were said above
         _write_out(a.out, r.to_dict())
         if r.n_truncated and not a.allow_truncated:
+            spare = "--max-time" if r.stopped_by == "max_time" else "--max-steps"
             print(f"dryfric: warning: {r.n_truncated} long excursions truncated: the mean above is biased low; exit 3 "
-                  "(--allow-truncated accepts it, a larger --max-steps spares it)", file=sys.stderr)
+                  f"(--allow-truncated accepts it, a larger {spare} spares it)", file=sys.stderr)
             return 3
         return 0
     if a.cmd == "bruteforce":

@@ -78,7 +78,9 @@ h/16.  Where :math:`\tau \ll h` releases happen at any X and the count is not th
 :data:`MIN_TAU_STEPS` steps per :math:`\tau` a :class:`~dryfric_jax.DryfricWarning` says so.
 
 Loops are bounded: the loop runs at most ``max_steps`` steps; an LE still in flight there is dropped (which
-biases the mean low), counted in ``n_truncated`` and warned about.
+biases the mean low), counted in ``n_truncated`` and warned about.  It runs in pieces of ~:data:`PIECE_S` seconds,
+the same bits as one piece: between them a Ctrl-C stops it, and ``max_time`` acts as the estimator's (past it no LE
+starts, at twice it those in flight are dropped).
 """
 from __future__ import annotations
 
@@ -99,7 +101,7 @@ from .excursions import BLOCK, block_keys
 from .estimators import t_quantile
 from .limits import MAX_WORK, check_work
 from .params import Params
-from .plan import MAX_LANES, check_count, check_max_work, choose, default_h
+from .plan import MAX_LANES, check_count, check_max_time, check_max_work, choose, default_h
 from .sharding import over_lanes
 
 
@@ -114,13 +116,15 @@ class LEDuration(_Record):
     n_excursions: int  # long excursions counted (>= n_requested unless the bound stopped the loop)
     n_requested: int  # the run's n_excursions: from the block where the lanes' total reached it, none started
     n_lanes: int
-    n_truncated: int  # excursions in flight at the bound max_steps: dropped (the mean is then biased low)
+    n_truncated: int  # in flight at the bound max_steps (or at twice max_time): dropped (the mean is then biased low)
     h: float
     dtype: str  # the chain's: float32 where asked and safe (else float64, with a warning)
     lane_steps: int  # steps the lanes ran until each stopped (its seek for a first change included)
     loop_steps: int  # steps computed: lanes x the loop's steps, as a lane that stopped idles in the loop
     max_steps: int = 0  # the loop's bound (whole blocks of 128)
     bridge: bool = True  # the crossings of X between steps counted too (module docstring); False: the raw count
+    stopped_by: str = "n_excursions"  # what ended the loop: the rule ("n_excursions"), "max_steps" or "max_time"
+    max_time: float | None = None  # the time limit given (s), None for none
     seed: int | None = None  # None for a jax.random key
     key: str | None = None  # a key-made run's key (api.key_id); None for a seed
     params: dict = field(default_factory=dict)
@@ -144,36 +148,47 @@ class LEDuration(_Record):
         return _with_warnings(self.summary(), self.warnings)
 
 
-def _lane_loop(model, keys, live, n_excursions, max_blocks, block: int, bridge: bool = True, n_dev: int = 1):
-    """The lanes' loop (module docstring): returns per lane the LEs counted, the sums of their durations and of
-    their squares (in steps), whether it stopped by the rule (not in flight at the bound), an LE in flight, its
-    steps, and the blocks the loop ran (the same in every lane).  ``bridge``: also count the crossings of the
-    opposite threshold that X makes between two steps of a stuck particle (module docstring), with a uniform per
-    step from the spare bits of the step's normals.  A lane not ``live`` (padding to a multiple of the devices)
-    is stopped from the start and counts nothing.  With ``n_dev`` > 1 this runs as one shard of the lanes
-    (:func:`_run`): the rule's total and the loop's condition are summed over the devices (``psum`` over the
-    mesh axis ``"lanes"``), so every device runs the same blocks and the rule is the one-device rule."""
+def _lane_start(model, keys, live):
+    """The lanes' state before the first block (:func:`_lane_blocks`): X drawn from its stationary law, V = 0,
+    nothing counted; a lane not ``live`` (padding to a multiple of the devices) is stopped from the start and
+    counts nothing.  The state: X, V, whether V was 0 a step before, last release direction (0: none yet), phase
+    (0: no change of direction yet, 1 / 2: in the first / second HLE of an LE), step index, step of the LE's start,
+    stopped, and the sums: LEs, their steps, their steps squared."""
+    dt = model.h.dtype
+    lanes = keys.shape[0]
+    x0 = jax.vmap(lambda k: jax.random.normal(jax.random.fold_in(k, 2**31 - 1), (), dt))(keys)
+    sd = jnp.sqrt((model.ou.L21.astype(jnp.float64) ** 2 + model.ou.L22.astype(jnp.float64) ** 2)
+                  / (1.0 - model.ou.m2.astype(jnp.float64) ** 2)).astype(dt)  # the X chain's stationary sd
+    zero_i = jnp.zeros(lanes, jnp.int32)
+    zero_n = jnp.zeros(lanes, jnp.int64)
+    no = jnp.zeros(lanes, bool)
+    return (x0 * sd, jnp.zeros(lanes, dt), no, zero_i, zero_i, zero_n, zero_n, ~live, zero_n, zero_n,
+            jnp.zeros(lanes, jnp.float64))
+
+
+def _lane_blocks(model, keys, b, stop, carry, n_excursions, b_end, block: int, bridge: bool = True, n_dev: int = 1):
+    """The lanes' loop (module docstring) from block ``b`` up to ``b_end`` or until every lane has stopped: returns
+    the block reached, the rule's flag and the state (:func:`_lane_start`).  ``b`` and ``stop`` are given and
+    returned per lane (the same in every lane), so that every argument and output is split over the lanes.
+    ``stop`` (no lane starts an LE) is raised by the rule, once the lanes' total reaches ``n_excursions``, or by
+    the host (``max_time``); a lane with none started then stops at once.  The loop run in pieces gives the bits
+    of one run (tested).  ``bridge``: also count the crossings of the opposite threshold that X makes between two
+    steps of a stuck particle (module docstring), with a uniform per step from the spare bits of the step's
+    normals.  With ``n_dev`` > 1 this runs as one shard of the lanes (:func:`_run`): the rule's total and the
+    loop's condition are summed over the devices (``psum`` over the mesh axis ``"lanes"``), so every device runs
+    the same blocks and the rule is the one-device rule."""
     dt = model.h.dtype
     lanes = keys.shape[0]
 
     def total(x):  # over the lanes of every device
         return jax.lax.psum(x, "lanes") if n_dev > 1 else x
 
-    x0 = jax.vmap(lambda k: jax.random.normal(jax.random.fold_in(k, 2**31 - 1), (), dt))(keys)
     var1 = model.ou.L21 ** 2 + model.ou.L22 ** 2  # Var(X_{n+1} | X_n), exactly (1 - e^{-2h/tau}) / tau
-    sd = jnp.sqrt((model.ou.L21.astype(jnp.float64) ** 2 + model.ou.L22.astype(jnp.float64) ** 2)
-                  / (1.0 - model.ou.m2.astype(jnp.float64) ** 2)).astype(dt)  # the X chain's stationary sd
     # a stuck particle moves up once the step's mean force Xi passes x_plus = 1 - gamma_bar, down below x_minus
     # = -1 - gamma_bar (DIModel.step with V = 0, nondimensional Delta = 1)
     x_plus, x_minus = 1.0 - model.gamma_bar, -1.0 - model.gamma_bar
-    zero_i = jnp.zeros(lanes, jnp.int32)
-    zero_n = jnp.zeros(lanes, jnp.int64)
-    no = jnp.zeros(lanes, bool)
-    # X, V, whether V was 0 a step before, last release direction (0: none yet), phase (0: no change of direction
-    # yet, 1 / 2: in the first / second HLE of an LE), step index, step of the LE's start, stopped, and the sums:
-    # LEs, their steps, their steps squared
-    carry = (x0 * sd, jnp.zeros(lanes, dt), no, zero_i, zero_i, zero_n, zero_n, ~live, zero_n, zero_n,
-             jnp.zeros(lanes, jnp.float64))
+    b, stop = b[0], stop[0]
+    carry = carry[:7] + (carry[7] | (stop & (carry[4] == 0)),) + carry[8:]  # as the rule does, for the host's stop
 
     def step(z1, z2, u, stop, c):
         X, V, stuck, last, ph, n, s0, off, N, S, Q = c
@@ -211,31 +226,66 @@ def _lane_loop(model, keys, live, n_excursions, max_blocks, block: int, bridge: 
 
     def cond(st):
         b, _, c = st
-        return (b < max_blocks) & (total(jnp.sum(~c[7], dtype=jnp.int32)) > 0)
+        return (b < b_end) & (total(jnp.sum(~c[7], dtype=jnp.int32)) > 0)
 
-    b, _, c = jax.lax.while_loop(cond, body, (jnp.int32(0), jnp.bool_(False), carry))
-    return c[8], c[9], c[10], c[7], c[4] != 0, c[5], jnp.broadcast_to(b, (lanes,))
+    b, stop, c = jax.lax.while_loop(cond, body, (b, stop, carry))
+    return jnp.broadcast_to(b, (lanes,)), jnp.broadcast_to(stop, (lanes,)), c
 
 
-def _run(model, keys, n_excursions: int, max_blocks: int, block: int = BLOCK, bridge: bool = True):
-    """:func:`_lane_loop` over the lanes ``keys``, split over the local devices (:func:`~dryfric_jax.sharding.
-    over_lanes`; on a CPU one device per core, so the count uses every core): returns numpy arrays, per lane
-    (those of ``keys`` only) and the blocks run.  The lanes are padded to a multiple of the devices with lanes
-    that count nothing.  The numbers are those of one device to the bit (tested).  Split over 2 CPU cores (AMD
-    EPYC, 2026-12-05, 5 interleaved runs each, medians) the count took 1.89 against 2.16 s in 16 lanes, 1.77
-    against 1.82 in 32 and 2.27 against 2.73 in 64 (tau = 1 s, Gamma = 2.15, 48 LEs asked), and 0.18 against
-    0.25 s in 256 (Gamma = 10, tau = 0.125 s, 1024 asked).  ``n_excursions`` and the bound are traced: a
-    figure's points differ in them and share one compiled loop per lane count (and device count)."""
+def _run(model, keys, n_excursions: int, max_blocks: int, block: int = BLOCK, bridge: bool = True,
+         max_time: float | None = None, t0: float | None = None):
+    """:func:`_lane_blocks` over the lanes ``keys`` in pieces of ~:data:`PIECE_S` seconds, split over the local
+    devices (:func:`~dryfric_jax.sharding.over_lanes`; on a CPU one device per core, so the count uses every
+    core).  Returns numpy arrays per lane (those of ``keys`` only): the LEs counted, the sums of their durations
+    and of their squares (steps), whether the lane stopped (not in flight at the end), whether it started an LE,
+    its steps; then the blocks run and what ended the loop (``"n_excursions"``: every lane stopped by the rule;
+    ``"max_steps"``: the bound; ``"max_time"``).
+
+    The lanes are padded to a multiple of the devices with lanes that count nothing.  The numbers are those of one
+    device, and of one piece, to the bit (tested).  Between pieces a Ctrl-C stops the count at once (a compiled
+    loop of minutes could not be stopped), and ``max_time`` (seconds from ``t0``) acts as the estimator's: past it
+    no lane starts an LE, those in flight finish, and at twice it the loop ends (those still in flight are
+    truncated).  Split over 2 CPU cores (AMD EPYC, 2026-12-05, 5 interleaved runs each, medians) the count took
+    1.89 against 2.16 s in 16 lanes, 1.77 against 1.82 in 32 and 2.27 against 2.73 in 64 (tau = 1 s, Gamma =
+    2.15, 48 LEs asked), and 0.18 against 0.25 s in 256 (Gamma = 10, tau = 0.125 s, 1024 asked).
+    ``n_excursions`` and the blocks are traced: a figure's points differ in them and share one compiled loop per
+    lane count (and device count)."""
+    t0 = time.perf_counter() if t0 is None else t0
     n = keys.shape[0]
     n_dev = len(jax.local_devices())
     pad = -n % n_dev
     live = jnp.arange(n + pad) < n
     if pad:
         keys = jnp.concatenate([keys, keys[jnp.arange(pad) % n]])
-    out = over_lanes(_lane_loop, (model, keys, live, jnp.int64(n_excursions), jnp.int32(max_blocks)),
-                     (False, True, True, False, False), block=block, bridge=bridge, n_dev=n_dev)
-    *per_lane, blocks = (np.asarray(a)[:n] for a in out)
-    return (*per_lane, int(blocks[0]))
+    carry = over_lanes(_lane_start, (model, keys, live), (False, True, True))
+    b, stop = jnp.zeros(n + pad, jnp.int32), jnp.zeros(n + pad, bool)
+    done, chunk, ended = 0, 4, "n_excursions"
+    while True:
+        t = time.perf_counter()
+        b, stop, carry = over_lanes(_lane_blocks, (model, keys, b, stop, carry, jnp.int64(n_excursions),
+                                                   jnp.int32(min(done + chunk, max_blocks))),
+                                    (False, True, True, True, True, False, False), block=block, bridge=bridge,
+                                    n_dev=n_dev)
+        done = int(b[0])
+        if bool(np.all(np.asarray(carry[7]))):
+            break
+        if done >= max_blocks:
+            ended = "max_steps"
+            break
+        now = time.perf_counter()
+        if max_time is not None and now - t0 > max_time:
+            ended = "max_time"
+            if now - t0 > 2 * max_time:
+                break
+            stop = jnp.ones_like(stop)
+        # the next piece ~PIECE_S long (at most 64x the last: a first piece of compile time says nothing)
+        chunk = int(min(max(chunk * PIECE_S / max(now - t, 1e-6), 1), 64 * chunk, 1 << 24))
+    N, S, Q, off, started, steps = (np.asarray(a)[:n] for a in (*carry[8:11], carry[7], carry[4] != 0, carry[5]))
+    return N, S, Q, off, started, steps, done, ended
+
+
+#: the wall time a piece of the count's loop aims at (:func:`_run`): a Ctrl-C or ``max_time`` acts within about it
+PIECE_S = 0.25
 
 
 #: the count's default step keeps at least TAU_STEPS steps per tau (default_duration_h): with the bridge correction
@@ -302,7 +352,7 @@ def max_steps_for(n_excursions: int, le_steps: float, n_lanes: int | None = None
 
 def di_long_excursion_duration(params, key, h: float | None = None, n_excursions: int = 2048,
                                n_lanes: int | None = None, max_steps: int = 10**8, dtype: str = "float64",
-                               max_work: float = MAX_WORK, bridge: bool = True) -> LEDuration:
+                               max_work: float = MAX_WORK, bridge: bool = True, max_time=None) -> LEDuration:
     r"""Mean duration of the paper's long excursion of the DI at step ``h`` (module docstring), in seconds.
 
     Args:
@@ -324,6 +374,10 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
             (h = 1e-10 s at Fig. 3's point would run ~15 min to its bound, then fail: an audit).
         bridge: count the crossings of the opposite threshold between two steps of a stuck particle too (module
             docstring; default); ``False`` gives the raw count, whose bias falls only like :math:`\sqrt h`.
+        max_time: a time limit in seconds (> 0; None or inf: none), as the estimator's: past it no lane starts a
+            long excursion and those in flight finish (so the count stays unbiased, with fewer than asked); at twice
+            it the loop ends and those still in flight are left out (``n_truncated``).  The result's
+            ``stopped_by`` says ``"max_time"``; a count that ends within it has the bits it has without it.
 
     ``ValueError`` naming the argument, also where the estimator refuses the parameters (tau_L = inf with
     :math:`|\bar\gamma| \ge \Delta`: the particle runs away; it gave a number here, 9 of 32 lanes truncated);
@@ -335,6 +389,8 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
     n_excursions = int(n_excursions)
     n_lanes = default_lanes(n_excursions) if n_lanes is None else check_count("n_lanes", n_lanes, 1, MAX_LANES)
     max_steps = check_count("max_steps", max_steps, 1, MAX_STEPS, " (blocks of 128 steps counted in 32 bits)")
+    max_time = check_max_time(max_time)
+    max_time = None if max_time == math.inf else max_time
     h, dtype = plan.h, plan.dtype
     if not isinstance(bridge, (bool, np.bool_)):
         raise ValueError(f"bridge must be True or False, got {bridge!r}")
@@ -348,13 +404,23 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
     model = make_di_model(params, h, jnp.dtype(dtype))
     max_blocks = -(-max_steps // BLOCK)
     bound = max_blocks * BLOCK  # the bound used: max_steps rounded up to whole blocks
-    N, S, Q, off, started, steps, blocks = _run(model, jax.random.split(key, n_lanes), n_excursions, max_blocks,
-                                                block=BLOCK, bridge=bridge)
+    N, S, Q, off, started, steps, blocks, ended = _run(model, jax.random.split(key, n_lanes), n_excursions,
+                                                       max_blocks, block=BLOCK, bridge=bridge, max_time=max_time,
+                                                       t0=t0)
     k, cut = int(N.sum()), int((started & ~off).sum())
     if k < 2:  # no mean or no spread: say why rather than return a NaN
+        if ended == "max_time":
+            raise ValueError(f"max_time = {max_time:g} s is too short here: the {n_lanes} lanes counted {k} long "
+                             "excursions within twice it (at least 2 must); raise max_time")
         raise ValueError(f"max_steps = {bound} is too small here: the {n_lanes} lanes counted {k} long excursions "
                          f"within it (at least 2 must); raise max_steps")
-    if cut or k < n_excursions:
+    if ended == "max_time":
+        note = (f"max_time = {max_time:g} s stopped the count at {k} of the {n_excursions} long excursions asked: "
+                "none started after it" + (f"; {cut} still in flight at twice it are left out, so the mean is "
+                                           "biased low" if cut else ", those in flight finished"))
+        warnings.warn(note, DryfricWarning, stacklevel=2)
+        notes.append(note)
+    elif cut or k < n_excursions:
         note = (f"the loop's bound max_steps = {bound} stopped {k} of the {n_excursions} long excursions asked"
                 + (f", with {cut} in flight: left out, so the mean is biased low" if cut else "")
                 + "; raise max_steps")
@@ -371,5 +437,6 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
     return LEDuration(mean=h * m, ci=float(t_quantile(0.95, k - 1) * h * math.sqrt(var / k)), n_excursions=k,
                       n_requested=n_excursions, n_lanes=n_lanes, n_truncated=cut, h=float(h), dtype=dtype,
                       lane_steps=int(steps.sum()), loop_steps=n_lanes * int(blocks) * BLOCK, max_steps=bound,
-                      bridge=bridge, seed=seed, key=None if seed is not None else key_id(key), params=params.as_dict(),
-                      warnings=tuple(notes), wall_s=time.perf_counter() - t0)
+                      bridge=bridge, stopped_by=ended, max_time=max_time, seed=seed,
+                      key=None if seed is not None else key_id(key), params=params.as_dict(), warnings=tuple(notes),
+                      wall_s=time.perf_counter() - t0)

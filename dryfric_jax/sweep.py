@@ -229,7 +229,8 @@ def stopped_by(record: dict) -> str | None:
 
 
 def _time_limited(record: dict) -> bool:
-    return stopped_by(record) == "max_time"
+    """Whether ``max_time`` stopped the point's D estimate or its long-excursion count."""
+    return stopped_by(record) == "max_time" or (record.get(DURATIONS) or {}).get("stopped_by") == "max_time"
 
 
 def _more_time(record: dict, max_time) -> bool:
@@ -289,7 +290,9 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
             ...).  It is part of a point's identity but not of its D seed: the D is the sweep's without it, and a
             resumed sweep that adds it takes the D of a finished point's record of this version and runs only the
             count.  The count's predicted work is checked against ``max_work`` with the grid (a point over it is
-            refused, with the reason ``"durations: ..."``); ``max_time`` bounds the D estimate only.
+            refused, with the reason ``"durations: ..."``).  ``max_time`` bounds the D estimate and the count, each
+            (:func:`~dryfric_jax.di_long_excursion_duration`'s ``max_time``); a count it stopped makes the point
+            one that a resumed sweep with more time reruns.
 
     The points' warnings are kept in their records, not shown; a
     :class:`~dryfric_jax.api.ProjectionWarning` (max_work will end a point early) is shown at
@@ -448,7 +451,7 @@ def _compute(out: str, ident: str, pt: dict, seed: int, settings: dict, max_time
                     for k in ("params", "seed"):
                         res.pop(k)
                 extra = {} if settings.get(DURATIONS) is None else {
-                    DURATIONS: _durations(pt, seed, settings, res.get("mean_duration"))}
+                    DURATIONS: _durations(pt, seed, settings, res.get("mean_duration"), max_time)}
     except KeyboardInterrupt:
         return None
     except NoEstimateError as e:  # deterministic (unless max_time stopped it): recorded, not rerun on resume
@@ -461,11 +464,11 @@ def _compute(out: str, ident: str, pt: dict, seed: int, settings: dict, max_time
     return rec
 
 
-def _durations(pt: dict, seed: int, settings: dict, cycle_s) -> dict:
+def _durations(pt: dict, seed: int, settings: dict, cycle_s, max_time=None) -> dict:
     """A point's long-excursion count (``run_sweep(durations=N)``) as its record keeps it: the
     :class:`~dryfric_jax.LEDuration`'s fields but ``params``, or ``{"reason": ...}`` where fewer than 2 ended within
     the loop's bound, planned from the D estimate's mean cycle ``cycle_s`` (s; 10^8 steps where it is not a number
-    > 0)."""
+    > 0), or within ``max_time`` (then with ``stopped_by = "max_time"``)."""
     p = Params(**pt)
     h = duration_h(p, settings["h"])
     n = settings[DURATIONS]
@@ -473,9 +476,11 @@ def _durations(pt: dict, seed: int, settings: dict, cycle_s) -> dict:
     max_steps = max_steps_for(n, c / h) if c is not None and math.isfinite(c) and c > 0 else 10**8
     try:
         d = di_long_excursion_duration(p, duration_seed(seed, pt, settings), h=h, n_excursions=n,
-                                       max_steps=max_steps, dtype=settings["dtype"], max_work=settings["max_work"])
-    except ValueError as e:  # fewer than 2 within the bound (the rest was checked with the grid)
-        return dict(reason=str(e), max_steps=max_steps)
+                                       max_steps=max_steps, dtype=settings["dtype"], max_work=settings["max_work"],
+                                       max_time=max_time)
+    except ValueError as e:  # fewer than 2 within the bound or max_time (the rest was checked with the grid)
+        return dict(reason=str(e), max_steps=max_steps,
+                    **({"stopped_by": "max_time"} if str(e).startswith("max_time") else {}))
     out = d.to_dict()
     out.pop("params")
     return out

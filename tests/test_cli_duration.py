@@ -82,3 +82,18 @@ def test_warnings_are_said_once_and_kept_in_the_json(capsys):
     said = [line for line in cap.err.splitlines() if line.startswith("dryfric: warning: ")]
     assert len(said) == 2 and "bound max_steps = 15104 stopped" in said[0] and "< 100: the t CI under-covers" in said[1]
     assert json.loads(cap.out)["warnings"] == [x.removeprefix("dryfric: warning: ") for x in said]
+
+
+def test_max_time_reaches_the_count_and_a_bad_one_exits_2(capsys):
+    """--max-time is the library's max_time: a limit not reached gives the bits of a run without it, with the
+    limit recorded; 0 or a word is refused in one line naming it."""
+    assert main(["duration", *SMALL, "--seed", "4", "--max-time", "1e6", "--json"]) == 0
+    got = json.loads(capsys.readouterr().out)
+    want = json.loads(di_long_excursion_duration(Params(**FIG3), 4, n_lanes=32, n_excursions=32).to_json())
+    assert got["max_time"] == 1e6 and got["stopped_by"] == want["stopped_by"] == "n_excursions"
+    assert {k: v for k, v in got.items() if k not in ("wall_s", "max_time")} == {
+        k: v for k, v in want.items() if k not in ("wall_s", "max_time")}
+    for bad in ("0", "x"):
+        assert main(["duration", *SMALL, "--max-time", bad]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and ("max-time" in err[0] or "max_time" in err[0]) and "Traceback" not in err[0], err

@@ -100,8 +100,8 @@ def test_other_counts_and_bounds_do_not_recompile():
     di_long_excursion_duration(p, 0, n_lanes=32, n_excursions=32, max_steps=10**6)
     devices = tuple(jax.local_devices())
     loops = sharding._compiled.cache_info().currsize
-    f = sharding._compiled(durations._lane_loop, (("block", 128), ("bridge", True), ("n_dev", len(devices))),
-                           (False, True, True, False, False), devices)  # the loop that call compiled
+    f = sharding._compiled(durations._lane_blocks, (("block", 128), ("bridge", True), ("n_dev", len(devices))),
+                           (False, True, True, True, True, False, False), devices)  # the loop that call compiled
     assert sharding._compiled.cache_info().currsize == loops
     n = f._cache_size()
     assert n >= 1
@@ -153,7 +153,7 @@ def test_mean_ci_and_step_counts_from_the_lanes(monkeypatch):
     stopped = np.array([True, True, True, False])
     started = np.array([True, True, False, True])  # lane 3 in flight at the bound, lane 2 never started one
     steps = np.array([500, 700, 1280, 900])
-    monkeypatch.setattr(durations, "_run", lambda *a, **k: (N, S, Q, stopped, started, steps, np.int32(10)))
+    monkeypatch.setattr(durations, "_run", lambda *a, **k: (N, S, Q, stopped, started, steps, 10, "max_steps"))
     h = 1e-3
     with pytest.warns(dj.DryfricWarning, match="stopped 6 of the 6 long excursions asked, with 1 in flight"):
         r = di_long_excursion_duration(Params(**FIG3), 0, h=h, n_lanes=4, n_excursions=6)
@@ -203,8 +203,8 @@ def test_the_lanes_spread_matches_the_pooled_sd():
     from dryfric_jax.di import make_di_model
 
     model = make_di_model(FAST, default_h(FAST), jnp.float64)
-    N, S, Q, stopped, _, _, _ = durations._run(model, jax.random.split(jax.random.key(21), 64), 64 * 512, 10**6,
-                                               block=128)
+    N, S, Q, stopped, _, _, _, _ = durations._run(model, jax.random.split(jax.random.key(21), 64), 64 * 512,
+                                                  10**6, block=128)
     assert stopped.all()
     n = N.sum()
     r = S.sum() / n
@@ -227,12 +227,12 @@ def test_the_estimators_refusals_hold_here():
 def _fake_loop(monkeypatch, seen):
     from dryfric_jax import durations
 
-    def run(model, keys, n_excursions, max_blocks, block, bridge):
+    def run(model, keys, n_excursions, max_blocks, block, bridge, **kw):
         seen.append(model.h.dtype if bridge else "raw")
         n = keys.shape[0]
         ones = np.ones(n, bool)
         S = np.arange(1, n + 1) * 100
-        return np.ones(n, np.int64), S, S.astype(float) ** 2, ones, ones, np.full(n, 1000), np.int32(8)
+        return np.ones(n, np.int64), S, S.astype(float) ** 2, ones, ones, np.full(n, 1000), 8, "n_excursions"
     monkeypatch.setattr(durations, "_run", run)
 
 
@@ -311,7 +311,7 @@ def test_a_few_dozen_excursions_are_said_to_under_cover(monkeypatch):
         N = np.array([n // 2, n - n // 2])
         S = N * 1000
         monkeypatch.setattr(durations, "_run", lambda *a, N=N, S=S, **k: (
-            N, S, S.astype(float) * 1000 + 1.0, np.ones(2, bool), np.ones(2, bool), S, np.int32(8)))
+            N, S, S.astype(float) * 1000 + 1.0, np.ones(2, bool), np.ones(2, bool), S, 8, "n_excursions"))
         with warnings.catch_warnings(record=True) as w:
             warnings.simplefilter("always")
             r = di_long_excursion_duration(Params(**FIG3), 0, n_lanes=2, n_excursions=n)
@@ -319,3 +319,57 @@ def test_a_few_dozen_excursions_are_said_to_under_cover(monkeypatch):
         assert len(small) == said and r.n_excursions == n and len(r.warnings) == said, (n, w)
         if said:
             assert str(small[0].message) == r.warnings[0] and r.warnings[0].startswith(f"n_excursions = {n} < 100")
+
+
+def test_the_loop_in_pieces_gives_the_bits_of_one_piece(monkeypatch):
+    """The count runs its loop in pieces of ~PIECE_S seconds (a Ctrl-C or max_time acts between them); one block
+    per piece, with a max_time it does not reach, must give the bits of the usual pieces, 37 lanes padded to the
+    devices, bridged and raw."""
+    from dryfric_jax import durations
+
+    kw = dict(n_excursions=300, n_lanes=37)
+    whole = [di_long_excursion_duration(FAST, 11, bridge=b, **kw) for b in (True, False)]
+    monkeypatch.setattr(durations, "PIECE_S", 1e-9)  # one block per piece
+    pieces = [di_long_excursion_duration(FAST, 11, bridge=b, max_time=3600, **kw) for b in (True, False)]
+    for a, b in zip(whole, pieces):
+        assert (a.mean, a.ci, a.n_excursions, a.n_truncated, a.lane_steps, a.loop_steps) == (
+            b.mean, b.ci, b.n_excursions, b.n_truncated, b.lane_steps, b.loop_steps)
+        assert a.stopped_by == b.stopped_by == "n_excursions" and (a.max_time, b.max_time) == (None, 3600.0)
+
+
+def test_max_time_stops_new_excursions_then_cuts_at_twice_it(monkeypatch):
+    """On a clock that advances 1 ms per reading and one block per piece: past max_time no lane starts a long
+    excursion and those in flight finish (fewer than asked, none truncated, a warning says so); with less time
+    those still in flight at twice it are left out (truncated: biased low, said); with too little for 2 long
+    excursions a ValueError names max_time.  A count that ends within max_time is not marked."""
+    from types import SimpleNamespace
+
+    from dryfric_jax import durations
+
+    clock = [0.0]
+
+    def tick():
+        clock[0] += 1e-3
+        return clock[0]
+
+    monkeypatch.setattr(durations, "time", SimpleNamespace(perf_counter=tick))
+    monkeypatch.setattr(durations, "PIECE_S", 1e-9)
+    kw = dict(n_excursions=10_000, n_lanes=64)
+    with pytest.warns(dj.DryfricWarning, match=r"^max_time = 0\.2 s stopped the count at \d+ of the 10000 long "
+                                               r"excursions asked: none started after it, those in flight finished"):
+        a = di_long_excursion_duration(FAST, 5, max_time=0.2, **kw)
+    assert a.stopped_by == "max_time" and a.max_time == 0.2 and 2 <= a.n_excursions < 10_000 and a.n_truncated == 0
+    # the time rule, like the count's rule, decides at an excursion's start whether it counts: no bias against
+    # a count of another seed stopped by its number (dropping those in flight at the limit instead: -32%)
+    ref = di_long_excursion_duration(FAST, 6, n_excursions=2048)
+    assert abs(a.mean - ref.mean) < 3 / 1.96 * math.hypot(a.ci, ref.ci), (a.mean, a.ci, a.n_excursions, ref.mean)
+    with pytest.warns(dj.DryfricWarning, match=r"still in flight at twice it are left out, so the mean is biased"):
+        b = di_long_excursion_duration(FAST, 5, max_time=0.04, **kw)
+    assert b.stopped_by == "max_time" and b.n_truncated > 0 and b.n_excursions < a.n_excursions
+    with pytest.raises(ValueError, match=r"^max_time = 0\.0002 s is too short here: the 8 lanes counted [01] long "):
+        di_long_excursion_duration(FAST, 5, max_time=2e-4, **dict(kw, n_lanes=8))  # its first piece: 4 blocks
+    for bad in (0, -1.0, "x"):
+        with pytest.raises(ValueError, match="^max_time must be > 0 seconds"):
+            di_long_excursion_duration(FAST, 5, max_time=bad, **kw)
+    c = di_long_excursion_duration(FAST, 5, n_excursions=64, n_lanes=64, max_time=1e6)
+    assert c.stopped_by == "n_excursions" and not any(w.startswith("max_time") for w in c.warnings)

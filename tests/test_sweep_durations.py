@@ -155,3 +155,29 @@ def test_a_record_of_a_durations_point_without_them_refuses_the_file(tmp_path, c
         out.write_text(json.dumps({**good, **edit}) + "\n")
         assert main(["sweep", "--Gamma", "6", "--n-excursions", "50", "--out", str(out)]) == 2
         assert "--out must be a dryfric sweep file (JSON Lines)" in capsys.readouterr().err
+
+
+def test_max_time_bounds_the_count_and_a_count_it_stopped_is_rerun_with_more_time(tmp_path, monkeypatch):
+    """The sweep's max_time reaches the count (di_long_excursion_duration's max_time).  A count it stopped
+    (here marked so by a wrapper: the real stop is tested in test_durations.py) makes the point time-limited, like a
+    D that max_time stopped: counted, kept, and rerun by a resumed sweep given more time, not by one given the
+    same."""
+    import dataclasses
+
+    real, seen = sweep.di_long_excursion_duration, []
+
+    def marked(*a, **kw):
+        seen.append(kw["max_time"])
+        return dataclasses.replace(real(*a, **kw), stopped_by="max_time")
+
+    monkeypatch.setattr(sweep, "di_long_excursion_duration", marked)
+    out = str(tmp_path / "s.jsonl")
+    pts = sweep.grid(Gamma=[10.0], tau=[0.125])
+    kw = dict(n_excursions=100, durations=64)
+    r = sweep.run_sweep(pts, out, max_time=600, **kw)
+    assert (r["computed"], r["time_limited"]) == (1, 1) and seen == [600.0]
+    (rec,) = _lines(out)
+    assert rec["durations"]["stopped_by"] == "max_time" and rec["max_time"] == 600
+    assert sweep.run_sweep(pts, out, max_time=600, **kw)["computed"] == 0
+    assert sweep.run_sweep(pts, out, max_time=1200, **kw)["computed"] == 1 and seen == [600.0, 1200.0]
+    assert len(_lines(out)) == 1 and _lines(out)[0]["max_time"] == 1200
