@@ -526,7 +526,7 @@ def _work_options(a):
 
 
 #: the commands whose completed work a SIGTERM keeps (printed and written, as a Ctrl-C does)
-KEEPS_RESULTS = ("estimate", "sweep", "figures")
+KEEPS_RESULTS = ("estimate", "sweep", "figures", "duration")
 
 
 def _run(a) -> int:
@@ -630,6 +630,8 @@ def _run(a) -> int:
                                            max_time=a.max_time, **_work_options(a))
         print(dumps(r.to_dict()) if a.json else r.summary(), flush=True)  # its warnings were said above
         _write_out(a.out, r.to_dict())
+        if r.stopped_by == "interrupted":  # a Ctrl-C (SIGTERM): what was counted is above, and in --out
+            return 130
         if r.n_truncated and not a.allow_truncated:
             spare = "--max-time" if r.stopped_by == "max_time" else "--max-steps"
             print(f"dryfric: warning: {r.n_truncated} long excursions truncated: the mean above is biased low; exit 3 "

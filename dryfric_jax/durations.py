@@ -85,6 +85,7 @@ starts, at twice it those in flight are dropped).
 from __future__ import annotations
 
 import math
+import sys
 import time
 import warnings
 from dataclasses import dataclass, field
@@ -102,6 +103,7 @@ from .estimators import t_quantile
 from .limits import MAX_WORK, check_work
 from .params import Params
 from .plan import MAX_LANES, check_count, check_max_time, check_max_work, choose, default_h
+from .rounds import _ABANDON, INTERRUPT_GRACE_S
 from .sharding import over_lanes
 
 
@@ -123,7 +125,7 @@ class LEDuration(_Record):
     loop_steps: int  # steps computed: lanes x the loop's steps, as a lane that stopped idles in the loop
     max_steps: int = 0  # the loop's bound (whole blocks of 128)
     bridge: bool = True  # the crossings of X between steps counted too (module docstring); False: the raw count
-    stopped_by: str = "n_excursions"  # what ended the loop: the rule ("n_excursions"), "max_steps" or "max_time"
+    stopped_by: str = "n_excursions"  # what ended it: the rule ("n_excursions"), "max_steps", "max_time", "interrupted"
     max_time: float | None = None  # the time limit given (s), None for none
     seed: int | None = None  # None for a jax.random key
     key: str | None = None  # a key-made run's key (api.key_id); None for a seed
@@ -239,15 +241,18 @@ def _run(model, keys, n_excursions: int, max_blocks: int, block: int = BLOCK, br
     core).  Returns numpy arrays per lane (those of ``keys`` only): the LEs counted, the sums of their durations
     and of their squares (steps), whether the lane stopped (not in flight at the end), whether it started an LE,
     its steps; then the blocks run and what ended the loop (``"n_excursions"``: every lane stopped by the rule;
-    ``"max_steps"``: the bound; ``"max_time"``).
+    ``"max_steps"``: the bound; ``"max_time"``; ``"interrupted"``: a Ctrl-C, SIGTERM under ``dryfric``).
 
     The lanes are padded to a multiple of the devices with lanes that count nothing.  The numbers are those of one
     device, and of one piece, to the bit (tested).  Between pieces a Ctrl-C stops the count at once (a compiled
     loop of minutes could not be stopped), and ``max_time`` (seconds from ``t0``) acts as the estimator's: past it
     no lane starts an LE, those in flight finish, and at twice it the loop ends (those still in flight are
-    truncated).  Split over 2 CPU cores (AMD EPYC, 2026-12-05, 5 interleaved runs each, medians) the count took
-    1.89 against 2.16 s in 16 lanes, 1.77 against 1.82 in 32 and 2.27 against 2.73 in 64 (tau = 1 s, Gamma =
-    2.15, 48 LEs asked), and 0.18 against 0.25 s in 256 (Gamma = 10, tau = 0.125 s, 1024 asked).
+    truncated).  A Ctrl-C acts as the estimator's too: the first starts no LE and finishes those in flight within
+    :data:`~dryfric_jax.rounds.INTERRUPT_GRACE_S` (said on stderr), a second keeps what was counted; within
+    :func:`~dryfric_jax.rounds.abandon_on_interrupt` it raises at once.  Split over 2 CPU cores (AMD EPYC,
+    2026-12-05, 5 interleaved runs each, medians) the count took 1.89 against 2.16 s in 16 lanes, 1.77 against
+    1.82 in 32 and 2.27 against 2.73 in 64 (tau = 1 s, Gamma = 2.15, 48 LEs asked), and 0.18 against 0.25 s in
+    256 (Gamma = 10, tau = 0.125 s, 1024 asked).
     ``n_excursions`` and the blocks are traced: a figure's points differ in them and share one compiled loop per
     lane count (and device count)."""
     t0 = time.perf_counter() if t0 is None else t0
@@ -259,27 +264,45 @@ def _run(model, keys, n_excursions: int, max_blocks: int, block: int = BLOCK, br
         keys = jnp.concatenate([keys, keys[jnp.arange(pad) % n]])
     carry = over_lanes(_lane_start, (model, keys, live), (False, True, True))
     b, stop = jnp.zeros(n + pad, jnp.int32), jnp.zeros(n + pad, bool)
-    done, chunk, ended = 0, 4, "n_excursions"
+    done, chunk, ended, deadline = 0, 4, "n_excursions", None
     while True:
-        t = time.perf_counter()
-        b, stop, carry = over_lanes(_lane_blocks, (model, keys, b, stop, carry, jnp.int64(n_excursions),
-                                                   jnp.int32(min(done + chunk, max_blocks))),
-                                    (False, True, True, True, True, False, False), block=block, bridge=bridge,
-                                    n_dev=n_dev)
-        done = int(b[0])
-        if bool(np.all(np.asarray(carry[7]))):
-            break
-        if done >= max_blocks:
-            ended = "max_steps"
-            break
-        now = time.perf_counter()
-        if max_time is not None and now - t0 > max_time:
-            ended = "max_time"
-            if now - t0 > 2 * max_time:
+        try:
+            t = time.perf_counter()
+            b, stop, carry = over_lanes(_lane_blocks, (model, keys, b, stop, carry, jnp.int64(n_excursions),
+                                                       jnp.int32(min(done + chunk, max_blocks))),
+                                        (False, True, True, True, True, False, False), block=block, bridge=bridge,
+                                        n_dev=n_dev)
+            done = int(b[0])
+            if bool(np.all(np.asarray(carry[7]))):
                 break
-            stop = jnp.ones_like(stop)
-        # the next piece ~PIECE_S long (at most 64x the last: a first piece of compile time says nothing)
-        chunk = int(min(max(chunk * PIECE_S / max(now - t, 1e-6), 1), 64 * chunk, 1 << 24))
+            if done >= max_blocks:
+                ended = "max_steps" if ended != "interrupted" else ended
+                break
+            now = time.perf_counter()
+            if deadline is not None and now > deadline:  # the grace after a Ctrl-C is over
+                break
+            if max_time is not None and now - t0 > max_time and ended != "interrupted":
+                ended = "max_time"
+                if now - t0 > 2 * max_time:
+                    break
+                stop = jnp.ones_like(stop)
+            # the next piece ~PIECE_S long (at most 64x the last: a first piece of compile time says nothing)
+            chunk = int(min(max(chunk * PIECE_S / max(now - t, 1e-6), 1), 64 * chunk, 1 << 24))
+        except KeyboardInterrupt:
+            # the piece it stopped is lost, the state before it is whole (the arrays are not changed in place)
+            if _ABANDON[0]:  # a caller that keeps finished runs only (a sweep's point, a figure's run)
+                raise
+            if ended == "interrupted":  # a second Ctrl-C: keep what was counted, those in flight dropped
+                break
+            # the first, as the estimator's: no excursion starts, those in flight finish within the grace
+            ended, stop = "interrupted", jnp.ones_like(stop)
+            deadline = time.perf_counter() + INTERRUPT_GRACE_S
+            if max_time is not None:
+                deadline = min(deadline, max(t0 + 2 * max_time, time.perf_counter()))
+            clear = "\r\x1b[K" if sys.stderr.isatty() else ""
+            print(f"{clear}dryfric: interrupted: finishing the long excursions in flight for at most "
+                  f"{deadline - time.perf_counter():.3g} s (any still running then are reported as truncated); "
+                  "interrupt again to drop them", file=sys.stderr, flush=True)
     N, S, Q, off, started, steps = (np.asarray(a)[:n] for a in (*carry[8:11], carry[7], carry[4] != 0, carry[5]))
     return N, S, Q, off, started, steps, done, ended
 
@@ -379,6 +402,11 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
             it the loop ends and those still in flight are left out (``n_truncated``).  The result's
             ``stopped_by`` says ``"max_time"``; a count that ends within it has the bits it has without it.
 
+    A Ctrl-C (SIGTERM under ``dryfric``) acts as it does on the estimator: the first starts no long excursion and
+    finishes those in flight within :data:`~dryfric_jax.rounds.INTERRUPT_GRACE_S`, a second drops them, and the
+    result says ``stopped_by = "interrupted"`` (a ``KeyboardInterrupt`` where fewer than 2 were counted, or at once
+    within :func:`~dryfric_jax.rounds.abandon_on_interrupt`).
+
     ``ValueError`` naming the argument, also where the estimator refuses the parameters (tau_L = inf with
     :math:`|\bar\gamma| \ge \Delta`: the particle runs away; it gave a number here, 9 of 32 lanes truncated);
     the result's ``n_truncated`` counts the LEs in flight at ``max_steps`` (dropped, with a warning).
@@ -409,12 +437,20 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
                                                        t0=t0)
     k, cut = int(N.sum()), int((started & ~off).sum())
     if k < 2:  # no mean or no spread: say why rather than return a NaN
+        if ended == "interrupted":  # nothing to keep: a plain Ctrl-C
+            raise KeyboardInterrupt
         if ended == "max_time":
             raise ValueError(f"max_time = {max_time:g} s is too short here: the {n_lanes} lanes counted {k} long "
                              "excursions within twice it (at least 2 must); raise max_time")
         raise ValueError(f"max_steps = {bound} is too small here: the {n_lanes} lanes counted {k} long excursions "
                          f"within it (at least 2 must); raise max_steps")
-    if ended == "max_time":
+    if ended == "interrupted":
+        note = (f"interrupted: {k} of the {n_excursions} long excursions asked counted, none started after it"
+                + (f"; {cut} still in flight are left out, so the mean is biased low" if cut
+                   else ", those in flight finished"))
+        warnings.warn(note, DryfricWarning, stacklevel=2)
+        notes.append(note)
+    elif ended == "max_time":
         note = (f"max_time = {max_time:g} s stopped the count at {k} of the {n_excursions} long excursions asked: "
                 "none started after it" + (f"; {cut} still in flight at twice it are left out, so the mean is "
                                            "biased low" if cut else ", those in flight finished"))

@@ -97,3 +97,19 @@ def test_max_time_reaches_the_count_and_a_bad_one_exits_2(capsys):
         assert main(["duration", *SMALL, "--max-time", bad]) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and ("max-time" in err[0] or "max_time" in err[0]) and "Traceback" not in err[0], err
+
+
+def test_a_ctrl_c_prints_what_was_counted_and_exits_130(monkeypatch, tmp_path, capsys):
+    """The first Ctrl-C finishes the excursions in flight, and the command prints and writes what it counted (a
+    result, not a traceback) and exits 130, as 'estimate' does."""
+    from test_durations import _ctrl_c_at
+
+    _ctrl_c_at(monkeypatch, {30})
+    out = tmp_path / "d.json"
+    assert main(["duration", "--Gamma", "10", "--tau", "0.125", "--n-excursions", "10000", "--n-lanes", "64",
+                 "--seed", "5", "--out", str(out)]) == 130
+    cap = capsys.readouterr()
+    assert cap.out.startswith("mean long-excursion duration = ") and "Traceback" not in cap.err
+    assert "dryfric: interrupted: finishing the long excursions in flight" in cap.err
+    got = json.loads(out.read_text())
+    assert got["stopped_by"] == "interrupted" and got["n_truncated"] == 0 and 2 <= got["n_excursions"] < 10_000

@@ -373,3 +373,48 @@ def test_max_time_stops_new_excursions_then_cuts_at_twice_it(monkeypatch):
             di_long_excursion_duration(FAST, 5, max_time=bad, **kw)
     c = di_long_excursion_duration(FAST, 5, n_excursions=64, n_lanes=64, max_time=1e6)
     assert c.stopped_by == "n_excursions" and not any(w.startswith("max_time") for w in c.warnings)
+
+
+def _ctrl_c_at(monkeypatch, pieces):
+    """The count's pieces run for real, and a KeyboardInterrupt comes as the pieces numbered in ``pieces`` end
+    (the piece is lost, as when a Ctrl-C arrives during its compiled call); one block per piece."""
+    from dryfric_jax import durations
+
+    real, count = durations.over_lanes, [0]
+
+    def over_lanes(fn, *a, **k):
+        out = real(fn, *a, **k)
+        if fn is durations._lane_blocks:
+            count[0] += 1
+            if count[0] in pieces:
+                raise KeyboardInterrupt
+        return out
+
+    monkeypatch.setattr(durations, "over_lanes", over_lanes)
+    monkeypatch.setattr(durations, "PIECE_S", 1e-9)
+
+
+def test_a_ctrl_c_finishes_the_excursions_in_flight_and_a_second_drops_them(monkeypatch, capsys):
+    """As the estimator's: the first Ctrl-C starts no long excursion and finishes those in flight (said on stderr),
+    so nothing counted is lost and nothing is biased; a second keeps what was counted, those in flight dropped
+    (truncated); with fewer than 2 counted it is a plain KeyboardInterrupt; within abandon_on_interrupt (a sweep's
+    point, a figure's run) it is one at once.  A count it stopped has fewer than asked and says so."""
+    from dryfric_jax.rounds import abandon_on_interrupt
+
+    kw = dict(n_excursions=10_000, n_lanes=64)
+    _ctrl_c_at(monkeypatch, {30})
+    with pytest.warns(dj.DryfricWarning, match=r"^interrupted: \d+ of the 10000 long excursions asked counted, none "
+                                               r"started after it, those in flight finished"):
+        a = di_long_excursion_duration(FAST, 5, **kw)
+    assert a.stopped_by == "interrupted" and a.n_truncated == 0 and 2 <= a.n_excursions < 10_000
+    assert "dryfric: interrupted: finishing the long excursions in flight for at most" in capsys.readouterr().err
+    _ctrl_c_at(monkeypatch, {30, 32})
+    with pytest.warns(dj.DryfricWarning, match=r"still in flight are left out, so the mean is biased low"):
+        b = di_long_excursion_duration(FAST, 5, **kw)
+    assert b.stopped_by == "interrupted" and b.n_truncated > 0 and b.n_excursions <= a.n_excursions
+    _ctrl_c_at(monkeypatch, {1, 2})
+    with pytest.raises(KeyboardInterrupt):
+        di_long_excursion_duration(FAST, 5, n_excursions=100, n_lanes=2)
+    _ctrl_c_at(monkeypatch, {30})
+    with abandon_on_interrupt(), pytest.raises(KeyboardInterrupt):
+        di_long_excursion_duration(FAST, 5, **kw)
