@@ -79,8 +79,8 @@ h/16.  Where :math:`\tau \ll h` releases happen at any X and the count is not th
 
 Loops are bounded: the loop runs at most ``max_steps`` steps; an LE still in flight there is dropped (which
 biases the mean low), counted in ``n_truncated`` and warned about.  It runs in pieces of ~:data:`PIECE_S` seconds,
-the same bits as one piece: between them a Ctrl-C stops it, and ``max_time`` acts as the estimator's (past it no LE
-starts, at twice it those in flight are dropped).
+the same bits as one piece: between them a Ctrl-C and ``max_time`` act as on the estimator (no LE starts after them;
+those in flight finish, or are dropped at a second Ctrl-C or at twice ``max_time``).
 """
 from __future__ import annotations
 
@@ -244,17 +244,16 @@ def _run(model, keys, n_excursions: int, max_blocks: int, block: int = BLOCK, br
     ``"max_steps"``: the bound; ``"max_time"``; ``"interrupted"``: a Ctrl-C, SIGTERM under ``dryfric``).
 
     The lanes are padded to a multiple of the devices with lanes that count nothing.  The numbers are those of one
-    device, and of one piece, to the bit (tested).  Between pieces a Ctrl-C stops the count at once (a compiled
-    loop of minutes could not be stopped), and ``max_time`` (seconds from ``t0``) acts as the estimator's: past it
-    no lane starts an LE, those in flight finish, and at twice it the loop ends (those still in flight are
-    truncated).  A Ctrl-C acts as the estimator's too: the first starts no LE and finishes those in flight within
-    :data:`~dryfric_jax.rounds.INTERRUPT_GRACE_S` (said on stderr), a second keeps what was counted; within
-    :func:`~dryfric_jax.rounds.abandon_on_interrupt` it raises at once.  Split over 2 CPU cores (AMD EPYC,
-    2026-12-05, 5 interleaved runs each, medians) the count took 1.89 against 2.16 s in 16 lanes, 1.77 against
-    1.82 in 32 and 2.27 against 2.73 in 64 (tau = 1 s, Gamma = 2.15, 48 LEs asked), and 0.18 against 0.25 s in
-    256 (Gamma = 10, tau = 0.125 s, 1024 asked).
-    ``n_excursions`` and the blocks are traced: a figure's points differ in them and share one compiled loop per
-    lane count (and device count)."""
+    device, and of one piece, to the bit (tested).  Between pieces a Ctrl-C takes effect (a compiled loop of
+    minutes could not be stopped before 2026-12-05), and ``max_time`` (seconds from ``t0``) acts as the
+    estimator's: past it no lane starts an LE, those in flight finish, and at twice it the loop ends (those still
+    in flight are truncated).  A Ctrl-C acts as the estimator's too: the first starts no LE and finishes those
+    in flight within :data:`~dryfric_jax.rounds.INTERRUPT_GRACE_S` (said on stderr), a second keeps what was
+    counted; within :func:`~dryfric_jax.rounds.abandon_on_interrupt` it raises at once.  Split over 2 CPU cores
+    (AMD EPYC, 2026-12-05, 5 interleaved runs each, medians) the count took 1.89 against 2.16 s in 16 lanes, 1.77
+    against 1.82 in 32 and 2.27 against 2.73 in 64 (tau = 1 s, Gamma = 2.15, 48 LEs asked), and 0.18 against
+    0.25 s in 256 (Gamma = 10, tau = 0.125 s, 1024 asked).  ``n_excursions`` and the blocks are traced: a
+    figure's points differ in them and share one compiled loop per lane count (and device count)."""
     t0 = time.perf_counter() if t0 is None else t0
     n = keys.shape[0]
     n_dev = len(jax.local_devices())
