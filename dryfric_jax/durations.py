@@ -134,6 +134,9 @@ class LEDuration(_Record):
     warnings: tuple = ()  # every note the run issued (also issued as DryfricWarning)
     wall_s: float = field(default=0.0, compare=False)
 
+    def __post_init__(self):  # a record read back from JSON gives a list: the tuple the run made (frozen, hashable)
+        object.__setattr__(self, "warnings", tuple(self.warnings))
+
     def summary(self) -> str:
         """The mean with its CI, the excursions behind it, the step and what made it (what ``dryfric duration``
         prints)."""

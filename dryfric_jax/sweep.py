@@ -69,11 +69,11 @@ import numpy as np
 
 from ._version import __version__
 from .api import DryfricWarning, NoEstimateError, ProjectionWarning, check_progress, check_seed, estimate_diffusivity
-from .durations import TAU_STEPS, check_duration_run, di_long_excursion_duration, max_steps_for
+from .durations import TAU_STEPS, check_duration_run, default_duration_h, di_long_excursion_duration, max_steps_for
 from .limits import MAX_WORK
 from .outfiles import check_writable, claim, drop_claims_dir, dumps, locked, put_record, read_records, write_records
 from .params import FIG3, Params, plain_number, real_or_none, shown
-from .plan import check_count, check_max_time, check_settings, default_h, plan_estimate
+from .plan import check_count, check_max_time, check_settings, plan_estimate
 from .rounds import abandon_on_interrupt
 
 PARAM_KEYS = ("Gamma", "Delta", "tau", "tau_L", "gamma_bar")
@@ -140,7 +140,7 @@ def duration_h(params: Params, h) -> float:
     tau / :data:`~dryfric_jax.durations.TAU_STEPS` where that is smaller, i.e.
     :func:`~dryfric_jax.durations.default_duration_h` unless ``h`` is finer (the count's bias falls like h and
     shrinks as tau/h grows: :mod:`dryfric_jax.durations`)."""
-    return min(default_h(params) if h is None else h, params.tau / TAU_STEPS)
+    return default_duration_h(params) if h is None else min(h, params.tau / TAU_STEPS)
 
 
 def _is_real(x) -> bool:

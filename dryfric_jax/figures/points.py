@@ -181,10 +181,7 @@ class Points:
     def _reuse(self, ident, cls):
         self.reused += 1
         names = {f.name for f in dataclasses.fields(cls)}
-        kept = {k: v for k, v in self._done[ident]["result"].items() if k in names}
-        if cls is LEDuration:  # a frozen record: its warnings as the tuple the run made
-            kept["warnings"] = tuple(kept.get("warnings", ()))
-        r = cls(**kept)
+        r = cls(**{k: v for k, v in self._done[ident]["result"].items() if k in names})
         self.runs_wall_s += r.wall_s
         self.n_truncated += 0 if cls is LEDuration else getattr(r, "n_truncated", 0)
         return r
