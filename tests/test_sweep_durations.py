@@ -6,6 +6,7 @@ them) as they were, and how a point without a count is refused, recorded and sho
 import json
 import math
 import os
+import re
 
 import pytest
 
@@ -82,19 +83,25 @@ def test_durations_enter_a_points_identity_but_not_its_d_seed():
 
 
 def test_a_point_whose_count_is_over_max_work_is_refused_with_the_grid(tmp_path):
-    """Gamma = 1, tau = 1 s: its D (50 excursions) fits max_work = 1e9, 2048 long excursions do not (predicted
-    1.35e10 steps).  Refused before anything runs, or recorded with its reason under skip_refused."""
+    """Gamma = 1, tau = 1 s: its D (50 excursions) fits max_work = 1e9, 2048 long excursions do not (the count's
+    own planner, durations.check_duration_run, asks for more).  Refused before anything runs, with that planner's
+    reason, or recorded with it under skip_refused."""
     out = str(tmp_path / "s.jsonl")
     pts = [dict(Gamma=1.0, tau=1.0), dict(Gamma=10.0, tau=0.125)]
     kw = dict(n_excursions=50, max_work=1e9, durations=2048)
-    with pytest.raises(ValueError, match=r"^durations: max_work must be >= 1\.35e\+10 steps .* \(here for "
-                                         r"durations long excursions: lower it\) \[at sweep point .*Nothing was run"):
+    p = dj.Params(**{**dj.FIG3, **pts[0]})
+    with pytest.raises(ValueError) as direct:
+        dj.durations.check_duration_run(p, sweep.duration_h(p, None), 2048, "float64", 1e9, name="durations")
+    why = str(direct.value)
+    assert why.endswith("(here for durations long excursions: lower it)")
+    assert float(re.match(r"^max_work must be >= ([0-9.e+]+) steps ", why).group(1)) > 1e9
+    with pytest.raises(ValueError, match=r"^durations: " + re.escape(why) + r" \[at sweep point .*Nothing was run"):
         sweep.run_sweep(pts, out, **kw)
     assert not os.path.exists(out)
     r = sweep.run_sweep(pts, out, skip_refused=True, **kw)
     assert (r["computed"], r["refused"]) == (1, 1)
     refused, ok = _lines(out)
-    assert refused["status"] == "refused" and refused["reason"].startswith("durations: max_work must be")
+    assert refused["status"] == "refused" and refused["reason"] == "durations: " + why
     assert ok["status"] == "ok" and ok["durations"]["n_excursions"] >= 2048
     assert sweep.rows(out)[0]["status"] == "refused" and math.isnan(sweep.rows(out)[0]["le_duration"])
     # the refusal is the count's alone: the point's D fits
