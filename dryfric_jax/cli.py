@@ -283,7 +283,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "over the excursions.  Crossings of the thresholds by X between two steps are counted too (a "
                         "Brownian-bridge correction), so the bias falls like h, not sqrt(h).  "
                         "'dryfric estimate' prints the mean duration of its regeneration cycles, each one or more of "
-                        "these.")
+                        "these.  On a terminal a status line shows the excursions counted so far, their mean and the "
+                        "time left (never under --json).")
     du.add_argument("--h", type=_number("h"), default=None,
                     help="DI step, s (default min(0.01*min(tau0, tau_L), tau/700): the count's bias falls like h)")
     du.add_argument("--seed", type=_seed, default=0, help="random seed, an integer in [0, 2^62 - 2^20] (default 0)")
@@ -408,6 +409,25 @@ def _progress_line(d):
           f"{duration_text(d.get('elapsed_s', 0.0))}{left}\x1b[K", end="", file=sys.stderr, flush=True)
 
 
+def _duration_line(d):
+    """``dryfric duration``'s self-overwriting status line on stderr (terminal only, never under --json): the long
+    excursions counted so far of those asked, the mean of those counted so far (a dash before the first), the time
+    so far and the projected time left, naming --max-time when it is projected to end the count first; once no
+    excursion starts any more, how many are still in flight.  Cleared when the count ends (its summary follows)."""
+    from .api import duration_text
+
+    mean = f"{d['mean_s']:.4g} s" if d["mean_s"] == d["mean_s"] else "–"
+    if d["stopping"]:
+        tail = f", finishing the {d['in_flight']} in flight" if d["in_flight"] else ", done"
+    elif d["left_s"] is not None:
+        tail = f", ~{duration_text(d['left_s'])} left" + (" (stops at --max-time)" if d["left_to"] == "max_time"
+                                                          else "")
+    else:
+        tail = ""
+    print(f"\r  long excursions = {d['n_excursions']:>7d} of {d['target']}   mean so far = {mean}   "
+          f"{duration_text(d['elapsed_s'])}{tail}\x1b[K", end="", file=sys.stderr, flush=True)
+
+
 def _check_out(path):
     """Refuse an output path that cannot be written, before anything is simulated."""
     if path is not None:
@@ -481,10 +501,13 @@ def _warnings_kept_in_result():
 
 
 @contextlib.contextmanager
-def _warnings_as_lines():
+def _warnings_as_lines(progress_line: bool = False):
     """The library's DryfricWarnings as one ``dryfric: warning:`` line each on stderr (``dryfric
-    figures``: its scenes keep their runs' notes in their records; what is left is said to the user)."""
+    figures``: its scenes keep their runs' notes in their records; what is left is said to the user),
+    each on a cleared line where ``progress_line`` (``dryfric duration``'s status line) may be shown."""
     from .api import DryfricWarning
+
+    clear = "\r\x1b[K" if progress_line else ""
 
     with warnings.catch_warnings():
         warnings.simplefilter("always", DryfricWarning)  # said each time, also on a second call in one process
@@ -492,7 +515,7 @@ def _warnings_as_lines():
 
         def show(message, category, *args, **kw):
             if issubclass(category, DryfricWarning):
-                print(f"dryfric: warning: {message}", file=sys.stderr, flush=True)
+                print(f"{clear}dryfric: warning: {message}", file=sys.stderr, flush=True)
             else:
                 shown(message, category, *args, **kw)
 
@@ -624,10 +647,16 @@ def _run(a) -> int:
     if a.cmd == "duration":
         from .durations import di_long_excursion_duration
 
-        with _warnings_as_lines():  # said as they come: a run that then fails (max_steps too small) still says why
-            r = di_long_excursion_duration(params, a.seed, h=a.h, n_excursions=a.n_excursions, n_lanes=a.n_lanes,
-                                           max_steps=a.max_steps, dtype=a.dtype, bridge=not a.no_bridge,
-                                           max_time=a.max_time, **_work_options(a))
+        show = not a.json and sys.stderr.isatty()
+        try:
+            with _warnings_as_lines(show):  # said as they come: a run that then fails (max_steps too small) says why
+                r = di_long_excursion_duration(params, a.seed, h=a.h, n_excursions=a.n_excursions,
+                                               n_lanes=a.n_lanes, max_steps=a.max_steps, dtype=a.dtype,
+                                               bridge=not a.no_bridge, max_time=a.max_time,
+                                               progress=_duration_line if show else None, **_work_options(a))
+        finally:
+            if show:  # the summary or the error follows on a clean line
+                print("\r\x1b[K", end="", file=sys.stderr, flush=True)
         print(dumps(r.to_dict()) if a.json else r.summary(), flush=True)  # its warnings were said above
         _write_out(a.out, r.to_dict())
         if r.stopped_by == "interrupted":  # a Ctrl-C (SIGTERM): what was counted is above, and in --out

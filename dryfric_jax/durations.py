@@ -96,7 +96,7 @@ import numpy as np
 
 from . import rng
 from ._version import __version__
-from .api import DryfricWarning, _key, _Record, _with_warnings, category, key_id
+from .api import DryfricWarning, _key, _Record, _with_warnings, category, check_progress, key_id, time_left
 from .di import make_di_model
 from .excursions import BLOCK, block_keys
 from .estimators import t_quantile
@@ -238,7 +238,7 @@ def _lane_blocks(model, keys, b, stop, carry, n_excursions, b_end, block: int, b
 
 
 def _run(model, keys, n_excursions: int, max_blocks: int, block: int = BLOCK, bridge: bool = True,
-         max_time: float | None = None, t0: float | None = None):
+         max_time: float | None = None, t0: float | None = None, progress=None):
     """:func:`_lane_blocks` over the lanes ``keys`` in pieces of ~:data:`PIECE_S` seconds, split over the local
     devices (:func:`~dryfric_jax.sharding.over_lanes`; on a CPU one device per core, so the count uses every
     core).  Returns numpy arrays per lane (those of ``keys`` only): the LEs counted, the sums of their durations
@@ -256,7 +256,8 @@ def _run(model, keys, n_excursions: int, max_blocks: int, block: int = BLOCK, br
     (AMD EPYC, 2026-12-05, 5 interleaved runs each, medians) the count took 1.89 against 2.16 s in 16 lanes, 1.77
     against 1.82 in 32 and 2.27 against 2.73 in 64 (tau = 1 s, Gamma = 2.15, 48 LEs asked), and 0.18 against
     0.25 s in 256 (Gamma = 10, tau = 0.125 s, 1024 asked).  ``n_excursions`` and the blocks are traced: a
-    figure's points differ in them and share one compiled loop per lane count (and device count)."""
+    figure's points differ in them and share one compiled loop per lane count (and device count).  ``progress``:
+    called after every piece with :func:`_progress`'s dict (it reads the state, never changes it)."""
     t0 = time.perf_counter() if t0 is None else t0
     n = keys.shape[0]
     n_dev = len(jax.local_devices())
@@ -266,7 +267,7 @@ def _run(model, keys, n_excursions: int, max_blocks: int, block: int = BLOCK, br
         keys = jnp.concatenate([keys, keys[jnp.arange(pad) % n]])
     carry = over_lanes(_lane_start, (model, keys, live), (False, True, True))
     b, stop = jnp.zeros(n + pad, jnp.int32), jnp.zeros(n + pad, bool)
-    done, chunk, ended, deadline = 0, 4, "n_excursions", None
+    done, chunk, ended, deadline, first = 0, 4, "n_excursions", None, []
     while True:
         try:
             t = time.perf_counter()
@@ -275,6 +276,8 @@ def _run(model, keys, n_excursions: int, max_blocks: int, block: int = BLOCK, br
                                         (False, True, True, True, True, False, False), block=block, bridge=bridge,
                                         n_dev=n_dev)
             done = int(b[0])
+            if progress is not None:
+                progress(_progress(carry, n_excursions, bool(stop[0]), t0, first, max_time))
             if bool(np.all(np.asarray(carry[7]))):
                 break
             if done >= max_blocks:
@@ -307,6 +310,29 @@ def _run(model, keys, n_excursions: int, max_blocks: int, block: int = BLOCK, br
                   "interrupt again to drop them", file=sys.stderr, flush=True)
     N, S, Q, off, started, steps = (np.asarray(a)[:n] for a in (*carry[8:11], carry[7], carry[4] != 0, carry[5]))
     return N, S, Q, off, started, steps, done, ended
+
+
+def _progress(carry, n_excursions, stopping, t0, first, max_time) -> dict:
+    """What a ``progress`` callback of :func:`di_long_excursion_duration` gets after a piece of the loop (there
+    with ``mean_s``, in seconds, for ``mean_steps``): the LEs counted so far (``n_excursions``) of the ``target``,
+    those ``in_flight``, the ``mean_steps`` of those counted (nan before the first; it is the final mean only at
+    the end, as the long ones finish last), ``stopping`` (no LE starts any more: the rule, ``max_time`` or a
+    Ctrl-C), ``elapsed_s``, and the projected ``left_s`` with the limit that ends the run first, ``left_to``
+    (:func:`~dryfric_jax.api.time_left`: ``"n_excursions"`` or ``"max_time"``; both None before a projection, and
+    once stopping: the LEs in flight then end when they end).  The rate is that of the pieces after the first,
+    whose time holds the compilation; ``first`` holds its (time, lane-steps) between calls."""
+    now = time.perf_counter()
+    N, S, ph, off, n = (np.asarray(a) for a in (carry[8], carry[9], carry[4], carry[7], carry[5]))
+    k, work, in_flight = int(N.sum()), float(n.sum()), int(((ph != 0) & ~off).sum())
+    left = to = None
+    if not first:
+        first.append((now, work))
+    elif not stopping and now > first[0][0] and work > first[0][1]:
+        rate = (work - first[0][1]) / (now - first[0][0])
+        left, to = time_left(now - t0, work, k, in_flight, n_excursions, max_time=max_time, rate=rate)
+    return dict(n_excursions=k, target=int(n_excursions), in_flight=in_flight,
+                mean_steps=float(S.sum()) / k if k else math.nan, stopping=stopping,
+                elapsed_s=now - t0, left_s=left, left_to=to)
 
 
 #: the wall time a piece of the count's loop aims at (:func:`_run`): a Ctrl-C or ``max_time`` acts within about it
@@ -377,7 +403,8 @@ def max_steps_for(n_excursions: int, le_steps: float, n_lanes: int | None = None
 
 def di_long_excursion_duration(params, key, h: float | None = None, n_excursions: int = 2048,
                                n_lanes: int | None = None, max_steps: int = 10**8, dtype: str = "float64",
-                               max_work: float = MAX_WORK, bridge: bool = True, max_time=None) -> LEDuration:
+                               max_work: float = MAX_WORK, bridge: bool = True, max_time=None,
+                               progress=None) -> LEDuration:
     r"""Mean duration of the paper's long excursion of the DI at step ``h`` (module docstring), in seconds.
 
     Args:
@@ -403,6 +430,12 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
             long excursion and those in flight finish (so the count stays unbiased, with fewer than asked); at twice
             it the loop ends and those still in flight are left out (``n_truncated``).  The result's
             ``stopped_by`` says ``"max_time"``; a count that ends within it has the bits it has without it.
+        progress: optional callback ``progress(dict)`` after every piece of the loop (~:data:`PIECE_S` s), with
+            the keys ``n_excursions`` (counted so far), ``target``, ``in_flight``, ``mean_s`` (of those counted so
+            far, s; the long ones finish last, so it is the result's mean only at the end), ``stopping``,
+            ``elapsed_s``, ``left_s`` and ``left_to`` (the projected time left and the limit that ends the run,
+            as the estimator's; None until the second piece and once stopping); what ``dryfric duration`` shows
+            on a terminal.  It never changes the numbers (tested).
 
     A Ctrl-C (SIGTERM under ``dryfric``) acts as it does on the estimator: the first starts no long excursion and
     finishes those in flight within :data:`~dryfric_jax.rounds.INTERRUPT_GRACE_S`, a second drops them, and the
@@ -421,6 +454,7 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
     max_steps = check_count("max_steps", max_steps, 1, MAX_STEPS, " (blocks of 128 steps counted in 32 bits)")
     max_time = check_max_time(max_time)
     max_time = None if max_time == math.inf else max_time
+    check_progress(progress)
     h, dtype = plan.h, plan.dtype
     if not isinstance(bridge, (bool, np.bool_)):
         raise ValueError(f"bridge must be True or False, got {bridge!r}")
@@ -433,10 +467,14 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
         warnings.warn(note, DryfricWarning, stacklevel=2)
     model = make_di_model(params, h, jnp.dtype(dtype))
     max_blocks = -(-max_steps // BLOCK)
-    bound = max_blocks * BLOCK  # the bound used: max_steps rounded up to whole blocks
+    bound = max_blocks * BLOCK
+
+    def report(d):  # the mean in seconds
+        progress({k if k != "mean_steps" else "mean_s": h * v if k == "mean_steps" else v for k, v in d.items()})
+  # the bound used: max_steps rounded up to whole blocks
     N, S, Q, off, started, steps, blocks, ended = _run(model, jax.random.split(key, n_lanes), n_excursions,
                                                        max_blocks, block=BLOCK, bridge=bridge, max_time=max_time,
-                                                       t0=t0)
+                                                       t0=t0, progress=None if progress is None else report)
     k, cut = int(N.sum()), int((started & ~off).sum())
     if k < 2:  # no mean or no spread: say why rather than return a NaN
         if ended == "interrupted":  # nothing to keep: a plain Ctrl-C

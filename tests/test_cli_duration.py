@@ -1,5 +1,6 @@
 """``dryfric duration``: the DI's mean long-excursion duration (dryfric_jax.durations) from the command line."""
 import json
+import math
 
 import pytest
 
@@ -113,3 +114,48 @@ def test_a_ctrl_c_prints_what_was_counted_and_exits_130(monkeypatch, tmp_path, c
     assert "dryfric: interrupted: finishing the long excursions in flight" in cap.err
     got = json.loads(out.read_text())
     assert got["stopped_by"] == "interrupted" and got["n_truncated"] == 0 and 2 <= got["n_excursions"] < 10_000
+
+
+@pytest.mark.parametrize("tty", [True, False])
+def test_a_terminal_shows_the_counts_progress_and_json_never_does(capsys, monkeypatch, tty):
+    """On a terminal the count's status line is redrawn after every piece and cleared before the summary, a
+    warning or an error (each on a clean line); under --json, or off a terminal, stderr has none of it, and the
+    result is the same.  Mutants: the line shown under --json; not cleared after a failed run."""
+    import sys
+
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: tty)
+    assert main(["duration", *SMALL, "--seed", "4", "--json"]) == 0
+    cap = capsys.readouterr()
+    got = json.loads(cap.out)
+    assert "long excursions =" not in cap.err and "\r" not in cap.err
+    assert main(["duration", *SMALL, "--seed", "4"]) == 0
+    cap = capsys.readouterr()
+    assert f"mean long-excursion duration = {got['mean']:g}"[:36] in cap.out
+    assert ("\r  long excursions = " in cap.err) is tty and ("\x1b[K" in cap.err) is tty
+    if tty:  # the small-sample warning said after the count, on a cleared line; the line cleared at the end
+        assert "\r\x1b[Kdryfric: warning: n_excursions = " in cap.err and cap.err.endswith("\r\x1b[K")
+    assert main(["duration", *SMALL[:2], "--max-steps", "100"]) == 2
+    err = capsys.readouterr().err
+    assert err.endswith("\r\x1b[Kdryfric: error: " + err.split("dryfric: error: ")[-1]) is tty
+
+
+def test_the_counts_status_line(capsys):
+    """Counted so far of those asked, the mean so far (a dash before the first), the time so far and left, naming
+    --max-time when it will end the count; once no excursion starts, those still in flight.  Mutants: the time
+    left shown while stopping; --max-time not named; nan shown."""
+    from dryfric_jax.cli import _duration_line
+
+    def line(**d):
+        _duration_line(dict(n_excursions=40, target=2048, in_flight=12, mean_s=4.25, stopping=False, elapsed_s=12.0,
+                            left_s=None, left_to=None) | d)
+        cap = capsys.readouterr()
+        assert cap.out == "" and cap.err.startswith("\r") and cap.err.endswith("\x1b[K")
+        return cap.err
+
+    assert "long excursions =      40 of 2048   mean so far = 4.25 s   12 s\x1b[K" in line()
+    assert "12 s, ~30 s left\x1b[K" in line(left_s=30.0, left_to="n_excursions")
+    assert "12 s, ~30 s left (stops at --max-time)" in line(left_s=30.0, left_to="max_time")
+    assert "12 s, finishing the 3 in flight\x1b[K" in line(stopping=True, in_flight=3, left_s=30.0)
+    assert "12 s, done\x1b[K" in line(stopping=True, in_flight=0)
+    nan = line(n_excursions=0, mean_s=math.nan)
+    assert "mean so far = –   12 s" in nan and "nan" not in nan
