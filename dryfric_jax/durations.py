@@ -470,7 +470,8 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
     bound = max_blocks * BLOCK
 
     def report(d):  # the mean in seconds
-        progress({k if k != "mean_steps" else "mean_s": h * v if k == "mean_steps" else v for k, v in d.items()})
+        steps = d.pop("mean_steps")
+        progress({**d, "mean_s": h * steps})
   # the bound used: max_steps rounded up to whole blocks
     N, S, Q, off, started, steps, blocks, ended = _run(model, jax.random.split(key, n_lanes), n_excursions,
                                                        max_blocks, block=BLOCK, bridge=bridge, max_time=max_time,
