@@ -467,7 +467,7 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
         warnings.warn(note, DryfricWarning, stacklevel=2)
     model = make_di_model(params, h, jnp.dtype(dtype))
     max_blocks = -(-max_steps // BLOCK)
-    bound = max_blocks * BLOCK
+    bound = max_blocks * BLOCK  # the bound used: max_steps rounded up to whole blocks
 
     def report(d):  # the mean in seconds
         steps = d.pop("mean_steps")
