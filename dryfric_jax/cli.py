@@ -403,10 +403,18 @@ def _progress_line(d):
     # before 2 excursions have closed there is no D yet: a dash, not "nan ± nan%"
     shown = f"{d['D']:.5g} ± {100 * rel:.2f}%" if rel == rel else "–"
     goal = f"target {100 * d['rtol']:.2g}%" if d["rtol"] else f"target N = {d['target']}"
-    left = "" if d.get("left_s") is None else f", ~{duration_text(d['left_s'])} left" + (
-        f" (stops at --{d['left_to'].replace('_', '-')})" if d["left_to"] in ("max_work", "max_time") else "")
+    left = _left_text(d)
     print(f"\r  N = {d['n_excursions']:>9d}   D = {shown}   ({goal})   "
           f"{duration_text(d.get('elapsed_s', 0.0))}{left}\x1b[K", end="", file=sys.stderr, flush=True)
+
+
+def _left_text(d) -> str:
+    """A status line's projected time left (``left_s``, none: ""), naming the option of the limit that ends the
+    run first (``left_to``) when it is ``--max-work`` or ``--max-time``."""
+    from .api import duration_text
+
+    return "" if d.get("left_s") is None else f", ~{duration_text(d['left_s'])} left" + (
+        f" (stops at --{d['left_to'].replace('_', '-')})" if d["left_to"] in ("max_work", "max_time") else "")
 
 
 def _duration_line(d):
@@ -419,11 +427,8 @@ def _duration_line(d):
     mean = f"{d['mean_s']:.4g} s" if d["mean_s"] == d["mean_s"] else "–"
     if d["stopping"]:
         tail = f", finishing the {d['in_flight']} in flight" if d["in_flight"] else ", done"
-    elif d["left_s"] is not None:
-        tail = f", ~{duration_text(d['left_s'])} left" + (" (stops at --max-time)" if d["left_to"] == "max_time"
-                                                          else "")
     else:
-        tail = ""
+        tail = _left_text(d)
     print(f"\r  long excursions = {d['n_excursions']:>7d} of {d['target']}   mean so far = {mean}   "
           f"{duration_text(d['elapsed_s'])}{tail}\x1b[K", end="", file=sys.stderr, flush=True)
 

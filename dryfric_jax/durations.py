@@ -472,7 +472,7 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
     def report(d):  # the mean in seconds
         steps = d.pop("mean_steps")
         progress({**d, "mean_s": h * steps})
-  # the bound used: max_steps rounded up to whole blocks
+
     N, S, Q, off, started, steps, blocks, ended = _run(model, jax.random.split(key, n_lanes), n_excursions,
                                                        max_blocks, block=BLOCK, bridge=bridge, max_time=max_time,
                                                        t0=t0, progress=None if progress is None else report)
@@ -485,24 +485,22 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
                              "excursions within twice it (at least 2 must); raise max_time")
         raise ValueError(f"max_steps = {bound} is too small here: the {n_lanes} lanes counted {k} long excursions "
                          f"within it (at least 2 must); raise max_steps")
+    stop_note = None  # what stopped the count short of the rule, if anything
     if ended == "interrupted":
-        note = (f"interrupted: {k} of the {n_excursions} long excursions asked counted, none started after it"
-                + (f"; {cut} still in flight are left out, so the mean is biased low" if cut
-                   else ", those in flight finished"))
-        warnings.warn(note, DryfricWarning, stacklevel=2)
-        notes.append(note)
+        stop_note = (f"interrupted: {k} of the {n_excursions} long excursions asked counted, none started after it"
+                     + (f"; {cut} still in flight are left out, so the mean is biased low" if cut
+                        else ", those in flight finished"))
     elif ended == "max_time":
-        note = (f"max_time = {max_time:g} s stopped the count at {k} of the {n_excursions} long excursions asked: "
-                "none started after it" + (f"; {cut} still in flight at twice it are left out, so the mean is "
-                                           "biased low" if cut else ", those in flight finished"))
-        warnings.warn(note, DryfricWarning, stacklevel=2)
-        notes.append(note)
+        stop_note = (f"max_time = {max_time:g} s stopped the count at {k} of the {n_excursions} long excursions "
+                     "asked: none started after it" + (f"; {cut} still in flight at twice it are left out, so the "
+                                                       "mean is biased low" if cut else ", those in flight finished"))
     elif cut or k < n_excursions:
-        note = (f"the loop's bound max_steps = {bound} stopped {k} of the {n_excursions} long excursions asked"
-                + (f", with {cut} in flight: left out, so the mean is biased low" if cut else "")
-                + "; raise max_steps")
-        warnings.warn(note, DryfricWarning, stacklevel=2)
-        notes.append(note)
+        stop_note = (f"the loop's bound max_steps = {bound} stopped {k} of the {n_excursions} long excursions asked"
+                     + (f", with {cut} in flight: left out, so the mean is biased low" if cut else "")
+                     + "; raise max_steps")
+    if stop_note is not None:
+        warnings.warn(stop_note, DryfricWarning, stacklevel=2)
+        notes.append(stop_note)
     if k < MIN_RELIABLE_LE:
         note = (f"n_excursions = {k} < {MIN_RELIABLE_LE}: the t CI under-covers at this size (right-skewed durations: "
                 "0.92-0.93 at ~60 counted, 0.94 from ~160; durations.py)")
