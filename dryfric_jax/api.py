@@ -142,11 +142,11 @@ def check_seed(seed, hi: int = MAX_SEED, hi_text: str = "2^62") -> int:
     return int(seed)
 
 
-def check_progress(progress) -> None:
-    """``ValueError`` unless ``progress`` is a callable or None (checked before the first round, not
-    called there)."""
+def check_progress(progress, name: str = "progress") -> None:
+    """``ValueError`` unless ``progress`` (the argument ``name``) is a callable or None (checked before the first
+    round, not called there)."""
     if progress is not None and not callable(progress):
-        raise ValueError(f"progress must be a callable or None (got {shown(progress)})")
+        raise ValueError(f"{name} must be a callable or None (got {shown(progress)})")
 
 
 def _key(key):

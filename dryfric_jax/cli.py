@@ -761,7 +761,8 @@ def _sweep(a) -> int:
     try:
         with _warnings_kept_in_result():  # a point's ProjectionWarning on stderr at once
             points = sweep.grid(**axes)
-            out = sweep.run_sweep(points, a.out, progress=sweep.progress_bar_for(points), **kw)
+            out = sweep.run_sweep(points, a.out, progress=sweep.progress_bar_for(points),
+                                  point_progress=sweep.point_line_for(points), **kw)
     except ValueError as e:
         if str(e).startswith("out must"):
             raise _UserError("--" + str(e)) from None
@@ -769,6 +770,9 @@ def _sweep(a) -> int:
     except OSError as e:  # the file was checked writable before; the disk may fill up later
         raise RuntimeError(f"could not write --out {a.out!r} ({e}); the points finished before are in it, and "
                            "the same command resumes") from None
+    finally:  # a bar left mid-line (a Ctrl-C, an error; within a point): the summary or the error on a clean line
+        if sys.stderr.isatty():
+            print("\r\x1b[K", end="", file=sys.stderr, flush=True)
     if a.json:
         print(dumps(out))
     else:

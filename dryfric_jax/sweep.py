@@ -68,7 +68,8 @@ import jax
 import numpy as np
 
 from ._version import __version__
-from .api import DryfricWarning, NoEstimateError, ProjectionWarning, check_progress, check_seed, estimate_diffusivity
+from .api import (DryfricWarning, NoEstimateError, ProjectionWarning, check_progress, check_seed, duration_text,
+                  estimate_diffusivity)
 from .durations import TAU_STEPS, check_duration_run, default_duration_h, di_long_excursion_duration, max_steps_for
 from .limits import MAX_WORK
 from .outfiles import check_writable, claim, drop_claims_dir, dumps, locked, put_record, read_records, write_records
@@ -265,7 +266,8 @@ def _refusal_text(refused: list, total: int) -> str:
 
 def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di", h=None, delta=None,
               dtype: str = "float64", n_excursions: int = 20_000, rtol=None, max_work: float = MAX_WORK,
-              max_time=None, skip_refused: bool = False, progress=None, durations=None) -> dict:
+              max_time=None, skip_refused: bool = False, progress=None, durations=None,
+              point_progress=None) -> dict:
     r"""Estimate D and M0 at every point, one JSON line per finished point in ``out``.
 
     Args:
@@ -279,6 +281,11 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
         skip_refused: record the points the planner refuses (status ``"refused"``) and run the
             others, instead of refusing the grid (``ValueError`` counting the refused points, naming the first six).
         progress: optional ``progress(done, total, record)`` after each point (and once at start).
+        point_progress: optional ``point_progress(dict)`` while a point runs: the dict its D estimate gives
+            after every round (:func:`~dryfric_jax.estimate_diffusivity`'s ``progress``) with ``stage = "D"``,
+            or its long-excursion count after every piece (:func:`~dryfric_jax.di_long_excursion_duration`'s)
+            with ``stage = "durations"``; both with the point's ``params`` and the sweep's ``done`` and
+            ``total`` (points finished, of the grid's).  :func:`point_line` shows it on a terminal.
         durations: None, or an integer N in [2, 2^40]: also count the paper's mean long-excursion duration
             (threshold to threshold, Fig. 3's right panel) at each point, over N long excursions of the DI
             (:func:`~dryfric_jax.di_long_excursion_duration`, whatever ``method``: for the DI the D estimate's
@@ -316,6 +323,7 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
     max_time = check_max_time(max_time)
     max_time = None if max_time == math.inf else max_time  # no limit, as recorded
     check_progress(progress)
+    check_progress(point_progress, "point_progress")
     # as JSON values (numpy numbers as Python ones, a numpy dtype as its name), checked once: a wrong
     # setting refuses the grid (dtype float16 was recorded as every point's refusal)
     settings = check_settings(method=method, h=h, delta=delta, dtype=dtype, n_excursions=n_excursions, rtol=rtol,
@@ -388,7 +396,9 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
                     if rec is not None:
                         skipped += 1
                     else:
-                        rec = _compute(out, ident, pt, seed, settings, max_time)
+                        within = None if point_progress is None else functools.partial(
+                            _within, point_progress, dict(params=pt, done=done, total=total))
+                        rec = _compute(out, ident, pt, seed, settings, max_time, within)
                         if rec is None:  # Ctrl-C: the point in progress is not written
                             interrupted = True
                             break
@@ -424,8 +434,14 @@ def _finished_elsewhere(out: str, ident: str, max_time) -> dict | None:
     return rec
 
 
-def _compute(out: str, ident: str, pt: dict, seed: int, settings: dict, max_time) -> dict | None:
-    """Run one point and write its record (``"ok"`` or ``"failed"``); None if Ctrl-C stopped it."""
+def _within(point_progress, where: dict, stage: str, d: dict) -> None:
+    """``run_sweep``'s ``point_progress`` of a point's D estimate or count (``stage``) at the point ``where``."""
+    point_progress({**d, "stage": stage, **where})
+
+
+def _compute(out: str, ident: str, pt: dict, seed: int, settings: dict, max_time, within=None) -> dict | None:
+    """Run one point and write its record (``"ok"`` or ``"failed"``); None if Ctrl-C stopped it.  ``within(stage,
+    dict)``, if given, is called with the D estimate's (``"D"``) and the count's (``"durations"``) progress."""
     method, h, delta, dtype, n_excursions, rtol, max_work = (settings[k] for k in SETTING_KEYS)
     s = point_seed(seed, pt, settings)
     # with durations: the D of this point's record without them, if this version finished it (the same seed)
@@ -444,14 +460,15 @@ def _compute(out: str, ident: str, pt: dict, seed: int, settings: dict, max_time
                 else:
                     r = estimate_diffusivity(Params(**pt), s, method=method, h=h, delta=delta, dtype=dtype,
                                              n_excursions=n_excursions, rtol=rtol, max_work=max_work,
-                                             max_time=max_time)
+                                             max_time=max_time, progress=within and functools.partial(within, "D"))
                     if r.stopped_by == "interrupted":  # Ctrl-C inside the point: not a finished point
                         return None
                     res = r.to_dict()
                     for k in ("params", "seed"):
                         res.pop(k)
                 extra = {} if settings.get(DURATIONS) is None else {
-                    DURATIONS: _durations(pt, seed, settings, res.get("mean_duration"), max_time)}
+                    DURATIONS: _durations(pt, seed, settings, res.get("mean_duration"), max_time,
+                                          within and functools.partial(within, DURATIONS))}
     except KeyboardInterrupt:
         return None
     except NoEstimateError as e:  # deterministic (unless max_time stopped it): recorded, not rerun on resume
@@ -464,11 +481,11 @@ def _compute(out: str, ident: str, pt: dict, seed: int, settings: dict, max_time
     return rec
 
 
-def _durations(pt: dict, seed: int, settings: dict, cycle_s, max_time=None) -> dict:
+def _durations(pt: dict, seed: int, settings: dict, cycle_s, max_time=None, progress=None) -> dict:
     """A point's long-excursion count (``run_sweep(durations=N)``) as its record keeps it: the
     :class:`~dryfric_jax.LEDuration`'s fields but ``params``, or ``{"reason": ...}`` where fewer than 2 ended within
     the loop's bound, planned from the D estimate's mean cycle ``cycle_s`` (s; 10^8 steps where it is not a number
-    > 0), or within ``max_time`` (then with ``stopped_by = "max_time"``)."""
+    > 0), or within ``max_time`` (then with ``stopped_by = "max_time"``).  ``progress``: the count's."""
     p = Params(**pt)
     h = duration_h(p, settings["h"])
     n = settings[DURATIONS]
@@ -477,7 +494,7 @@ def _durations(pt: dict, seed: int, settings: dict, cycle_s, max_time=None) -> d
     try:
         d = di_long_excursion_duration(p, duration_seed(seed, pt, settings), h=h, n_excursions=n,
                                        max_steps=max_steps, dtype=settings["dtype"], max_work=settings["max_work"],
-                                       max_time=max_time)
+                                       max_time=max_time, progress=progress)
     except ValueError as e:  # fewer than 2 within the bound or max_time (the rest was checked with the grid)
         return dict(reason=str(e), max_steps=max_steps,
                     **({"stopped_by": "max_time"} if str(e).startswith("max_time") else {}))
@@ -544,15 +561,52 @@ def progress_bar_for(points: list[dict]):
     return functools.partial(progress_bar, axes=tuple(axes))
 
 
+def point_line_for(points: list[dict]):
+    """:func:`point_line` showing the parameters that :func:`progress_bar_for` shows."""
+    return functools.partial(point_line, axes=progress_bar_for(points).keywords["axes"])
+
+
+def _bar(done: int, total: int) -> str:
+    width = 30
+    fill = int(width * done / max(total, 1))
+    return f"[{'#' * fill}{'.' * (width - fill)}] {done}/{total} points"
+
+
+def _where(p: dict, axes) -> str:
+    return "  " + " ".join(f"{k}={p[k]:.4g}" for k in axes) + ": "
+
+
+def point_line(d: dict, axes=("Gamma", "tau")) -> None:
+    """:func:`progress_bar`'s line, rewritten while a point runs (``run_sweep``'s ``point_progress``; terminal
+    only, nothing otherwise): the point, and its D estimate so far (N of the target or the CI against ``rtol``) or
+    its long-excursion count so far, with the time it has taken and the projected time left (naming ``max_time``
+    or ``max_work`` when that limit is projected to stop the point)."""
+    if not sys.stderr.isatty():
+        return
+    if d["stage"] == "D":
+        rel = d["D_ci"] / abs(d["D"]) if d["D"] == d["D"] and d["D"] else math.nan
+        now = f"D={d['D']:.4g}\u00b1{100 * rel:.2g}%" if rel == rel else "D=\u2013"
+        goal = f" (target {100 * d['rtol']:.2g}%)" if d["rtol"] else f" of {d['target']}"
+        now += f" N={d['n_excursions']}{goal}"
+    else:
+        mean = f"{d['mean_s']:.4g}s" if d["mean_s"] == d["mean_s"] else "\u2013"
+        now = f"LE={mean} so far, {d['n_excursions']} of {d['target']}"
+    left = d.get("left_s")
+    if d["stage"] != "D" and d["stopping"]:
+        now += f", finishing the {d['in_flight']} in flight" if d["in_flight"] else ", done"
+    elif left is not None:
+        now += f", ~{duration_text(left)} left" + (f" (stops at {d['left_to']})"
+                                                   if d["left_to"] in ("max_work", "max_time") else "")
+    line = _bar(d["done"], d["total"]) + _where(d["params"], axes) + now + f" [{duration_text(d['elapsed_s'])}]"
+    print("\r" + line[:150].ljust(150), end="", file=sys.stderr, flush=True)
+
+
 def progress_bar(done: int, total: int, rec, axes=("Gamma", "tau")) -> None:
     """A one-line bar on stderr (terminal), one line per point otherwise; a point is shown by its
     parameters ``axes`` (:func:`progress_bar_for` picks those that vary in a grid)."""
-    width = 30
-    fill = int(width * done / max(total, 1))
     last = ""
     if rec is not None:
-        p = rec["params"]
-        last = "  " + " ".join(f"{k}={p[k]:.4g}" for k in axes) + ": "
+        last = _where(rec["params"], axes)
         if status(rec) == "ok":
             last += f"D={rec['result']['D']:.4g}±{rec['result']['D_ci']:.2g}"
             le = rec.get(DURATIONS)
@@ -563,7 +617,7 @@ def progress_bar(done: int, total: int, rec, axes=("Gamma", "tau")) -> None:
             last += f"{status(rec)} ({_first_clause(rec['reason'])})"
         if _time_limited(rec):
             last += " [stopped by max_time]"
-    line = f"[{'#' * fill}{'.' * (width - fill)}] {done}/{total} points{last}"
+    line = _bar(done, total) + last
     if sys.stderr.isatty():
         print("\r" + line[:150].ljust(150), end="" if done < total else "\n", file=sys.stderr, flush=True)
     elif rec is not None:

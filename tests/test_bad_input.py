@@ -190,6 +190,8 @@ def test_progress_that_is_not_callable_is_refused_before_any_work(tmp_path):
         dj.estimate_diffusivity(P, 0, n_excursions=50, progress=5)
     with pytest.raises(ValueError, match="^progress must be a callable or None"):
         sweep.run_sweep([{}], str(tmp_path / "s.jsonl"), n_excursions=50, progress=5)
+    with pytest.raises(ValueError, match=r"^point_progress must be a callable or None \(got 'bar'\)$"):
+        sweep.run_sweep([{}], str(tmp_path / "s.jsonl"), n_excursions=50, point_progress="bar")
     assert not (tmp_path / "s.jsonl").exists()
 
 

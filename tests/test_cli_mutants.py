@@ -217,7 +217,7 @@ def test_every_bruteforce_option_reaches_the_estimator(calls, capsys):
 def test_every_sweep_option_reaches_run_sweep(calls, tmp_path, capsys):
     """Mutants: run_sweep given seed 0, method 'di', h=None, delta=None, dtype 'float64', more excursions than
     --n-excursions, rtol=None, max_time=None, skip_refused=False, no max_work, no durations; the gamma_bar axis
-    dropped from the grid; no progress bar."""
+    dropped from the grid; no progress bar; no line within a point."""
     out = str(tmp_path / "s.jsonl")
     assert main(["sweep", "--Gamma", "1,2", "--gamma-bar", "-0.5,0.25", "--out", out, "--seed", "5", "--method",
                  "pdmp", "--delta", "0.2", "--dtype", "float32", "--n-excursions", "40", "--rtol", "0.05",
@@ -225,8 +225,9 @@ def test_every_sweep_option_reaches_run_sweep(calls, tmp_path, capsys):
     (pts, path), kw = _only(calls, "sweep")
     assert path == out and pts == sweep.grid(Gamma=[1.0, 2.0], gamma_bar=[-0.5, 0.25])
     assert {p["gamma_bar"] for p in pts} == {-0.5, 0.25}
-    bar = kw.pop("progress")  # the bar shows the axes that vary: gamma_bar too
+    bar, within = kw.pop("progress"), kw.pop("point_progress")  # the bar shows the axes that vary: gamma_bar too
     assert (bar.func, bar.keywords) == (sweep.progress_bar, dict(axes=("Gamma", "tau", "gamma_bar")))
+    assert (within.func, within.keywords) == (sweep.point_line, bar.keywords)  # and so does the line within a point
     assert kw == dict(seed=5, method="pdmp", h=None, delta=0.2, dtype="float32", n_excursions=40, rtol=0.05,
                       max_time=9.0, skip_refused=True, max_work=3e9, durations=64)
     calls.list.clear()

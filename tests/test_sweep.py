@@ -473,10 +473,24 @@ def test_results_file_through_a_link_read_only_or_private(tmp_path, capsys):
     assert "read-only" in capsys.readouterr().err and target.read_text() == "newer\n"
 
 
-def test_an_interrupted_cli_sweep_exits_130(tmp_path, monkeypatch, capsys):
-    monkeypatch.setattr(sweep, "estimate_diffusivity", lambda *a, **k: (_ for _ in ()).throw(KeyboardInterrupt))
+@pytest.mark.parametrize("tty", [True, False])
+def test_an_interrupted_cli_sweep_exits_130(tmp_path, monkeypatch, capsys, tty):
+    """On a terminal the line within the point shows its D so far, and is cleared before the summary and the
+    interrupt's message (they followed the bar on its line); off a terminal neither.  Mutant: not cleared."""
+    import sys
+
+    def interrupted(*a, progress=None, **k):
+        progress(dict(n_excursions=12, D=1e-5, D_ci=1e-6, target=50, rtol=None, elapsed_s=1.0, left_s=2.0,
+                      left_to="n_excursions"))
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: tty)
+    monkeypatch.setattr(sweep, "estimate_diffusivity", interrupted)
     assert main(["sweep", "--Gamma", "5", "--n-excursions", "50", "--out", str(tmp_path / "r.jsonl")]) == 130
-    assert "dryfric: interrupted: 0 points newly written" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "dryfric: interrupted: 0 points newly written" in err
+    assert ("0/1 points  Gamma=5 tau=0.5: D=1e-05\u00b110% N=12 of 50, ~2 s left [1 s]" in err) is tty
+    assert ("\r\x1b[Kdryfric: interrupted: " in err) is tty and ("\r" in err) is tty
 
 
 @pytest.mark.parametrize("raised", [True, False])

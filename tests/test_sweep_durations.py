@@ -27,10 +27,21 @@ def test_durations_are_the_direct_count_and_leave_the_d_as_it_was(tmp_path, monk
     sweep.run_sweep(pts, plain_out, **kw)
     plain = _lines(plain_out)
     # from scratch: the D is the sweep's without durations (its seed does not depend on them)
-    r = sweep.run_sweep(pts, out, durations=64, progress=sweep.progress_bar, **kw)
+    seen = []  # within each point: its D estimate's rounds, then its count's pieces (and the same bits)
+    r = sweep.run_sweep(pts, out, durations=64, progress=sweep.progress_bar, point_progress=seen.append, **kw)
     assert (r["computed"], r["total"], r["truncated"]) == (2, 2, 0)
     assert "LE=" in capsys.readouterr().err  # the progress line shows the count
     recs = _lines(out)
+    for i, rec in enumerate(recs):
+        mine = [d for d in seen if d["params"] == rec["params"]]
+        stages = [d["stage"] for d in mine]
+        assert stages == sorted(stages) and stages[0] == "D" and stages[-1] == "durations", stages
+        assert {(d["done"], d["total"]) for d in mine} == {(i, 2)}
+        ns = [d["n_excursions"] for d in mine if d["stage"] == "D"]  # after each round (not the last, that
+        assert ns == sorted(ns) and ns[-1] <= rec["result"]["n_excursions"]  # finishes those in flight)
+        assert {d["target"] for d in mine if d["stage"] == "D"} == {200}
+        assert (mine[-1]["n_excursions"], mine[-1]["target"]) == (rec["durations"]["n_excursions"], 64)
+    assert seen == sorted(seen, key=lambda d: d["done"])  # the first point's, then the second's
     for rec, old in zip(recs, plain):
         assert rec["result"]["sums"] == old["result"]["sums"] and rec["seed"] == old["seed"]
         assert rec["settings"] == {**old["settings"], "durations": 64}

@@ -211,6 +211,38 @@ def test_the_progress_bar_lines(capsys, monkeypatch):
                                        + "\r" + done.ljust(150) + "\n")
 
 
+def test_the_line_within_a_point(capsys, monkeypatch):
+    """While a point runs (``run_sweep``'s ``point_progress``), the bar's line says where its D estimate or its
+    count is: on a terminal only, rewritten in place and never ended (the point's own line follows).  Worked by
+    hand: D = 1.23456e-5 +- 3.4567e-7 is 2.8%; 1 of 4 fills 7 of 30.  Mutants: a line off a terminal; the time left
+    shown while the count finishes; max_time not named; nan shown before a D; the rtol target not shown."""
+    d = dict(stage="D", n_excursions=1200, D=1.23456e-5, D_ci=3.4567e-7, target=20000, rtol=None, elapsed_s=12.0,
+             left_s=30.0, left_to="n_excursions", params=dict(FIG3, Gamma=5.0, tau_L=0.067), done=1, total=4)
+    le = dict(stage="durations", n_excursions=40, target=2048, in_flight=12, mean_s=4.25, stopping=False,
+              elapsed_s=3.0, left_s=None, left_to=None, params=d["params"], done=1, total=4)
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: False)
+    sweep.point_line(d)
+    assert capsys.readouterr().err == ""
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
+
+    def line(base, axes=("Gamma", "tau"), **kw):
+        sweep.point_line({**base, **kw}, axes=axes)
+        err = capsys.readouterr().err
+        assert err.startswith("\r" + _bar(7) + " 1/4 points  Gamma=5 tau=0.5") and len(err) == 151
+        return err.rstrip(" ")
+
+    assert line(d).endswith(": D=1.235e-05\u00b12.8% N=1200 of 20000, ~30 s left [12 s]")
+    assert line(d, left_s=None).endswith(": D=1.235e-05\u00b12.8% N=1200 of 20000 [12 s]")
+    assert line(d, rtol=0.01, left_to="max_time").endswith(" N=1200 (target 1%), ~30 s left (stops at max_time) [12 s]")
+    assert line(d, D=math.nan, D_ci=math.nan).endswith(": D=\u2013 N=1200 of 20000, ~30 s left [12 s]")
+    assert " tau_L=0.067: D=" in line(d, axes=("Gamma", "tau", "tau_L"))
+    assert line(le).endswith(": LE=4.25s so far, 40 of 2048 [3 s]")
+    assert line(le, left_s=95.0, left_to="max_work").endswith(" 40 of 2048, ~1.6 min left (stops at max_work) [3 s]")
+    assert line(le, stopping=True, left_s=9.0).endswith(" 40 of 2048, finishing the 12 in flight [3 s]")
+    assert line(le, stopping=True, in_flight=0).endswith(" 40 of 2048, done [3 s]")
+    assert line(le, n_excursions=0, mean_s=math.nan).endswith(": LE=\u2013 so far, 0 of 2048 [3 s]")
+
+
 def test_the_progress_bar_names_every_axis_that_varies(capsys, monkeypatch):
     """A grid over tau_L and gamma_bar: each line shows them beside Gamma and tau (every line read
     "Gamma=5 tau=0.001" before); an axis with one value, or none given, is not shown."""
