@@ -209,6 +209,31 @@ def duration_text(s: float) -> str:
     return f"{s:.0f} s" if s < 90 else f"{s / 60:.1f} min" if s < 5400 else f"{s / 3600:.1f} h"
 
 
+def progress_text(d: dict) -> str:
+    """A short text of a run's ``progress`` dict, for status lines: an estimate's
+    (:func:`estimate_diffusivity`) D so far with its relative CI, N and the target (N asked, or ``rtol``), or a
+    long-excursion count's (:func:`~dryfric_jax.di_long_excursion_duration`, the dict with ``stopping``) mean so
+    far and the count of those asked; then the projected time left, naming ``max_time`` or ``max_work`` when that
+    limit ends the run first, or, once a count starts no excursion, those still in flight.  A dash before a
+    number exists, never "nan"."""
+    if "stopping" not in d:
+        rel = d["D_ci"] / abs(d["D"]) if d["D"] == d["D"] and d["D"] else math.nan
+        pct = 100 * rel  # 2.8%, 17%, 120% (not 1.2e+02%)
+        now = f"D={d['D']:.4g}\u00b1{pct:.2g}%" if pct < 10 else f"D={d['D']:.4g}\u00b1{pct:.0f}%" if rel == rel \
+            else "D=\u2013"
+        goal = f" (target {100 * d['rtol']:.2g}%)" if d["rtol"] else f" of {d['target']}"
+        now += f" N={d['n_excursions']}{goal}"
+    else:
+        mean = f"{d['mean_s']:.4g}s" if d["mean_s"] == d["mean_s"] else "\u2013"
+        now = f"LE={mean} so far, {d['n_excursions']} of {d['target']}"
+        if d["stopping"]:
+            return now + (f", finishing the {d['in_flight']} in flight" if d["in_flight"] else ", done")
+    if d.get("left_s") is None:
+        return now
+    return now + f", ~{duration_text(d['left_s'])} left" + (
+        f" (stops at {d['left_to']})" if d["left_to"] in ("max_work", "max_time") else "")
+
+
 def time_left(elapsed: float, work: float, closed: int, in_flight: int, target: int, *, rtol=None,
               rel=None, max_work=None, max_time=None, rate=None):
     """Projected seconds left of a long-excursion run and the limit that ends it first

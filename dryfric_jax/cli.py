@@ -433,6 +433,30 @@ def _duration_line(d):
           f"{duration_text(d['elapsed_s'])}{tail}\x1b[K", end="", file=sys.stderr, flush=True)
 
 
+def _figures_line(d):
+    """``dryfric figures``' progress on stderr (``run_figures``' ``progress``): a line per scene once it is written,
+    with its time, or found already made; on a terminal also one self-overwriting status line while a scene
+    computes, naming the run it is at (Figs. 3, 8, 9: the runs so far, the kind and Gamma, tau) with the run's own
+    progress (``api.progress_text``) and the scene's time so far."""
+    from .api import duration_text, progress_text
+
+    tty = sys.stderr.isatty()
+    tag = f"  {d['scene']} ({d['index']} of {d['total']})"
+    if d["stage"] == "done":
+        what = ("already made by this version with this --seed and --quick: not made again" if d["kept"]
+                else f"written in {duration_text(d['wall_s'])}")
+        print(("\r\x1b[K" if tty else "") + f"{tag}: {what}", file=sys.stderr, flush=True)
+    elif tty:
+        now, el = "computing", ""
+        if d["stage"] == "run":
+            p = d["params"]
+            what = d["kind"] + (f" ({d['method']})" if d.get("method") else "")
+            now = f"run {d['runs'] + 1}, {what} at Gamma={p['Gamma']:.4g} tau={p['tau']:.4g}"
+            now += "" if d["run"] is None else ": " + progress_text(d["run"])
+            el = f" [{duration_text(d['elapsed_s'])}]"
+        print(f"\r{tag}: {now}{el}\x1b[K", end="", file=sys.stderr, flush=True)
+
+
 def _check_out(path):
     """Refuse an output path that cannot be written, before anything is simulated."""
     if path is not None:
@@ -586,9 +610,14 @@ def _run(a) -> int:
             check_writable_dir(a.out)
         except ValueError as e:
             raise _UserError("--" + str(e)) from None
+        tty = sys.stderr.isatty()
         try:
-            with _warnings_as_lines():
-                nums = run_figures(a.fig, a.out, quick=a.quick, seed=a.seed, redo=a.redo)
+            try:
+                with _warnings_as_lines(progress_line=tty):
+                    nums = run_figures(a.fig, a.out, quick=a.quick, seed=a.seed, redo=a.redo, progress=_figures_line)
+            finally:  # a status line left by a scene that stopped: the message that follows on a clean line
+                if tty:
+                    print("\r\x1b[K", end="", file=sys.stderr, flush=True)
         except KeyboardInterrupt:
             print(f"dryfric: interrupted; the figures already written and the finished runs of Figs. 3, 8 and 9 "
                   f"({a.out}/*.points.jsonl) are kept: the same command resumes from them", file=sys.stderr)

@@ -69,7 +69,7 @@ import numpy as np
 
 from ._version import __version__
 from .api import (DryfricWarning, NoEstimateError, ProjectionWarning, check_progress, check_seed, duration_text,
-                  estimate_diffusivity)
+                  estimate_diffusivity, progress_text)
 from .durations import TAU_STEPS, check_duration_run, default_duration_h, di_long_excursion_duration, max_steps_for
 from .limits import MAX_WORK
 from .outfiles import check_writable, claim, drop_claims_dir, dumps, locked, put_record, read_records, write_records
@@ -583,21 +583,8 @@ def point_line(d: dict, axes=("Gamma", "tau")) -> None:
     or ``max_work`` when that limit is projected to stop the point)."""
     if not sys.stderr.isatty():
         return
-    if d["stage"] == "D":
-        rel = d["D_ci"] / abs(d["D"]) if d["D"] == d["D"] and d["D"] else math.nan
-        now = f"D={d['D']:.4g}\u00b1{100 * rel:.2g}%" if rel == rel else "D=\u2013"
-        goal = f" (target {100 * d['rtol']:.2g}%)" if d["rtol"] else f" of {d['target']}"
-        now += f" N={d['n_excursions']}{goal}"
-    else:
-        mean = f"{d['mean_s']:.4g}s" if d["mean_s"] == d["mean_s"] else "\u2013"
-        now = f"LE={mean} so far, {d['n_excursions']} of {d['target']}"
-    left = d.get("left_s")
-    if d["stage"] != "D" and d["stopping"]:
-        now += f", finishing the {d['in_flight']} in flight" if d["in_flight"] else ", done"
-    elif left is not None:
-        now += f", ~{duration_text(left)} left" + (f" (stops at {d['left_to']})"
-                                                   if d["left_to"] in ("max_work", "max_time") else "")
-    line = _bar(d["done"], d["total"]) + _where(d["params"], axes) + now + f" [{duration_text(d['elapsed_s'])}]"
+    line = (_bar(d["done"], d["total"]) + _where(d["params"], axes) + progress_text(d)
+            + f" [{duration_text(d['elapsed_s'])}]")
     print("\r" + line[:150].ljust(150), end="", file=sys.stderr, flush=True)
 
 

@@ -283,13 +283,16 @@ def test_combine_passes_each_result_with_its_file_as_label(calls, tmp_path, caps
 
 
 def test_figures_options_reach_run_figures(calls, tmp_path, capsys, monkeypatch):
-    """Mutants: run_figures given seed 0 instead of --seed; quick=True without --quick; a Ctrl-C exiting 1."""
+    """Mutants: run_figures given seed 0 instead of --seed; quick=True without --quick; a Ctrl-C exiting 1; no
+    progress lines."""
+    from dryfric_jax.cli import _figures_line
+
     out = str(tmp_path / "figs")
     assert main(["figures", "--fig", "3", "--out", out, "--seed", "4"]) == 0
-    assert calls.list == [("figures", ("3", out), dict(quick=False, seed=4, redo=False))]
+    assert calls.list == [("figures", ("3", out), dict(quick=False, seed=4, redo=False, progress=_figures_line))]
     calls.list.clear()
     assert main(["figures", "--fig", "table1", "--quick", "--out", out, "--redo"]) == 0
-    assert calls.list == [("figures", ("table1", out), dict(quick=True, seed=0, redo=True))]
+    assert calls.list == [("figures", ("table1", out), dict(quick=True, seed=0, redo=True, progress=_figures_line))]
     monkeypatch.setattr(figures, "run_figures", calls.rec("figures", KeyboardInterrupt()))
     assert main(["figures", "--fig", "3", "--out", out]) == 130
     assert "interrupted" in capsys.readouterr().err

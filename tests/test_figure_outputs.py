@@ -1,6 +1,7 @@
 """What ``dryfric figures`` leaves in ``--out`` and how a rerun treats it (an audit, 2026-12-05): each
 scene's JSON records what made it, a finished scene is not made again, its files are never torn, and
-truncated excursions behind a figure exit 3.  Fake scenes and runs: no simulation here."""
+truncated excursions behind a figure exit 3; what it says while it runs.  Fake scenes and runs, but for small real
+ones where the progress reports must leave a run's bits alone."""
 import dataclasses
 import json
 
@@ -238,3 +239,100 @@ def test_a_scene_json_whose_meta_has_another_type_is_not_finished(tmp_path, key,
     assert common.finished(str(tmp_path), "fig3", True, 1) is not None
     (tmp_path / "fig3.json").write_text(json.dumps(dict(nums, **{key: value})))
     assert common.finished(str(tmp_path), "fig3", True, 1) is None
+
+
+@pytest.mark.filterwarnings("ignore::dryfric_jax.DryfricWarning")
+def test_a_scenes_runs_report_their_progress_and_give_the_same_bits(tmp_path):
+    """Under ``points.reporting`` each computed run says what it is as it starts (``run`` None) and passes on its
+    own progress; a kept run says nothing.  The callback is not part of a run's identity, and a run made with it
+    is the run made without it, to the bit (a real estimate and a real count, small).  Mutants: progress in the
+    identity (the run not reused); no report at the start; the run's progress not passed on."""
+    import dryfric_jax as dj
+
+    p = Params(Gamma=10.0, Delta=3.84, tau=0.125, tau_L=0.067, gamma_bar=0.342)
+    seen = []
+    pts = points.Points(str(tmp_path), "s")
+    with points.reporting(seen.append):
+        a = pts.estimate(p, 5, n_excursions=300, method="pdmp")
+        d = pts.duration(p, 6, n_excursions=64)
+        pts.estimate(p, 5, n_excursions=300, method="pdmp")  # kept: no report
+    assert a.sums == dj.estimate_diffusivity(p, 5, n_excursions=300, method="pdmp").sums
+    assert d.mean == dj.di_long_excursion_duration(p, 6, n_excursions=64).mean
+    est, dur = [x for x in seen if x["kind"] == "estimate"], [x for x in seen if x["kind"] == "duration"]
+    assert len(est) + len(dur) == len(seen) and len(est) >= 2 and len(dur) >= 2
+    assert est[0]["run"] is None and est[0]["method"] == "pdmp" and est[0]["params"] == p.as_dict()
+    assert dur[0]["run"] is None and dur[0]["method"] is None and {x["runs"] for x in dur} == {1}
+    assert {x["runs"] for x in est} == {0} and all(x["run"] is not None for x in est[1:] + dur[1:])
+    assert est[-1]["run"]["target"] == 300 and dur[-1]["run"]["n_excursions"] == d.n_excursions
+    again = points.Points(str(tmp_path), "s")
+    again.estimate(p, 5, n_excursions=300, method="pdmp")  # reused: progress is not in the identity
+    assert (again.reused, again.computed) == (1, 0)
+
+
+def test_run_figures_reports_each_scene(tmp_path, monkeypatch):
+    """``run_figures(progress=)``: a scene that runs says start, its runs (none here) and done with its wall time;
+    one found finished says done, kept.  Its numbers are those without progress.  Mutant: done before start."""
+    calls, seen = [], []
+    monkeypatch.setitem(figures.SCENES, "1", _scene(calls))
+    out = str(tmp_path)
+    first = figures.run_figures("1", out, quick=True, seed=3, progress=seen.append)
+    where = dict(scene="fig1_2", index=1, total=1)
+    assert [{k: v for k, v in x.items() if k != "wall_s"} for x in seen] == [
+        dict(where, stage="start"), dict(where, stage="done", kept=False)]
+    assert seen[-1]["wall_s"] >= 0 and calls == [(True, 3)]
+    seen.clear()
+    assert figures.run_figures("1", out, quick=True, seed=3, progress=seen.append) == first
+    assert seen == [dict(where, stage="done", kept=True)] and calls == [(True, 3)]
+    with pytest.raises(ValueError, match=r"^progress must be a callable or None \(got 3\)$"):
+        figures.run_figures("1", out, progress=3)
+
+
+@pytest.mark.parametrize("tty", [True, False])
+def test_dryfric_figures_says_each_scene_and_on_a_terminal_each_run(tmp_path, monkeypatch, capsys, tty):
+    """A line per scene on stderr (written, with its time; or found made), also off a terminal; on a terminal a
+    status line while a scene computes, naming its run and the run's progress, cleared before the next line and
+    before an interrupt's message.  Mutants: the status line off a terminal; not cleared before the interrupt."""
+    import sys
+
+    def fig1_2(out_dir, quick, seed):
+        pts = points.Points(out_dir, "fig1_2")
+        pts.duration(Params(Gamma=10.0, Delta=3.84, tau=0.125, tau_L=0.067, gamma_bar=0.342), 1, n_excursions=16)
+        if seed == 9:
+            raise KeyboardInterrupt
+        fig, _ = plt.subplots()
+        return common.save(fig, out_dir, "fig1_2", dict(runs=pts.summary()), 0.0, quick=quick, seed=seed)
+
+    monkeypatch.setitem(figures.SCENES, "1", fig1_2)
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: tty)
+    out = str(tmp_path)
+    assert main(["figures", "--fig", "1", "--out", out]) == 0
+    err = capsys.readouterr().err
+    assert ("\r  fig1_2 (1 of 1): run 1, duration at Gamma=10 tau=0.125: LE=" in err) is tty
+    assert ("\r\x1b[K  fig1_2 (1 of 1): written in " if tty else "  fig1_2 (1 of 1): written in ") in err
+    assert ("\r" in err) is tty and err.count("written in") == 1
+    assert main(["figures", "--fig", "1", "--out", out]) == 0
+    assert "  fig1_2 (1 of 1): already made by this version with this --seed and --quick" in capsys.readouterr().err
+    assert main(["figures", "--fig", "1", "--out", out, "--seed", "9"]) == 130
+    err = capsys.readouterr().err
+    assert ("\r\x1b[Kdryfric: interrupted; " in err) is tty and "written in" not in err
+
+
+def test_the_figures_status_line(capsys, monkeypatch):
+    """Worked by hand: a PDMP estimate at 17% and a count finishing; a brute-force run shows no progress of its
+    own.  Mutants: the method not named; the scene's time not shown."""
+    import sys
+
+    from dryfric_jax.cli import _figures_line
+
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
+    base = dict(scene="fig8", index=8, total=9, stage="run", kind="estimate", method="pdmp", runs=11,
+                params=dict(FIG3, Gamma=2.15, tau=1e-3), elapsed_s=150.0)
+    est = dict(n_excursions=1200, D=2.0, D_ci=0.34, target=100000, rtol=None, elapsed_s=3.0, left_s=40.0,
+               left_to="n_excursions")
+    _figures_line(dict(base, run=est))
+    assert capsys.readouterr().err == ("\r  fig8 (8 of 9): run 12, estimate (pdmp) at Gamma=2.15 tau=0.001: "
+                                       "D=2\u00b117% N=1200 of 100000, ~40 s left [2.5 min]\x1b[K")
+    _figures_line(dict(base, kind="bruteforce", method=None, run=None))
+    assert capsys.readouterr().err == "\r  fig8 (8 of 9): run 12, bruteforce at Gamma=2.15 tau=0.001 [2.5 min]\x1b[K"
+    _figures_line(dict(base, stage="start"))
+    assert capsys.readouterr().err == "\r  fig8 (8 of 9): computing\x1b[K"

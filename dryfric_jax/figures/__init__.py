@@ -7,29 +7,37 @@ without ``--quick`` the paper's settings (README "Reproducing the paper").
 from __future__ import annotations
 
 import os
+import time
 import warnings
 
 from .._version import __version__
-from ..api import MAX_FIGURE_SEED, DryfricWarning, check_seed
+from ..api import MAX_FIGURE_SEED, DryfricWarning, check_progress, check_seed
 from ..outfiles import check_writable_dir
 from .common import finished
 from .covariance import fig4
 from .diffusivity import fig3, fig5, fig8
 from .excursion import fig1_2
-from .points import check_points_file, other_versions, points_path
+from .points import check_points_file, other_versions, points_path, reporting
 from .speed_error import fig9
 from .touchette import fig6, fig7, table1
 
 SCENES = {"1": fig1_2, "3": fig3, "4": fig4, "5": fig5, "6": fig6, "table1": table1, "7": fig7, "8": fig8, "9": fig9}
 
 
-def run_figures(which: str, out_dir: str, quick: bool = False, seed: int = 0, redo: bool = False) -> dict:
+def run_figures(which: str, out_dir: str, quick: bool = False, seed: int = 0, redo: bool = False,
+                progress=None) -> dict:
     """Run one scene (``which`` a key of :data:`SCENES`) or ``"all"``; returns their numbers.
 
     A scene whose PNG, PDF and JSON are already in ``out_dir``, made by this version with the same seed
     and ``quick``, is not run again (its numbers are read back; ``redo=True`` runs it anyway): a rerun
     after an interruption computes only the scenes not yet written, and inside Figs. 3, 8 and 9 only
-    the runs not yet kept in their ``*.points.jsonl``."""
+    the runs not yet kept in their ``*.points.jsonl``.
+
+    ``progress``: optional ``progress(dict)`` with the scene's file stem ``scene`` (``"fig3"``), its place ``index``
+    (from 1) of ``total`` and ``stage``: ``"start"`` as a scene starts computing; ``"run"`` as each run of a scene of
+    runs (Figs. 3, 8 and 9 (b)) starts and goes on, with :func:`~dryfric_jax.figures.points.reporting`'s keys
+    (``kind``, ``params``, ``runs``, ``run``) and ``elapsed_s`` (the scene's); ``"done"`` once it is written, with
+    ``wall_s``, or once it is found finished (``kept = True``, not run again).  It changes no number."""
     if which != "all" and which not in SCENES:
         raise ValueError(f"fig must be one of {['all', *SCENES]} (got {which!r})")
     seed = check_seed(seed, MAX_FIGURE_SEED, "2^62 - 2^20 (the scenes add offsets)")
@@ -38,13 +46,36 @@ def run_figures(which: str, out_dir: str, quick: bool = False, seed: int = 0, re
     names = list(SCENES) if which == "all" else [which]
     for n in names:  # a points file that is not one is refused before any scene runs, not after the others
         check_points_file(out_dir, SCENES[n].__name__)
+    check_progress(progress)
     out = {}
-    for n in names:
-        kept = None if redo else finished(out_dir, SCENES[n].__name__, quick, seed)
-        if kept is None:
-            _say_other_versions(out_dir, SCENES[n].__name__)
-        out[n] = kept if kept is not None else SCENES[n](out_dir, quick, seed)
+    for i, n in enumerate(names, 1):
+        scene = SCENES[n].__name__
+        say = _Say(progress, dict(scene=scene, index=i, total=len(names)))
+        kept = None if redo else finished(out_dir, scene, quick, seed)
+        if kept is not None:
+            out[n] = kept
+            say(stage="done", kept=True)
+            continue
+        _say_other_versions(out_dir, scene)
+        say(stage="start")
+        with reporting(say.run if progress else None):
+            out[n] = SCENES[n](out_dir, quick, seed)
+        say(stage="done", kept=False, wall_s=time.perf_counter() - say.t0)
     return out
+
+
+class _Say:
+    """``run_figures``'s ``progress`` for one scene (``where``: its name and place); nothing where it is None."""
+
+    def __init__(self, progress, where: dict):
+        self.progress, self.where, self.t0 = progress, where, time.perf_counter()
+
+    def __call__(self, **d):
+        if self.progress is not None:
+            self.progress({**self.where, **d})
+
+    def run(self, d: dict):  # a run's report (points.reporting), with the scene's time so far
+        self(**d, stage="run", elapsed_s=time.perf_counter() - self.t0)
 
 
 def _say_other_versions(out_dir: str, scene: str) -> None:

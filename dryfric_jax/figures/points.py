@@ -20,9 +20,15 @@ not plot such a point as if it were finished, so :class:`Points` runs it under
 :func:`~dryfric_jax.rounds.abandon_on_interrupt` (the ``KeyboardInterrupt`` comes at once) and
 keeps no interrupted result: the scene stops, and the runs already written stay.  Delete the file
 to recompute from scratch.
+
+While a scene computes, :func:`reporting` may name a callback that hears of each run: what it is, the runs the
+scene has had so far, and the run's own progress (:func:`~dryfric_jax.api.estimate_diffusivity`'s and the count's
+``progress``); ``dryfric figures`` shows it as a status line on a terminal.  It changes no run or record.
 """
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import dataclasses
 import json
 import os
@@ -41,6 +47,23 @@ from ..rounds import abandon_on_interrupt
 
 _KINDS = {"estimate": (estimate_diffusivity, EstimateResult), "bruteforce": (bruteforce_diffusivity, BruteForceResult),
           "duration": (di_long_excursion_duration, LEDuration)}
+
+
+#: the callback of :func:`reporting`, or None
+_REPORT = contextvars.ContextVar("dryfric_figures_report", default=None)
+
+
+@contextlib.contextmanager
+def reporting(report):
+    """Within the block, every :class:`Points` run calls ``report(dict)`` as it starts and as it goes on: ``kind``
+    (``"estimate"``, ``"bruteforce"`` or ``"duration"``), its ``method`` (None where the run does not name it),
+    ``params`` (the run's, as a dict), ``runs`` (the scene's runs so far: reused and computed) and ``run``, the run's
+    own progress dict (None as it starts, and for brute force, which has none).  None reports nothing."""
+    token = _REPORT.set(report)
+    try:
+        yield
+    finally:
+        _REPORT.reset(token)
 
 
 def _canon(x):
@@ -160,10 +183,17 @@ class Points:
                 if ident in self._done:
                     c.finish()
                     return self._reuse(ident, cls)
+            report, extra = _REPORT.get(), {}
+            if report is not None:  # not part of the run's identity: it changes nothing a run gives
+                where = dict(kind=kind, method=kw.get("method"), params=params.as_dict(),
+                             runs=self.reused + self.computed)
+                report(dict(where, run=None))
+                if kind != "bruteforce":
+                    extra = dict(progress=lambda d: report(dict(where, run=d)))
             with warnings.catch_warnings():  # a scene reports its numbers; the notes stay in the record
                 warnings.simplefilter("ignore", DryfricWarning)
                 with abandon_on_interrupt():  # a run stopped short is not kept: no grace spent finishing it
-                    r = fn(params, seed, **kw)
+                    r = fn(params, seed, **kw, **extra)
             if getattr(r, "stopped_by", None) == "interrupted":  # Ctrl-C inside the run: not a finished point
                 raise KeyboardInterrupt
             rec = dict(ident=ident, kind=kind, version=__version__, finished_at=time.strftime("%Y-%m-%dT%H:%M:%S"),
