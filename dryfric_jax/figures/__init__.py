@@ -36,7 +36,7 @@ def run_figures(which: str, out_dir: str, quick: bool = False, seed: int = 0, re
     ``progress``: optional ``progress(dict)`` with the scene's file stem ``scene`` (``"fig3"``), its place ``index``
     (from 1) of ``total`` and ``stage``: ``"start"`` as a scene starts computing; ``"run"`` as each run of a scene of
     runs (Figs. 3, 8 and 9 (b)) starts and goes on, with :func:`~dryfric_jax.figures.points.reporting`'s keys
-    (``kind``, ``params``, ``runs``, ``run``) and ``elapsed_s`` (the scene's); ``"done"`` once it is written, with
+    (``kind``, ``method``, ``params``, ``runs``, ``run``) and ``elapsed_s`` (the scene's); ``"done"`` once it is written, with
     ``wall_s``, or once it is found finished (``kept = True``, not run again).  It changes no number."""
     if which != "all" and which not in SCENES:
         raise ValueError(f"fig must be one of {['all', *SCENES]} (got {which!r})")
