@@ -227,11 +227,24 @@ def progress_text(d: dict) -> str:
         mean = f"{d['mean_s']:.4g}s" if d["mean_s"] == d["mean_s"] else "\u2013"
         now = f"LE={mean} so far, {d['n_excursions']} of {d['target']}"
         if d["stopping"]:
-            return now + (f", finishing the {d['in_flight']} in flight" if d["in_flight"] else ", done")
+            return now + in_flight_text(d)
+    return now + left_text(d)
+
+
+def left_text(d: dict, options: bool = False) -> str:
+    """A status line's projected time left (a ``progress`` dict's ``left_s``; none: ""), naming the limit that
+    ends the run first (``left_to``) when it is ``max_work`` or ``max_time``, spelled as the CLI's option
+    (``--max-time``) where ``options``."""
     if d.get("left_s") is None:
-        return now
-    return now + f", ~{duration_text(d['left_s'])} left" + (
-        f" (stops at {d['left_to']})" if d["left_to"] in ("max_work", "max_time") else "")
+        return ""
+    to = d["left_to"]
+    name = "--" + to.replace("_", "-") if options else to
+    return f", ~{duration_text(d['left_s'])} left" + (f" (stops at {name})" if to in ("max_work", "max_time") else "")
+
+
+def in_flight_text(d: dict) -> str:
+    """A long-excursion count's status once it starts no excursion (``stopping``): those still in flight, or done."""
+    return f", finishing the {d['in_flight']} in flight" if d["in_flight"] else ", done"
 
 
 def time_left(elapsed: float, work: float, closed: int, in_flight: int, target: int, *, rtol=None,

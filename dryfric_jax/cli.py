@@ -397,24 +397,15 @@ def _progress_line(d):
     """One self-overwriting status line on stderr (terminal only, never under --json): N, D so
     far, the goal, the time so far and the projected time left (``api.time_left``), naming
     ``--max-work`` or ``--max-time`` when that limit is projected to end the run first."""
-    from .api import duration_text
+    from .api import duration_text, left_text
 
     rel = d["D_ci"] / abs(d["D"]) if d["D"] == d["D"] and d["D"] else float("nan")
     # before 2 excursions have closed there is no D yet: a dash, not "nan ± nan%"
     shown = f"{d['D']:.5g} ± {100 * rel:.2f}%" if rel == rel else "–"
     goal = f"target {100 * d['rtol']:.2g}%" if d["rtol"] else f"target N = {d['target']}"
-    left = _left_text(d)
+    left = left_text(d, options=True)
     print(f"\r  N = {d['n_excursions']:>9d}   D = {shown}   ({goal})   "
           f"{duration_text(d.get('elapsed_s', 0.0))}{left}\x1b[K", end="", file=sys.stderr, flush=True)
-
-
-def _left_text(d) -> str:
-    """A status line's projected time left (``left_s``, none: ""), naming the option of the limit that ends the
-    run first (``left_to``) when it is ``--max-work`` or ``--max-time``."""
-    from .api import duration_text
-
-    return "" if d.get("left_s") is None else f", ~{duration_text(d['left_s'])} left" + (
-        f" (stops at --{d['left_to'].replace('_', '-')})" if d["left_to"] in ("max_work", "max_time") else "")
 
 
 def _duration_line(d):
@@ -422,13 +413,10 @@ def _duration_line(d):
     excursions counted so far of those asked, the mean of those counted so far (a dash before the first), the time
     so far and the projected time left, naming --max-time when it is projected to end the count first; once no
     excursion starts any more, how many are still in flight.  Cleared when the count ends (its summary follows)."""
-    from .api import duration_text
+    from .api import duration_text, in_flight_text, left_text
 
     mean = f"{d['mean_s']:.4g} s" if d["mean_s"] == d["mean_s"] else "–"
-    if d["stopping"]:
-        tail = f", finishing the {d['in_flight']} in flight" if d["in_flight"] else ", done"
-    else:
-        tail = _left_text(d)
+    tail = in_flight_text(d) if d["stopping"] else left_text(d, options=True)
     print(f"\r  long excursions = {d['n_excursions']:>7d} of {d['target']}   mean so far = {mean}   "
           f"{duration_text(d['elapsed_s'])}{tail}\x1b[K", end="", file=sys.stderr, flush=True)
 
@@ -530,6 +518,16 @@ def _warnings_kept_in_result():
 
 
 @contextlib.contextmanager
+def _cleared_after(show: bool):
+    """Clear the status line on stderr (where ``show``) when the block ends, however it ends."""
+    try:
+        yield
+    finally:
+        if show:
+            print("\r\x1b[K", end="", file=sys.stderr, flush=True)
+
+
+@contextlib.contextmanager
 def _warnings_as_lines(progress_line: bool = False):
     """The library's DryfricWarnings as one ``dryfric: warning:`` line each on stderr (``dryfric
     figures``: its scenes keep their runs' notes in their records; what is left is said to the user),
@@ -612,12 +610,9 @@ def _run(a) -> int:
             raise _UserError("--" + str(e)) from None
         tty = sys.stderr.isatty()
         try:
-            try:
-                with _warnings_as_lines(progress_line=tty):
-                    nums = run_figures(a.fig, a.out, quick=a.quick, seed=a.seed, redo=a.redo, progress=_figures_line)
-            finally:  # a status line left by a scene that stopped: the message that follows on a clean line
-                if tty:
-                    print("\r\x1b[K", end="", file=sys.stderr, flush=True)
+            # a status line left by a scene that stopped: cleared before the message that follows
+            with _cleared_after(tty), _warnings_as_lines(progress_line=tty):
+                nums = run_figures(a.fig, a.out, quick=a.quick, seed=a.seed, redo=a.redo, progress=_figures_line)
         except KeyboardInterrupt:
             print(f"dryfric: interrupted; the figures already written and the finished runs of Figs. 3, 8 and 9 "
                   f"({a.out}/*.points.jsonl) are kept: the same command resumes from them", file=sys.stderr)
@@ -682,15 +677,13 @@ def _run(a) -> int:
         from .durations import di_long_excursion_duration
 
         show = not a.json and sys.stderr.isatty()
-        try:
-            with _warnings_as_lines(show):  # said as they come: a run that then fails (max_steps too small) says why
-                r = di_long_excursion_duration(params, a.seed, h=a.h, n_excursions=a.n_excursions,
-                                               n_lanes=a.n_lanes, max_steps=a.max_steps, dtype=a.dtype,
-                                               bridge=not a.no_bridge, max_time=a.max_time,
-                                               progress=_duration_line if show else None, **_work_options(a))
-        finally:
-            if show:  # the summary or the error follows on a clean line
-                print("\r\x1b[K", end="", file=sys.stderr, flush=True)
+        # said as they come: a run that then fails (max_steps too small) says why; the summary or the error follows
+        # on a clean line
+        with _cleared_after(show), _warnings_as_lines(show):
+            r = di_long_excursion_duration(params, a.seed, h=a.h, n_excursions=a.n_excursions,
+                                           n_lanes=a.n_lanes, max_steps=a.max_steps, dtype=a.dtype,
+                                           bridge=not a.no_bridge, max_time=a.max_time,
+                                           progress=_duration_line if show else None, **_work_options(a))
         print(dumps(r.to_dict()) if a.json else r.summary(), flush=True)  # its warnings were said above
         _write_out(a.out, r.to_dict())
         if r.stopped_by == "interrupted":  # a Ctrl-C (SIGTERM): what was counted is above, and in --out
@@ -788,7 +781,9 @@ def _sweep(a) -> int:
               rtol=a.rtol, max_time=a.max_time, skip_refused=a.skip_refused, durations=a.durations,
               **_work_options(a))
     try:
-        with _warnings_kept_in_result():  # a point's ProjectionWarning on stderr at once
+        # a point's ProjectionWarning on stderr at once; a bar left mid-line (a Ctrl-C, an error; within a point)
+        # cleared, so the summary or the error is on a clean line
+        with _cleared_after(sys.stderr.isatty()), _warnings_kept_in_result():
             points = sweep.grid(**axes)
             out = sweep.run_sweep(points, a.out, progress=sweep.progress_bar_for(points),
                                   point_progress=sweep.point_line_for(points), **kw)
@@ -799,9 +794,6 @@ def _sweep(a) -> int:
     except OSError as e:  # the file was checked writable before; the disk may fill up later
         raise RuntimeError(f"could not write --out {a.out!r} ({e}); the points finished before are in it, and "
                            "the same command resumes") from None
-    finally:  # a bar left mid-line (a Ctrl-C, an error; within a point): the summary or the error on a clean line
-        if sys.stderr.isatty():
-            print("\r\x1b[K", end="", file=sys.stderr, flush=True)
     if a.json:
         print(dumps(out))
     else:

@@ -557,13 +557,17 @@ def progress_bar_for(points: list[dict]):
     """:func:`progress_bar` showing Gamma, tau and every other parameter that varies over
     ``points``, so that each line says which point it is (a grid over tau_L or gamma_bar printed
     the same "Gamma=5 tau=0.001" on every line)."""
-    axes = [k for k in PARAM_KEYS if k in ("Gamma", "tau") or len({_canon(pt.get(k)) for pt in points}) > 1]
-    return functools.partial(progress_bar, axes=tuple(axes))
+    return functools.partial(progress_bar, axes=_axes(points))
 
 
 def point_line_for(points: list[dict]):
     """:func:`point_line` showing the parameters that :func:`progress_bar_for` shows."""
-    return functools.partial(point_line, axes=progress_bar_for(points).keywords["axes"])
+    return functools.partial(point_line, axes=_axes(points))
+
+
+def _axes(points: list[dict]) -> tuple:
+    """Gamma, tau and every other parameter that varies over ``points``."""
+    return tuple(k for k in PARAM_KEYS if k in ("Gamma", "tau") or len({_canon(pt.get(k)) for pt in points}) > 1)
 
 
 def _bar(done: int, total: int) -> str:
