@@ -425,7 +425,7 @@ def _figures_line(d):
     """``dryfric figures``' progress on stderr (``run_figures``' ``progress``): a line per scene once it is written,
     with its time, or found already made; on a terminal also one self-overwriting status line while a scene
     computes, naming the run it is at (Figs. 3, 8, 9: the runs so far, the kind and Gamma, tau) with the run's own
-    progress (``api.progress_text``) and the scene's time so far."""
+    progress (``api.progress_text``), or the stage it is at (the other scenes), and the scene's time so far."""
     from .api import duration_text, progress_text
 
     tty = sys.stderr.isatty()
@@ -442,6 +442,8 @@ def _figures_line(d):
             now = f"run {d['runs'] + 1}, {what} at Gamma={p['Gamma']:.4g} tau={p['tau']:.4g}"
             now += "" if d["run"] is None else ": " + progress_text(d["run"])
             el = f" [{duration_text(d['elapsed_s'])}]"
+        elif d["stage"] == "step":
+            now, el = d["step"], f" [{duration_text(d['elapsed_s'])}]"
         print(f"\r{tag}: {now}{el}\x1b[K", end="", file=sys.stderr, flush=True)
 
 

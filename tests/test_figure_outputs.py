@@ -269,6 +269,29 @@ def test_a_scenes_runs_report_their_progress_and_give_the_same_bits(tmp_path):
     assert (again.reused, again.computed) == (1, 0)
 
 
+def test_a_scene_without_runs_reports_its_steps(tmp_path, monkeypatch):
+    """``points.report_step`` reaches ``run_figures``' progress as stage "step" with its text and the scene's time
+    so far, between start and done; outside ``reporting`` (and with no progress) it does nothing.  Mutants: the
+    step sent as a run; the step's time missing."""
+    points.report_step("nobody listens")  # no callback: nothing, no error
+
+    def fig1_2(out_dir, quick, seed):
+        points.report_step("stage one")
+        points.report_step("stage two")
+        fig, _ = plt.subplots()
+        return common.save(fig, out_dir, "fig1_2", dict(x=1.0), 0.0, quick=quick, seed=seed)
+
+    monkeypatch.setitem(figures.SCENES, "1", fig1_2)
+    seen = []
+    figures.run_figures("1", str(tmp_path / "a"), quick=True, progress=seen.append)
+    where = dict(scene="fig1_2", index=1, total=1)
+    assert [x["stage"] for x in seen] == ["start", "step", "step", "done"]
+    assert [{k: v for k, v in x.items() if k != "elapsed_s"} for x in seen[1:3]] == [
+        dict(where, stage="step", step="stage one"), dict(where, stage="step", step="stage two")]
+    assert 0 <= seen[1]["elapsed_s"] <= seen[2]["elapsed_s"] <= seen[3]["wall_s"]
+    figures.run_figures("1", str(tmp_path / "b"), quick=True)  # no progress: the steps go nowhere
+
+
 def test_run_figures_reports_each_scene(tmp_path, monkeypatch):
     """``run_figures(progress=)``: a scene that runs says start, its runs (none here) and done with its wall time;
     one found finished says done, kept.  Its numbers are those without progress.  Mutant: done before start."""
@@ -336,3 +359,9 @@ def test_the_figures_status_line(capsys, monkeypatch):
     assert capsys.readouterr().err == "\r  fig8 (8 of 9): run 12, bruteforce at Gamma=2.15 tau=0.001 [2.5 min]\x1b[K"
     _figures_line(dict(base, stage="start"))
     assert capsys.readouterr().err == "\r  fig8 (8 of 9): computing\x1b[K"
+    _figures_line(dict(scene="fig4", index=4, total=9, stage="step", step="DI stationary paths, tau=0.5 s (4 of 6)",
+                       elapsed_s=3000.0))
+    assert capsys.readouterr().err == "\r  fig4 (4 of 9): DI stationary paths, tau=0.5 s (4 of 6) [50.0 min]\x1b[K"
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: False)
+    _figures_line(dict(scene="fig4", index=4, total=9, stage="step", step="x", elapsed_s=1.0))
+    assert capsys.readouterr().err == ""

@@ -1,8 +1,11 @@
 """``dryfric figures --quick``: every scene runs, writes PNG, PDF and JSON, and its numbers agree
 with the exact results it is drawn against (tolerances from the standard errors it reports)."""
+import contextlib
 import dataclasses
+import io
 import json
 import math
+import re
 
 import pytest
 
@@ -14,15 +17,58 @@ from dryfric_jax.params import FIG3, Params
 from dryfric_jax.plan import default_h
 
 
+class _Terminal(io.StringIO):
+    def isatty(self):
+        return True
+
+
 @pytest.fixture(scope="module")
-def figs(tmp_path_factory):
-    out = tmp_path_factory.mktemp("figs")
-    assert main(["figures", "--fig", "all", "--quick", "--out", str(out)]) == 0
+def figs_run(tmp_path_factory):
+    """The quick scenes, all in one command, with what it said on stderr as on a terminal (status lines and all)."""
+    out, err = tmp_path_factory.mktemp("figs"), _Terminal()
+    with contextlib.redirect_stderr(err):
+        assert main(["figures", "--fig", "all", "--quick", "--out", str(out)]) == 0
     for name in SCENES:
         stem = _stem(name)
         for ext in ("png", "pdf", "json"):
             assert (out / f"{stem}.{ext}").stat().st_size > 0, (stem, ext)
-    return {_stem(n): json.loads((out / f"{_stem(n)}.json").read_text()) for n in SCENES}
+    return {_stem(n): json.loads((out / f"{_stem(n)}.json").read_text()) for n in SCENES}, err.getvalue()
+
+
+@pytest.fixture(scope="module")
+def figs(figs_run):
+    return figs_run[0]
+
+
+#: the stages the scenes without runs name on the status line (``points.report_step``), in order
+STEPS = {
+    "fig1_2": ["PDMP excursion (1 of 2)", "DI excursion (2 of 2)"],
+    "fig4": [f"{m} stationary paths, tau={t} s ({2 * j + k + 1} of 6)" for j, t in enumerate(("0.25", "0.5", "1"))
+             for k, m in enumerate(("PDMP", "DI"))],
+    "fig5": ["DI stationary paths for the histogram (1 of 2)", "10 paths of U (2 of 2)"],
+    "fig6": [f"DI transient paths, tau'={t} ({j} of 4)" for j, t in enumerate(("0.05", "0.005", "0.0005", "5e-05"), 1)],
+    "table1": ["DI transient paths, tau'=5e-06"],
+    "fig7": [f"DI stationary paths, tau'={t} ({j} of 4)" for j, t in enumerate(("0.05", "0.005", "0.0005", "5e-05"), 1)],
+    "fig9": ["(a) long excursions, 1024 lanes x 80000 steps", "(a) brute force, 65536 paths",
+             "(b) an untimed DI run, so that the timed runs exclude compiling",
+             "(b) an untimed PDMP run, so that the timed runs exclude compiling"],
+}
+
+
+def test_every_scene_says_what_it_computes_on_a_terminal(figs_run):
+    """The real quick run's stderr: each scene's status lines name its stages (``STEPS``, in order, each once) or
+    its runs (Figs. 3 and 8; Fig. 9 (b) both), each with the scene's time so far, then its "written in" line.
+    Mutants: a scene's stage not reported; a step reported as a run (no text); the time not shown."""
+    said = figs_run[1]
+    assert "\r  fig1_2 (1 of 9): computing\x1b[K" in said
+    for stem in [_stem(n) for n in SCENES]:
+        i = [k for k, n in enumerate(SCENES, 1) if _stem(n) == stem][0]
+        tag = re.escape(f"\r  {stem} ({i} of 9): ")
+        steps = re.findall(tag + r"([^\r]*?) \[(\d+ s|[\d.]+ (?:min|h))\]\x1b\[K", said)
+        texts = [s for s, _ in steps if not s.startswith("run ")]
+        assert texts == STEPS.get(stem, []), stem
+        assert any(s.startswith("run ") for s, _ in steps) is (stem in ("fig3", "fig8", "fig9")), stem
+        assert re.search(re.escape(f"\r\x1b[K  {stem} ({i} of 9): written in "), said), stem
 
 
 def _stem(name):

@@ -36,8 +36,10 @@ def run_figures(which: str, out_dir: str, quick: bool = False, seed: int = 0, re
     ``progress``: optional ``progress(dict)`` with the scene's file stem ``scene`` (``"fig3"``), its place ``index``
     (from 1) of ``total`` and ``stage``: ``"start"`` as a scene starts computing; ``"run"`` as each run of a scene of
     runs (Figs. 3, 8 and 9 (b)) starts and goes on, with :func:`~dryfric_jax.figures.points.reporting`'s keys
-    (``kind``, ``method``, ``params``, ``runs``, ``run``) and ``elapsed_s`` (the scene's); ``"done"`` once it is written, with
-    ``wall_s``, or once it is found finished (``kept = True``, not run again).  It changes no number."""
+    (``kind``, ``method``, ``params``, ``runs``, ``run``) and ``elapsed_s`` (the scene's); ``"step"`` as a scene without
+    runs starts a stage, with its text ``step`` (:func:`~dryfric_jax.figures.points.report_step`) and ``elapsed_s``;
+    ``"done"`` once it is written, with ``wall_s``, or once it is found finished (``kept = True``, not run again).
+    It changes no number."""
     if which != "all" and which not in SCENES:
         raise ValueError(f"fig must be one of {['all', *SCENES]} (got {which!r})")
     seed = check_seed(seed, MAX_FIGURE_SEED, "2^62 - 2^20 (the scenes add offsets)")
@@ -74,8 +76,8 @@ class _Say:
         if self.progress is not None:
             self.progress({**self.where, **d})
 
-    def run(self, d: dict):  # a run's report (points.reporting), with the scene's time so far
-        self(**d, stage="run", elapsed_s=time.perf_counter() - self.t0)
+    def run(self, d: dict):  # a run's or a step's report (points.reporting), with the scene's time so far
+        self(**d, stage="step" if "step" in d else "run", elapsed_s=time.perf_counter() - self.t0)
 
 
 def _say_other_versions(out_dir: str, scene: str) -> None:

@@ -24,6 +24,7 @@ from ..paths import autocorrelation, di_stationary, pdmp_stationary
 from ..pdmp import make_pdmp_model
 from ..plan import default_h
 from .common import plt, save
+from .points import report_step
 
 TAUS = (0.25, 0.5, 1.0)
 BURN_TAU0 = 50.0
@@ -43,11 +44,13 @@ def fig4(out_dir, quick, seed):
         lags = round(max_lag_s / p.tau0 / DT_REC)
         n_rec = round(length / DT_REC)
         key = jax.random.fold_in(jax.random.key(seed), j)
+        report_step(f"PDMP stationary paths, tau={tau:g} s ({2 * j + 1} of {2 * len(TAUS)})")
         Vp = pdmp_stationary(make_pdmp_model(p, 0.125), key, paths, n_rec, DT_REC, BURN_TAU0)
         # the DI step: the default's, shortened to a whole fraction of DT_REC, so that the DI's lags are the
         # PDMP's (DT_REC / h rounded used to put the DI's lag k at 0.988 k DT_REC at tau = 0.25 s: 8.6 SE)
         every = math.ceil(DT_REC / (default_h(p) / p.tau0))
         h_nd = DT_REC / every
+        report_step(f"DI stationary paths, tau={tau:g} s ({2 * j + 2} of {2 * len(TAUS)})")
         Vd, _ = di_stationary(make_di_model(p, h_nd * p.tau0), jax.random.fold_in(key, 1), paths, n_rec, every,
                               burn_steps=round(BURN_TAU0 / h_nd))
         rho = np.arange(lags + 1) * DT_REC * p.tau0

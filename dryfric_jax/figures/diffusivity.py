@@ -32,7 +32,7 @@ from ..paths import di_stationary
 from ..pdmp import pdmp_grid_info, threshold_widening
 from ..plan import default_h, plan_estimate
 from .common import plt, save
-from .points import Points
+from .points import Points, report_step
 
 DELTA, TAU_L, GBAR = 3.84, 0.067, 0.342
 
@@ -224,6 +224,7 @@ def fig5(out_dir, quick, seed):
     paths, length = (256, 200.0) if quick else (4096, 2000.0)  # in tau0
     h_nd = h / p.tau0
     every = max(1, round(0.05 / h_nd))
+    report_step("DI stationary paths for the histogram (1 of 2)")
     V, _ = di_stationary(m, jax.random.key(seed), paths, round(length / (every * h_nd)), every,
                          burn_steps=round(40 / h_nd))
     v = V.ravel() * p.v0  # physical m/s
@@ -235,6 +236,7 @@ def fig5(out_dir, quick, seed):
     prob, exact = cnt / v.size, theory.stationary_density(mid, p) * bw
     # paths of U on [0, 2] s
     n_rec = round(2.0 / p.tau0 / h_nd)
+    report_step("10 paths of U (2 of 2)")
     _, U = di_stationary(m, jax.random.key(seed + 1), 10, n_rec, 1, burn_steps=round(40 / h_nd))
     # the step's own share of any gap: the exact law of the white-noise chain at this h
     # (tau/h -> 0); at h = 0.01 tau0 its E[V^2] is 0.40% below the continuum value

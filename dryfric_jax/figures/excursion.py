@@ -18,14 +18,17 @@ from ..paths import di_excursion
 from ..pdmp import excursion_skeleton, make_pdmp_model
 from ..plan import default_h
 from .common import plt, save
+from .points import report_step
 
 
 def fig1_2(out_dir, quick, seed):
     t0 = time.perf_counter()
     p = Params(**FIG3)
     sx = 1.0 / np.sqrt(p.Gamma) * p.Delta  # X' -> X (s^-1/2): X = X' Delta / sqrt(Gamma)
-    runs = {"PDMP (delta = 0.125)": excursion_skeleton(make_pdmp_model(p, 0.125), jax.random.key(seed)),
-            "DI (h = default)": di_excursion(make_di_model(p, default_h(p)), jax.random.key(seed))}
+    report_step("PDMP excursion (1 of 2)")
+    runs = {"PDMP (delta = 0.125)": excursion_skeleton(make_pdmp_model(p, 0.125), jax.random.key(seed))}
+    report_step("DI excursion (2 of 2)")
+    runs["DI (h = default)"] = di_excursion(make_di_model(p, default_h(p)), jax.random.key(seed))
     fig, axs = plt.subplots(2, 4, figsize=(16, 6.5))
     nums = {}
     for row, (name, e) in zip(axs, runs.items()):

@@ -23,7 +23,8 @@ to recompute from scratch.
 
 While a scene computes, :func:`reporting` may name a callback that hears of each run: what it is, the runs the
 scene has had so far, and the run's own progress (:func:`~dryfric_jax.api.estimate_diffusivity`'s and the count's
-``progress``); ``dryfric figures`` shows it as a status line on a terminal.  It changes no run or record.
+``progress``); the scenes without runs (Figs. 1-2, 4-7, Table 1) name each stage they start with
+:func:`report_step`.  ``dryfric figures`` shows it as a status line on a terminal.  It changes no run or record.
 """
 from __future__ import annotations
 
@@ -64,6 +65,14 @@ def reporting(report):
         yield
     finally:
         _REPORT.reset(token)
+
+
+def report_step(what: str) -> None:
+    """Tell :func:`reporting`'s callback, if any, the stage a scene without runs starts now, as ``{"step": what}``
+    (e.g. ``"PDMP stationary paths, tau=0.5 s (5 of 6)"``); nothing where none is set."""
+    report = _REPORT.get()
+    if report is not None:
+        report({"step": what})
 
 
 def _canon(x):

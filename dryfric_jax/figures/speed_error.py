@@ -40,7 +40,7 @@ from ..params import FIG3, Params
 from ..paths import di_stationary
 from ..plan import default_h
 from .common import plt, save
-from .points import Points
+from .points import Points, report_step
 
 
 def fit_slope(x, y, replicates=None):
@@ -155,8 +155,10 @@ def fig9(out_dir, quick, seed):
     # 10 random streams; at 80 000 it is -0.48 +- 0.02 (9 seeds, all within 3 SE)
     lanes, budget = (1024, 80_000) if quick else (8192, 100_000)
     # RMSEs in m^2/s, like D_true in the JSON (they were in units of D0 = 0.57 m^2/s, 1.74x too large)
+    report_step(f"(a) long excursions, {lanes} lanes x {budget} steps")
     le = [dict(r, rmse=r["rmse"] * p.D0) for r in _rmse_le(model, jax.random.key(seed), lanes, budget, D_true,
                                                             [1, 4, 16, 64])]
+    report_step(f"(a) brute force, {BF_GRID[bool(quick)][0]} paths")
     bf, bias, env = _rmse_bf(model, jax.random.key(seed + 1), quick, h_nd, D_true, p.D0)
     le_slope = fit_slope([r["cost"] for r in le], [r["rmse"] for r in le], [r["replicates"] for r in le])
     bf_slope = fit_slope(*zip(*[(r["cost"], r["rmse"], r["replicates"]) for r in env]))
@@ -172,6 +174,7 @@ def fig9(out_dir, quick, seed):
             + [(seed + 10 + i, dict(method="pdmp", delta=dd, n_excursions=n)) for i, dd in enumerate(ds)])
     for method, step in (("di", dict(h=hs[0])), ("pdmp", dict(delta=ds[0]))):
         if not all(pts.kept(pf, s, **kw) for s, kw in runs if kw.get("method", "di") == method):
+            report_step(f"(b) an untimed {method.upper()} run, so that the timed runs exclude compiling")
             _warm_up(pf, n, method=method, **step)
     rs = [pts.estimate(pf, s, **kw) for s, kw in runs]
     di, pd = rs[:len(hs)], rs[len(hs):]

@@ -28,6 +28,7 @@ from ..di import make_di_model
 from ..params import Params
 from ..paths import autocovariance, di_stationary, di_transient
 from .common import exact_steps, plt, save
+from .points import report_step
 
 T_TABLE = (0.05, 0.125, 0.25, 0.5, 1.0, 2.5)
 PAPER_ROW = (0.950, 0.875, 0.757, 0.568, 0.336, 0.090)  # printed: unit-intensity noise (MODEL_NOTES 2)
@@ -43,6 +44,7 @@ def _model(tau_nd, h_nd):
 def table1(out_dir, quick, seed):
     t0 = time.perf_counter()
     n, h, tau = (40_000, 1.25e-3, 0.5e-5) if quick else (1_000_000, 2e-4, 0.5e-5)  # t' = 0.125: 100 steps
+    report_step(f"DI transient paths, tau'={tau:g}")
     V = di_transient(_model(tau, h), jax.random.key(seed), n, [exact_steps(t, h) for t in T_TABLE])
     mc, se = V.mean(0), V.std(0, ddof=1) / np.sqrt(n)
     exact = [theory.first_moment(t, 1.0) for t in T_TABLE]
@@ -89,6 +91,7 @@ def fig6(out_dir, quick, seed):
                 edges=edges.tolist(), counts={}, exact_density={},  # the plotted numbers: density = counts/(n w)
                 p_zero={}, p_zero_se={}, p_zero_step=atom.tolist())  # P(V' = 0): measured, its SE, 2 h' p(0, t')
     for j, (tau, ax) in enumerate(zip(TAUS, axs)):
+        report_step(f"DI transient paths, tau'={tau:g} ({j + 1} of {len(TAUS)})")
         V = di_transient(_model(tau, h), jax.random.fold_in(jax.random.key(seed), j), n,
                          [exact_steps(t, h) for t in T_DENSITY])
         devs, ft = [], []
@@ -129,6 +132,7 @@ def fig7(out_dir, quick, seed):
     nums = dict(tau_nd=TAUS, h_nd=h, n_paths=paths, length_tau0=length, burn_in_tau0=BURN_TAU0, t=tl, exact=ex,
                 corr={}, se={}, max_dev_in_se={})
     for j, tau in enumerate(TAUS):
+        report_step(f"DI stationary paths, tau'={tau:g} ({j + 1} of {len(TAUS)})")
         V, _ = di_stationary(_model(tau, h), jax.random.fold_in(jax.random.key(seed), j), paths,
                              round(length / dt_rec), every, burn_steps=round(BURN_TAU0 / h))
         c, se = autocovariance(V, len(lags) - 1)
