@@ -435,15 +435,15 @@ def _figures_line(d):
                 else f"written in {duration_text(d['wall_s'])}")
         print(("\r\x1b[K" if tty else "") + f"{tag}: {what}", file=sys.stderr, flush=True)
     elif tty:
-        now, el = "computing", ""
+        now = "computing"
         if d["stage"] == "run":
             p = d["params"]
             what = d["kind"] + (f" ({d['method']})" if d.get("method") else "")
             now = f"run {d['runs'] + 1}, {what} at Gamma={p['Gamma']:.4g} tau={p['tau']:.4g}"
             now += "" if d["run"] is None else ": " + progress_text(d["run"])
-            el = f" [{duration_text(d['elapsed_s'])}]"
         elif d["stage"] == "step":
-            now, el = d["step"], f" [{duration_text(d['elapsed_s'])}]"
+            now = d["step"]
+        el = "" if d["stage"] == "start" else f" [{duration_text(d['elapsed_s'])}]"
         print(f"\r{tag}: {now}{el}\x1b[K", end="", file=sys.stderr, flush=True)
 
 

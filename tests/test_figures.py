@@ -61,8 +61,8 @@ def test_every_scene_says_what_it_computes_on_a_terminal(figs_run):
     Mutants: a scene's stage not reported; a step reported as a run (no text); the time not shown."""
     said = figs_run[1]
     assert "\r  fig1_2 (1 of 9): computing\x1b[K" in said
-    for stem in [_stem(n) for n in SCENES]:
-        i = [k for k, n in enumerate(SCENES, 1) if _stem(n) == stem][0]
+    for i, name in enumerate(SCENES, 1):
+        stem = _stem(name)
         tag = re.escape(f"\r  {stem} ({i} of 9): ")
         steps = re.findall(tag + r"([^\r]*?) \[(\d+ s|[\d.]+ (?:min|h))\]\x1b\[K", said)
         texts = [s for s, _ in steps if not s.startswith("run ")]
