@@ -20,6 +20,8 @@ import math
 import os
 import re
 import sys
+import threading
+import time
 import warnings
 
 from . import compile_cache, interrupts
@@ -443,8 +445,57 @@ def _figures_line(d):
             now += "" if d["run"] is None else ": " + progress_text(d["run"])
         elif d["stage"] == "step":
             now = d["step"]
-        el = "" if d["stage"] == "start" else f" [{duration_text(d['elapsed_s'])}]"
+        el = f" [{duration_text(d['elapsed_s'])}]" if "elapsed_s" in d else ""  # not at "start" until _Ticking's
         print(f"\r{tag}: {now}{el}\x1b[K", end="", file=sys.stderr, flush=True)
+
+
+#: taken by whatever writes a line on stderr while ``dryfric figures``' status line is redrawn from another thread
+#: (``_Ticking``), so that a redraw never lands inside a warning's line
+_LINE_LOCK = threading.RLock()
+
+
+class _Ticking:
+    """``dryfric figures``' progress callback with the status line kept ticking: ``tick`` redraws the last line with
+    the scene's time advanced by the time since it came, so that a long stage (Fig. 4's paths, ~1.5 min each at
+    full settings) or a run with no progress of its own (brute force) shows time passing rather than a time frozen
+    at its start.  Nothing is redrawn after a scene's "done" line.  ``draw`` (``_figures_line``) and ``tick`` run
+    under ``_LINE_LOCK``."""
+
+    def __init__(self, draw, clock=time.monotonic):
+        self.draw, self.clock, self.last = draw, clock, None
+
+    def __call__(self, d: dict):
+        with _LINE_LOCK:
+            self.last = None if d["stage"] == "done" else (d, self.clock())
+            self.draw(d)
+
+    def tick(self):
+        with _LINE_LOCK:
+            if self.last is not None:
+                d, t = self.last
+                self.draw({**d, "elapsed_s": d.get("elapsed_s", 0.0) + self.clock() - t})
+
+
+@contextlib.contextmanager
+def _ticking(draw, show: bool, period: float = 1.0):
+    """``draw`` as a progress callback; where ``show`` (a terminal), wrapped in :class:`_Ticking` with a daemon
+    thread calling its ``tick`` every ``period`` seconds until the block ends, however it ends."""
+    if not show:
+        yield draw
+        return
+    ticking, stop = _Ticking(draw), threading.Event()
+
+    def loop():
+        while not stop.wait(period):
+            ticking.tick()
+
+    thread = threading.Thread(target=loop, name="dryfric-status-line", daemon=True)
+    thread.start()
+    try:
+        yield ticking
+    finally:
+        stop.set()
+        thread.join()
 
 
 def _check_out(path):
@@ -543,10 +594,11 @@ def _warnings_as_lines(progress_line: bool = False):
         shown = warnings.showwarning
 
         def show(message, category, *args, **kw):
-            if issubclass(category, DryfricWarning):
-                print(f"{clear}dryfric: warning: {message}", file=sys.stderr, flush=True)
-            else:
-                shown(message, category, *args, **kw)
+            with _LINE_LOCK:  # not inside a status line redrawn by _Ticking's thread
+                if issubclass(category, DryfricWarning):
+                    print(f"{clear}dryfric: warning: {message}", file=sys.stderr, flush=True)
+                else:
+                    shown(message, category, *args, **kw)
 
         warnings.showwarning = show
         yield
@@ -613,8 +665,8 @@ def _run(a) -> int:
         tty = sys.stderr.isatty()
         try:
             # a status line left by a scene that stopped: cleared before the message that follows
-            with _cleared_after(tty), _warnings_as_lines(progress_line=tty):
-                nums = run_figures(a.fig, a.out, quick=a.quick, seed=a.seed, redo=a.redo, progress=_figures_line)
+            with _cleared_after(tty), _ticking(_figures_line, tty) as said, _warnings_as_lines(progress_line=tty):
+                nums = run_figures(a.fig, a.out, quick=a.quick, seed=a.seed, redo=a.redo, progress=said)
         except KeyboardInterrupt:
             print(f"dryfric: interrupted; the figures already written and the finished runs of Figs. 3, 8 and 9 "
                   f"({a.out}/*.points.jsonl) are kept: the same command resumes from them", file=sys.stderr)

@@ -357,7 +357,7 @@ def test_the_figures_status_line(capsys, monkeypatch):
                                        "D=2\u00b117% N=1200 of 100000, ~40 s left [2.5 min]\x1b[K")
     _figures_line(dict(base, kind="bruteforce", method=None, run=None))
     assert capsys.readouterr().err == "\r  fig8 (8 of 9): run 12, bruteforce at Gamma=2.15 tau=0.001 [2.5 min]\x1b[K"
-    _figures_line(dict(base, stage="start"))
+    _figures_line(dict(scene="fig8", index=8, total=9, stage="start"))  # as run_figures says it: no time yet
     assert capsys.readouterr().err == "\r  fig8 (8 of 9): computing\x1b[K"
     _figures_line(dict(scene="fig4", index=4, total=9, stage="step", step="DI stationary paths, tau=0.5 s (4 of 6)",
                        elapsed_s=3000.0))
@@ -365,3 +365,63 @@ def test_the_figures_status_line(capsys, monkeypatch):
     monkeypatch.setattr(sys.stderr, "isatty", lambda: False)
     _figures_line(dict(scene="fig4", index=4, total=9, stage="step", step="x", elapsed_s=1.0))
     assert capsys.readouterr().err == ""
+
+
+def test_the_figures_status_line_ticks():
+    """``cli._Ticking``, with a clock set by hand: a tick redraws the last line with the scene's time advanced by the
+    clock's, also a "start" line (which has no time of its own), and redraws nothing after a scene's "done" line.
+    Mutants: the time not advanced; the "done" scene's line redrawn."""
+    from dryfric_jax.cli import _Ticking
+
+    now, drawn = [100.0], []
+    t = _Ticking(drawn.append, clock=lambda: now[0])
+    where = dict(scene="fig4", index=4, total=9)
+    t.tick()  # nothing said yet
+    assert drawn == []
+    t(dict(where, stage="start"))
+    now[0] = 102.5
+    t.tick()
+    assert drawn == [dict(where, stage="start"), dict(where, stage="start", elapsed_s=2.5)]
+    step = dict(where, stage="step", step="DI stationary paths", elapsed_s=10.0)
+    t(step)
+    now[0] = 163.0
+    t.tick()
+    assert drawn[-2:] == [step, dict(step, elapsed_s=70.5)]
+    t(dict(where, stage="done", kept=False, wall_s=75.0))
+    now[0] = 200.0
+    t.tick()
+    assert drawn[-1]["stage"] == "done" and len(drawn) == 5
+
+
+def test_the_ticking_thread_runs_while_the_block_does_and_not_after():
+    """``cli._ticking``: on a terminal a thread redraws the line (every 10 ms here) until the block ends, however
+    it ends, and then no more; off a terminal the callback is ``draw`` itself and no thread starts.  No redraw
+    while a warning's line is written (``_LINE_LOCK`` held).  Mutants: the thread not stopped; started off a
+    terminal."""
+    import threading
+    import time
+
+    from dryfric_jax.cli import _LINE_LOCK, _ticking
+
+    drawn = []
+    before = threading.active_count()
+    with _ticking(drawn.append, False) as said:
+        assert said == drawn.append and threading.active_count() == before
+    with pytest.raises(KeyboardInterrupt):
+        with _ticking(drawn.append, True, period=0.01) as said:
+            said(dict(scene="fig4", index=4, total=9, stage="step", step="x", elapsed_s=1.0))
+            for _ in range(500):
+                if len(drawn) >= 3:
+                    break
+                time.sleep(0.01)
+            raise KeyboardInterrupt
+    assert len(drawn) >= 3 and drawn[-1]["elapsed_s"] > 1.0  # redrawn with a later time
+    n = len(drawn)
+    time.sleep(0.1)
+    assert len(drawn) == n and threading.active_count() == before
+    with _ticking(drawn.append, True, period=0.01) as said:
+        said(dict(scene="fig4", index=4, total=9, stage="step", step="x", elapsed_s=1.0))
+        with _LINE_LOCK:  # as while a warning's line is written: the ticking thread's redraws wait
+            n = len(drawn)
+            time.sleep(0.1)
+            assert len(drawn) == n
