@@ -44,7 +44,7 @@ from .chain_law import ChainLaw, white_chain_law  # noqa: E402
 from .combine import combine_estimates, gather_hosts  # noqa: E402
 from .compile_cache import enable as enable_compilation_cache  # noqa: E402
 from .di import DIModel, make_di_model  # noqa: E402
-from .durations import LEDuration, default_duration_h, di_long_excursion_duration  # noqa: E402
+from .durations import LEDuration, NoCountError, default_duration_h, di_long_excursion_duration  # noqa: E402
 from .estimators import MIN_RELIABLE_N, MIN_RELIABLE_PATHS, delta_method, psi_D, psi_M  # noqa: E402
 from .ou import OUStep, ou_moments, ou_step  # noqa: E402
 from .params import FIG3, Params  # noqa: E402
@@ -59,6 +59,6 @@ __all__ = [
     "DryfricWarning", "ProjectionWarning", "SmallSampleWarning", "NoEstimateError", "default_h", "Plan",
     "plan_estimate",
     "delta_method", "psi_D", "psi_M", "MIN_RELIABLE_N", "MIN_RELIABLE_PATHS",
-    "theory", "ChainLaw", "white_chain_law", "LEDuration", "di_long_excursion_duration", "default_duration_h",
+    "theory", "ChainLaw", "white_chain_law", "LEDuration", "NoCountError", "di_long_excursion_duration", "default_duration_h",
     "combine_estimates", "gather_hosts", "enable_compilation_cache",
 ]

@@ -107,6 +107,12 @@ from .rounds import _ABANDON, INTERRUPT_GRACE_S
 from .sharding import over_lanes
 
 
+class NoCountError(ValueError):
+    """A count ended with fewer than 2 long excursions within ``max_steps`` or ``max_time``: no mean, no spread.
+    A ``ValueError`` (as the other refusals), of its own class so that a caller recording it as a point's outcome
+    (a sweep's, Fig. 3's) catches only it and not an error raised by its own ``progress`` callback."""
+
+
 @dataclass(frozen=True)
 class LEDuration(_Record):
     """Mean duration (s) of the paper's long excursion of the DI, its 95% CI half-width, and what made it;
@@ -444,6 +450,7 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
 
     ``ValueError`` naming the argument, also where the estimator refuses the parameters (tau_L = inf with
     :math:`|\bar\gamma| \ge \Delta`: the particle runs away; it gave a number here, 9 of 32 lanes truncated);
+    :class:`NoCountError` (a ``ValueError``) where fewer than 2 were counted within ``max_steps`` or ``max_time``;
     the result's ``n_truncated`` counts the LEs in flight at ``max_steps`` (dropped, with a warning).
     """
     t0 = time.perf_counter()
@@ -481,9 +488,9 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
         if ended == "interrupted":  # nothing to keep: a plain Ctrl-C
             raise KeyboardInterrupt
         if ended == "max_time":
-            raise ValueError(f"max_time = {max_time:g} s is too short here: the {n_lanes} lanes counted {k} long "
+            raise NoCountError(f"max_time = {max_time:g} s is too short here: the {n_lanes} lanes counted {k} long "
                              "excursions within twice it (at least 2 must); raise max_time")
-        raise ValueError(f"max_steps = {bound} is too small here: the {n_lanes} lanes counted {k} long excursions "
+        raise NoCountError(f"max_steps = {bound} is too small here: the {n_lanes} lanes counted {k} long excursions "
                          f"within it (at least 2 must); raise max_steps")
     stop_note = None  # what stopped the count short of the rule, if anything
     if ended == "interrupted":

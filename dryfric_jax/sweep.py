@@ -70,7 +70,8 @@ import numpy as np
 from ._version import __version__
 from .api import (DryfricWarning, NoEstimateError, ProjectionWarning, check_progress, check_seed, duration_text,
                   estimate_diffusivity, progress_text)
-from .durations import TAU_STEPS, check_duration_run, default_duration_h, di_long_excursion_duration, max_steps_for
+from .durations import (TAU_STEPS, NoCountError, check_duration_run, default_duration_h, di_long_excursion_duration,
+                        max_steps_for)
 from .limits import MAX_WORK
 from .outfiles import check_writable, claim, drop_claims_dir, dumps, locked, put_record, read_records, write_records
 from .params import FIG3, Params, plain_number, real_or_none, shown
@@ -495,7 +496,7 @@ def _durations(pt: dict, seed: int, settings: dict, cycle_s, max_time=None, prog
         d = di_long_excursion_duration(p, duration_seed(seed, pt, settings), h=h, n_excursions=n,
                                        max_steps=max_steps, dtype=settings["dtype"], max_work=settings["max_work"],
                                        max_time=max_time, progress=progress)
-    except ValueError as e:  # fewer than 2 within the bound or max_time (the rest was checked with the grid)
+    except NoCountError as e:  # fewer than 2 within the bound or max_time (an error of point_progress goes on up)
         return dict(reason=str(e), max_steps=max_steps,
                     **({"stopped_by": "max_time"} if str(e).startswith("max_time") else {}))
     out = d.to_dict()

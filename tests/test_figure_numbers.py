@@ -384,6 +384,24 @@ def test_fig3_duration_plan_without_a_cycle_is_a_missing_point(monkeypatch, cycl
     assert diffusivity._di_durations(Params(**FIG3), 0, cycle, True) is None
 
 
+def test_fig3_duration_only_the_counts_own_failure_is_a_missing_point(monkeypatch):
+    """A count with fewer than 2 LEs (``NoCountError``) is a missing point; any other ``ValueError``, such as one
+    raised by a progress callback (``points.reporting``) within the count, goes up (it was a missing point too,
+    silently: an audit)."""
+    from dryfric_jax.durations import NoCountError
+
+    def fails(cls):
+        def run(*a, **k):
+            raise cls("x")
+        return run
+
+    monkeypatch.setattr(diffusivity, "di_long_excursion_duration", fails(NoCountError))
+    assert diffusivity._di_durations(Params(**FIG3), 0, 4.0, True) is None
+    monkeypatch.setattr(diffusivity, "di_long_excursion_duration", fails(ValueError))
+    with pytest.raises(ValueError, match="^x$"):
+        diffusivity._di_durations(Params(**FIG3), 0, 4.0, True)
+
+
 @pytest.mark.parametrize("quick,cycle,n,lanes", [(True, 4.0, 5025, 256), (True, 40.0, 502, 128),
                                                   (False, 4.0, 8192, 256), (False, 1e9, 32, 32)])
 def test_fig3_duration_plan(monkeypatch, quick, cycle, n, lanes):

@@ -119,6 +119,24 @@ def test_a_point_whose_count_is_over_max_work_is_refused_with_the_grid(tmp_path)
     sweep.plan_estimate(dj.Params(**{**dj.FIG3, **pts[0]}), n_excursions=50, max_work=1e9)
 
 
+def test_an_error_of_the_point_progress_callback_in_the_count_goes_up_and_records_nothing(tmp_path):
+    """A ``ValueError`` raised by the caller's ``point_progress`` during a point's count was taken for the count's
+    "fewer than 2 within the bound" and recorded as the point's durations (``{"reason": "bug in my callback"}``, kept
+    on resume: an audit); it goes up now, and the point is not recorded, so a rerun computes it.  The count's own
+    outcome (:class:`~dryfric_jax.NoCountError`) is still recorded (the test below)."""
+    out = str(tmp_path / "s.jsonl")
+
+    def callback(d):
+        if d["stage"] == "durations":
+            raise ValueError("bug in my callback")
+
+    with pytest.raises(ValueError, match="^bug in my callback$"):
+        sweep.run_sweep(sweep.grid(Gamma=[10.0], tau=[0.125]), out, n_excursions=100, durations=64,
+                        point_progress=callback)
+    assert not os.path.exists(out) or _lines(out) == []
+    assert issubclass(dj.NoCountError, ValueError)
+
+
 def test_a_count_cut_short_is_recorded_and_a_truncated_one_exits_3(tmp_path, monkeypatch, capsys):
     """A count with fewer than 2 long excursions within its bound keeps the point's D and says why; one that left
     excursions in flight at its bound (biased low) makes the point truncated: exit 3, as a truncated D does."""

@@ -26,7 +26,7 @@ import numpy as np
 from .. import theory
 from ..chain_law import white_chain_law
 from ..di import make_di_model
-from ..durations import default_duration_h, di_long_excursion_duration, max_steps_for
+from ..durations import NoCountError, default_duration_h, di_long_excursion_duration, max_steps_for
 from ..params import Params, real_or_none
 from ..paths import di_stationary
 from ..pdmp import pdmp_grid_info, threshold_widening
@@ -63,7 +63,7 @@ def _di_durations(p, seed, cycle_s, quick, pts=None):
     run = di_long_excursion_duration if pts is None else pts.duration
     try:
         return run(p, seed, h=h, n_excursions=n, max_steps=max_steps_for(n, le_steps))
-    except ValueError:  # fewer than 2 excursions within the bound
+    except NoCountError:  # fewer than 2 excursions within the bound (a progress callback's error goes on up)
         return None
 
 
