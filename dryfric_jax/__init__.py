@@ -59,6 +59,7 @@ __all__ = [
     "DryfricWarning", "ProjectionWarning", "SmallSampleWarning", "NoEstimateError", "default_h", "Plan",
     "plan_estimate",
     "delta_method", "psi_D", "psi_M", "MIN_RELIABLE_N", "MIN_RELIABLE_PATHS",
-    "theory", "ChainLaw", "white_chain_law", "LEDuration", "NoCountError", "di_long_excursion_duration", "default_duration_h",
+    "theory", "ChainLaw", "white_chain_law", "LEDuration", "NoCountError", "di_long_excursion_duration",
+    "default_duration_h",
     "combine_estimates", "gather_hosts", "enable_compilation_cache",
 ]
