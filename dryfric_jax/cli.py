@@ -709,14 +709,14 @@ def _run(a) -> int:
     _check_out(getattr(a, "out", None))
     if a.cmd == "estimate":
         show = not a.json and sys.stderr.isatty()
-        with _warnings_kept_in_result():
+        # the status line cleared when the run ends, however it ends: the result (its final N and D, which the
+        # last line drawn, after an earlier round, did not show), an error or an interrupt's message on a clean line
+        with _cleared_after(show), _warnings_kept_in_result():
             r = api.estimate_diffusivity(params, a.seed, method=a.method, h=a.h, delta=a.delta,
                                          n_excursions=a.n_excursions, max_steps=a.max_steps,
                                          dtype=a.dtype, rtol=a.rtol, max_time=a.max_time, lanes=a.lanes,
                                          progress=_progress_line if show else None, **_work_options(a),
                                          **({} if a.block is None else dict(block=a.block)))
-        if show:
-            print(file=sys.stderr)
 
         def text(r):
             _print_estimate(r)

@@ -150,6 +150,34 @@ def test_the_progress_line_is_shown_on_a_terminal_only_and_never_under_json(call
     capsys.readouterr()
 
 
+@pytest.mark.parametrize("ends", ["result", "error", "interrupt"])
+def test_the_progress_line_is_cleared_when_the_estimate_ends_however_it_ends(calls, capsys, monkeypatch, ends):
+    """On a terminal the status line is cleared before the result (its last redraw showed an earlier round's N and
+    D), an error's or an interrupt's message: each starts on a clean line.  The message of a run that ended with
+    fewer than 2 excursions was glued onto the status line (an audit).  Mutant: no clearing on an exception."""
+    from dryfric_jax.api import NoEstimateError
+
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
+    end = {"error": NoEstimateError("fewer than 2 complete excursions within the work bounds"),
+           "interrupt": KeyboardInterrupt("fewer than 2 complete excursions before the interrupt")}.get(ends)
+
+    def estimate(*a, progress=None, **kw):
+        progress(dict(n_excursions=1, D=math.nan, D_ci=math.nan, rtol=None, target=2000, elapsed_s=3.0,
+                      left_s=None, left_to=None))
+        if end is not None:
+            raise end
+        return _result()
+
+    monkeypatch.setattr(api, "estimate_diffusivity", estimate)
+    assert main(["estimate"]) == {"result": 0, "error": 1, "interrupt": 130}[ends]
+    cap = capsys.readouterr()
+    line = "\r  N =         1   D = \u2013   (target N = 2000)   3 s\x1b[K"
+    said = {"result": "dryfric: warning: stand-in warning\n", "error": "dryfric: error: fewer than 2 complete excursions within the work bounds\n",
+            "interrupt": "dryfric: interrupted: fewer than 2 complete excursions before the interrupt\n"}[ends]
+    assert cap.err == line + "\r\x1b[K" + said
+    assert cap.out == ("D = 1.5 (stand-in summary)\n" if ends == "result" else "")
+
+
 def test_text_and_json_output_and_the_warnings_on_stderr(calls, capsys):
     """The result's warnings go to stderr, one line each; --json prints the result's to_dict() (its
     warnings included), the text the summary and, for --method auto only, the method's reason.
