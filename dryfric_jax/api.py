@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import math
 import numbers
+import os
+import sys
 import time
 import warnings
 from dataclasses import MISSING, asdict, dataclass, field, fields
@@ -245,6 +247,40 @@ def left_text(d: dict, options: bool = False) -> str:
 def in_flight_text(d: dict) -> str:
     """A long-excursion count's status once it starts no excursion (``stopping``): those still in flight, or done."""
     return f", finishing the {d['in_flight']} in flight" if d["in_flight"] else ", done"
+
+
+def terminal_columns() -> int | None:
+    """The width of the terminal stderr is on, read at each call (the window may be resized), or where stderr has
+    no terminal size (a stand-in in a test), ``COLUMNS``; None where neither gives a number > 0."""
+    try:
+        return os.get_terminal_size(sys.stderr.fileno()).columns or None
+    except (AttributeError, ValueError, OSError):  # no fileno (io.UnsupportedOperation is both), or not a terminal
+        pass
+    try:
+        n = int(os.environ.get("COLUMNS", ""))
+    except ValueError:
+        return None
+    return n if n > 0 else None
+
+
+def fit_text(text: str, columns: int | None, tail: str = "") -> str:
+    """``text + tail`` within ``columns - 1`` characters (None: as it is): a self-overwriting status line must stay
+    on one row, since a carriage return goes back to the start of the last row only, and a line that wrapped left a
+    stale row on the screen at each redraw (an audit: 15 rows by a sweep on 80 columns).  Where it is too long,
+    ``text`` is cut at its end for "…" and ``tail`` (the time so far) kept whole, unless it would take more than
+    half the room: then the whole line is cut at its end."""
+    room = None if columns is None else max(columns - 1, 0)
+    if room is None or len(text) + len(tail) <= room:
+        return text + tail
+    if len(tail) > room // 2:
+        text, tail = text + tail, ""
+    return text[:max(room - len(tail) - 1, 0)] + "…"[:room] + tail
+
+
+def status_line(text: str, tail: str = "") -> str:
+    """A self-overwriting status line on stderr: a carriage return, ``text + tail`` fitted to the terminal's width
+    (:func:`fit_text`, :func:`terminal_columns`) and the rest of the row cleared."""
+    return "\r" + fit_text(text, terminal_columns(), tail) + "\x1b[K"
 
 
 def time_left(elapsed: float, work: float, closed: int, in_flight: int, target: int, *, rtol=None,

@@ -399,15 +399,15 @@ def _progress_line(d):
     """One self-overwriting status line on stderr (terminal only, never under --json): N, D so
     far, the goal, the time so far and the projected time left (``api.time_left``), naming
     ``--max-work`` or ``--max-time`` when that limit is projected to end the run first."""
-    from .api import duration_text, left_text
+    from .api import duration_text, left_text, status_line
 
     rel = d["D_ci"] / abs(d["D"]) if d["D"] == d["D"] and d["D"] else float("nan")
     # before 2 excursions have closed there is no D yet: a dash, not "nan ± nan%"
     shown = f"{d['D']:.5g} ± {100 * rel:.2f}%" if rel == rel else "–"
     goal = f"target {100 * d['rtol']:.2g}%" if d["rtol"] else f"target N = {d['target']}"
     left = left_text(d, options=True)
-    print(f"\r  N = {d['n_excursions']:>9d}   D = {shown}   ({goal})   "
-          f"{duration_text(d.get('elapsed_s', 0.0))}{left}\x1b[K", end="", file=sys.stderr, flush=True)
+    print(status_line(f"  N = {d['n_excursions']:>9d}   D = {shown}   ({goal})",
+                      f"   {duration_text(d.get('elapsed_s', 0.0))}{left}"), end="", file=sys.stderr, flush=True)
 
 
 def _duration_line(d):
@@ -415,12 +415,12 @@ def _duration_line(d):
     excursions counted so far of those asked, the mean of those counted so far (a dash before the first), the time
     so far and the projected time left, naming --max-time when it is projected to end the count first; once no
     excursion starts any more, how many are still in flight.  Cleared when the count ends (its summary follows)."""
-    from .api import duration_text, in_flight_text, left_text
+    from .api import duration_text, in_flight_text, left_text, status_line
 
     mean = f"{d['mean_s']:.4g} s" if d["mean_s"] == d["mean_s"] else "–"
     tail = in_flight_text(d) if d["stopping"] else left_text(d, options=True)
-    print(f"\r  long excursions = {d['n_excursions']:>7d} of {d['target']}   mean so far = {mean}   "
-          f"{duration_text(d['elapsed_s'])}{tail}\x1b[K", end="", file=sys.stderr, flush=True)
+    print(status_line(f"  long excursions = {d['n_excursions']:>7d} of {d['target']}   mean so far = {mean}",
+                      f"   {duration_text(d['elapsed_s'])}{tail}"), end="", file=sys.stderr, flush=True)
 
 
 def _figures_line(d):
@@ -428,7 +428,7 @@ def _figures_line(d):
     with its time, or found already made; on a terminal also one self-overwriting status line while a scene
     computes, naming the run it is at (Figs. 3, 8, 9: the runs so far, the kind and Gamma, tau) with the run's own
     progress (``api.progress_text``), or the stage it is at (the other scenes), and the scene's time so far."""
-    from .api import duration_text, progress_text
+    from .api import duration_text, progress_text, status_line
 
     tty = sys.stderr.isatty()
     tag = f"  {d['scene']} ({d['index']} of {d['total']})"
@@ -446,7 +446,7 @@ def _figures_line(d):
         elif d["stage"] == "step":
             now = d["step"]
         el = f" [{duration_text(d['elapsed_s'])}]" if "elapsed_s" in d else ""  # not at "start" until _Ticking's
-        print(f"\r{tag}: {now}{el}\x1b[K", end="", file=sys.stderr, flush=True)
+        print(status_line(f"{tag}: {now}", el), end="", file=sys.stderr, flush=True)
 
 
 #: taken by whatever writes a line on stderr while ``dryfric figures``' status line is redrawn from another thread

@@ -69,7 +69,7 @@ import numpy as np
 
 from ._version import __version__
 from .api import (DryfricWarning, NoEstimateError, ProjectionWarning, check_progress, check_seed, duration_text,
-                  estimate_diffusivity, progress_text)
+                  estimate_diffusivity, progress_text, status_line, terminal_columns)
 from .durations import (TAU_STEPS, NoCountError, check_duration_run, default_duration_h, di_long_excursion_duration,
                         max_steps_for)
 from .limits import MAX_WORK
@@ -571,8 +571,7 @@ def _axes(points: list[dict]) -> tuple:
     return tuple(k for k in PARAM_KEYS if k in ("Gamma", "tau") or len({_canon(pt.get(k)) for pt in points}) > 1)
 
 
-def _bar(done: int, total: int) -> str:
-    width = 30
+def _bar(done: int, total: int, width: int = 30) -> str:
     fill = int(width * done / max(total, 1))
     return f"[{'#' * fill}{'.' * (width - fill)}] {done}/{total} points"
 
@@ -588,9 +587,16 @@ def point_line(d: dict, axes=("Gamma", "tau")) -> None:
     or ``max_work`` when that limit is projected to stop the point)."""
     if not sys.stderr.isatty():
         return
-    line = (_bar(d["done"], d["total"]) + _where(d["params"], axes) + progress_text(d)
-            + f" [{duration_text(d['elapsed_s'])}]")
-    print("\r" + line[:150].ljust(150), end="", file=sys.stderr, flush=True)
+    rest, el = _where(d["params"], axes) + progress_text(d), f" [{duration_text(d['elapsed_s'])}]"
+    bar = _bar(d["done"], d["total"], _bar_width(d["done"], d["total"], rest + el))
+    print(status_line(bar + rest, el), end="", file=sys.stderr, flush=True)
+
+
+def _bar_width(done: int, total: int, rest: str) -> int:
+    """The bar's width on a terminal: 30, narrowed (to 10 at least) where its line, ``rest`` after it, would not fit
+    the terminal's width (:func:`~dryfric_jax.api.status_line` then cuts what is left over)."""
+    cols = terminal_columns()
+    return 30 if cols is None else max(10, min(30, cols - 1 - len(_bar(done, total, 0)) - len(rest)))
 
 
 def progress_bar(done: int, total: int, rec, axes=("Gamma", "tau")) -> None:
@@ -609,8 +615,8 @@ def progress_bar(done: int, total: int, rec, axes=("Gamma", "tau")) -> None:
             last += f"{status(rec)} ({_first_clause(rec['reason'])})"
         if _time_limited(rec):
             last += " [stopped by max_time]"
-    line = _bar(done, total) + last
     if sys.stderr.isatty():
-        print("\r" + line[:150].ljust(150), end="" if done < total else "\n", file=sys.stderr, flush=True)
+        line = _bar(done, total, _bar_width(done, total, last)) + last
+        print(status_line(line), end="" if done < total else "\n", file=sys.stderr, flush=True)
     elif rec is not None:
-        print(line, file=sys.stderr, flush=True)
+        print(_bar(done, total) + last, file=sys.stderr, flush=True)

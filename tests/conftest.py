@@ -3,6 +3,9 @@ import os
 # the `dryfric` commands the tests run (in this process and in subprocesses, which inherit it) keep no
 # compiled code in the user's cache directory; tests/test_compile_cache.py gives them a directory of its own
 os.environ["DRYFRIC_CACHE_DIR"] = "off"
+# the status lines are fitted to the terminal's width (api.status_line), which a stand-in terminal in a test takes
+# from COLUMNS: unset, so that a test's lines do not depend on the shell it runs in (the width tests set it)
+os.environ.pop("COLUMNS", None)
 
 from dryfric_jax.xla_flags import use_all_cpu_cores  # noqa: E402
 

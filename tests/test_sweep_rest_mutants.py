@@ -187,7 +187,7 @@ def _bar(n):
 
 def test_the_progress_bar_lines(capsys, monkeypatch):
     """Not a terminal: one line per point, none at the start.  A terminal: one line rewritten in place (each
-    "\\r" and padded to 150 columns), ended by a newline once done = total, an empty grid (0 of 0) included.
+    "\\r", the rest of the row cleared), ended by a newline once done = total, an empty grid (0 of 0) included.
     Worked by hand: 1 of 2 fills 15 of 30; D = 1.23456 +- 0.0123 is shown as 1.235+-0.012.  Mutants: a line
     at the start off a terminal; no newline at the end on a terminal; a ZeroDivisionError at 0 of 0; tau
     not shown."""
@@ -207,8 +207,8 @@ def test_the_progress_bar_lines(capsys, monkeypatch):
     sweep.progress_bar(1, 2, ok)
     sweep.progress_bar(2, 2, ok)
     done = _bar(30) + " 2/2 points  Gamma=5 tau=0.5: D=1.235\u00b10.012"
-    assert capsys.readouterr().err == ("\r" + (_bar(0) + " 0/0 points").ljust(150) + "\n" + "\r" + ok_line.ljust(150)
-                                       + "\r" + done.ljust(150) + "\n")
+    assert capsys.readouterr().err == ("\r" + _bar(0) + " 0/0 points\x1b[K\n" + "\r" + ok_line + "\x1b[K"
+                                       + "\r" + done + "\x1b[K\n")
 
 
 def test_the_line_within_a_point(capsys, monkeypatch):
@@ -228,8 +228,8 @@ def test_the_line_within_a_point(capsys, monkeypatch):
     def line(base, axes=("Gamma", "tau"), **kw):
         sweep.point_line({**base, **kw}, axes=axes)
         err = capsys.readouterr().err
-        assert err.startswith("\r" + _bar(7) + " 1/4 points  Gamma=5 tau=0.5") and len(err) == 151
-        return err.rstrip(" ")
+        assert err.startswith("\r" + _bar(7) + " 1/4 points  Gamma=5 tau=0.5") and err.endswith("\x1b[K")
+        return err[:-3]
 
     assert line(d).endswith(": D=1.235e-05\u00b12.8% N=1200 of 20000, ~30 s left [12 s]")
     assert line(d, left_s=None).endswith(": D=1.235e-05\u00b12.8% N=1200 of 20000 [12 s]")
