@@ -293,9 +293,11 @@ def _run(model, keys, n_excursions: int, max_blocks: int, block: int = BLOCK, br
             if deadline is not None and now > deadline:  # the grace after a Ctrl-C is over
                 break
             if max_time is not None and now - t0 > max_time and ended != "interrupted":
-                ended = "max_time"
-                if now - t0 > 2 * max_time:
+                if now - t0 > 2 * max_time:  # those still in flight are cut by the limit, whatever stopped the starts
+                    ended = "max_time"
                     break
+                if not bool(stop[0]):  # the limit stops the starts; where the rule already had, the count ends as
+                    ended = "max_time"  # the rule's (it said "max_time stopped the count at 119 of the 64 asked")
                 stop = jnp.ones_like(stop)
             # the next piece ~PIECE_S long (at most 64x the last: a first piece of compile time says nothing)
             chunk = int(min(max(chunk * PIECE_S / max(now - t, 1e-6), 1), 64 * chunk, 1 << 24))
