@@ -380,23 +380,36 @@ def default_lanes(n_excursions: int) -> int:
 
 
 def check_duration_run(params, h=None, n_excursions: int = 2048, dtype: str = "float64",
-                       max_work: float = MAX_WORK, name: str = "n_excursions"):
+                       max_work: float = MAX_WORK, name: str = "n_excursions", n_lanes: int | None = None):
     """The checks :func:`di_long_excursion_duration` makes before it runs anything, for a sweep to refuse a point
     before its grid runs: the estimator's (:func:`~dryfric_jax.plan.choose`: a stationary state, a simulable tau_L,
     h, the dtype), ``n_excursions`` in [2, 2^40] and the predicted work within ``max_work``
-    (:func:`~dryfric_jax.limits.check_work`).  Returns the plan (its ``h``, default :func:`default_duration_h`, and
-    ``dtype``, float32 only where safe); ``ValueError`` naming the argument otherwise (``n_excursions`` as
-    ``name``: a sweep's setting is ``durations``)."""
-    if h is None and isinstance(params, Params):  # a non-Params is refused by choose, by name
+    (:func:`~dryfric_jax.limits.check_work`) of the LEs the lanes run: ``max(n_excursions, n_lanes) + n_lanes``
+    (``n_lanes`` default :func:`default_lanes`), since every lane seeks its first LE and finishes the one in flight
+    at the stop (for ``n_excursions`` alone, 2 asked in 32 lanes ran 34 times a max_work it passed: an audit).
+    Returns the plan (its ``h``, default :func:`default_duration_h`, and ``dtype``, float32 only where safe);
+    ``ValueError`` naming the argument otherwise (``n_excursions`` as ``name``: a sweep's setting is
+    ``durations``)."""
+    default = h is None and isinstance(params, Params)  # a non-Params is refused by choose, by name
+    if default:
         h = default_duration_h(params)
-    plan = choose(params, "di", h, None, dtype)
+    try:
+        plan = choose(params, "di", h, None, dtype)
+    except ValueError as e:  # the default step refused: say it is tau that is too short, not an h never given
+        if not (default and str(e).startswith("h must")):
+            raise
+        raise ValueError(f"tau = {params.tau:.3g} s is too short for the long-excursion count: its default step "
+                         f"tau/{TAU_STEPS} = {h:.3g} s is refused ({e}); it needs a longer tau, or an h given to it "
+                         "('dryfric duration --h'), which it then warns is coarse against tau") from None
     n_excursions = check_count(name, n_excursions, 2, 2**40, " (long excursions)")
+    lanes = default_lanes(n_excursions) if n_lanes is None else n_lanes
     max_work = check_max_work(max_work)
     try:
-        check_work(params.tau_nd, params.tau_L_nd, params.gamma_bar_nd, params.tau0 / plan.h, n_excursions,
-                   max_work)
+        check_work(params.tau_nd, params.tau_L_nd, params.gamma_bar_nd, params.tau0 / plan.h,
+                   max(n_excursions, lanes) + lanes, max_work)
     except ValueError as e:
-        raise ValueError(f"{e} (here for {name} long excursions: lower it)") from None
+        raise ValueError(f"{e} (here for the {name} long excursions counted in {lanes} lanes, each of which also "
+                         "seeks its first one and finishes the one in flight at the end: lower them)") from None
     return plan
 
 
@@ -429,8 +442,8 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
             of 128).
         dtype: ``"float64"`` or ``"float32"`` (or the dtype), the chain's; float32 where it is not safe runs in
             float64 with a :class:`~dryfric_jax.DryfricWarning`, as :func:`~dryfric_jax.estimate_diffusivity` does.
-        max_work: a run whose predicted lane-steps (:func:`~dryfric_jax.limits.check_work`, for the
-            ``n_excursions`` long excursions) exceed it is refused before it starts, as the estimator's
+        max_work: a run whose predicted lane-steps (:func:`~dryfric_jax.limits.check_work`, for the LEs the lanes
+            run: :func:`check_duration_run`) exceed it is refused before it starts, as the estimator's
             (h = 1e-10 s at Fig. 3's point would run ~15 min to its bound, then fail: an audit).
         bridge: count the crossings of the opposite threshold between two steps of a stuck particle too (module
             docstring; default); ``False`` gives the raw count, whose bias falls only like :math:`\sqrt h`.
@@ -456,10 +469,11 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
     the result's ``n_truncated`` counts the LEs in flight at ``max_steps`` (dropped, with a warning).
     """
     t0 = time.perf_counter()
-    plan = check_duration_run(params, h, n_excursions, dtype, max_work)
+    n_lanes = None if n_lanes is None else check_count("n_lanes", n_lanes, 1, MAX_LANES)
+    plan = check_duration_run(params, h, n_excursions, dtype, max_work, n_lanes=n_lanes)
     key, seed = _key(key)
     n_excursions = int(n_excursions)
-    n_lanes = default_lanes(n_excursions) if n_lanes is None else check_count("n_lanes", n_lanes, 1, MAX_LANES)
+    n_lanes = default_lanes(n_excursions) if n_lanes is None else n_lanes
     max_steps = check_count("max_steps", max_steps, 1, MAX_STEPS, " (blocks of 128 steps counted in 32 bits)")
     max_time = check_max_time(max_time)
     max_time = None if max_time == math.inf else max_time

@@ -139,9 +139,11 @@ def duration_seed(seed: int, params: dict, settings: dict) -> int:
 
 def duration_h(params: Params, h) -> float:
     """The step of a point's long-excursion count: the sweep's ``h`` (None: the D estimator's default) or
-    tau / :data:`~dryfric_jax.durations.TAU_STEPS` where that is smaller, i.e.
-    :func:`~dryfric_jax.durations.default_duration_h` unless ``h`` is finer (the count's bias falls like h and
-    shrinks as tau/h grows: :mod:`dryfric_jax.durations`)."""
+    tau / :data:`~dryfric_jax.durations.TAU_STEPS` where that is smaller (the count's bias falls like h and
+    shrinks as tau/h grows: :mod:`dryfric_jax.durations`); without ``h``, i.e.,
+    :func:`~dryfric_jax.durations.default_duration_h`.  A sweep's ``h`` coarser than the D estimator's default
+    makes the count coarser too (and its bias larger), as it does the D (the docs said the count kept its default
+    step then: an audit)."""
     return default_duration_h(params) if h is None else min(h, params.tau / TAU_STEPS)
 
 
@@ -347,7 +349,8 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
             continue
         if durations is not None:
             try:
-                check_duration_run(p, duration_h(p, h), settings[DURATIONS], dtype, max_work, name="durations")
+                check_duration_run(p, None if h is None else duration_h(p, h), settings[DURATIONS], dtype, max_work,
+                                   name="durations")
             except ValueError as e:
                 refused.setdefault(_ident(seed, pt, settings), (pt, f"durations: {e}"))
     if refused and not skip_refused:

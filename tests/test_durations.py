@@ -278,10 +278,47 @@ def test_a_run_predicted_beyond_max_work_is_refused_before_it_starts(monkeypatch
 
     monkeypatch.setattr(durations, "_run", lambda *a, **k: pytest.fail("ran"))
     p = Params(**FIG3)
-    with pytest.raises(ValueError, match=r"max_work must be >= .* \(here for n_excursions long excursions"):
+    with pytest.raises(ValueError, match=r"max_work must be >= .* \(here for the n_excursions long excursions "
+                                         r"counted in 256 lanes, each of which also seeks"):
         di_long_excursion_duration(p, 0, h=1e-10)
     with pytest.raises(ValueError, match="max_work must be a finite number"):
         di_long_excursion_duration(p, 0, max_work=float("nan"))
+
+
+@pytest.mark.parametrize("n,lanes,runs", [(2, None, 64), (2, 1024, 2048), (2048, None, 2304), (100, 8, 108)])
+def test_the_work_predicted_is_that_of_the_excursions_the_lanes_run(monkeypatch, n, lanes, runs):
+    """Every lane seeks its first LE and finishes the one in flight at the stop, so the lanes run about
+    max(n, lanes) + lanes LEs: by hand, 2 asked in the default 32 lanes run 64, in 1024 lanes 2048; 2048 in the
+    default 256 lanes 2304; 100 in 8 lanes 108.  The prediction for n alone let 2 asked in 32 lanes run 34 times a
+    max_work it passed (an audit).  The limit is the estimator's prediction (limits.check_work) for ``runs`` LEs:
+    refused just below it, accepted at it."""
+    from dryfric_jax import durations
+    from dryfric_jax.limits import check_work
+
+    monkeypatch.setattr(durations, "_run", lambda *a, **k: pytest.fail("ran"))
+    p = Params(**FIG3)
+    h = durations.default_duration_h(p)
+    need = check_work(p.tau_nd, p.tau_L_nd, p.gamma_bar_nd, p.tau0 / h, runs, 1e300)
+    kw = {} if lanes is None else dict(n_lanes=lanes)
+    with pytest.raises(ValueError, match=r"^max_work must be >= "):
+        durations.check_duration_run(p, h, n, max_work=need * (1 - 1e-9), **kw)
+    durations.check_duration_run(p, h, n, max_work=need * (1 + 1e-9), **kw)
+    with pytest.raises(ValueError, match=r"^max_work must be >= "):
+        di_long_excursion_duration(p, 0, n_excursions=n, max_work=need * (1 - 1e-9), **kw)
+
+
+def test_a_tau_too_short_for_the_default_step_is_named_not_an_h_never_given(monkeypatch):
+    """tau = 1e-11 s: the default step tau/700 falls below the smallest admissible h, and the refusal named h, which
+    the user never gave (an audit; ``estimate`` runs there).  It names tau now; an h given is refused as before."""
+    from dryfric_jax import durations
+
+    monkeypatch.setattr(durations, "_run", lambda *a, **k: pytest.fail("ran"))
+    p = Params(**dict(FIG3, tau=1e-11))
+    with pytest.raises(ValueError, match=r"^tau = 1e-11 s is too short for the long-excursion count: its default "
+                                         r"step tau/700 = 1\.43e-14 s is refused \(h must be in "):
+        di_long_excursion_duration(p, 0)
+    with pytest.raises(ValueError, match=r"^h must be in "):
+        di_long_excursion_duration(p, 0, h=1e-15)
 
 
 def test_the_default_step_is_the_figures():
