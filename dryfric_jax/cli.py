@@ -10,7 +10,8 @@ excursions hit the work bound, so it is biased (``--allow-truncated`` accepts it
 ``sweep`` runs every point it can: 1 if a point ended without a result, else 3 if a point's
 excursions were truncated (``--allow-truncated``), else 0; its refused and failed points are
 recorded in the results file with their reasons.  ``duration``: 3 when lanes hit ``--max-steps`` (the mean
-printed is biased low), 2 when fewer than 2 lanes reached their count within it (its ``ValueError`` in Python).
+printed is biased low), 1 when fewer than 2 long excursions were counted within it or ``--max-time`` (as
+``estimate``; its :class:`~dryfric_jax.NoCountError` in Python: it was 2, a user mistake's, after simulating).
 """
 from __future__ import annotations
 
@@ -27,6 +28,7 @@ import warnings
 from . import compile_cache, interrupts
 from .api import MAX_FIGURE_SEED
 from .durations import MAX_STEPS as DUR_MAX_STEPS
+from .durations import NoCountError
 from .estimators import MIN_PATHS, MIN_RELIABLE_PATHS
 from .outfiles import check_writable, check_writable_dir, dumps, loads, write_atomic
 from .params import FIG3, Params
@@ -895,6 +897,9 @@ def main(argv=None) -> int:
         if rc == 130:  # a sweep or figures run stopped by Ctrl-C (its results kept): no timer holds the exit
             interrupts.cancel_timers()
         return interrupts.exit_status(rc)
+    except NoCountError as exc:  # a count ran and found fewer than 2: no result possible, as for estimate
+        print(f"dryfric: error: {exc}", file=sys.stderr)
+        return 1
     except (_UserError, ValueError) as exc:
         print(f"dryfric: error: {exc}", file=sys.stderr)
         return 2
