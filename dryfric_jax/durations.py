@@ -522,6 +522,10 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
         stop_note = (f"interrupted: {k} of the {n_excursions} long excursions asked counted, none started after it"
                      + (f"; {cut} still in flight are left out, so the mean is biased low" if cut
                         else ", those in flight finished"))
+    elif ended == "max_time" and k >= n_excursions:  # the rule had stopped the starts; twice max_time cut the rest
+        stop_note = (f"max_time = {max_time:g} s: at twice it {cut} long excursions still in flight, after the rule "
+                     f"had stopped the starts ({k} counted of the {n_excursions} asked), are left out, so the mean "
+                     "is biased low")
     elif ended == "max_time":
         stop_note = (f"max_time = {max_time:g} s stopped the count at {k} of the {n_excursions} long excursions "
                      "asked: none started after it" + (f"; {cut} still in flight at twice it are left out, so the "

@@ -497,6 +497,13 @@ def test_max_time_stops_new_excursions_then_cuts_at_twice_it(monkeypatch):
         e = di_long_excursion_duration(FAST, 5, n_excursions=64, n_lanes=64, max_time=t)
         assert (e.stopped_by, e.n_excursions, e.mean, e.n_truncated) == ("n_excursions", d.n_excursions, d.mean, 0)
         assert not any(w.startswith("max_time") for w in e.warnings), t
+    # ... and where twice max_time cut those in flight after the rule stopped the starts (early in the run here):
+    # the limit's, said as such (it said "stopped the count at 118 of the 64 asked: none started after it")
+    clock[0] = 0.0
+    said = r"^max_time = [0-9.]+ s: at twice it \d+ long excursions still in flight, after the rule had stopped the "
+    with pytest.warns(dj.DryfricWarning, match=said + r"starts \(\d+ counted of the 64 "):
+        f = di_long_excursion_duration(FAST, 5, n_excursions=64, n_lanes=64, max_time=0.3 * ends)
+    assert f.stopped_by == "max_time" and f.n_truncated > 0 and f.n_excursions + f.n_truncated == d.n_excursions
 
 
 def _ctrl_c_at(monkeypatch, pieces):
