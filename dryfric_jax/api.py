@@ -538,7 +538,9 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
         progress: optional callback ``progress(dict)`` after every round, with the keys
             ``n_excursions``, ``D`` and ``D_ci`` (so far, m^2/s), ``target`` (``n_excursions``
             asked for), ``rtol``, ``elapsed_s``, and the projection ``left_s`` (seconds, None
-            until known) to the limit ``left_to`` that ends the run first (:func:`time_left`).
+            until known) to the limit ``left_to`` that ends the run first (:func:`time_left`).  An exception
+            it raises ends the run and goes on up, the rounds run so far lost (it is first called after the
+            first round, so a faulty callback fails early).
 
     A Ctrl-C between rounds returns what the completed rounds reached (``stopped_by =
     "interrupted"``); nothing already simulated is lost.  Before 2 excursions have closed there is

@@ -465,7 +465,8 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
             far, s; the long ones finish last, so it is the result's mean only at the end), ``stopping``,
             ``elapsed_s``, ``left_s`` and ``left_to`` (the projected time left and the limit that ends the run,
             as the estimator's; None until the second piece and once stopping); what ``dryfric duration`` shows
-            on a terminal.  It never changes the numbers (tested).
+            on a terminal.  It never changes the numbers (tested).  An exception it raises ends the count and
+            goes on up (:class:`NoCountError` is the count's own).
 
     A Ctrl-C (SIGTERM under ``dryfric``) acts as it does on the estimator: the first starts no long excursion and
     finishes those in flight within :data:`~dryfric_jax.rounds.INTERRUPT_GRACE_S`, a second drops them, and the

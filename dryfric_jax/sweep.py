@@ -288,7 +288,9 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
             after every round (:func:`~dryfric_jax.estimate_diffusivity`'s ``progress``) with ``stage = "D"``,
             or its long-excursion count after every piece (:func:`~dryfric_jax.di_long_excursion_duration`'s)
             with ``stage = "durations"``; both with the point's ``params`` and the sweep's ``done`` and
-            ``total`` (points finished, of the grid's).  :func:`point_line` shows it on a terminal.
+            ``total`` (points finished, of the grid's).  :func:`point_line` shows it on a terminal.  An
+            exception it (or ``progress``) raises ends the sweep and goes on up; the point it stopped is not
+            recorded (the finished ones are), so the same call resumes there.
         durations: None, or an integer N in [2, 2^40]: also count the paper's mean long-excursion duration
             (threshold to threshold, Fig. 3's right panel) at each point, over N long excursions of the DI
             (:func:`~dryfric_jax.di_long_excursion_duration`, whatever ``method``: for the DI the D estimate's

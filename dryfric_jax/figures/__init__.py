@@ -39,7 +39,8 @@ def run_figures(which: str, out_dir: str, quick: bool = False, seed: int = 0, re
     (``kind``, ``method``, ``params``, ``runs``, ``run``) and ``elapsed_s`` (the scene's); ``"step"`` as a scene without
     runs starts a stage, with its text ``step`` (:func:`~dryfric_jax.figures.points.report_step`) and ``elapsed_s``;
     ``"done"`` once it is written, with ``wall_s``, or once it is found finished (``kept = True``, not run again).
-    It changes no number."""
+    It changes no number.  An exception it raises ends the call and goes on up; the scenes written and the runs kept
+    stay, so the same call resumes."""
     if which != "all" and which not in SCENES:
         raise ValueError(f"fig must be one of {['all', *SCENES]} (got {which!r})")
     seed = check_seed(seed, MAX_FIGURE_SEED, "2^62 - 2^20 (the scenes add offsets)")
