@@ -302,7 +302,7 @@ def build_parser() -> argparse.ArgumentParser:
     du.add_argument("--max-time", type=_number("max-time"), default=None,
                     help="time limit, s: past it no excursion starts and those in flight finish (the mean stays "
                          "unbiased, over fewer); at twice it those still in flight are left out (exit 3)")
-    du.add_argument("--n-lanes", type=_int_at_least("n-lanes", 1, 2**22, "2^22"), default=None,
+    du.add_argument("--n-lanes", type=_int_at_least("n-lanes", 1, 2**21, "2^21"), default=None,
                     help="lanes (default: the power of 2 nearest n-excursions/3, in [32, 256]); they change the "
                          "random numbers, not the law")
     du.add_argument("--max-steps", type=_int_at_least("max-steps", 1, DUR_MAX_STEPS, "(2^31 - 2) x 128"),

@@ -98,11 +98,11 @@ from . import rng
 from ._version import __version__
 from .api import DryfricWarning, _key, _Record, _with_warnings, category, check_progress, key_id, time_left
 from .di import make_di_model
-from .excursions import BLOCK, block_keys
+from .excursions import BLOCK, MAX_LAYOUT, block_keys
 from .estimators import t_quantile
 from .limits import MAX_WORK, check_work
 from .params import Params
-from .plan import MAX_LANES, check_count, check_max_time, check_max_work, choose, default_h
+from .plan import check_count, check_max_time, check_max_work, choose, default_h
 from .rounds import _ABANDON, INTERRUPT_GRACE_S
 from .sharding import over_lanes
 
@@ -157,6 +157,12 @@ class LEDuration(_Record):
 
     def __str__(self) -> str:
         return _with_warnings(self.summary(), self.warnings)
+
+
+#: the most lanes a count takes: a block's normals are drawn at once, and lanes x the block stay within the
+#: estimator's bound (:data:`~dryfric_jax.excursions.MAX_LAYOUT`; 2^22 lanes were taken, ~18 GB extrapolated from
+#: 1.5 and 2.6 GB measured at 2^18 and 2^19: an audit)
+MAX_COUNT_LANES = MAX_LAYOUT // BLOCK
 
 
 def bridge_crossing(d0, d1, var1):
@@ -445,7 +451,8 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
             :func:`~dryfric_jax.plan.default_h`, finer where tau/h would fall below :data:`TAU_STEPS`).
         n_excursions: long excursions to count, an integer in [2, 2^40]: once the lanes' total reaches it no lane
             starts another, and those in flight are finished (so a run counts a few more).
-        n_lanes: lanes, an integer in [1, 2^22] (default :func:`default_lanes`); they change the bits, not the
+        n_lanes: lanes, an integer in [1, 2^21] (default :func:`default_lanes`; 2^21 x 128 steps is the
+            estimator's bound on a block's normals, ~4.6 GB here); they change the bits, not the
             law.
         max_steps: the loop's bound in steps, an integer in [1, :data:`MAX_STEPS`] (rounded up to whole blocks
             of 128).
@@ -479,7 +486,9 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
     the result's ``n_truncated`` counts the LEs in flight at ``max_steps`` (dropped, with a warning).
     """
     t0 = time.perf_counter()
-    n_lanes = None if n_lanes is None else check_count("n_lanes", n_lanes, 1, MAX_LANES)
+    n_lanes = None if n_lanes is None else check_count("n_lanes", n_lanes, 1, MAX_COUNT_LANES,
+                                                       " (2^28 / the block of 128 steps: a block's normals are "
+                                                       "drawn at once, as the estimator's)")
     plan = check_duration_run(params, h, n_excursions, dtype, max_work, n_lanes=n_lanes)
     key, seed = _key(key)
     n_excursions = int(n_excursions)

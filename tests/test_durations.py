@@ -117,15 +117,18 @@ def test_max_steps_beyond_the_32_bit_block_count_is_refused():
 
 
 def test_bad_lane_counts_and_dtypes():
-    """2^24 lanes ran out of memory instead of a ValueError (an audit): the engine's lane cap holds here too.
-    A dtype object is taken like its name (``jnp.float32`` was refused)."""
+    """2^24 lanes ran out of memory instead of a ValueError (an audit): the estimator's bound on a block's normals,
+    lanes x K <= 2^28, holds here too: 2^21 lanes of 128 steps (2^22 were taken, ~18 GB: another audit).  A dtype
+    object is taken like its name (``jnp.float32`` was refused)."""
     import jax.numpy as jnp
 
-    from dryfric_jax.plan import MAX_LANES
+    from dryfric_jax import durations
 
     p = Params(**FIG3)
-    with pytest.raises(ValueError, match="n_lanes"):
-        di_long_excursion_duration(p, 0, n_lanes=MAX_LANES + 1)
+    assert durations.MAX_COUNT_LANES == 2**28 // 128 == 2**21
+    for n in (2**21 + 1, 2**22):
+        with pytest.raises(ValueError, match=r"^n_lanes must be an integer in \[1, 2097152\] \(2\^28 / the block"):
+            di_long_excursion_duration(p, 0, n_lanes=n)
     a = di_long_excursion_duration(p, 2, n_excursions=16, dtype=jnp.float32)
     assert a == di_long_excursion_duration(p, 2, n_excursions=16, dtype="float32")
     with pytest.raises(ValueError, match="dtype"):
