@@ -165,6 +165,11 @@ class LEDuration(_Record):
 MAX_COUNT_LANES = MAX_LAYOUT // BLOCK
 
 
+#: what :func:`_run` says where the rule stopped the starts and twice ``max_time`` cut the LEs still in flight (the
+#: result's ``stopped_by`` is ``"max_time"``, its note says the rule had stopped the starts)
+RULE_THEN_MAX_TIME = "rule_then_max_time"
+
+
 def bridge_crossing(d0, d1, var1):
     r"""The probability that a Brownian bridge over one step, from distance ``d0`` inside a threshold to ``d1``
     inside it, with the step's variance ``var1`` (:math:`\operatorname{Var}(X_{n+1}\mid X_n)`), reached it:
@@ -265,7 +270,8 @@ def _run(model, keys, n_excursions: int, max_blocks: int, block: int = BLOCK, br
     core).  Returns numpy arrays per lane (those of ``keys`` only): the LEs counted, the sums of their durations
     and of their squares (steps), whether the lane stopped (not in flight at the end), whether it started an LE,
     its steps; then the blocks run and what ended the loop (``"n_excursions"``: every lane stopped by the rule;
-    ``"max_steps"``: the bound; ``"max_time"``; ``"interrupted"``: a Ctrl-C, SIGTERM under ``dryfric``).
+    ``"max_steps"``: the bound; ``"max_time"``: the limit stopped the starts; :data:`RULE_THEN_MAX_TIME`: the rule
+    did, and twice the limit cut those in flight; ``"interrupted"``: a Ctrl-C, SIGTERM under ``dryfric``).
 
     The lanes are padded to a multiple of the devices with lanes that count nothing.  The numbers are those of one
     device, and of one piece, to the bit (tested).  Between pieces a Ctrl-C takes effect (a compiled loop of
@@ -309,7 +315,7 @@ def _run(model, keys, n_excursions: int, max_blocks: int, block: int = BLOCK, br
                 break
             if max_time is not None and now - t0 > max_time and ended != "interrupted":
                 if now - t0 > 2 * max_time:  # those still in flight are cut by the limit, whatever stopped the starts
-                    ended = "max_time"
+                    ended = "max_time" if ended == "max_time" else RULE_THEN_MAX_TIME
                     break
                 if not bool(stop[0]):  # the limit stops the starts; where the rule already had, the count ends as
                     ended = "max_time"  # the rule's (it said "max_time stopped the count at 119 of the 64 asked")
@@ -518,21 +524,23 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
     N, S, Q, off, started, steps, blocks, ended = _run(model, jax.random.split(key, n_lanes), n_excursions,
                                                        max_blocks, block=BLOCK, bridge=bridge, max_time=max_time,
                                                        t0=t0, progress=None if progress is None else report)
+    rule_first = ended == RULE_THEN_MAX_TIME  # the rule stopped the starts, twice max_time cut those in flight
+    ended = "max_time" if rule_first else ended
     k, cut = int(N.sum()), int((started & ~off).sum())
     if k < 2:  # no mean or no spread: say why rather than return a NaN
         if ended == "interrupted":  # nothing to keep: a plain Ctrl-C
             raise KeyboardInterrupt
         if ended == "max_time":
             raise NoCountError(f"max_time = {max_time:g} s is too short here: the {n_lanes} lanes counted {k} long "
-                             "excursions within twice it (at least 2 must); raise max_time")
+                               "excursions within twice it (at least 2 must); raise max_time")
         raise NoCountError(f"max_steps = {bound} is too small here: the {n_lanes} lanes counted {k} long excursions "
-                         f"within it (at least 2 must); raise max_steps")
+                           f"within it (at least 2 must); raise max_steps")
     stop_note = None  # what stopped the count short of the rule, if anything
     if ended == "interrupted":
         stop_note = (f"interrupted: {k} of the {n_excursions} long excursions asked counted, none started after it"
                      + (f"; {cut} still in flight are left out, so the mean is biased low" if cut
                         else ", those in flight finished"))
-    elif ended == "max_time" and k >= n_excursions:  # the rule had stopped the starts; twice max_time cut the rest
+    elif rule_first:  # the rule had stopped the starts (not max_time: an audit), twice max_time cut the rest
         stop_note = (f"max_time = {max_time:g} s: at twice it {cut} long excursions still in flight, after the rule "
                      f"had stopped the starts ({k} counted of the {n_excursions} asked), are left out, so the mean "
                      "is biased low")
