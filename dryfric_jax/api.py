@@ -253,7 +253,9 @@ def terminal_columns() -> int | None:
     """The width of the terminal stderr is on, read at each call (the window may be resized), or where stderr has
     no terminal size (a stand-in in a test), ``COLUMNS``; None where neither gives a number > 0."""
     try:
-        return os.get_terminal_size(sys.stderr.fileno()).columns or None
+        n = os.get_terminal_size(sys.stderr.fileno()).columns
+        if n > 0:  # a pty not yet sized says 0: then COLUMNS (a review)
+            return n
     except (AttributeError, ValueError, OSError):  # no fileno (io.UnsupportedOperation is both), or not a terminal
         pass
     try:
@@ -267,12 +269,12 @@ def fit_text(text: str, columns: int | None, tail: str = "") -> str:
     """``text + tail`` within ``columns - 1`` characters (None: as it is): a self-overwriting status line must stay
     on one row, since a carriage return goes back to the start of the last row only, and a line that wrapped left a
     stale row on the screen at each redraw (an audit: 15 rows by a sweep on 80 columns).  Where it is too long,
-    ``text`` is cut at its end for "…" and ``tail`` (the time so far) kept whole, unless it would take more than
-    half the room: then the whole line is cut at its end."""
+    ``text`` is cut at its end for "…" and ``tail`` (the times) kept whole, as long as that leaves ``text`` its first
+    24 characters (half the room where that is less); otherwise the whole line is cut at its end."""
     room = None if columns is None else max(columns - 1, 0)
     if room is None or len(text) + len(tail) <= room:
         return text + tail
-    if len(tail) > room // 2:
+    if len(tail) > room - 1 - min(24, room // 2):
         text, tail = text + tail, ""
     return text[:max(room - len(tail) - 1, 0)] + "…"[:room] + tail
 

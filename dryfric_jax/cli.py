@@ -302,7 +302,7 @@ def build_parser() -> argparse.ArgumentParser:
                          "are finished, so a few more are counted")
     du.add_argument("--max-time", type=_number("max-time"), default=None,
                     help="time limit, s: past it no excursion starts and those in flight finish (the mean stays "
-                         "unbiased, over fewer); at twice it those still in flight are left out (exit 3)")
+                         "consistent, over fewer); at twice it those still in flight are left out (exit 3)")
     du.add_argument("--n-lanes", type=_int_at_least("n-lanes", 1, 2**21, "2^21"), default=None,
                     help="lanes (default: the power of 2 nearest n-excursions/3, in [32, 256]); they change the "
                          "random numbers, not the law")
@@ -490,7 +490,10 @@ def _ticking(draw, show: bool, period: float = 1.0):
 
     def loop():
         while not stop.wait(period):
-            ticking.tick()
+            try:
+                ticking.tick()
+            except OSError:  # stderr gone or not writable now: the redraws stop, the run goes on
+                return
 
     thread = threading.Thread(target=loop, name="dryfric-status-line", daemon=True)
     thread.start()

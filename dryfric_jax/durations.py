@@ -470,9 +470,11 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
         bridge: count the crossings of the opposite threshold between two steps of a stuck particle too (module
             docstring; default); ``False`` gives the raw count, whose bias falls only like :math:`\sqrt h`.
         max_time: a time limit in seconds (> 0; None or inf: none), as the estimator's: past it no lane starts a
-            long excursion and those in flight finish (so the count stays unbiased, with fewer than asked); at twice
-            it the loop ends and those still in flight are left out (``n_truncated``).  The result's
-            ``stopped_by`` says ``"max_time"``; a count that ends within it has the bits it has without it.
+            long excursion and those in flight finish (so the count stays consistent, with fewer than asked); at
+            twice it the loop ends and those still in flight are left out (``n_truncated``).  The result's
+            ``stopped_by`` says ``"max_time"`` (also where the rule had stopped the starts and twice it cut those
+            in flight: its note says so); a count that ends within twice it after the rule stopped the starts, or
+            within it, has the bits it has without it.
         progress: optional callback ``progress(dict)`` after every piece of the loop (~:data:`PIECE_S` s), with
             the keys ``n_excursions`` (counted so far), ``target``, ``in_flight``, ``mean_s`` (of those counted so
             far, s; the long ones finish last, so it is the result's mean only at the end), ``stopping``,

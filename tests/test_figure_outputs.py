@@ -400,8 +400,10 @@ def test_the_ticking_thread_runs_while_the_block_does_and_not_after():
     terminal."""
     import threading
     import time
+    import warnings
 
-    from dryfric_jax.cli import _LINE_LOCK, _ticking
+    from dryfric_jax.api import DryfricWarning
+    from dryfric_jax.cli import _LINE_LOCK, _Ticking, _ticking, _warnings_as_lines
 
     drawn = []
     before = threading.active_count()
@@ -425,3 +427,18 @@ def test_the_ticking_thread_runs_while_the_block_does_and_not_after():
             n = len(drawn)
             time.sleep(0.1)
             assert len(drawn) == n
+    # a line drawn (the callback) and a warning's line take the lock too: from another thread they wait for it
+    said_lines = []
+    t = _Ticking(said_lines.append)
+    with _warnings_as_lines():
+        shown = warnings.showwarning
+        with _LINE_LOCK:
+            others = [threading.Thread(target=t, args=(dict(stage="step"),)),
+                      threading.Thread(target=shown, args=("w", DryfricWarning, "f", 1))]
+            for th in others:
+                th.start()
+            time.sleep(0.1)
+            assert said_lines == [] and all(th.is_alive() for th in others)
+        for th in others:
+            th.join(5)
+    assert said_lines == [dict(stage="step")]

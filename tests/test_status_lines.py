@@ -11,12 +11,12 @@ from dryfric_jax.params import FIG3
 
 def test_fit_text_by_hand():
     """30 characters in 21 columns: room for 20, 19 of them and "…".  With a tail of 5 (the time so far): 14, "…" and
-    the tail; a tail of 11, over half the room, is cut with the rest.  A text that fits, or no width known, is left
-    as it is.  Mutants: room for the full width (the cursor then waits at the last column, and some terminals
-    wrap); the tail dropped."""
+    the tail; a tail of 11, which would leave the text fewer than half the room (10), is cut with the rest.  A
+    text that fits, or no width known, is left as it is.  Mutants: room for the full width (the cursor then waits
+    at the last column, and some terminals wrap); the tail dropped."""
     text = "abcdefghijklmnopqrstuvwxyz0123"
     assert api.fit_text(text, 21) == "abcdefghijklmnopqrs\u2026"
-    assert api.fit_text(text, 21, " [5 s]"[1:]) == "abcdefghijklmn\u2026[5 s]"
+    assert api.fit_text(text, 21, "[5 s]") == "abcdefghijklmn\u2026[5 s]"
     assert api.fit_text(text, 21, " [12.5 min]") == "abcdefghijklmnopqrs\u2026"
     assert api.fit_text(text, 31) == text and api.fit_text(text, 30) != text and api.fit_text(text, None) == text
     assert api.fit_text(text, 26, "[5 s]") == "abcdefghijklmnopqrs\u2026[5 s]"
@@ -39,6 +39,9 @@ def test_the_width_is_the_terminals_then_columns(monkeypatch):
     for bad in ("", "x", "0", "-3"):
         monkeypatch.setenv("COLUMNS", bad)
         assert api.terminal_columns() is None
+    monkeypatch.setattr(os, "get_terminal_size", lambda fd: os.terminal_size((0, 0)))  # a pty not yet sized
+    monkeypatch.setenv("COLUMNS", "100")
+    assert api.terminal_columns() == 100
     monkeypatch.delenv("COLUMNS")
     assert api.terminal_columns() is None and api.status_line("x" * 500) == "\r" + "x" * 500 + "\x1b[K"
 
@@ -67,6 +70,10 @@ def test_every_status_line_fits_80_columns_and_keeps_its_times(capsys, monkeypat
         assert len(err) == 1 + 79 + 3 and "\u2026" in err, err
     sweep.progress_bar(1, 4, None)  # short: as it is
     assert capsys.readouterr().err == "\r[" + "#" * 7 + "." * 23 + "] 1/4 points\x1b[K"
-    _progress_line(dict(est, rtol=None, left_to="max_work"))  # a time part over half the width: cut with the rest
-    assert capsys.readouterr().err == ("\r  N =      1200   D = 0.002 \u00b1 17.00%   (target N = 100000)   2.5 min, "
-                                       "~66.7 mi\u2026\x1b[K")
+    _progress_line(dict(est, left_to="max_work"))  # a long time part (48): kept while the text keeps 24 or more
+    assert capsys.readouterr().err == ("\r  N =      1200   D = 0.002 \u00b1 \u2026   2.5 min, ~66.7 min left "
+                                       "(stops at --max-work)\x1b[K")
+    monkeypatch.setenv("COLUMNS", "70")  # room for 20 of the text: the line cut at its end
+    _progress_line(dict(est, left_to="max_work"))
+    assert capsys.readouterr().err == ("\r  N =      1200   D = 0.002 \u00b1 17.00%   (target N = 100000)   2.5 "
+                                       "min\u2026\x1b[K")
