@@ -170,6 +170,12 @@ MAX_COUNT_LANES = MAX_LAYOUT // BLOCK
 RULE_THEN_MAX_TIME = "rule_then_max_time"
 
 
+def check_lanes(n_lanes) -> int:
+    """``n_lanes`` as an int; ``ValueError`` naming it unless it is an integer in [1, :data:`MAX_COUNT_LANES`]."""
+    return check_count("n_lanes", n_lanes, 1, MAX_COUNT_LANES,
+                       " (2^28 / the block of 128 steps: a block's normals are drawn at once, as the estimator's)")
+
+
 def bridge_crossing(d0, d1, var1):
     r"""The probability that a Brownian bridge over one step, from distance ``d0`` inside a threshold to ``d1``
     inside it, with the step's variance ``var1`` (:math:`\operatorname{Var}(X_{n+1}\mid X_n)`), reached it:
@@ -423,7 +429,7 @@ def check_duration_run(params, h=None, n_excursions: int = 2048, dtype: str = "f
                          f"tau/{TAU_STEPS} = {h:.3g} s is refused ({e}); it needs a longer tau, or an h given to it "
                          "('dryfric duration --h'), which it then warns is coarse against tau") from None
     n_excursions = check_count(name, n_excursions, 2, 2**40, " (long excursions)")
-    lanes = default_lanes(n_excursions) if n_lanes is None else n_lanes
+    lanes = default_lanes(n_excursions) if n_lanes is None else check_lanes(n_lanes)
     max_work = check_max_work(max_work)
     try:
         check_work(params.tau_nd, params.tau_L_nd, params.gamma_bar_nd, params.tau0 / plan.h,
@@ -494,9 +500,7 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
     the result's ``n_truncated`` counts the LEs in flight at ``max_steps`` (dropped, with a warning).
     """
     t0 = time.perf_counter()
-    n_lanes = None if n_lanes is None else check_count("n_lanes", n_lanes, 1, MAX_COUNT_LANES,
-                                                       " (2^28 / the block of 128 steps: a block's normals are "
-                                                       "drawn at once, as the estimator's)")
+    n_lanes = None if n_lanes is None else check_lanes(n_lanes)
     plan = check_duration_run(params, h, n_excursions, dtype, max_work, n_lanes=n_lanes)
     key, seed = _key(key)
     n_excursions = int(n_excursions)

@@ -131,6 +131,9 @@ def test_bad_lane_counts_and_dtypes():
     for n in (2**21 + 1, 2**22):
         with pytest.raises(ValueError, match=r"^n_lanes must be an integer in \[1, 2097152\] \(2\^28 / the block"):
             di_long_excursion_duration(p, 0, n_lanes=n)
+    for bad in (0, -4, 2.5, True):  # the sweep's planner (check_duration_run) checks them too
+        with pytest.raises(ValueError, match=r"^n_lanes must be an integer in \[1, 2097152\]"):
+            durations.check_duration_run(p, None, 64, n_lanes=bad)
     a = di_long_excursion_duration(p, 2, n_excursions=16, dtype=jnp.float32)
     assert a == di_long_excursion_duration(p, 2, n_excursions=16, dtype="float32")
     with pytest.raises(ValueError, match="dtype"):
