@@ -27,8 +27,8 @@ import warnings
 
 from . import compile_cache, interrupts
 from .api import MAX_FIGURE_SEED
+from .durations import MAX_COUNT_LANES, NoCountError
 from .durations import MAX_STEPS as DUR_MAX_STEPS
-from .durations import NoCountError
 from .estimators import MIN_PATHS, MIN_RELIABLE_PATHS
 from .outfiles import check_writable, check_writable_dir, dumps, loads, write_atomic
 from .params import FIG3, Params
@@ -303,7 +303,7 @@ def build_parser() -> argparse.ArgumentParser:
     du.add_argument("--max-time", type=_number("max-time"), default=None,
                     help="time limit, s: past it no excursion starts and those in flight finish (the mean stays "
                          "consistent, over fewer); at twice it those still in flight are left out (exit 3)")
-    du.add_argument("--n-lanes", type=_int_at_least("n-lanes", 1, 2**21, "2^21"), default=None,
+    du.add_argument("--n-lanes", type=_int_at_least("n-lanes", 1, MAX_COUNT_LANES, "2^21"), default=None,
                     help="lanes (default: the power of 2 nearest n-excursions/3, in [32, 256]); they change the "
                          "random numbers, not the law")
     du.add_argument("--max-steps", type=_int_at_least("max-steps", 1, DUR_MAX_STEPS, "(2^31 - 2) x 128"),

@@ -500,11 +500,10 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
     the result's ``n_truncated`` counts the LEs in flight at ``max_steps`` (dropped, with a warning).
     """
     t0 = time.perf_counter()
-    n_lanes = None if n_lanes is None else check_lanes(n_lanes)
-    plan = check_duration_run(params, h, n_excursions, dtype, max_work, n_lanes=n_lanes)
+    plan = check_duration_run(params, h, n_excursions, dtype, max_work, n_lanes=n_lanes)  # n_lanes checked there
     key, seed = _key(key)
     n_excursions = int(n_excursions)
-    n_lanes = default_lanes(n_excursions) if n_lanes is None else n_lanes
+    n_lanes = default_lanes(n_excursions) if n_lanes is None else check_lanes(n_lanes)
     max_steps = check_count("max_steps", max_steps, 1, MAX_STEPS, " (blocks of 128 steps counted in 32 bits)")
     max_time = check_max_time(max_time)
     max_time = None if max_time == math.inf else max_time
