@@ -307,9 +307,9 @@ def build_parser() -> argparse.ArgumentParser:
                     help="lanes (default: the power of 2 nearest n-excursions/3, in [32, 256]); they change the "
                          "random numbers, not the law")
     du.add_argument("--max-steps", type=_int_at_least("max-steps", 1, DUR_MAX_STEPS, "(2^31 - 2) x 128"),
-                    default=10**8,
-                    help="bound on the loop's steps (default 1e8); an excursion in flight there is left out and "
-                         "counted (the mean is then biased low: exit 3)")
+                    default=None,
+                    help="bound on the loop's steps (default: planned from the predicted excursion, at least 1e8); "
+                         "an excursion in flight there is left out and counted (the mean is then biased low: exit 3)")
     du.add_argument("--max-work", type=_number("max-work"), default=None,
                     help="cap on the predicted lane-steps of the run; a run predicted to need more is refused before "
                          "it starts (default 1e11)")

@@ -58,7 +58,10 @@ truncates and reports instead.  It is far too low for strong noise with stiff da
 force is inside the friction window; measured (DI, default h, N = 200, seed 0, 0.2.7), 0.25, 0.21 and
 0.16 :math:`\tau_0` at Fig. 3's :math:`\tau, \tau_L` and :math:`\Gamma = 10^3, 10^4, 10^5`, 4.2, 11 and
 26 times the prediction, which there is the runaway floor's :math:`0.5/\sqrt{\tau_L'}` term), and no
-floor in :math:`\tau_L/\tau` alone held on the measured points (README "Predicted work").  There
+floor in :math:`\tau_L/\tau` alone held on the measured points (README "Predicted work").  It is too low
+for fast noise without damping too (:math:`\tau' \ll 1`, :math:`\tau_L = \infty`: the DI's cycles last 23-39
+:math:`\tau_0` at :math:`\tau' = 0.01`, 5-57 at :math:`10^{-3}`-:math:`10^{-6}`, depending on h; README), where
+the long-excursion count floors its own prediction (:func:`~dryfric_jax.durations.le_duration_floor`).  There
 the run projects itself from its rounds and warns early (:func:`dryfric_jax.api.time_left`).
 
 float32
@@ -181,12 +184,16 @@ def max_steps_per_excursion(tau: float, tau_L: float, gamma_bar: float, steps_pe
 
 
 def check_work(tau: float, tau_L: float, gamma_bar: float, steps_per_tau0: float, n_excursions: int,
-               max_work: float = MAX_WORK, unit: str = "steps") -> float:
+               max_work: float = MAX_WORK, unit: str = "steps", min_duration: float = 0.0) -> float:
     r"""Refuse (``ValueError``) a run whose predicted work exceeds ``max_work``; return the prediction.
 
-    Predicted work = N x predicted duration (:func:`log_duration_scale`) x ``steps_per_tau0``.
+    Predicted work = N x predicted duration (:func:`log_duration_scale`, or ``min_duration`` (:math:`\tau_0`)
+    where that is longer: the long-excursion count's floor for fast noise,
+    :func:`~dryfric_jax.durations.le_duration_floor`) x ``steps_per_tau0``.
     """
     log_t = log_duration_scale(tau, tau_L, gamma_bar)
+    if min_duration > 0.0:
+        log_t = max(log_t, math.log(min_duration))
     log_w = math.log(n_excursions) + log_t + math.log(steps_per_tau0)
     if log_w > math.log(max_work):
         # the reason: the largest of the three factors of the predicted work

@@ -70,8 +70,8 @@ import numpy as np
 from ._version import __version__
 from .api import (DryfricWarning, NoEstimateError, ProjectionWarning, check_progress, check_seed, duration_text,
                   estimate_diffusivity, progress_text, status_line, terminal_columns)
-from .durations import (TAU_STEPS, NoCountError, check_duration_run, default_duration_h, di_long_excursion_duration,
-                        max_steps_for)
+from .durations import (TAU_STEPS, NoCountError, check_duration_run, default_duration_h, default_max_steps,
+                        di_long_excursion_duration, max_steps_for)
 from .limits import MAX_WORK
 from .outfiles import check_writable, claim, drop_claims_dir, dumps, locked, put_record, read_records, write_records
 from .params import FIG3, Params, plain_number, real_or_none, shown
@@ -490,13 +490,15 @@ def _compute(out: str, ident: str, pt: dict, seed: int, settings: dict, max_time
 def _durations(pt: dict, seed: int, settings: dict, cycle_s, max_time=None, progress=None) -> dict:
     """A point's long-excursion count (``run_sweep(durations=N)``) as its record keeps it: the
     :class:`~dryfric_jax.LEDuration`'s fields but ``params``, or ``{"reason": ...}`` where fewer than 2 ended within
-    the loop's bound, planned from the D estimate's mean cycle ``cycle_s`` (s; 10^8 steps where it is not a number
-    > 0), or within ``max_time`` (then with ``stopped_by = "max_time"``).  ``progress``: the count's."""
+    the loop's bound, planned from the D estimate's mean cycle ``cycle_s`` (s; where it is not a number > 0, from the
+    predicted LE: :func:`~dryfric_jax.durations.default_max_steps`), or within ``max_time`` (then with
+    ``stopped_by = "max_time"``).  ``progress``: the count's."""
     p = Params(**pt)
     h = duration_h(p, settings["h"])
     n = settings[DURATIONS]
     c = real_or_none(cycle_s)
-    max_steps = max_steps_for(n, c / h) if c is not None and math.isfinite(c) and c > 0 else 10**8
+    max_steps = (max_steps_for(n, c / h) if c is not None and math.isfinite(c) and c > 0
+                 else default_max_steps(p, h, n))
     try:
         d = di_long_excursion_duration(p, duration_seed(seed, pt, settings), h=h, n_excursions=n,
                                        max_steps=max_steps, dtype=settings["dtype"], max_work=settings["max_work"],

@@ -315,6 +315,61 @@ def test_the_work_predicted_is_that_of_the_excursions_the_lanes_run(monkeypatch,
         di_long_excursion_duration(p, 0, n_excursions=n, max_work=need * (1 - 1e-9), **kw)
 
 
+def test_fast_noise_floors_the_predicted_excursion_and_the_loop_bound_is_planned_from_it(monkeypatch):
+    """For fast noise the LEs grow like 1/sqrt(tau') while the estimator's predicted duration stays at
+    min(1, tau_L') tau0: at tau' = 1e-3, tau_L = inf, the work predicted was 1/30 of what the lanes ran and the
+    fixed loop bound of 1e8 steps truncated a count of 64 (0.2.11).  By hand there: the floor 0.25/sqrt(1e-3) tau0
+    at tau0/h = 700/tau' steps, for the 64 + 32 LEs of 32 lanes, is the limit (refused just below, accepted at it),
+    and the loop's default bound is 50 x (64/32 + 2) such LEs (max_steps_for), 1.1e9 steps.  At Fig. 3's point the
+    floor is below the estimator's prediction, so nothing changes there, and the bound stays 1e8."""
+    from dryfric_jax import durations
+    from dryfric_jax.limits import check_work, log_duration_scale
+
+    got = {}
+
+    def fake_run(model, keys, n, max_blocks, **k):
+        got["max_blocks"] = max_blocks
+        raise RuntimeError("planned")
+
+    monkeypatch.setattr(durations, "_run", fake_run)
+    p = Params.from_nondim(1e-3)
+    le = 0.25 / math.sqrt(1e-3)
+    assert durations.le_duration_floor(p) == pytest.approx(le, rel=1e-12)
+    need = 96 * le * 700 / 1e-3
+    with pytest.raises(ValueError, match=r"^max_work must be >= .* predicted mean duration >= 7\.91 tau0"):
+        durations.check_duration_run(p, None, 64, max_work=need * (1 - 1e-9))
+    durations.check_duration_run(p, None, 64, max_work=need * (1 + 1e-9))
+    bound = 50 * (64 / 32 + 2) * le * 700 / 1e-3
+    assert durations.default_max_steps(p, p.tau / 700, 64) == int(bound)
+    with pytest.raises(RuntimeError, match="planned"):
+        di_long_excursion_duration(p, 0, n_excursions=64)
+    assert got["max_blocks"] == -(-int(bound) // 128)
+    with pytest.raises(RuntimeError, match="planned"):  # a bound given is kept
+        di_long_excursion_duration(p, 0, n_excursions=64, max_steps=1000)
+    assert got["max_blocks"] == 8
+    f = Params(**FIG3)
+    assert durations.le_duration_floor(f) < math.exp(log_duration_scale(f.tau_nd, f.tau_L_nd, f.gamma_bar_nd))
+    h = durations.default_duration_h(f)
+    assert durations.check_duration_run(f, None, 2048).h == h
+    assert check_work(f.tau_nd, f.tau_L_nd, f.gamma_bar_nd, f.tau0 / h, 2304, 1e300, min_duration=durations.
+                      le_duration_floor(f)) == check_work(f.tau_nd, f.tau_L_nd, f.gamma_bar_nd, f.tau0 / h, 2304, 1e300)
+    assert durations.default_max_steps(f, h, 2048) == 10**8
+
+
+@pytest.mark.filterwarnings("ignore::dryfric_jax.DryfricWarning")
+def test_the_fast_noise_floor_lies_below_the_excursions_measured_where_it_is_tightest():
+    """The floor must stay a lower estimate (else a feasible count is refused).  Of the points measured
+    (durations.le_duration_floor) it is tightest at tau' = 0.01, tau_L' = 1 (C = 0.40 +- 0.11 against 0.25): the
+    count's 95% CI there lies above it (seed 0: 4.02 +- 1.14 tau0 against 2.5; C = 0.3 would fail), and the old
+    prediction, 1 tau0, was 1/4 of the mean."""
+    from dryfric_jax import durations
+
+    p = Params.from_nondim(0.01, 1.0)
+    r = di_long_excursion_duration(p, 0, n_excursions=64)
+    assert r.n_truncated == 0
+    assert (r.mean - r.ci) / p.tau0 > durations.le_duration_floor(p)  # 2.88 against 0.25 x 10
+
+
 def test_a_tau_too_short_for_the_default_step_is_named_not_an_h_never_given(monkeypatch):
     """tau = 1e-11 s: the default step tau/700 falls below the smallest admissible h, and the refusal named h, which
     the user never gave (an audit; ``estimate`` runs there).  It names tau now; an h given is refused as before."""
