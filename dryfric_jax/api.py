@@ -512,7 +512,7 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
         dtype: ``"float64"`` or ``"float32"`` for the simulation (statistics are float64).
         lanes, chunk_lanes, block: engine layout (do not change the estimate's law, only the
             random streams; recorded in the result): lanes in [1, 2^22] (default
-            :func:`~dryfric_jax.excursions.lanes_for`, a power of two near N/32 but at least min(512, N),
+            :func:`~dryfric_jax.excursions.lanes_for`, the power of two at or below max(N/32, min(512, N)),
             up to ``chunk_lanes``: N = 2000 gives 512 lanes; a new lane count compiles anew,
             default 4096 on a CPU and 2^18 on a GPU),
             block K in [1, 1024] (default :func:`~dryfric_jax.excursions.default_block`: 128,

@@ -6,7 +6,8 @@ excursions hit the work bound, so it is biased (``--allow-truncated`` accepts it
 1 no result possible (fewer than 2 complete excursions within the work bounds or ``--max-time``);
 130 Ctrl-C (what the completed rounds reached is printed; nothing if fewer than 2 excursions closed);
 143 SIGTERM (``kill``, a batch scheduler's time limit), taken as a Ctrl-C: the same is printed and kept;
-141 stdout's reader closed the pipe (``dryfric estimate | head -1``), quietly, as SIGPIPE would.
+141 stdout's reader closed the pipe before the output was written (``dryfric estimate | true``), quietly, as SIGPIPE
+would.
 ``sweep`` runs every point it can: 1 if a point ended without a result, else 3 if a point's
 excursions were truncated (``--allow-truncated``), else 0; its refused and failed points are
 recorded in the results file with their reasons.  ``duration``: 3 when lanes hit ``--max-steps`` (the mean
@@ -224,16 +225,16 @@ def build_parser() -> argparse.ArgumentParser:
     model = _model_options()
     sim = _Parser(add_help=False)
     sim.add_argument("--method", default="di",
-                     help="di (differential inclusion, OU noise), pdmp (exact jump-noise PDMP) or auto "
-                          "(the cheaper by the cost model; estimate only)")
+                     help="di (differential inclusion, OU noise; the default), pdmp (exact jump-noise PDMP) or "
+                          "auto (the cheaper by the cost model; estimate and sweep only, bruteforce refuses it)")
     sim.add_argument("--h", type=_number("h"), default=None, help="DI step, s (default 0.01*min(tau0, tau_L))")
     sim.add_argument("--delta", type=_number("delta"), default=None,
                      help="PDMP noise grid step, s^-1/2 (default: delta' = delta sqrt(Gamma)/Delta = 0.05, "
                           "and delta sqrt(tau) <= 1/16 for slow noise)")
     sim.add_argument("--seed", type=_seed, default=0, help="random seed, an integer in [0, 2^62 - 2^20] (default 0); "
                                                           "the same seed and settings give the same numbers")
-    sim.add_argument("--dtype", default="float64", help="float64 or float32 (the DI and the PDMP fall "
-                                                        "back to float64 where float32 is not safe, README)")
+    sim.add_argument("--dtype", default="float64", help="float64 (the default) or float32 (the DI and the PDMP "
+                                                        "fall back to float64 where float32 is not safe, README)")
     sim.add_argument("--max-work", type=_number("max-work"), default=None,
                      help="cap on lane-steps (DI) or events (PDMP) of the run; a run predicted to need more is "
                           "refused before it starts (default 1e11)")
@@ -241,7 +242,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     e = sub.add_parser("estimate", parents=[model, sim], help="long-excursion estimate of D and M0")
     e.add_argument("--n-excursions", type=_count_option("n-excursions"), default=20_000,
-                   help="at least this many excursions (the first round when --rtol is given)")
+                   help="at least this many excursions (default 20000; the first round when --rtol is given)")
     e.add_argument("--rtol", type=_number("rtol"), default=None,
                    help="run rounds until the 95%% CI half-width of D is <= RTOL*|D|")
     e.add_argument("--max-time", type=_number("max-time"), default=None,
@@ -293,7 +294,8 @@ def build_parser() -> argparse.ArgumentParser:
     du.add_argument("--h", type=_number("h"), default=None,
                     help="DI step, s (default min(0.01*min(tau0, tau_L), tau/700): the count's bias falls like h)")
     du.add_argument("--seed", type=_seed, default=0, help="random seed, an integer in [0, 2^62 - 2^20] (default 0)")
-    du.add_argument("--dtype", default="float64", help="float64 or float32 (float64 where float32 is not safe)")
+    du.add_argument("--dtype", default="float64",
+                    help="float64 (the default) or float32 (float64 where float32 is not safe)")
     du.add_argument("--no-bridge", action="store_true",
                     help="count only the releases the chain makes, without the bridge correction (its bias then falls "
                          "only like sqrt(h))")
@@ -336,17 +338,17 @@ def build_parser() -> argparse.ArgumentParser:
         g.add_argument(f"--{name}", type=_list_of(conv, name), default=None, action=_Once,
                        help=f"values of {name}, e.g. 1,2.5,5" + (" (or inf)" if name == "tau-L" else ""))
     sw.add_argument("--out", required=True, help="results file (JSON Lines); an existing one is resumed")
-    sw.add_argument("--method", default="di", help="di, pdmp or auto")
+    sw.add_argument("--method", default="di", help="di (the default), pdmp or auto (as for 'estimate')")
     sw.add_argument("--h", type=_number("h"), default=None, help="DI step, s, at every point (default: each point's "
                                                                  "0.01*min(tau0, tau_L))")
     sw.add_argument("--delta", type=_number("delta"), default=None,
                     help="PDMP noise grid step, s^-1/2, at every point (default: each point's, as for 'estimate')")
-    sw.add_argument("--dtype", default="float64", help="float64 or float32 (as for 'estimate')")
+    sw.add_argument("--dtype", default="float64", help="float64 (the default) or float32 (as for 'estimate')")
     sw.add_argument("--seed", type=_seed, default=0,
-                    help="the sweep's seed; each point's seed is derived from it and the point's parameters and "
-                         "settings (recorded; stable when the grid is edited)")
+                    help="the sweep's seed (default 0); each point's seed is derived from it and the point's "
+                         "parameters and settings (recorded; stable when the grid is edited)")
     sw.add_argument("--n-excursions", type=_count_option("n-excursions"), default=20_000,
-                    help="excursions per point (the first round when --rtol is given)")
+                    help="excursions per point (default 20000; the first round when --rtol is given)")
     sw.add_argument("--rtol", type=_number("rtol"), default=None,
                     help="run each point until the 95%% CI half-width of D is <= RTOL*|D|")
     sw.add_argument("--max-work", type=_number("max-work"), default=None,

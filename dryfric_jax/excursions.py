@@ -498,7 +498,7 @@ def default_block(method: str = "di", lanes: int | None = None, backend: str | N
 
 
 def lanes_for(n_excursions: int, chunk_lanes: int | None = None, per_lane: int = 32, min_lanes: int = 512) -> int:
-    """A power of two near n_excursions / per_lane, at least min(min_lanes, N), at most
+    """The power of two at or below max(n_excursions / per_lane, min(min_lanes, N)) (N = 300 gives 256), at most
     ``chunk_lanes`` (default :func:`default_chunk_lanes`: few compiled shapes).  More lanes fill
     the vector units (the GPU's threads), fewer excursions per lane leave more lanes idle in the
     final round; 32 and 512 measured best for the DI and the PDMP at N = 1e4-2e4 on 2 CPU cores

@@ -45,7 +45,7 @@ def test_finish_in_flight_is_unbiased_and_dropping_is_not(events):
 def test_default_lanes_by_backend(monkeypatch):
     from dryfric_jax.excursions import default_chunk_lanes, lanes_for
     assert (default_chunk_lanes("cpu"), default_chunk_lanes("gpu"), default_chunk_lanes("tpu")) == (4096, 2**18, 2**18)
-    # a power of two near N/32, at least min(512, N), at most the backend's chunk
+    # the power of two at or below max(N/32, min(512, N)), at most the backend's chunk
     assert [lanes_for(n, 4096) for n in (100, 300, 20_000, 40_000, 10**6)] == [64, 256, 512, 1024, 4096]
     assert [lanes_for(n, 2**18) for n in (20_000, 10**6, 10**7, 10**9)] == [512, 16384, 262144, 262144]
     p = dj.Params(**dj.FIG3)
