@@ -506,13 +506,48 @@ def _ticking(draw, show: bool, period: float = 1.0):
         thread.join()
 
 
-def _check_out(path):
-    """Refuse an output path that cannot be written, before anything is simulated."""
-    if path is not None:
+#: the keys that mark a file as one result of estimate or combine (D_ci), bruteforce (D_t_ci) or duration
+#: (n_requested): the only files besides empty ones that --out replaces
+_RESULT_MARKS = ("D_ci", "D_t_ci", "n_requested")
+#: a file larger than this is no single result (one is a few kB)
+_RESULT_MAX_BYTES = 1 << 24
+
+
+def _check_out(path, inputs=()):
+    """Refuse, before anything is simulated, an output path that cannot be written, one of ``inputs`` (combine's
+    files: the pooled result replaced a run's sums), or an existing file that holds anything but one earlier result
+    of estimate, combine, bruteforce or duration (a sweep's records, a figure's numbers, any other file: an audit
+    found them replaced without a word)."""
+    if path is None:
+        return
+    try:
+        check_writable(path)
+    except ValueError as e:
+        raise _UserError("--" + str(e)) from None
+    if not os.path.isfile(path):
+        return
+    for f in inputs:
         try:
-            check_writable(path)
-        except ValueError as e:
-            raise _UserError("--" + str(e)) from None
+            same = os.path.samefile(path, f)
+        except OSError:
+            same = False
+        if same:
+            raise _UserError(f"--out must not be one of the files combined (got {path!r}): the pooled result would "
+                             "replace that run's excursion sums; give another path")
+    size = os.path.getsize(path)
+    if size == 0:
+        return
+    if size <= _RESULT_MAX_BYTES:
+        try:
+            with open(path, encoding="utf-8-sig") as f:
+                obj = loads(f.read())
+            if isinstance(obj, dict) and any(k in obj for k in _RESULT_MARKS):
+                return
+        except (OSError, ValueError, RecursionError):  # UnicodeDecodeError is a ValueError
+            pass
+    raise _UserError(f"--out must be a new file, an empty one or one that holds an earlier result of estimate, "
+                     f"combine, bruteforce or duration, which it replaces (got {path!r}, which holds something else: "
+                     "a sweep's records, a figure's numbers, another file); give another path or remove it")
 
 
 def _write_out(path, obj):
@@ -705,7 +740,7 @@ def _run(a) -> int:
     if a.cmd == "combine":
         from .combine import combine_estimates
 
-        _check_out(a.out)
+        _check_out(a.out, a.files)
         with _warnings_kept_in_result():
             results, labels = _read_results(a.files)
             r = combine_estimates(results, labels=labels, allow_mixed_versions=a.allow_mixed_versions)
