@@ -21,11 +21,12 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import rng
-from .api import _key
+from .api import _key, duration_text
 from .di import DIModel
 from .excursions import BLOCK, block_keys
 from .params import check_finite, check_positive, rounded_bound, shown
-from .plan import MAX_COUNT, check_count
+from .limits import MAX_WORK
+from .plan import MAX_COUNT, check_count, check_max_work
 from .pdmp import PDMPModel, flow
 from .sharding import over_lanes
 
@@ -50,7 +51,30 @@ def _record_steps(record_steps) -> list:
             or any(s < 0 for s in steps) or any(b < a for a, b in zip(steps, steps[1:])):
         raise ValueError("record_steps must be a non-empty sequence of non-negative integers in non-decreasing "
                          f"order (step counts at which V is recorded) (got {shown(record_steps)})")
+    if len(steps) > MAX_RECORD_TIMES:
+        raise ValueError(f"record_steps must hold at most {MAX_RECORD_TIMES} step counts (got {len(steps)}): each "
+                         "is compiled as a segment of its own (50 took 52 s to compile, 5000 did not finish: an "
+                         "audit); for a fine time grid use di_stationary's records")
     return [int(s) for s in steps]
+
+
+#: the most record times of :func:`di_transient` (Table 1 has 6, Fig. 6 3)
+MAX_RECORD_TIMES = 32
+#: the most records of :func:`di_stationary`: record i's numbers come from ``fold_in(path_key, i)`` and the
+#: burn-in's from ``fold_in(path_key, n_records)``, counted in 32 bits (2^32 - 1 was an OverflowError)
+MAX_RECORDS = 2**32 - 2
+
+
+def _check_path_work(n_paths: int, steps: int, max_work) -> None:
+    """Refuse (``ValueError``) ``n_paths`` paths of ``steps`` steps each beyond ``max_work`` lane-steps (default
+    :data:`~dryfric_jax.limits.MAX_WORK`, the estimator's): 10^12 paths ran on and on (an audit).  The paper's
+    largest path scene, Table 1, is 1.25e10."""
+    max_work = check_max_work(max_work)
+    work = float(n_paths) * float(steps)
+    if work > max_work:
+        raise ValueError(f"max_work must be >= {rounded_bound(work, lower=True, digits=3)} lane-steps for {n_paths} "
+                         f"paths of {steps} steps (got {max_work:.4g}; at ~1e8 lane-steps/s on 2 CPU cores that is "
+                         f"{duration_text(work / 1e8)}): lower n_paths or the steps, or raise max_work")
 
 
 #: the longest stretch of steps between records: its numbers are one draw of 2 per step, counted in uint32
@@ -105,18 +129,22 @@ def _transient(model, keys, x0, v0, *, segments):
     return jnp.stack(out, axis=1)
 
 
-def di_transient(model: DIModel, key, n_paths: int, record_steps, v0: float = 1.0, chunk: int = 8192):
+def di_transient(model: DIModel, key, n_paths: int, record_steps, v0: float = 1.0, chunk: int = 8192,
+                 max_work: float = MAX_WORK):
     """V after each of ``record_steps`` (non-decreasing step counts) for ``n_paths`` paths from
     :math:`(X_0, V_0) = (\\mathcal N(0, 1/\\tau'), v_0)`.  Returns ``(n_paths, len(record_steps))``.
 
     Path p of chunk c has key ``split(fold_in(key, c)[1])[p]``; its segment i (up to
     ``record_steps[i]``) uses ``rng.normal(fold_in(path_key, i), (steps, 2))``.  ``key`` is
     a ``jax.random`` key or an integer seed in [0, 2^62] (as :func:`~dryfric_jax.estimate_diffusivity`
-    takes it); ``n_paths`` and ``chunk`` are integers >= 1.  ``ValueError`` naming the argument."""
+    takes it); ``n_paths`` and ``chunk`` are integers >= 1; at most :data:`MAX_RECORD_TIMES` record steps; the
+    lane-steps ``n_paths`` x the last record step at most ``max_work`` (default 1e11, as the estimator's).
+    ``ValueError`` naming the argument."""
     _check_model(model)
     key = _key(key)[0]
     n_paths, chunk = check_count("n_paths", n_paths, 1), check_count("chunk", chunk, 1)
     steps = _record_steps(record_steps)
+    _check_path_work(n_paths, steps[-1], max_work)
     check_finite("v0", v0)
     v0 = float(v0)
     segments = tuple(np.diff([0] + steps).tolist())
@@ -150,20 +178,24 @@ def _stationary(model, keys, *, n_records, every, burn):
     return V.T, U.T
 
 
-def di_stationary(model: DIModel, key, n_paths: int, n_records: int, every: int = 1, burn_steps: int = 0):
+def di_stationary(model: DIModel, key, n_paths: int, n_records: int, every: int = 1, burn_steps: int = 0,
+                  max_work: float = MAX_WORK):
     """V and U (from the end of the burn-in) every ``every`` steps: two ``(n_paths, n_records)``
     arrays.  The noise starts stationary; ``burn_steps`` lets the velocity relax too.
 
     Path p has key ``split(key)[p]``; its burn-in uses ``rng.normal(fold_in(path_key,
     n_records), (burn_steps, 2))``, record i the numbers of ``fold_in(path_key, i)``.  ``key`` is a
     ``jax.random`` key or an integer seed in [0, 2^62]; ``n_paths``, ``n_records`` and ``every`` are
-    integers >= 1 (``every`` and ``burn_steps`` <= 2^31 - 1, :data:`MAX_SEGMENT`; ``burn_steps`` >= 0).
-    ``ValueError`` naming the argument."""
+    integers >= 1 (``n_records`` <= :data:`MAX_RECORDS`; ``every`` and ``burn_steps`` <= 2^31 - 1,
+    :data:`MAX_SEGMENT`; ``burn_steps`` >= 0); the lane-steps ``n_paths`` x (``burn_steps`` + ``n_records`` x
+    ``every``) at most ``max_work`` (default 1e11, as the estimator's).  ``ValueError`` naming the argument."""
     _check_model(model)
     key = _key(key)[0]
-    n_paths, n_records = check_count("n_paths", n_paths, 1), check_count("n_records", n_records, 1)
+    n_paths = check_count("n_paths", n_paths, 1)
+    n_records = check_count("n_records", n_records, 1, MAX_RECORDS, " (records are folded into the keys in 32 bits)")
     every = check_count("every", every, 1, MAX_SEGMENT, SEGMENT_WHY)
     burn_steps = check_count("burn_steps", burn_steps, 0, MAX_SEGMENT, SEGMENT_WHY)
+    _check_path_work(n_paths, burn_steps + n_records * every, max_work)
     V, U = over_lanes(_stationary, (model, jax.random.split(key, n_paths)), (False, True),
                       n_records=n_records, every=every, burn=burn_steps)
     return np.asarray(V), np.asarray(U)

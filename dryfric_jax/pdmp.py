@@ -55,7 +55,7 @@ import numpy as np
 from . import rng
 from .excursions import BLOCK
 from .noise import check_delta, grid_size
-from .params import Params
+from .params import Params, check_params
 
 ON_GRID_TOL = 1e-9
 
@@ -234,7 +234,9 @@ def threshold_widening(delta: float, gamma_bar: float) -> tuple[float, float]:
 
 def pdmp_grid_info(params: Params, delta: float) -> dict:
     """The noise grid for physical ``delta`` (s^-1/2): delta, delta', L_X (s^-1/2), N and the jump
-    rate per tau0; ValueError if delta is outside its admissible range (:mod:`dryfric_jax.noise`)."""
+    rate per tau0; ValueError if delta is outside its admissible range (:mod:`dryfric_jax.noise`), or if
+    ``params`` is not a :class:`~dryfric_jax.Params` (a dict was an AttributeError)."""
+    check_params(params)
     nd = params.nondim()
     scale = params.Delta / math.sqrt(params.Gamma)  # delta = delta' Delta / sqrt(Gamma)
     # delta' = delta / scale, the very number check_delta tests: a delta within an ulp of the bound is
@@ -248,16 +250,28 @@ def pdmp_grid_info(params: Params, delta: float) -> dict:
 
 def make_pdmp_model(params: Params, delta: float, dtype=jnp.float64) -> PDMPModel:
     """Build the nondimensional PDMP for physical ``params`` and physical grid step ``delta``
-    (s^-1/2), validated by :func:`pdmp_grid_info`."""
+    (s^-1/2), validated by :func:`pdmp_grid_info`; ``dtype`` float32 or float64 (a name or a dtype; others, e.g.
+    int32 or float16, are refused by name: an audit found them built into a model of zeros).  As for
+    :func:`~dryfric_jax.make_di_model`, float32 is used as asked where a planned run would not use it
+    (:func:`~dryfric_jax.limits.pdmp_float32_unsafe_reason`), except where a number of the model overflows it
+    (1/tau_L' beyond 3.4e38: the model's numbers would be inf), which is refused by name."""
+    from .plan import DTYPES, dtype_name  # plan is a layer above
+
+    check_params(params)
+    dtype = DTYPES[dtype_name(dtype)]
     nd = params.nondim()
     g = pdmp_grid_info(params, delta)
     d = g["delta_nd"]
     kp, km, r_p, r_m = grid_offsets(d, nd.gamma_bar)
     itl = 0.0 if math.isinf(nd.tau_L) else 1.0 / nd.tau_L
+    reals = (d, 0.25 * nd.tau * d * d, g["rate_nd"], itl, r_p, r_m)
+    big = float(jnp.finfo(dtype).max)
+    if any(abs(x) > big for x in reals):
+        raise ValueError(f"dtype {jnp.dtype(dtype).name} cannot hold this PDMP's numbers (1/tau_L' = {itl:.3g}, jump "
+                         f"rate {g['rate_nd']:.3g} per tau0; at most {big:.3g}): use float64")
     f = lambda x: jnp.asarray(x, dtype)
     i = lambda x: jnp.asarray(x, jnp.int32)
-    return PDMPModel(f(d), f(0.25 * nd.tau * d * d), f(g["rate_nd"]), f(itl), i(g["N"]), i(kp), i(km),
-                     f(r_p), f(r_m))
+    return PDMPModel(*(f(x) for x in reals[:4]), i(g["N"]), i(kp), i(km), f(r_p), f(r_m))
 
 
 # ---------------------------------------------------------------------------------------------

@@ -1,0 +1,59 @@
+"""Bad input to the model builders and the path scenes (an audit): refused by name, before anything runs."""
+import time
+
+import jax.numpy as jnp
+import pytest
+
+import dryfric_jax as dj
+from dryfric_jax import paths
+from dryfric_jax.params import FIG3, Params
+from dryfric_jax.pdmp import pdmp_grid_info
+
+
+@pytest.mark.parametrize("dtype", [jnp.int32, jnp.float16, "float16", "bogus", None])
+def test_the_pdmp_model_refuses_a_dtype_it_cannot_run(dtype):
+    """int32 built a model of zeros (delta = 0), float16 one whose paths were all 0, 'bogus' a TypeError."""
+    with pytest.raises(ValueError, match=r"^dtype must be one of \['float32', 'float64'\]"):
+        dj.make_pdmp_model(Params(**FIG3), 0.05, dtype=dtype)
+
+
+def test_the_pdmp_model_refuses_float32_where_its_numbers_overflow_and_takes_it_elsewhere():
+    """1/tau_L' = 1e40 is inf in float32: the paths then hit max_events (a RuntimeError naming nothing).  At 1e30
+    float32 holds it and is used as asked (as make_di_model does)."""
+    with pytest.raises(ValueError, match=r"^dtype float32 cannot hold this PDMP's numbers \(1/tau_L' = 1e\+40"):
+        dj.make_pdmp_model(Params(1, 1, 1, 1e-40), 0.05, dtype=jnp.float32)
+    m = dj.make_pdmp_model(Params(1, 1, 1, 1e-30), 0.05, dtype="float32")
+    assert m.delta.dtype == jnp.float32 and float(m.inv_tau_L) == pytest.approx(1e30, rel=1e-6)
+    assert dj.make_pdmp_model(Params(1, 1, 1, 1e-40), 0.05).inv_tau_L.dtype == jnp.float64
+
+
+def test_the_grid_refuses_a_dict_for_params():
+    with pytest.raises(ValueError, match="^params must be a dryfric_jax.Params"):
+        pdmp_grid_info(dict(FIG3), 0.05)
+
+
+def test_the_path_scenes_refuse_work_beyond_max_work_at_once():
+    """10^12 paths ran on past a minute's timeout; now refused in no time, naming max_work and the lane-steps;
+    raising max_work lets the check pass (it is the estimator's default, 1e11)."""
+    m = dj.make_di_model(Params(**FIG3), 1e-3)
+    t = time.perf_counter()
+    with pytest.raises(ValueError, match=r"^max_work must be >= 1e\+12 lane-steps for 1000000000000 paths of 1 steps"):
+        paths.di_transient(m, 0, 10**12, [0, 1])
+    with pytest.raises(ValueError, match=r"^max_work must be >= 2\.01e\+11 lane-steps for 1000 paths of 201000000 "):
+        paths.di_stationary(m, 0, 1000, 100, 2_000_000, burn_steps=1_000_000)
+    assert time.perf_counter() - t < 5
+    with pytest.raises(ValueError, match=r"^max_work must be a"):
+        paths.di_transient(m, 0, 4, [1], max_work=float("nan"))
+    assert paths.di_transient(m, 0, 1000, [1, 2], max_work=2000).shape == (1000, 2)  # exactly at it
+    with pytest.raises(ValueError, match=r"^max_work must be >= 2e\+03 lane-steps for 1000 paths of 2 steps \(got 2000;"):
+        paths.di_transient(m, 0, 1000, [1, 2], max_work=1999.9)
+
+
+def test_the_record_counts_are_bounded_by_name():
+    """di_transient compiles each record time as its own segment (50 took 52 s, 5000 never finished); di_stationary
+    folds its record index into the keys in 32 bits (n_records = 2^32 - 1 was an OverflowError)."""
+    m = dj.make_di_model(Params(**FIG3), 1e-3)
+    with pytest.raises(ValueError, match=r"^record_steps must hold at most 32 step counts \(got 33\)"):
+        paths.di_transient(m, 0, 2, list(range(33)))
+    with pytest.raises(ValueError, match=r"^n_records must be an integer in \[1, 4294967294\]"):
+        paths.di_stationary(m, 0, 2, 2**32 - 1)
