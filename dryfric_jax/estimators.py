@@ -97,7 +97,9 @@ MIN_PATHS = 3
 
 
 def psi_D(x):
-    r""":math:`\Psi_D(x) = (x_2 - 2x_1x_4/x_3 + x_1^2x_5/x_3^2)/x_3` for :math:`x = E(U, U^2, t, Ut, t^2)`."""
+    r""":math:`\Psi_D(x) = (x_2 - 2x_1x_4/x_3 + x_1^2x_5/x_3^2)/x_3` for :math:`x = E(U, U^2, t, Ut, t^2)` (a vector
+    of at least 5; ``ValueError`` otherwise: JAX clamps an index past the end, so a 2-vector gave a number)."""
+    _check_length(x, 5, "psi_D")
     m = x[0] / x[2]
     return (x[1] - 2 * m * x[3] + m * m * x[4]) / x[2]
 
@@ -108,8 +110,19 @@ def psi_D_paper(x):
 
 
 def psi_M(x):
-    r""":math:`\Psi_M(x) = x_1/x_3`."""
+    r""":math:`\Psi_M(x) = x_1/x_3` (a vector of at least 3; ``ValueError`` otherwise)."""
+    _check_length(x, 3, "psi_M")
     return x[0] / x[2]
+
+
+def _check_length(x, k: int, name: str) -> None:
+    """``ValueError`` unless ``x`` is a vector of at least ``k`` entries (its shape is static, also under jit)."""
+    try:
+        shape = jnp.shape(x)
+    except (TypeError, ValueError):
+        shape = None
+    if shape is None or len(shape) != 1 or shape[0] < k:
+        raise ValueError(f"x must be a vector of at least {k} numbers for {name} (got shape {shape})")
 
 
 def grad_psi_D_by_hand(x):
@@ -205,17 +218,27 @@ def delta_method(psi, mean, cov, n: int, level: float = 0.95):
     Returns:
         ``(estimate, half_width, sigma)`` with :math:`\hat\sigma_N^2 = \nabla\Psi^T \hat C_N \nabla\Psi`.
     """
-    if isinstance(n, bool) or not isinstance(n, (int, np.integer, float, np.floating)) or not n >= 1:
-        raise ValueError(f"n must be a sample size >= 1 (got {n!r}): n = 0 gave an infinite CI, n < 0 NaN")
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer, float, np.floating)) or not n >= 1 \
+            or not math.isfinite(n) or n != math.floor(n):
+        raise ValueError(f"n must be a sample size >= 1, a whole number (got {n!r}): n = 0 gave an infinite CI, n < 0 "
+                         "NaN, inf a CI of 0")
     z_quantile(level)
     m, c = _real_array("mean", mean), _real_array("cov", cov)
     if m.ndim != 1 or m.size == 0 or c.shape != (m.size, m.size):
         raise ValueError(f"mean must be a vector of k >= 1 numbers and cov a k x k matrix (got shapes {m.shape} "
                          f"and {c.shape}; a mismatch was a TypeError from inside JAX)")
+    scale = float(np.abs(c).max())
+    if not np.allclose(c, c.T, rtol=1e-12, atol=1e-300) or np.linalg.eigvalsh(0.5 * (c + c.T)).min() < -1e-9 * scale:
+        raise ValueError("cov must be a covariance matrix: symmetric and positive semidefinite (a negative definite "
+                         "one gave a half-width of 0)")
     try:
-        return _delta_method(psi, m, c, n, level)
+        out = _delta_method(psi, m, c, n, level)
     except TypeError as e:  # psi itself: not a scalar, or not a function of one vector (a JAX TypeError)
         raise ValueError(f"psi must map a vector of {m.size} numbers to one number ({e})") from None
+    if not all(math.isfinite(v) for v in out):
+        raise ValueError(f"psi and its gradient must be finite at mean (got estimate {out[0]!r}, sigma {out[2]!r}): "
+                         "e.g. a mean duration x_3 = 0 divides by 0")
+    return out
 
 
 def _delta_method(psi, mean, cov, n, level):

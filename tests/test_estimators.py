@@ -159,13 +159,32 @@ def test_bruteforce_estimate_does_not_depend_on_a_shift_of_U():
     assert bruteforce_estimates(np.full(8, 1e-27), 1e-12)["D_t"] == 0.0  # never below 0
 
 
-@pytest.mark.parametrize("n", [0, -3, float("nan"), True])
+@pytest.mark.parametrize("n", [0, -3, float("nan"), True, float("inf"), 1.5])
 def test_delta_method_refuses_a_sample_size_below_one(n):
-    """n = 0 gave an infinite half-width, n < 0 a NaN one."""
+    """n = 0 gave an infinite half-width, n < 0 a NaN one, inf a half-width of 0; 1.5 is no sample size."""
     from dryfric_jax.estimators import delta_method
 
     with pytest.raises(ValueError, match="^n must be a sample size >= 1"):
         delta_method(lambda m: m[0], [1.0], [[1.0]], n)
+
+
+def test_delta_method_refuses_what_gave_nan_or_a_number_from_clamped_indices():
+    """An audit: psi_D of a 2-vector read clamped indices and gave a plausible number; a zero mean duration gave
+    (nan, nan, nan) and a negative definite cov a half-width of 0, all without a word."""
+    from dryfric_jax.estimators import delta_method, psi_D, psi_M
+
+    m, c = np.array([0.1, 2.0, 1.0, 0.3, 1.5]), np.eye(5) * 0.01
+    assert np.isfinite(delta_method(psi_D, m, c, 100)).all()
+    with pytest.raises(ValueError, match=r"^x must be a vector of at least 5 numbers for psi_D \(got shape \(2,\)\)"):
+        delta_method(psi_D, m[:2], c[:2, :2], 100)
+    with pytest.raises(ValueError, match=r"^x must be a vector of at least 3 numbers for psi_M"):
+        psi_M(np.ones(2))
+    with pytest.raises(ValueError, match=r"^psi and its gradient must be finite at mean \(got estimate nan"):
+        delta_method(psi_D, np.zeros(5), c, 100)
+    with pytest.raises(ValueError, match=r"^cov must be a covariance matrix"):
+        delta_method(psi_D, m, -c, 100)
+    with pytest.raises(ValueError, match=r"^cov must be a covariance matrix"):
+        delta_method(psi_D, m, c + np.triu(np.ones((5, 5)), 1) * 1e-3, 100)  # not symmetric
 
 
 @pytest.mark.parametrize("psi,mean,cov,match", [
@@ -266,7 +285,9 @@ def test_delta_method_is_compiled_once_and_matches_the_traced_formula():
     from dryfric_jax.estimators import _value_and_variance
 
     rng = np.random.default_rng(9)
+    sizes = []
     for _ in range(3):
+        sizes.append(_value_and_variance(psi_D)._cache_size())  # other tests may have compiled other shapes
         t = rng.exponential(1.0, 40) + 0.1
         S, C = moments_from_sums(sums_from_samples(rng.standard_normal(40) * t + 0.2 * t, t))
         D, ci, sigma = delta_method(psi_D, S, C, 40, 0.9)
@@ -274,7 +295,7 @@ def test_delta_method_is_compiled_once_and_matches_the_traced_formula():
         assert D == pytest.approx(float(psi_D(jnp.asarray(S))), rel=1e-14, abs=0)
         assert sigma == pytest.approx(float(jnp.sqrt(g @ jnp.asarray(C) @ g)), rel=1e-13, abs=0)
         assert ci == pytest.approx(1.6448536269514722 * sigma / np.sqrt(40), rel=1e-13)
-    assert _value_and_variance(psi_D)._cache_size() == 1
+    assert sizes[1] == sizes[2] == _value_and_variance(psi_D)._cache_size() <= sizes[0] + 1
 
 
 def _centred_half_width(U, t, level_z=1.959963984540054):
