@@ -40,8 +40,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import linalg, special
 
-from .params import Params, check_params, real_or_none, shown
-from .plan import check_count, check_h, h_max
+from .params import Params, check_params, real_or_none, rounded_bound, shown
+from .plan import H_MIN_REL, check_count, check_h, h_max
 from .theory import _nd, _scale
 
 MAX_NODES = 6001  # dense Nystrom: O(n^3) solves; at 6001 nodes 0.29 GB per n x n array, ~2 GB peak, ~15 s
@@ -87,6 +87,28 @@ def _norm_cdf(z):
     return 0.5 * special.erfc(-z / math.sqrt(2))
 
 
+def _check_chain_h(params: Params, h, nodes_per_sd: int, width: float, itl: float, g: float) -> float:
+    """``h`` checked against the range the chain law takes: :func:`~dryfric_jax.plan.check_h`'s, its lower end
+    raised to the least h whose grid fits ``MAX_NODES`` (h-free: the grid spans the law's width plus 10 step-noise
+    sds, at ``nodes_per_sd`` per sd), so that the range a refusal prints is the one accepted (an audit: h = 0 was
+    told [6.7e-14, 0.0067] s, then 1e-12 was refused for its grid).  Where no admissible h fits, the grid's own
+    refusal in :func:`white_chain_law` says so."""
+    law = width * _scale(itl, g)  # the span past 0 less the 10 step-noise sds
+    if itl > 0 and abs(g) > 1:
+        law = max(law, (abs(g) - 1) / itl + width / math.sqrt(itl))
+    room = (MAX_NODES - 3) // 2 - 10 * nodes_per_sd
+    span = law * nodes_per_sd / room
+    need = 1.01 * 0.5 * span * span * params.tau0 if span < 1e150 else math.inf
+    hm = h_max(params)
+    lo = max(H_MIN_REL * min(params.tau0, params.tau_L), need)
+    v = None if h is None else real_or_none(h)
+    if need <= hm and v is not None and math.isfinite(v) and not lo <= v <= hm:
+        raise ValueError(f"h must be in [{rounded_bound(lo, lower=True)}, {rounded_bound(hm, lower=False)}] s for the "
+                         f"chain law (got {shown(h)}): below it its grid of nodes_per_sd = {nodes_per_sd} per step-noise "
+                         f"sd would exceed {MAX_NODES} nodes")
+    return check_h(params, h)
+
+
 def white_chain_law(params: Params, h: float, *, nodes_per_sd: int = DEFAULT_NODES_PER_SD,
                     width: float = DEFAULT_WIDTH) -> ChainLaw:
     r"""Stationary :math:`E[V]`, :math:`E[V^2]`, :math:`P(V = 0)` and the diffusivity of the
@@ -106,7 +128,6 @@ def white_chain_law(params: Params, h: float, *, nodes_per_sd: int = DEFAULT_NOD
     :func:`~dryfric_jax.plan.check_h`'s range and for a law that is not recurrent.
     """
     check_params(params)
-    h = check_h(params, h)
     nodes_per_sd = check_count("nodes_per_sd", nodes_per_sd, MIN_NODES_PER_SD, MAX_NODES_PER_SD,
                                f" (grid nodes per step-noise sd: the grid error is 5e-4 relative at "
                                f"{MIN_NODES_PER_SD}, 8e-3 at 1; more than {MAX_NODES_PER_SD} always exceed "
@@ -118,6 +139,7 @@ def white_chain_law(params: Params, h: float, *, nodes_per_sd: int = DEFAULT_NOD
                          f"grid's error) (got {shown(width)})")
     width = w
     itl, g = _nd(params)
+    h = _check_chain_h(params, h, nodes_per_sd, width, itl, g)
     hn = h / params.tau0
     s = math.sqrt(2 * hn)
     dv = s / nodes_per_sd

@@ -81,11 +81,16 @@ def test_chain_law_covers_a_bump_far_from_zero(g):
 
 def test_chain_law_refuses_a_step_too_small_or_too_large():
     p = _params("fig5")
-    with pytest.raises(ValueError, match="h = .* grid nodes .* use h >=") as err:
+    with pytest.raises(ValueError, match=r"h must be in \[\S+, \S+\] s for the chain law .* would exceed") as err:
         white_chain_law(p, 1e-4 * p.tau0)
-    # the step it suggests fits (it was ~5% too small, and refused in turn)
-    need = float(re.search(r"use h >= (\S+) s", str(err.value)).group(1))
+    # the range it prints is taken: its lower end fits (it was ~5% too small, and refused in turn), and so does
+    # a value inside it that check_h alone would have refused with a wider range (an audit: h = 0 was told
+    # [6.7e-14, 0.0067] s, then 1e-12 was refused for its grid)
+    need, top = (float(x) for x in re.search(r"\[(\S+), (\S+)\]", str(err.value)).groups())
     assert white_chain_law(p, need).n_nodes <= dj.chain_law.MAX_NODES
+    assert white_chain_law(p, top).n_nodes <= dj.chain_law.MAX_NODES
+    with pytest.raises(ValueError, match=re.escape(f"h must be in [{need:.4g}, {top:.4g}] s for the chain law")):
+        white_chain_law(p, 0.0)
     with pytest.raises(ValueError, match="no admissible h"):  # the bump at v* = 50 with sd 10 spans +-350
         white_chain_law(dj.Params.from_nondim(1e-4, 100.0, 1.5), 0.05)
     with pytest.raises(ValueError, match="h must be in"):

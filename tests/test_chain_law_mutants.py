@@ -96,15 +96,15 @@ def test_chain_law_equals_an_independent_ulam_discretisation(tl, g):
 
 
 def test_the_step_a_refusal_suggests_is_the_smallest_that_fits():
-    """The refusal says 'use h >= X': X is 1% above the smallest step whose grid fits MAX_NODES, printed to
+    """The refusal says 'h must be in [X, ...]': X is 1% above the smallest step whose grid fits MAX_NODES, printed to
     3 digits, so 2% below it (1% below the smallest) is refused in turn.  test_chain_law checks that X
     fits; this checks that X is not needlessly large.  Kills ``need = 1.0 * (...)`` (X twice the
     smallest step: 0.98 X was accepted). ~0.1 s on the code; the mutant solves a 4300-node grid first."""
     p = dj.Params.from_nondim(1e-4, *CASES[0])
-    with pytest.raises(ValueError, match="use h >=") as err:
+    with pytest.raises(ValueError, match="for the chain law") as err:
         white_chain_law(p, 1e-4 * p.tau0)
-    x = float(re.search(r"use h >= (\S+) s", str(err.value)).group(1))
-    with pytest.raises(ValueError, match="grid nodes"):
+    x = float(re.search(r"h must be in \[(\S+),", str(err.value)).group(1))
+    with pytest.raises(ValueError, match="would exceed"):
         white_chain_law(p, 0.98 * x)
 
 
@@ -116,8 +116,12 @@ def test_the_node_bound_is_the_documented_grid_against_max_nodes(monkeypatch, ra
     4 nodes per sd, L / dv = 60 / s + 40.  With MAX_NODES set to 1001, L / dv = 499.5 needs 1003 nodes and is
     refused; L / dv = 498.5 needs exactly 1001 and is solved with that many.  Kills ``2 * kf + 1 >
     MAX_NODES`` (1003 accepted), ``math.floor(ratio)`` (999 nodes: the grid stops short of L) and a margin of
-    5 sds instead of 10 (981 nodes). ~0.5 s."""
+    5 sds instead of 10 (981 nodes). ~0.5 s.  The grid's own check is tested: the range check before it
+    (``_check_chain_h``, 1% above the least h that fits) is bypassed here."""
+    from dryfric_jax.plan import check_h
+
     monkeypatch.setattr(cl, "MAX_NODES", 1001)
+    monkeypatch.setattr(cl, "_check_chain_h", lambda params, h, *a: check_h(params, h))
     s = 60 / (ratio - 40)
     p = dj.Params.from_nondim(1e-4, math.inf, 0.0)
     h = 0.5 * s * s * p.tau0
