@@ -104,8 +104,8 @@ def _check_chain_h(params: Params, h, nodes_per_sd: int, width: float, itl: floa
     v = None if h is None else real_or_none(h)
     if need <= hm and v is not None and math.isfinite(v) and not lo <= v <= hm:
         raise ValueError(f"h must be in [{rounded_bound(lo, lower=True)}, {rounded_bound(hm, lower=False)}] s for the "
-                         f"chain law (got {shown(h)}): below it its grid of nodes_per_sd = {nodes_per_sd} per step-noise "
-                         f"sd would exceed {MAX_NODES} nodes")
+                         f"chain law (got {shown(h)}): below it its grid of nodes_per_sd = {nodes_per_sd} per "
+                         f"step-noise sd would exceed {MAX_NODES} nodes")
     return check_h(params, h)
 
 

@@ -27,7 +27,7 @@ from .api import MAX_SEED, DryfricWarning, EstimateResult, key_id, missing_field
 from .estimators import MIN_RELIABLE_N, ROUNDING_NOTE, long_excursion_estimates, rounding_note
 from .excursions import STAT_NAMES
 from .outfiles import from_strict
-from .params import Params
+from .params import Params, check_flag
 from .plan import DTYPES, MAX_COUNT
 
 # what must agree for two runs to sample the same law (the engine layout does not matter), and to
@@ -177,6 +177,7 @@ def combine_estimates(results: Sequence, *, labels: Sequence[str] | None = None,
     """
     if isinstance(results, (str, bytes, dict, EstimateResult)) or not hasattr(results, "__iter__"):
         raise ValueError(f"results must be a list of EstimateResult objects (got {type(results).__name__})")
+    allow_mixed_versions = check_flag("allow_mixed_versions", allow_mixed_versions)
     results = list(results)
     if not results:
         raise ValueError("results must hold at least one EstimateResult (got none)")

@@ -119,6 +119,14 @@ def check_positive(name: str, value, *, allow_inf: bool = False) -> None:
         raise ValueError(f"{name} must be {rng} (got {value!r})")
 
 
+def check_flag(name: str, value) -> bool:
+    """``value`` as a bool, or ``ValueError`` naming ``name`` unless it is True or False (a numpy bool too): a
+    string such as ``'no'`` is truthy and was taken for True (an audit)."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise ValueError(f"{name} must be True or False (got {shown(value)})")
+    return bool(value)
+
+
 def check_finite(name: str, value) -> None:
     v = _concrete(name, value)
     if v is not None and not math.isfinite(v):

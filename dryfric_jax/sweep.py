@@ -74,7 +74,7 @@ from .durations import (TAU_STEPS, NoCountError, check_duration_run, default_dur
                         di_long_excursion_duration, max_steps_for)
 from .limits import MAX_WORK
 from .outfiles import check_writable, claim, drop_claims_dir, dumps, locked, put_record, read_records, write_records
-from .params import FIG3, Params, plain_number, real_or_none, shown
+from .params import FIG3, Params, check_flag, plain_number, real_or_none, shown
 from .plan import check_count, check_max_time, check_settings, plan_estimate
 from .rounds import abandon_on_interrupt
 
@@ -329,6 +329,7 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
     max_time = None if max_time == math.inf else max_time  # no limit, as recorded
     check_progress(progress)
     check_progress(point_progress, "point_progress")
+    skip_refused = check_flag("skip_refused", skip_refused)
     # as JSON values (numpy numbers as Python ones, a numpy dtype as its name), checked once: a wrong
     # setting refuses the grid (dtype float16 was recorded as every point's refusal)
     settings = check_settings(method=method, h=h, delta=delta, dtype=dtype, n_excursions=n_excursions, rtol=rtol,

@@ -57,3 +57,17 @@ def test_the_record_counts_are_bounded_by_name():
         paths.di_transient(m, 0, 2, list(range(33)))
     with pytest.raises(ValueError, match=r"^n_records must be an integer in \[1, 4294967294\]"):
         paths.di_stationary(m, 0, 2, 2**32 - 1)
+
+
+@pytest.mark.parametrize("value", ["no", 1, None, "False"])
+def test_flags_take_true_or_false_only(tmp_path, monkeypatch, value):
+    """A string like 'no' is truthy: skip_refused='no' recorded a refused point and ran on, and
+    allow_mixed_versions='no' pooled two versions (an audit)."""
+    from dryfric_jax import sweep
+
+    monkeypatch.setattr(sweep, "estimate_diffusivity", lambda *a, **k: pytest.fail("ran"))
+    with pytest.raises(ValueError, match=r"^skip_refused must be True or False"):
+        sweep.run_sweep([dict(Gamma=5.0)], str(tmp_path / "s.jsonl"), skip_refused=value)
+    r = dj.estimate_diffusivity(Params(**FIG3), 0, n_excursions=100)
+    with pytest.raises(ValueError, match=r"^allow_mixed_versions must be True or False"):
+        dj.combine_estimates([r], allow_mixed_versions=value)
