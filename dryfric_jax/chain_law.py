@@ -222,7 +222,19 @@ def white_chain_atom(density_at_zero, h_nd: float):
     (``tests/test_chain_law.py``).  Fig. 6 marks it in the bin at :math:`v' = 0`.
 
     Args:
-        density_at_zero: :math:`p(0)` (nondimensional), a number or array.
-        h_nd: the step :math:`h' = h/\tau_0`.
+        density_at_zero: :math:`p(0)` (nondimensional), a number or array of finite numbers >= 0.
+        h_nd: the step :math:`h' = h/\tau_0`, finite and > 0.
+
+    ``ValueError`` naming the argument otherwise (NaN, inf and a negative density gave a NaN, an inf and a
+    negative probability: an audit).
     """
-    return 2.0 * float(h_nd) * np.asarray(density_at_zero, float)
+    h = real_or_none(h_nd)
+    if h is None or not (math.isfinite(h) and h > 0):
+        raise ValueError(f"h_nd must be a finite number > 0 (got {shown(h_nd)})")
+    try:
+        p = np.asarray(density_at_zero, float)
+    except (TypeError, ValueError):
+        p = None
+    if p is None or not (np.isfinite(p).all() and (p >= 0).all()):
+        raise ValueError(f"density_at_zero must hold finite numbers >= 0 (got {shown(density_at_zero)})")
+    return 2.0 * h * p

@@ -143,7 +143,12 @@ def duration_h(params: Params, h) -> float:
     shrinks as tau/h grows: :mod:`dryfric_jax.durations`); without ``h``, i.e.,
     :func:`~dryfric_jax.durations.default_duration_h`.  A sweep's ``h`` coarser than the D estimator's default
     makes the count coarser too (and its bias larger), as it does the D (the docs said the count kept its default
-    step then: an audit)."""
+    step then: an audit).  ``h`` other than None or a finite number > 0: ``ValueError`` (NaN gave NaN)."""
+    if h is not None:
+        v = real_or_none(h)
+        if v is None or not (math.isfinite(v) and v > 0):
+            raise ValueError(f"h must be None or a finite number > 0 (got {shown(h)})")
+        h = v
     return default_duration_h(params) if h is None else min(h, params.tau / TAU_STEPS)
 
 
@@ -182,7 +187,10 @@ def _check_record(rec: dict) -> None:
 
 def read_results(path: str) -> list[dict]:
     """The records of a sweep file (empty if it does not exist); refuses a file that is not one,
-    naming the first line that is not a sweep record."""
+    naming the first line that is not a sweep record, and a ``path`` that is not a file path (None or a number was
+    a TypeError)."""
+    if not isinstance(path, (str, os.PathLike)):
+        raise ValueError(f"path must be a sweep file's path (got {shown(path)})")
     return read_records(path, ("params", "settings", "sweep_seed"),
                         "out must be a dryfric sweep file (JSON Lines); {path!r} line {line} is not a sweep record",
                         check=_check_record)
@@ -550,6 +558,8 @@ def rows(path: str, seed: int | None = None, **settings) -> list[dict]:
     unknown = sorted(set(settings) - set(known))
     if unknown:
         raise ValueError(f"settings must be among {list(known)} (got {unknown})")
+    if seed is not None:  # 'a' or -1 matched nothing and gave [] without a word
+        seed = check_seed(seed)
     out = []
     for r in read_results(path):
         if (seed is not None and r["sweep_seed"] != seed) or any(r["settings"].get(k) != v

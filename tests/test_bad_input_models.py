@@ -71,3 +71,31 @@ def test_flags_take_true_or_false_only(tmp_path, monkeypatch, value):
     r = dj.estimate_diffusivity(Params(**FIG3), 0, n_excursions=100)
     with pytest.raises(ValueError, match=r"^allow_mixed_versions must be True or False"):
         dj.combine_estimates([r], allow_mixed_versions=value)
+
+
+def test_the_sweep_helpers_and_the_atom_refuse_by_name(tmp_path):
+    """An audit: rows(None) and rows(5) were TypeErrors, rows(seed='a') gave [] silently, duration_h(p, nan) NaN,
+    white_chain_atom(nan | inf | -1, h) a NaN, an inf and a negative probability."""
+    from dryfric_jax import sweep
+    from dryfric_jax.chain_law import white_chain_atom
+
+    for f in (sweep.rows, sweep.failures, sweep.read_results):
+        for bad in (None, 5):
+            with pytest.raises(ValueError, match=r"^path must be a sweep file's path"):
+                f(bad)
+    assert sweep.rows(str(tmp_path / "none.jsonl")) == []  # a missing file: no records
+    for seed in ("a", -1):
+        with pytest.raises(ValueError, match=r"^seed must be"):
+            sweep.rows(str(tmp_path / "none.jsonl"), seed=seed)
+    p = Params(**FIG3)
+    for h in (float("nan"), "x", -1.0, 0.0):
+        with pytest.raises(ValueError, match=r"^h must be None or a finite number > 0"):
+            sweep.duration_h(p, h)
+    assert sweep.duration_h(p, 1.0) == p.tau / 700
+    assert white_chain_atom([0.5, 0.25], 0.01) == pytest.approx([0.01, 0.005], rel=1e-15)
+    for d in (float("nan"), float("inf"), -1.0, "x", [0.5, -0.1]):
+        with pytest.raises(ValueError, match=r"^density_at_zero must hold finite numbers >= 0"):
+            white_chain_atom(d, 1e-3)
+    for h in (0.0, float("inf"), "x", None):
+        with pytest.raises(ValueError, match=r"^h_nd must be a finite number > 0"):
+            white_chain_atom(0.5, h)
