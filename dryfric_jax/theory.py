@@ -576,7 +576,10 @@ def correlation(t):
     against a 60-digit evaluation: ~eps t^4/768 below the cut (the terms still cancel: 5.2e-10 at t = 160),
     <= 4e-12 beyond it (1e-14 from t = 200); a cut at 300 with 14 terms left 5e-9 at t = 300.
     """
-    t = _times(np.abs(_real_array(t)), zero_ok=True)  # C(-t) = C(t)
+    a = _real_array(t)
+    if not np.isfinite(a).all():  # checked before |t|: -inf was reported as "got inf" (an audit)
+        raise ValueError(f"t must be finite (C(-t) = C(t)) (got {float(a[~np.isfinite(a)].flat[0])!r})")
+    t = _times(np.abs(a), zero_ok=True)  # C(-t) = C(t)
     small = t <= CORR_SERIES_FROM
     ts = np.where(small, t, 1.0)
     x = np.sqrt(ts) / 2

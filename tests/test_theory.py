@@ -323,6 +323,7 @@ P_FIG3 = Params(5.0, 3.84, 1e-6, 0.067, 0.342)
     (lambda: theory.first_moment([1.0, -1.0], 1.0), "^t must be finite and >= 0"),  # was NaN
     (lambda: theory.first_moment(1.0, math.inf), "^v0 must be a finite number"),
     (lambda: theory.correlation([0.5, math.nan]), "^t must be finite"),
+    (lambda: theory.correlation(-math.inf), r"^t must be finite .* \(got -inf\)"),  # said 'got inf' (an audit)
     # v was not checked: None and NaN gave nan, "1" read as 1.0, a complex number a TypeError,
     # a ragged list numpy's ValueError
     (lambda: theory.propagator(None, 1.0, 0.0), "^v must be a real number"),
