@@ -231,7 +231,7 @@ _V_NAN = np.where(np.arange(50) == 3, np.nan, _V)
     (lambda m: di_transient(m, "x", 3, [10]), "^key must be a seed"),
     (lambda m: di_transient(dict(FIG3), 0, 3, [10]), "^model must be a DIModel"),
     (lambda m: di_stationary(m, 0, 0, 4), "^n_paths must be an integer >= 1"),  # was an IndexError
-    (lambda m: di_stationary(m, 0, 2, 0), "^n_records must be an integer >= 1"),
+    (lambda m: di_stationary(m, 0, 2, 0), r"^n_records must be an integer in \[1, 4294967294\]"),
     (lambda m: di_stationary(m, 0, 2, 4, every=0), r"^every must be an integer in \[1, 2147483647\]"),  # was accepted
     (lambda m: di_stationary(m, 0, 2, 4, every=-1), r"^every must be an integer in \[1, 2147483647\]"),  # was accepted
     (lambda m: di_stationary(m, 0, 2, 4, every=True), r"^every must be an integer in \[1, 2147483647\]"),
