@@ -40,7 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import linalg, special
 
-from .params import Params, check_params, real_or_none, rounded_bound, shown
+from .params import Params, check_params, check_positive, real_or_none, rounded_bound, shown
 from .plan import H_MIN_REL, check_count, check_h, h_max
 from .theory import _nd, _scale
 
@@ -87,18 +87,30 @@ def _norm_cdf(z):
     return 0.5 * special.erfc(-z / math.sqrt(2))
 
 
-def _check_chain_h(params: Params, h, nodes_per_sd: int, width: float, itl: float, g: float) -> float:
-    """``h`` checked against the range the chain law takes: :func:`~dryfric_jax.plan.check_h`'s, its lower end
-    raised to the least h whose grid fits ``MAX_NODES`` (h-free: the grid spans the law's width plus 10 step-noise
-    sds, at ``nodes_per_sd`` per sd), so that the range a refusal prints is the one accepted (an audit: h = 0 was
-    told [6.7e-14, 0.0067] s, then 1e-12 was refused for its grid).  Where no admissible h fits, the grid's own
-    refusal in :func:`white_chain_law` says so."""
-    law = width * _scale(itl, g)  # the span past 0 less the 10 step-noise sds
+def _law_span(width: float, itl: float, g: float) -> float:
+    """The grid's span past 0 (nondimensional) less its 10 step-noise sds: ``width`` widths of the continuum law,
+    or past a bump of sd :math:`\sqrt{\tau_L'}` at :math:`|v^*| = (|g| - 1)\tau_L'` (theory._mode_points)."""
+    law = width * _scale(itl, g)
     if itl > 0 and abs(g) > 1:
         law = max(law, (abs(g) - 1) / itl + width / math.sqrt(itl))
+    return law
+
+
+def _least_h(params: Params, law: float, nodes_per_sd: int) -> float:
+    """The least h (s) whose grid fits ``MAX_NODES``, h-free (it may underflow): nodes ~ 2 L / dv with
+    dv^2 = 2 h' / nodes_per_sd^2, exactly ceil(law nps / s + 10 nps) <= (MAX_NODES - 3) / 2 (``law``:
+    :func:`_law_span`); room > 0 as nodes_per_sd <= MAX_NODES_PER_SD; inf for a huge width (no OverflowError)."""
     room = (MAX_NODES - 3) // 2 - 10 * nodes_per_sd
     span = law * nodes_per_sd / room
-    need = 1.01 * 0.5 * span * span * params.tau0 if span < 1e150 else math.inf
+    return 0.5 * span * span * params.tau0 if span < 1e150 else math.inf
+
+
+def _check_chain_h(params: Params, h, nodes_per_sd: int, law: float) -> float:
+    """``h`` checked against the range the chain law takes: :func:`~dryfric_jax.plan.check_h`'s, its lower end
+    raised 1% above the least h whose grid fits ``MAX_NODES`` (:func:`_least_h`), so that the range a refusal
+    prints is the one accepted (an audit: h = 0 was told [6.7e-14, 0.0067] s, then 1e-12 was refused for its
+    grid).  Where no admissible h fits, the grid's own refusal in :func:`white_chain_law` says so."""
+    need = 1.01 * _least_h(params, law, nodes_per_sd)
     hm = h_max(params)
     lo = max(H_MIN_REL * min(params.tau0, params.tau_L), need)
     v = None if h is None else real_or_none(h)
@@ -139,23 +151,17 @@ def white_chain_law(params: Params, h: float, *, nodes_per_sd: int = DEFAULT_NOD
                          f"grid's error) (got {shown(width)})")
     width = w
     itl, g = _nd(params)
-    h = _check_chain_h(params, h, nodes_per_sd, width, itl, g)
+    law = _law_span(width, itl, g)
+    h = _check_chain_h(params, h, nodes_per_sd, law)
     hn = h / params.tau0
     s = math.sqrt(2 * hn)
     dv = s / nodes_per_sd
-    L = width * _scale(itl, g) + 10 * s
-    if itl > 0 and abs(g) > 1:  # a bump of sd sqrt(tau_L') at |v*| = (|g| - 1) tau_L' (theory._mode_points)
-        L = max(L, (abs(g) - 1) / itl + width / math.sqrt(itl) + 10 * s)
+    L = law + 10 * s
     ratio = L / dv if dv > 0 else math.inf  # h near 5e-324: dv underflows
     kf = math.ceil(ratio) if ratio < 1e300 else math.inf
     if 2 * kf + 3 > MAX_NODES:
         nodes = 2.0 * kf + 3  # a float: one readable number, not 150 digits
-        # nodes ~ 2 L / dv with dv^2 = 2 h' / nodes_per_sd^2: the h that fits, without h (which may underflow)
-        # exactly: ceil(W nps / s + 10 nps) <= (MAX_NODES - 3) / 2 with W = L - 10 s, the law's part of the
-        # span (h-free); room > 0 as nodes_per_sd <= MAX_NODES_PER_SD; 1% up: the message prints 3 digits
-        room = (MAX_NODES - 3) // 2 - 10 * nodes_per_sd
-        span = (L - 10 * s) * nodes_per_sd / room
-        need = 0.5 * span * span * params.tau0 if span < 1e150 else math.inf  # a huge width: no OverflowError
+        need = _least_h(params, law, nodes_per_sd)  # 1% up below: the message prints 3 digits
         if need <= h_max(params):
             fix = f"use h >= {min(1.01 * need, h_max(params)):.3g} s or fewer nodes_per_sd"
         elif width > DEFAULT_WIDTH or nodes_per_sd > DEFAULT_NODES_PER_SD:  # the caller's grid does not fit
@@ -228,13 +234,11 @@ def white_chain_atom(density_at_zero, h_nd: float):
     ``ValueError`` naming the argument otherwise (NaN, inf and a negative density gave a NaN, an inf and a
     negative probability: an audit).
     """
-    h = real_or_none(h_nd)
-    if h is None or not (math.isfinite(h) and h > 0):
-        raise ValueError(f"h_nd must be a finite number > 0 (got {shown(h_nd)})")
+    check_positive("h_nd", h_nd)
     try:
         p = np.asarray(density_at_zero, float)
     except (TypeError, ValueError):
         p = None
     if p is None or not (np.isfinite(p).all() and (p >= 0).all()):
         raise ValueError(f"density_at_zero must hold finite numbers >= 0 (got {shown(density_at_zero)})")
-    return 2.0 * h * p
+    return 2.0 * float(h_nd) * p

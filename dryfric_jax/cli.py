@@ -284,8 +284,8 @@ def build_parser() -> argparse.ArgumentParser:
                              "releases", description="The DI's mean long-excursion duration in the paper's sense "
                         "(threshold to threshold; dryfric_jax/durations.py): lanes of the DI chain count the changes "
                         "of direction of their releases, and stop starting new excursions once they have counted "
-                        "--n-excursions in all (those in flight are finished, so the long ones are not left out: a ratio "
-                        "consistent in N, its bias O(1/N)); the 95% CI is Student's t "
+                        "--n-excursions in all (those in flight are finished, so the long ones are not left out: a "
+                        "ratio consistent in N, its bias O(1/N)); the 95% CI is Student's t "
                         "over the excursions.  Crossings of the thresholds by X between two steps are counted too (a "
                         "Brownian-bridge correction), so the bias falls like h, not sqrt(h).  "
                         "'dryfric estimate' prints the mean duration of its regeneration cycles, each one or more of "
@@ -539,8 +539,8 @@ def _check_out(path, inputs=()):
         return
     if size <= _RESULT_MAX_BYTES:
         try:
-            with open(path, encoding="utf-8-sig") as f:
-                obj = loads(f.read())
+            with open(path, encoding="utf-8-sig") as fh:
+                obj = loads(fh.read())
             if isinstance(obj, dict) and any(k in obj for k in _RESULT_MARKS):
                 return
         except (OSError, ValueError, RecursionError):  # UnicodeDecodeError is a ValueError

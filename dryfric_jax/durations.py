@@ -420,8 +420,9 @@ def le_duration_floor(params: Params) -> float:
     Measured (64 asked, seed 0, 0.2.11; the LE in :math:`\tau_0`, then the measured
     :math:`C = \text{LE}\sqrt{\tau'}/\min(1, \tau_L')`): :math:`\tau_L = \infty`, :math:`\bar\gamma = 0`,
     :math:`\tau/h = 700`: 2.3, 2.6, 5.3 and 20.7 at :math:`\tau' = 0.1, 0.03, 0.01, 10^{-3}` (C = 0.73, 0.45, 0.53,
-    0.65; the last with this planned loop bound, 608 s: the old one cut it, 16.7 biased low); coarser steps lengthen them: 14.3 at :math:`\tau' = 0.01`, :math:`\tau/h = 10` (C = 1.4), 47.6 and 37.6
-    at :math:`\tau' = 10^{-3}`, :math:`\tau/h = 10, 100` (1.5, 1.2); damped, at :math:`\tau' = 0.01`, 4.0, 2.5 and
+    0.65; the last with this planned loop bound, 608 s: the old one cut it, 16.7 biased low); coarser steps
+    lengthen them: 14.3 at :math:`\tau' = 0.01`, :math:`\tau/h = 10` (C = 1.4), 47.6 and 37.6 at
+    :math:`\tau' = 10^{-3}`, :math:`\tau/h = 10, 100` (1.5, 1.2); damped, at :math:`\tau' = 0.01`, 4.0, 2.5 and
     1.7 with :math:`\tau_L' = 1, 0.3, 0.1` (C = 0.40, 0.83, 1.7), at :math:`\tau' = 10^{-3}` 1.6 and 0.46 with
     :math:`\tau_L' = 10^{-2}, 10^{-3}` (5.1, 15); 7.0 with :math:`\bar\gamma' = 0.5` at :math:`\tau' = 0.01` (0.70).
     The CIs are +-25-30%.  Without the floor the work predicted at :math:`\tau' = 10^{-3}` was 1/30 of what the lanes
@@ -475,8 +476,9 @@ def predicted_le_steps(params: Params, h: float) -> float:
 
 def default_max_steps(params: Params, h: float, n_excursions: int, n_lanes: int | None = None) -> int:
     """The count's loop bound when none is given: :func:`max_steps_for` the predicted LE
-    (:func:`predicted_le_steps`), at least :data:`MIN_DEFAULT_MAX_STEPS`.  The fixed 10^8 before 2026-12-06 truncated a
-    count of 64 LEs at tau' = 10^-3 (tau_L = inf, the default step), where the LEs last ~17 tau0, 1.2e7 steps."""
+    (:func:`predicted_le_steps`), at least :data:`MIN_DEFAULT_MAX_STEPS`.  The fixed 10^8 before 2026-12-06
+    truncated a count of 64 LEs at tau' = 10^-3 (tau_L = inf, the default step), where the LEs last ~21 tau0,
+    1.5e7 steps, and the longest lane ran 1.4e8."""
     return max(MIN_DEFAULT_MAX_STEPS, max_steps_for(n_excursions, predicted_le_steps(params, h), n_lanes))
 
 

@@ -257,10 +257,9 @@ def make_pdmp_model(params: Params, delta: float, dtype=jnp.float64) -> PDMPMode
     (1/tau_L' beyond 3.4e38: the model's numbers would be inf), which is refused by name."""
     from .plan import DTYPES, dtype_name  # plan is a layer above
 
-    check_params(params)
+    g = pdmp_grid_info(params, delta)  # checks params, then delta
     dtype = DTYPES[dtype_name(dtype)]
     nd = params.nondim()
-    g = pdmp_grid_info(params, delta)
     d = g["delta_nd"]
     kp, km, r_p, r_m = grid_offsets(d, nd.gamma_bar)
     itl = 0.0 if math.isinf(nd.tau_L) else 1.0 / nd.tau_L

@@ -74,7 +74,7 @@ from .durations import (TAU_STEPS, NoCountError, check_duration_run, default_dur
                         di_long_excursion_duration, max_steps_for)
 from .limits import MAX_WORK
 from .outfiles import check_writable, claim, drop_claims_dir, dumps, locked, put_record, read_records, write_records
-from .params import FIG3, Params, check_flag, plain_number, real_or_none, shown
+from .params import FIG3, Params, check_flag, check_positive, plain_number, real_or_none, shown
 from .plan import check_count, check_max_time, check_settings, plan_estimate
 from .rounds import abandon_on_interrupt
 
@@ -144,12 +144,10 @@ def duration_h(params: Params, h) -> float:
     :func:`~dryfric_jax.durations.default_duration_h`.  A sweep's ``h`` coarser than the D estimator's default
     makes the count coarser too (and its bias larger), as it does the D (the docs said the count kept its default
     step then: an audit).  ``h`` other than None or a finite number > 0: ``ValueError`` (NaN gave NaN)."""
-    if h is not None:
-        v = real_or_none(h)
-        if v is None or not (math.isfinite(v) and v > 0):
-            raise ValueError(f"h must be None or a finite number > 0 (got {shown(h)})")
-        h = v
-    return default_duration_h(params) if h is None else min(h, params.tau / TAU_STEPS)
+    if h is None:
+        return default_duration_h(params)
+    check_positive("h", h)
+    return min(float(h), params.tau / TAU_STEPS)
 
 
 def _is_real(x) -> bool:
