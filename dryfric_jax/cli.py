@@ -8,7 +8,8 @@ excursions hit the work bound, so it is biased (``--allow-truncated`` accepts it
 143 SIGTERM (``kill``, a batch scheduler's time limit), taken as a Ctrl-C: the same is printed and kept;
 141 stdout's reader closed the pipe before the output was written (``dryfric estimate | true``), quietly, as SIGPIPE
 would.
-``sweep`` runs every point it can: 1 if a point ended without a result, else 3 if a point's
+``sweep`` runs every point it can: 1 if a point ended without a result (or, with ``--durations``, without its
+count's mean), else 3 if a point's
 excursions were truncated (``--allow-truncated``), else 0; its refused and failed points are
 recorded in the results file with their reasons.  ``duration``: 3 when lanes hit ``--max-steps`` (the mean
 printed is biased low), 1 when fewer than 2 long excursions were counted within it or ``--max-time`` (as
@@ -895,7 +896,8 @@ def _sweep(a) -> int:
         print(dumps(out))
     else:
         extra = "".join(f", {out[k]} {k}" for k in ("refused", "failed", "truncated") if out[k]) + (
-            f", {out['time_limited']} stopped by --max-time" if out["time_limited"] else "")
+            f", {out['time_limited']} stopped by --max-time" if out["time_limited"] else "") + (
+            f", {out['no_count']} without a duration count" if out["no_count"] else "")
         twice = f" (and {out['duplicates']} repeated, run once)" if out["duplicates"] else ""
         print(f"{_points(out['computed'])} computed, {out['skipped']} already in {a.out}, {out['total']} in the grid"
               + twice + extra)
@@ -914,6 +916,12 @@ def _sweep(a) -> int:
               "within the work bounds); a rerun with the same settings skips them (they would fail again); run those "
               "points with a larger --max-work to retry them (or a larger --max-time, for those it stopped)",
               file=sys.stderr)
+        return 1
+    if out["no_count"]:
+        print(f"dryfric: error: {_points(out['no_count'])} got D but no mean long-excursion duration (fewer than 2 "
+              f"long excursions ended within the count's loop bound); their reasons are in {a.out} (durations, "
+              "reason), and a rerun skips them: 'dryfric duration' at such a point with a larger --max-steps "
+              "counts them", file=sys.stderr)
         return 1
     if out["truncated"] and not a.allow_truncated:
         print(f"dryfric: warning: {_points(out['truncated'])} with truncated excursions: their results are biased "

@@ -100,7 +100,7 @@ from .api import DryfricWarning, _key, _Record, _with_warnings, category, check_
 from .di import make_di_model
 from .excursions import BLOCK, MAX_LAYOUT, block_keys
 from .estimators import t_quantile
-from .limits import MAX_WORK, check_work, log_duration_scale
+from .limits import MAX_WORK, check_work, log_predicted_duration
 from .params import Params
 from .plan import check_count, check_max_time, check_max_work, choose, default_h
 from .rounds import _ABANDON, INTERRUPT_GRACE_S
@@ -469,9 +469,9 @@ def check_duration_run(params, h=None, n_excursions: int = 2048, dtype: str = "f
 def predicted_le_steps(params: Params, h: float) -> float:
     """The predicted mean LE in steps of ``h`` (s): the estimator's predicted duration
     (:func:`~dryfric_jax.limits.log_duration_scale`, a lower estimate) or :func:`le_duration_floor`, whichever is
-    longer."""
-    log_t = log_duration_scale(params.tau_nd, params.tau_L_nd, params.gamma_bar_nd)
-    return max(math.exp(min(log_t, 700.0)), le_duration_floor(params)) * params.tau0 / h
+    longer (:func:`~dryfric_jax.limits.log_predicted_duration`, as :func:`check_duration_run` checks the work)."""
+    log_t = log_predicted_duration(params.tau_nd, params.tau_L_nd, params.gamma_bar_nd, le_duration_floor(params))
+    return math.exp(min(log_t, 700.0)) * params.tau0 / h
 
 
 def default_max_steps(params: Params, h: float, n_excursions: int, n_lanes: int | None = None) -> int:

@@ -155,6 +155,14 @@ def log_duration_scale(tau: float, tau_L: float, gamma_bar: float) -> float:
     return log_t
 
 
+def log_predicted_duration(tau: float, tau_L: float, gamma_bar: float, min_duration: float = 0.0) -> float:
+    r"""log of the predicted mean duration (in :math:`\tau_0`) that the work is predicted from:
+    :func:`log_duration_scale`, or ``min_duration`` (:math:`\tau_0`) where that is longer (the long-excursion
+    count's floor for fast noise, :func:`~dryfric_jax.durations.le_duration_floor`)."""
+    log_t = log_duration_scale(tau, tau_L, gamma_bar)
+    return max(log_t, math.log(min_duration)) if min_duration > 0.0 else log_t
+
+
 def check_recurrent(tau_L: float, gamma_bar: float) -> None:
     """Refuse :math:`\\tau_L = \\infty` with :math:`|\\bar\\gamma| \\ge \\Delta` (nondimensional
     arguments): the particle runs away, D and M0 do not exist."""
@@ -187,13 +195,10 @@ def check_work(tau: float, tau_L: float, gamma_bar: float, steps_per_tau0: float
                max_work: float = MAX_WORK, unit: str = "steps", min_duration: float = 0.0) -> float:
     r"""Refuse (``ValueError``) a run whose predicted work exceeds ``max_work``; return the prediction.
 
-    Predicted work = N x predicted duration (:func:`log_duration_scale`, or ``min_duration`` (:math:`\tau_0`)
-    where that is longer: the long-excursion count's floor for fast noise,
-    :func:`~dryfric_jax.durations.le_duration_floor`) x ``steps_per_tau0``.
+    Predicted work = N x predicted duration (:func:`log_predicted_duration`: :func:`log_duration_scale`, or
+    ``min_duration`` where that is longer) x ``steps_per_tau0``.
     """
-    log_t = log_duration_scale(tau, tau_L, gamma_bar)
-    if min_duration > 0.0:
-        log_t = max(log_t, math.log(min_duration))
+    log_t = log_predicted_duration(tau, tau_L, gamma_bar, min_duration)
     log_w = math.log(n_excursions) + log_t + math.log(steps_per_tau0)
     if log_w > math.log(max_work):
         # the reason: the largest of the three factors of the predicted work

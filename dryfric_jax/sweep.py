@@ -243,6 +243,13 @@ def _time_limited(record: dict) -> bool:
     return stopped_by(record) == "max_time" or (record.get(DURATIONS) or {}).get("stopped_by") == "max_time"
 
 
+def _count_failed(record: dict) -> bool:
+    """Whether an ``"ok"`` point's long-excursion count (``durations``) ended without a mean, not stopped by
+    ``max_time``: fewer than 2 long excursions within the loop's bound (its ``reason``)."""
+    d = record.get(DURATIONS)
+    return status(record) == "ok" and isinstance(d, dict) and "reason" in d and d.get("stopped_by") != "max_time"
+
+
 def _more_time(record: dict, max_time) -> bool:
     """True when a point that its ``max_time`` stopped gets more time now (None: no limit)."""
     old = record.get("max_time")
@@ -319,12 +326,13 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
 
     Returns:
         ``dict(computed=k, skipped=s, total=n, duplicates=d, interrupted=bool, refused=r, failed=f,
-        truncated=t, time_limited=m)``: n distinct points (d more entries repeat one of them: a point
+        truncated=t, time_limited=m, no_count=c)``: n distinct points (d more entries repeat one of them: a point
         listed twice runs once; -0.0 is 0.0), k run now (``"ok"`` or ``"failed"``), s found in the
         file (``"ok"`` or ``"failed"``, not rerun); r, f, t and m count the grid's points now recorded as
         refused, failed, ``"ok"`` with truncated excursions (a result biased low), or stopped by
         ``max_time`` (``"ok"`` short of N or rtol, or ``"failed"``); ``truncated`` also counts a point whose
-        long-excursion count left some out.  A point another sweep
+        long-excursion count left some out; c counts the ``"ok"`` points whose count (``durations``) ended
+        without a mean within its loop's bound (not stopped by ``max_time``: those are in m).  A point another sweep
         finished while this one ran is counted in s.  A Ctrl-C stops after the points already
         written; the point in progress is not written.
     """
@@ -433,7 +441,7 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
                                            or (r.get(DURATIONS) or {}).get("n_truncated", 0) > 0) for r in mine)
     return dict(computed=computed, skipped=skipped, total=total, duplicates=len(full) - total,
                 interrupted=interrupted, refused=count["refused"], failed=count["failed"], truncated=truncated,
-                time_limited=sum(map(_time_limited, mine)))
+                time_limited=sum(map(_time_limited, mine)), no_count=sum(map(_count_failed, mine)))
 
 
 def _finished_elsewhere(out: str, ident: str, max_time) -> dict | None:

@@ -57,7 +57,7 @@ def calls(monkeypatch):
     monkeypatch.setattr(bench, "format_layouts", lambda b: "layouts table")
     monkeypatch.setattr(bench, "format_table", lambda b: "bench table")
     summary = dict(computed=0, skipped=0, total=0, duplicates=0, interrupted=False, refused=0, failed=0,
-                   truncated=0, time_limited=0)
+                   truncated=0, time_limited=0, no_count=0)
     monkeypatch.setattr(sweep, "run_sweep", lambda pts, out, **kw: (got.append(("sweep", (pts, out), kw)),
                                                                      dict(summary))[1])
     ns = types.SimpleNamespace(list=got, result=got_result, summary=summary, rec=rec)
@@ -290,6 +290,11 @@ def test_sweep_summary_line_and_exit_codes(calls, tmp_path, capsys):
     calls.summary.update(failed=1)
     assert main(["sweep", "--out", out, "--allow-truncated"]) == 1
     assert "1 point ended without an estimate" in capsys.readouterr().err
+    # a point with D but without its count's mean (--durations): exit 1 too, said in the summary and on stderr
+    calls.summary.update(failed=0, no_count=2)
+    assert main(["sweep", "--out", out, "--allow-truncated"]) == 1
+    cap = capsys.readouterr()
+    assert cap.out.endswith(", 2 without a duration count\n") and "error: 2 points got D but no mean" in cap.err
 
 
 def test_combine_passes_each_result_with_its_file_as_label(calls, tmp_path, capsys):

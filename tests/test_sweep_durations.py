@@ -139,19 +139,23 @@ def test_an_error_of_the_point_progress_callback_in_the_count_goes_up_and_record
 
 
 def test_a_count_cut_short_is_recorded_and_a_truncated_one_exits_3(tmp_path, monkeypatch, capsys):
-    """A count with fewer than 2 long excursions within its bound keeps the point's D and says why; one that left
-    excursions in flight at its bound (biased low) makes the point truncated: exit 3, as a truncated D does."""
+    """A count with fewer than 2 long excursions within its bound keeps the point's D and says why, and the sweep
+    exits 1 (a result asked for is missing; it exited 0 without a word in the summary); one that left excursions in
+    flight at its bound (biased low) makes the point truncated: exit 3, as a truncated D does."""
     out = str(tmp_path / "s.jsonl")
     argv = ["sweep", "--Gamma", "10", "--tau", "0.125", "--n-excursions", "100", "--durations", "64", "--out", out]
     monkeypatch.setattr(sweep, "max_steps_for", lambda n, steps, lanes=None: 128)
-    assert main(argv) == 0
+    assert main(argv) == 1
     (rec,) = _lines(out)
     assert rec["status"] == "ok" and rec["result"]["D"] > 0 and rec["durations"]["max_steps"] == 128
     assert rec["durations"]["reason"].startswith("max_steps = 128 is too small here")
-    assert "LE: none (max_steps = 128 is too small here" in capsys.readouterr().err
+    cap = capsys.readouterr()
+    assert "LE: none (max_steps = 128 is too small here" in cap.err
+    assert "1 point computed, 0 already in" in cap.out and ", 1 without a duration count" in cap.out
+    assert "error: 1 point got D but no mean long-excursion duration" in cap.err and "--max-steps" in cap.err
     assert math.isnan(sweep.rows(out)[0]["le_duration"])
-    assert main(argv) == 0 and _lines(out) == [rec]  # resumed: not rerun (it would end the same way)
-    capsys.readouterr()
+    assert main(argv + ["--json"]) == 1 and _lines(out) == [rec]  # resumed: not rerun (it would end the same way)
+    assert json.loads(capsys.readouterr().out)["no_count"] == 1
     # 5 120 steps: ~2 mean excursions per lane, its seek included, so some are in flight at the bound
     monkeypatch.setattr(sweep, "max_steps_for", lambda n, steps, lanes=None: 5_000)
     out2 = str(tmp_path / "t.jsonl")
@@ -212,7 +216,7 @@ def test_max_time_bounds_the_count_and_a_count_it_stopped_is_rerun_with_more_tim
     pts = sweep.grid(Gamma=[10.0], tau=[0.125])
     kw = dict(n_excursions=100, durations=64)
     r = sweep.run_sweep(pts, out, max_time=600, **kw)
-    assert (r["computed"], r["time_limited"]) == (1, 1) and seen == [600.0]
+    assert (r["computed"], r["time_limited"], r["no_count"]) == (1, 1, 0) and seen == [600.0]
     (rec,) = _lines(out)
     assert rec["durations"]["stopped_by"] == "max_time" and rec["max_time"] == 600
     assert sweep.run_sweep(pts, out, max_time=600, **kw)["computed"] == 0
