@@ -143,6 +143,28 @@ def test_from_nondim_overflow_guard_uses_delta_as_the_unit_of_gamma_bar():
         Params.from_nondim(1.0, gamma_bar=1e300, Gamma=1e20, Delta=1e10)
 
 
+@pytest.mark.parametrize("args, kw, msg", [
+    # tau' = 1e-300 is in range, but tau = 1e-310 is subnormal: it was refused as "tau' ... got 9.99e-301 ... tau =
+    # 1e-310", numbers the user never gave
+    ((1e-300, 1.0), dict(Gamma=1e-10), r"^tau must keep tau' x its unit above 2.23e-308 \(got tau' = 1e-300 with "
+                                       r"unit 1e-10\): choose a larger Gamma or a smaller Delta$"),
+    # tau_L = 1e-330 underflowed to 0 and was refused as "tau_L must be > 0 or inf (got 0.0)"
+    ((1.0, 1e-320), dict(Gamma=1e-10), r"^tau_L' must lie in \[1e-300, 1e\+300\] \(got 1e-320\)"),
+    ((1e-301,), {}, r"^tau' must lie in \[1e-300, 1e\+300\] \(got 1e-301\)"),
+    ((1.0, 2e301), {}, r"^tau_L' must lie in \[1e-300, 1e\+300\] \(got 2e\+301\)"),
+    # tau' = 1e300 exactly: tau/tau0 rounds to 1.0000000000000002e300; the message says what it came from
+    ((1e300,), dict(Gamma=1e5), r"^tau must keep tau' = tau/tau0 in .* \(from_nondim's tau' = 1e\+300, tau_L' = inf, "
+                                r"gamma_bar' = 0.0 in units tau0 = 100000.0 s, Delta = 1.0\)$"),
+    ((1e200,), dict(Gamma=1e200), r"^tau must keep tau' x its unit finite .*: choose a smaller Gamma or a larger Delta$"),
+])
+def test_from_nondim_names_the_nondimensional_numbers_it_was_given(args, kw, msg):
+    """from_nondim checks tau' and tau_L' as given (in the scale range, and times tau0 a normal float) before it
+    makes the physical Params, and an error of Params itself names the nondimensional numbers behind it.  The last
+    case: a larger Delta, not "a smaller Delta" (tau0 = Gamma/Delta^2)."""
+    with pytest.raises(ValueError, match=msg):
+        Params.from_nondim(*args, **kw)
+
+
 @pytest.mark.parametrize("u", [np.uint8(2), np.uint16(2), np.uint32(2), np.uint64(2), np.array(2, dtype=np.uint8)])
 def test_unsigned_integers_are_real_numbers(u):
     """The docstrings accept "an int, a numpy scalar, a 0-d array": unsigned ones too.  Gamma = 2,
