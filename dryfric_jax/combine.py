@@ -16,6 +16,7 @@ adds them; :func:`gather_hosts` does it across the processes of a ``jax.distribu
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 import warnings
 from typing import Sequence
@@ -281,11 +282,12 @@ def _result(first: EstimateResult, rs, total: dict, seeds, said=()) -> EstimateR
         max_work=sum(r.max_work for r in rs),  # the pool's bound, as its work (it was the first run's)
         stopped_by="combined", rtol=None, warnings=notes, sums=total, combined_from=list(seeds),
         lanes=_common(rs, "lanes"), block=_common(rs, "block"), n_requested=sum(r.n_requested for r in rs),
+        max_steps=_common(rs, "max_steps"),  # the first run's before: the pool's depended on the runs' order
         max_time=None, version=_common(rs, "version") or "mixed")
 
 
 def _common(rs, name):
-    """The runs' shared value of an engine setting (or the version), 0 where they differ."""
+    """The runs' shared value of an engine setting or bound (or the version), 0 where they differ."""
     vals = {getattr(r, name) for r in rs}
     return vals.pop() if len(vals) == 1 else 0
 
@@ -294,10 +296,12 @@ def gather_hosts(result: EstimateResult) -> EstimateResult:
     """The estimate of all processes of a ``jax.distributed`` job, on every process.
 
     Each process runs :func:`~dryfric_jax.api.estimate_diffusivity` on its own devices with its
-    own seed (e.g. ``seed + jax.process_index()``) and calls this with its result: the sums and
-    counts are all-gathered (``multihost_utils.process_allgather``) and pooled by
-    :func:`combine_estimates` in process order, so every process returns the same numbers.
-    With one process it returns the pooled result of that process alone.
+    own seed (e.g. ``seed + jax.process_index()``) and calls this with its result: every process's whole
+    result (its strict JSON, :meth:`~dryfric_jax.api.EstimateResult.to_json`) is all-gathered
+    (``multihost_utils.process_allgather``) and pooled by :func:`combine_estimates` in process order, so every
+    process returns the same numbers, and runs that :func:`combine_estimates` refuses (other params, dtype, h,
+    version, a seed used twice) are refused on every process.  With one process it returns the pooled result of
+    that process alone.
     """
     import jax
     from jax.experimental import multihost_utils
@@ -306,28 +310,16 @@ def gather_hosts(result: EstimateResult) -> EstimateResult:
     _check_fields(r, "result")
     if not isinstance(r.sums, dict) or set(r.sums) != set(STAT_NAMES):  # None was a TypeError
         raise ValueError("result has no excursion sums: rerun it with this version")
+
     def gather(x):
         return np.asarray(multihost_utils.process_allgather(x)).reshape(jax.process_count(), -1)
 
-    # the counts and seeds as int64 (through float64 a seed above 2^53 was rounded: 2^62 - 1 came back
-    # as 2^62), and the seeds of a pooled result padded to the longest list (they came back as [None])
-    # (a key-made run's key, text, is not gathered: None on every host, pooled with the "assumed independent" note;
-    # this host's key copied to every host would be refused as one stream used twice)
-    seeds = [s if isinstance(s, int) else -1 for s in (r.combined_from or [r.seed])]
-    width = int(gather(np.array([len(seeds)], np.int64)).max())
-    # every per-host field combining adds up or compares, each host's own (n_requested, lanes, block and max_work
-    # were this host's, copied for every host: two hosts returned different pools)
-    counts = ("n_truncated", "work", "n_requested", "lanes", "block")
-    ints = gather(np.array([getattr(r, c) for c in counts] + [len(seeds)] + seeds + [-2] * (width - len(seeds)),
-                           np.int64))
-    floats = ("wall_s", "lane_steps_per_s", "lane_utilization", "predicted_work", "max_work")
-    reals = gather(np.array([r.sums[k] for k in STAT_NAMES] + [getattr(r, f) for f in floats], np.float64))
-    k, c = len(STAT_NAMES), len(counts)
-    per_host = []
-    for x, i in zip(reals, ints):
-        got = [None if s < 0 else int(s) for s in i[c + 1:c + 1 + int(i[c])]]
-        per_host.append(dataclasses.replace(
-            r, sums=dict(zip(STAT_NAMES, map(float, x[:k]))), **{n: int(v) for n, v in zip(counts, i)},
-            **{f: float(v) for f, v in zip(floats, x[k:])}, seed=got[0] if len(got) == 1 else None, key=None,
-            combined_from=got if len(got) > 1 else []))
-    return combine_estimates(per_host)
+    # the whole result, not its sums and counts alone: the other fields (params, dtype, h, version, warnings,
+    # max_steps, key) were this host's, copied for every host, so hosts of other params or dtypes were pooled
+    # without a word and each process returned its own pool (a reproducibility audit, 2026-12-06).  Strict JSON
+    # writes a float's shortest repr, which reads back to the same float, and ints (seeds past 2^53) exactly
+    text = np.frombuffer(r.to_json().encode(), np.uint8)
+    width = int(gather(np.array([text.size], np.int64)).max())
+    rows = gather(np.concatenate([text, np.zeros(width - text.size, np.uint8)]))
+    per_host = [json.loads(bytes(row).rstrip(b"\0").decode()) for row in rows]
+    return combine_estimates(per_host, labels=[f"process {i}'s result" for i in range(len(per_host))])

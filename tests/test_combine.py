@@ -184,9 +184,18 @@ _HOST = textwrap.dedent("""
     from dryfric_jax.combine import gather_hosts
     p = dj.Params.from_nondim(1e-5, 1.0, 0.3)
     i = jax.process_index()  # runs of other sizes and layouts: each host's own counts must reach every host
-    r = dj.estimate_diffusivity(p, 100 + i, n_excursions=3000 + 1000 * i, lanes=64 * (1 + i))
+    r = dj.estimate_diffusivity(p, 100 + i, n_excursions=3000 + 1000 * i, lanes=64 * (1 + i),
+                                max_work=(5e5 if i == 0 else 1e11))  # process 0's run ends at its work bound
     g = gather_hosts(r)
-    print(json.dumps(dict(local=r.to_dict(), pooled=g.to_dict())))
+    # runs combine_estimates refuses (other dtypes) are refused on every process (they were pooled, each process
+    # labelling the pool with its own dtype)
+    r2 = dj.estimate_diffusivity(p, 200 + i, n_excursions=300, dtype=("float64", "float32")[i])
+    try:
+        gather_hosts(r2)
+        refused = None
+    except ValueError as e:
+        refused = str(e)
+    print(json.dumps(dict(local=r.to_dict(), pooled=g.to_dict(), refused=refused)))
 """)
 
 
@@ -217,6 +226,15 @@ def test_two_processes_pool_their_runs(tmp_path):
     for name in ("n_requested", "max_work", "lanes", "block", "work", "n_truncated", "wall_s", "predicted_work"):
         assert pooled[0][name] == pooled[1][name] == getattr(ref, name), name
     assert ref.n_requested == 7000 and ref.lanes == 0  # the runs' sizes and lanes differ
+    # every field, not the sums and counts alone: process 1 copied its own warnings and max_steps for both hosts
+    # (an audit saw its pool of a run with truncated excursions without the warning of the bias)
+    assert pooled[0] == pooled[1], [k for k in pooled[0] if pooled[0][k] != pooled[1][k]]
+    assert local[0]["stopped_by"] == "work_bound" and local[0]["max_steps"] != local[1]["max_steps"]
+    assert pooled[1]["warnings"] == ref.warnings and pooled[1]["max_steps"] == ref.max_steps == 0
+    assert any(w.startswith("work bound reached") for w in pooled[1]["warnings"])
+    for o in outs:
+        assert o["refused"].startswith("results must share dtype: process 0's result has 'float64', process 1's "
+                                       "result has 'float32'")
 
 
 def test_a_sweep_record_combines_with_a_new_run(tmp_path, runs):
@@ -433,15 +451,24 @@ def test_a_result_writes_strict_json_that_combine_reads_back():
     assert '"tau_L": "inf"' in bf.to_json()
 
 
-def test_gather_hosts_of_a_key_made_run_does_not_copy_its_key():
-    """gather_hosts does not gather keys (text): each host's entry has key None, as before keys were recorded,
-    and is pooled with the "assumed independent" note. Copying this host's key to every host's entry would
-    refuse every multi-host pool of key-made runs as one stream used twice."""
+def test_gather_hosts_of_a_key_made_run_gathers_its_own_key():
+    """gather_hosts gathers each host's whole result, its key (text) too: a key-made run is pooled under its own key,
+    with no "assumed independent" note (before, every host's key was None, pooled with that note; copying this host's
+    key to every host's entry would refuse every multi-host pool of key-made runs as one stream used twice)."""
     import jax
 
     from dryfric_jax.combine import gather_hosts
 
     r = dj.estimate_diffusivity(P, jax.random.key(3), n_excursions=300)
-    with pytest.warns(dj.DryfricWarning, match="assumed independent"):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", dj.DryfricWarning)
         g = gather_hosts(r)
-    assert g.key is None and g.D == r.D and g.n_excursions == r.n_excursions
+    assert g.combined_from == [r.key] and g.D == r.D and g.n_excursions == r.n_excursions
+
+
+def test_the_pools_max_steps_does_not_depend_on_the_order_of_the_runs(runs):
+    """max_steps was the first run's: pooling a run of another bound gave either bound by the order of the runs.
+    Now the runs' shared bound, or 0 where they differ (as lanes and block)."""
+    other = dataclasses.replace(runs[1], max_steps=runs[0].max_steps + 1)
+    assert combine_estimates(runs).max_steps == runs[0].max_steps > 0
+    assert combine_estimates([runs[0], other]).max_steps == combine_estimates([other, runs[0]]).max_steps == 0
