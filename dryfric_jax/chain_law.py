@@ -116,8 +116,10 @@ def _check_chain_h(params: Params, h, nodes_per_sd: int, law: float) -> float:
     v = None if h is None else real_or_none(h)
     if need <= hm and v is not None and math.isfinite(v) and not lo <= v <= hm:
         raise ValueError(f"h must be in [{rounded_bound(lo, lower=True)}, {rounded_bound(hm, lower=False)}] s for the "
-                         f"chain law (got {shown(h)}): below it its grid of nodes_per_sd = {nodes_per_sd} per "
-                         f"step-noise sd would exceed {MAX_NODES} nodes")
+                         f"chain law (got {shown(h)}): " + (
+                             f"below it its grid of nodes_per_sd = {nodes_per_sd} per step-noise sd would exceed "
+                             f"{MAX_NODES} nodes" if v < lo else "above it the step is coarse against min(tau0, "
+                             "tau_L), the range every DI step is held to"))
     return check_h(params, h)
 
 

@@ -850,11 +850,20 @@ def _theory(a, params) -> int:
             skipped = "; the DI chain at --h is not computed" if a.h is not None else ""
             raise _UserError(why + (f" ({kept[0]} printed above{skipped})" if kept else ""))
         if a.h is not None:
-            from .chain_law import white_chain_law
+            out["mean_v2"] = theory.exact_mean_square_velocity(params)
+    if a.h is not None:  # the chain law's own warnings said (an unreliable M0 was printed without a word: an audit)
+        from .chain_law import white_chain_law
 
+        with warnings.catch_warnings(record=True) as said:
+            warnings.simplefilter("always", DryfricWarning)
             law = white_chain_law(params, a.h)
-            out.update(h=a.h, chain_D=law.D, chain_M0=law.M0, chain_mean_v2=law.mean_v2,
-                       mean_v2=theory.exact_mean_square_velocity(params))
+        notes = list(dict.fromkeys(str(w.message) for w in said if issubclass(w.category, DryfricWarning)))
+        for w in said:
+            if not issubclass(w.category, DryfricWarning):
+                warnings.showwarning(w.message, w.category, w.filename, w.lineno)
+        for note in notes:
+            print(f"dryfric: warning: {note}", file=sys.stderr)
+        out.update(h=a.h, chain_D=law.D, chain_M0=law.M0, chain_mean_v2=law.mean_v2, chain_warnings=notes)
     if a.json:
         print(dumps(out))
     else:

@@ -93,7 +93,9 @@ def test_chain_law_refuses_a_step_too_small_or_too_large():
         white_chain_law(p, 0.0)
     with pytest.raises(ValueError, match="no admissible h"):  # the bump at v* = 50 with sd 10 spans +-350
         white_chain_law(dj.Params.from_nondim(1e-4, 100.0, 1.5), 0.05)
-    with pytest.raises(ValueError, match="h must be in"):
+    # above the range: the reason is the step's own bound, not the grid's size (it said "below it ... would exceed"
+    # for every h out of range: an audit)
+    with pytest.raises(ValueError, match=r"h must be in .*: above it the step is coarse against min\(tau0, tau_L\)"):
         white_chain_law(p, 0.5 * p.tau0)
 
 

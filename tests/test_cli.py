@@ -454,6 +454,24 @@ def test_bruteforce_and_theory_json(capsys, solve_rounding):
     law = white_chain_law(Params.from_nondim(1e-5, math.inf, 0.0), 0.05)
     assert (out["chain_D"], out["chain_M0"], out["chain_mean_v2"]) == (law.D, law.M0, law.mean_v2)
     assert out["chain_D"] < out["D"] and abs(out["chain_M0"]) < solve_rounding(law)
+    assert out["chain_warnings"] == [] and capsys.readouterr().err == ""
+
+
+def test_theory_says_the_chain_laws_warning(capsys):
+    """The chain law warns where its M0 is round-off (E[V] far below the solve's resolution against V's spread);
+    `dryfric theory --h` silenced it with theory's "tau is not used" note and printed an M0 off by 1e14 % with exit
+    0 (an audit).  Now it is said on stderr and kept in the JSON's chain_warnings."""
+    argv = ["theory", "--nondim", "--tau", "1e-6", "--tau-L", "1e-50", "--gamma-bar", "0.5", "--h", "5e-52"]
+    from dryfric_jax import DryfricWarning
+
+    with pytest.warns(DryfricWarning, match="the chain law's M0 is unreliable here"):
+        white_chain_law(Params.from_nondim(1e-6, 1e-50, 0.5), 5e-52)  # what the command must pass on
+    assert main(argv) == 0
+    cap = capsys.readouterr()
+    assert cap.err.startswith("dryfric: warning: the chain law's M0 is unreliable here") and "DI chain at h" in cap.out
+    assert main(argv + ["--json"]) == 0
+    (note,) = json.loads(capsys.readouterr().out)["chain_warnings"]
+    assert note.startswith("the chain law's M0 is unreliable here")
 
 
 def test_theory_prints_m0_when_only_d_leaves_float64(capsys):
