@@ -228,15 +228,16 @@ def check_work(tau: float, tau_L: float, gamma_bar: float, steps_per_tau0: float
 
 
 def _exp10(log_x: float) -> str:
-    """``exp(log_x)`` as text, also far beyond float range ("2.5e1234", "10^(1.9e+300)", "inf"), rounded
+    """``exp(log_x)`` as text, also far beyond float range ("2.5e1234", "10^(1.9e+300)"), rounded
     up: it states a lower bound ("max_work must be >= ...", a duration ">= ..."), and a max_work copied
-    from the message must be accepted (rounded to nearest, 54 of 200 were refused again)."""
+    from the message must be accepted (rounded to nearest, 54 of 200 were refused again).  Where ``log_x`` itself
+    overflowed (inf: a bias of 1e160 Delta), "10^(1.79e+308)", a lower bound still (it said "inf": an audit)."""
     e = log_x / math.log(10.0)
     if e <= 15:  # accepted as max_work where its log is >= log_x (check_work compares logs)
         s = f"{math.exp(log_x):.3g}"
         return s if math.log(float(s)) >= log_x else rounded_bound(math.exp(log_x), lower=True, digits=3)
     if not math.isfinite(e):
-        return "inf"
+        return f"10^({rounded_bound(sys.float_info.max, lower=False, digits=3)})"
     if e >= 1e6:
         return f"10^({rounded_bound(e, lower=True, digits=3)})"
     m, k = math.ceil(10 ** (e - math.floor(e)) * 10) / 10, int(math.floor(e))
