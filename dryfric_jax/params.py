@@ -285,7 +285,8 @@ class Params(eqx.Module):
                                  "floating-point range, express the parameters in other units")
             if c is not None and math.isfinite(c) and not math.isfinite(c * unit):  # 1e300 tau0: tau_L = inf
                 raise ValueError(f"{name} must keep {name}' x its unit finite (got {name}' = {c!r} with unit "
-                                 f"{unit:.3g}): choose a " + ("smaller Delta" if name == "gamma_bar" else "smaller Gamma or a larger Delta"))
+                                 f"{unit:.3g}): choose a "
+                                 + ("smaller Delta" if name == "gamma_bar" else "smaller Gamma or a larger Delta"))
             if c is not None and name != "gamma_bar" and math.isfinite(c) and c * unit < sys.float_info.min:
                 # a subnormal or 0 time: refused as "tau_L must be > 0 (got 0.0)", a value never given
                 raise ValueError(f"{name} must keep {name}' x its unit above {sys.float_info.min:.3g} (got {name}' = "

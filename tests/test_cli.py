@@ -153,7 +153,8 @@ BAD += [
     (["estimate", "--tau", "1e300"], "tau must keep"),
     # a 1e30-digit work bound, in brief, and no advice to raise max_work (no float is large enough)
     (["estimate", "--Gamma", "1e-30"], "max_work must be >= 10^(1."),
-    (["estimate", "--gamma-bar", "1e300"], "max_work must be >= inf steps for these parameters, beyond float range"),
+    (["estimate", "--gamma-bar", "1e300"],  # its log overflows: the bound as 10^(float max), it said "inf"
+     "max_work must be >= 10^(1.79e+308) steps for these parameters, beyond float range"),
     # beyond int64: a TypeError traceback from lanes_for (np.log2 of a Python int)
     (["estimate", "--n-excursions", str(2**70), "--max-work", "1e308", "--max-time", "5"],
      "--n-excursions must be an integer in [2, 2^62]"),

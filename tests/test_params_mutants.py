@@ -155,7 +155,8 @@ def test_from_nondim_overflow_guard_uses_delta_as_the_unit_of_gamma_bar():
     # tau' = 1e300 exactly: tau/tau0 rounds to 1.0000000000000002e300; the message says what it came from
     ((1e300,), dict(Gamma=1e5), r"^tau must keep tau' = tau/tau0 in .* \(from_nondim's tau' = 1e\+300, tau_L' = inf, "
                                 r"gamma_bar' = 0.0 in units tau0 = 100000.0 s, Delta = 1.0\)$"),
-    ((1e200,), dict(Gamma=1e200), r"^tau must keep tau' x its unit finite .*: choose a smaller Gamma or a larger Delta$"),
+    ((1e200,), dict(Gamma=1e200),
+     r"^tau must keep tau' x its unit finite .*: choose a smaller Gamma or a larger Delta$"),
 ])
 def test_from_nondim_names_the_nondimensional_numbers_it_was_given(args, kw, msg):
     """from_nondim checks tau' and tau_L' as given (in the scale range, and times tau0 a normal float) before it
