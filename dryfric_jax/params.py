@@ -279,18 +279,21 @@ class Params(eqx.Module):
         nd = []
         for name, v, unit in (("tau", tau, tau0), ("tau_L", tau_L, tau0), ("gamma_bar", gamma_bar, Delta)):
             c = _concrete(name, v)  # a Python float; None for a tracer, kept (Params checks it on the concrete call)
-            if c is not None and name != "gamma_bar" and math.isfinite(c) and not lo <= c <= hi:
-                # checked as given: 1e-300 with tau0 = 1e-10 was refused as "tau' ... got 9.99e-301 ... tau = 1e-310"
-                raise ValueError(f"{name}' must lie in [{lo:g}, {hi:g}] (got {_beyond(c, lo, hi)}): out of "
-                                 "floating-point range, express the parameters in other units")
-            if c is not None and math.isfinite(c) and not math.isfinite(c * unit):  # 1e300 tau0: tau_L = inf
-                raise ValueError(f"{name} must keep {name}' x its unit finite (got {name}' = {c!r} with unit "
-                                 f"{unit:.3g}): choose a "
-                                 + ("smaller Delta" if name == "gamma_bar" else "smaller Gamma or a larger Delta"))
-            if c is not None and name != "gamma_bar" and math.isfinite(c) and c * unit < sys.float_info.min:
-                # a subnormal or 0 time: refused as "tau_L must be > 0 (got 0.0)", a value never given
-                raise ValueError(f"{name} must keep {name}' x its unit above {sys.float_info.min:.3g} (got {name}' = "
-                                 f"{c!r} with unit {unit:.3g}): choose a larger Gamma or a smaller Delta")
+            if c is not None and math.isfinite(c):  # inf (tau_L) and NaN are Params' to refuse
+                time = name != "gamma_bar"  # a time (unit tau0), checked as given: tau' = 1e-300 with tau0 = 1e-10
+                # was refused as "tau' ... got 9.99e-301 ... tau = 1e-310", tau_L' = 1e-320 as "tau_L must be > 0
+                # (got 0.0)": values never given
+                if time and not lo <= c <= hi:
+                    raise ValueError(f"{name}' must lie in [{lo:g}, {hi:g}] (got {_beyond(c, lo, hi)}): out of "
+                                     "floating-point range, express the parameters in other units")
+                if not math.isfinite(c * unit):  # 1e300 tau0: tau_L = inf
+                    raise ValueError(f"{name} must keep {name}' x its unit finite (got {name}' = {c!r} with unit "
+                                     f"{unit:.3g}): choose a "
+                                     + ("smaller Gamma or a larger Delta" if time else "smaller Delta"))
+                if time and c * unit < sys.float_info.min:  # subnormal or 0
+                    raise ValueError(f"{name} must keep {name}' x its unit above {sys.float_info.min:.3g} (got "
+                                     f"{name}' = {c!r} with unit {unit:.3g}): choose a larger Gamma or a smaller "
+                                     "Delta")
             nd.append(v if c is None else c)
         tau, tau_L, gamma_bar = nd
         try:
