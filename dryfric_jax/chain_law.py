@@ -88,7 +88,7 @@ def _norm_cdf(z):
 
 
 def _law_span(width: float, itl: float, g: float) -> float:
-    """The grid's span past 0 (nondimensional) less its 10 step-noise sds: ``width`` widths of the continuum law,
+    r"""The grid's span past 0 (nondimensional) less its 10 step-noise sds: ``width`` widths of the continuum law,
     or past a bump of sd :math:`\sqrt{\tau_L'}` at :math:`|v^*| = (|g| - 1)\tau_L'` (theory._mode_points)."""
     law = width * _scale(itl, g)
     if itl > 0 and abs(g) > 1:
