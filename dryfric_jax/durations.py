@@ -54,11 +54,12 @@ count also takes a release towards the opposite threshold :math:`a` (:math:`x_{-
     \operatorname{Var}(X_{n+1}\mid X_n) = \frac{1 - e^{-2h/\tau}}{\tau},
 
 with :math:`d_n, d_{n+1}` the distances of :math:`X_n, X_{n+1}` inside :math:`a` (:math:`p_n = 1` where either
-is beyond it), from one uniform per step, made of the low bits that the step's two normals leave unused
-(:func:`~dryfric_jax.rng.normals_and_spare`: 24 bits in float64, 18 in float32, independent of the normals), so
-the bridge draws nothing more and the chain's path is the raw count's, step for step (0.2.10; 0.2.9 drew the
-uniform from another key; since 0.2.11 it is a cell's midpoint, never 0, which at Fig. 3's point changed one LE
-in 33 000 in float32: 4.0132 against 4.0133 s).  The chain (X, V) itself is not changed: such a release would
+is beyond it), from one uniform per step, independent of the step's two normals
+(:func:`~dryfric_jax.rng.normals_and_spare`: in float32 18 low bits that the normals leave unused, so the bridge
+hashes nothing more; in float64, whose pair reads all 64 bits of its hash since 0.3.0, 52 bits of one more hash
+per step), so the chain's path is the raw count's, step for step (0.2.10; 0.2.9 drew the uniform from another
+key; since 0.2.11 it is a cell's midpoint, never 0, which at Fig. 3's point changed one LE in 33 000 in float32:
+4.0132 against 4.0133 s).  The chain (X, V) itself is not changed: such a release would
 move the particle by :math:`O(h^{3/2})`.  The bias then falls like h: at that point 0.4413, 0.4378, 0.4345,
 0.4326 s at h, h/2, h/4, h/16 (+- 0.0016: 0.2.9's and 0.2.10's runs of 131 072 LEs each, independent, pooled),
 +2.0%, +1.2% and +0.4% against h/16; the PDMP, an independent method, gives 0.4405 and 0.4376 (+- 0.0023) at

@@ -18,18 +18,22 @@ and the bits are :math:`a \,\|\, b` (64-bit numbers) or :math:`a \oplus b` (32-b
 .. math::
     U = \max(lo, k 2^{-m} (hi - lo) + lo),
 
-as in ``jax.random.uniform``, and the normals come in pairs: numbers :math:`2j` and :math:`2j + 1`
-of the last axis (of ``jax.random.bits(key, shape)``, ``shape[-1]`` even), with integers
-:math:`k, k'`, are
+as in ``jax.random.uniform``.  The normals come in pairs, numbers :math:`2j` and :math:`2j + 1` of
+the last axis (``shape[-1]`` even), from two integers :math:`k, k'` of :math:`m` bits:
 
 .. math::
     (Z_{2j}, Z_{2j+1}) = \sqrt{-2 \ln u}\,(\cos 2\pi t, \sin 2\pi t), \qquad
-    u = (k + \tfrac12)\, 2^{-m}, \quad t = k' 2^{-m}:
+    u = (k + \tfrac12)\, 2^{-m}, \quad t = k' 2^{-m}.
 
-u is the midpoint of one of :math:`2^m` equally likely cells (never 0 or 1) and t is
-``jax.random.uniform``'s number, so the pair's law is exactly invariant under the reflections
-:math:`t \to 1 - t`, :math:`t \to t + 1/2`, with :math:`|Z| \le \sqrt{2 (m + 1) \ln 2}`, 8.57
-(float64) and 5.77 (float32).  A DI step's two normals are one pair.  The numbers are the same
+In float32, k and k' are the top m = 23 bits of numbers 2j and 2j + 1 of ``jax.random.bits(key,
+shape, uint32)`` (t is then ``jax.random.uniform``'s number).  In float64 a pair is **one hash**:
+k and k' are the two 32-bit words a and b (m = 32) of number j of ``jax.random.bits(key, shape[:-1]
++ (shape[-1] / 2,), uint64)``, its high and low halves (version 0.3.0; before it, two 64-bit numbers
+and m = 52: twice the hashing, and XLA:CPU's 64-bit integer vectors, for bits the normals do not
+need).  u is the midpoint of one of :math:`2^m` equally likely cells (never 0 or 1), so the pair's
+law is exactly invariant under the reflections :math:`t \to 1 - t`, :math:`t \to t + 1/2`, with
+:math:`|Z| \le \sqrt{2 (m + 1) \ln 2}`: 6.76 in float64 (a normal's chance to exceed it is
+1.4e-11) and 5.77 in float32.  A DI step's two normals are one pair.  The numbers are the same
 on every platform: on a CPU the fused hash, elsewhere (a GPU, whose lowering is already
 unrolled) ``jax.random.bits`` and the same transform.
 
@@ -84,16 +88,23 @@ def materialised(compute, kd):
     return lax.cond(kd[0, 0] > np.uint32(0x7FFFFFFF), compute, compute)
 
 
-def _bits(kd, block: int, n: int, dtype, start=0, materialise: bool = True):
+def _bits(kd, block: int, n: int, dtype, start=0, materialise: bool = True, pairs: bool = False):
     """The random bits of counters ``(start + r) n + c`` (row r, column c) of every lane (key
     data ``kd``, (lanes, 2)): one (block, lanes) array per column, materialised by the
-    ``lax.cond`` (module docstring) if ``materialise`` (on a CPU)."""
+    ``lax.cond`` (module docstring) if ``materialise`` (on a CPU).  With ``pairs`` in float64 (the
+    normals' bits), columns c and c + 1 (c even) are instead the two 32-bit words (a, b) of counter
+    ``(start + r) n / 2 + c / 2``: a pair's one hash (module docstring)."""
     k1, k2 = kd[:, 0][None, :], kd[:, 1][None, :]
     wide = np.dtype(dtype).itemsize == 8
     rows = jnp.arange(block, dtype=jnp.uint32)[:, None] + jnp.asarray(start).astype(jnp.uint32)
 
     def hashes():
         out = []
+        if pairs and wide:
+            for j in range(n // 2):
+                i = rows * np.uint32(n // 2) + np.uint32(j)
+                out.extend(threefry2x32(k1, k2, jnp.zeros_like(i), i))
+            return tuple(out)
         for c in range(n):
             i = rows * np.uint32(n) + np.uint32(c)
             out.append(_join(*threefry2x32(k1, k2, jnp.zeros_like(i), i), wide))
@@ -117,12 +128,19 @@ def _unit(bits, dtype, lo, hi):
 @functools.partial(jax.jit, static_argnums=2)
 def _normal(bits_u, bits_t, dtype):
     r""":func:`normal`'s transform of a pair's bits: :func:`boxmuller.pair` of
-    :math:`u = (k + 1/2) 2^{-m}` and :math:`t = k' 2^{-m}` (:func:`_unit`, ``jax.random.uniform``'s
-    number), k and k' the top m bits of ``bits_u`` and ``bits_t``; u made exactly as
-    :math:`(2k + 1) 2^{-m-1}` from the integer.  (Written as
-    :math:`(f - 1) + 2^{-m-1}` from the bits' float f in [1, 2), XLA's simplifier may fold the
-    constants into one rounded constant, as it did to 0.2.4's :math:`((f - 1) + 2^{-m-1}) - 1/2`.)"""
+    :math:`u = (k + 1/2) 2^{-m}` and :math:`t = k' 2^{-m}`.  float64: ``bits_u`` and ``bits_t`` are
+    one hash's two 32-bit words, k and k' themselves (m = 32), and u and t are exact whatever the
+    order XLA adds and scales them in (:math:`k + \tfrac12` and the products need 33 bits).
+    float32: k and k' are the top m = 23 bits of 32-bit numbers, t is :func:`_unit`'s
+    (``jax.random.uniform``'s) number, and u is made exactly as :math:`(2k + 1) 2^{-m-1}` from the
+    integer.  (Written as :math:`(f - 1) + 2^{-m-1}` from the bits' float f in [1, 2), XLA's
+    simplifier may fold the constants into one rounded constant, as it did to 0.2.4's
+    :math:`((f - 1) + 2^{-m-1}) - 1/2`.)"""
     dtype = np.dtype(dtype)
+    if dtype.itemsize == 8:
+        scale = np.array(2.0 ** -32, dtype)
+        u = (bits_u.astype(dtype) + np.array(0.5, dtype)) * scale
+        return boxmuller.pair(u, bits_t.astype(dtype) * scale)
     ut = _uint(dtype)
     m = np.finfo(dtype).nmant
     k = bits_u >> ut(8 * dtype.itemsize - m)
@@ -144,8 +162,17 @@ def normal(key, shape, dtype):
     _check_dtype(dtype)
     shape = tuple(shape)
     _pairs(shape)
-    b = jax.random.bits(key, shape, _uint(dtype))
-    return jnp.stack(_normal(b[..., 0::2], b[..., 1::2], dtype), -1).reshape(shape)
+    return jnp.stack(_normal(*_pair_bits(key, shape[:-1] + (shape[-1] // 2,), dtype), dtype), -1).reshape(shape)
+
+
+def _pair_bits(key, shape, dtype):
+    """The bits of one key's pairs of :func:`normal` (``shape``: the pairs), through ``jax.random.bits``: a
+    64-bit number's high and low words (float64), or two 32-bit numbers (float32)."""
+    if np.dtype(dtype).itemsize == 8:
+        w = jax.random.bits(key, shape, jnp.uint64)
+        return (w >> np.uint64(32)).astype(jnp.uint32), w.astype(jnp.uint32)
+    b = jax.random.bits(key, shape[:-1] + (2 * shape[-1],), jnp.uint32)
+    return b[..., 0::2], b[..., 1::2]
 
 
 def per_lane(sample, keys, n: int):
@@ -212,12 +239,13 @@ def uniform(keys, dtype, minval: float = 0.0, maxval: float = 1.0):
                    lambda ks: _each(lambda k: jax.random.uniform(k, (), dtype, minval, maxval), ks))
 
 
-def _draw(keys, block: int, n: int, dtype, sample, transform, start=None, n_out=None):
+def _draw(keys, block: int, n: int, dtype, sample, transform, start=None, n_out=None, bits=None):
     """``per_lane(sample, keys, n_out)`` (``n_out`` columns, n unless told); on a CPU, for threefry keys, the same
     numbers as ``transform`` of the fused hash's bits (n columns; module docstring), elsewhere ``sample`` itself.
     With ``start``, rows ``[start, start + block)`` of the per-lane array (``sample`` is then not used):
     the fused hash on every platform, materialised on a CPU only (a GPU would read the
-    ``lax.cond``'s predicate back to the host)."""
+    ``lax.cond``'s predicate back to the host).  ``bits(kd, start, materialise)``: the bits to transform, if not
+    :func:`_bits`'s n columns."""
     _check_dtype(dtype)
     via_jax = lambda ks: per_lane(sample, ks, n if n_out is None else n_out)
     if not is_threefry(keys):
@@ -225,7 +253,8 @@ def _draw(keys, block: int, n: int, dtype, sample, transform, start=None, n_out=
             raise ValueError("row offsets (start) need threefry keys, JAX's default generator")
         return via_jax(keys)
     s = 0 if start is None else start
-    fused = lambda m: lambda ks: transform(_bits(jax.random.key_data(ks), block, n, dtype, s, m))
+    bits = bits or (lambda kd, s_, m: _bits(kd, block, n, dtype, s_, m))
+    fused = lambda m: lambda ks: transform(bits(jax.random.key_data(ks), s, m))
     return lax.platform_dependent(keys, cpu=fused(True), default=via_jax if start is None else fused(False))
 
 
@@ -244,36 +273,56 @@ def normals(keys, block: int, n: int, dtype, start=None):
     """
     _pairs((n,))
     return _draw(keys, block, n, dtype, lambda k: normal(k, (block, n), dtype),
-                 lambda bs: sum((_normal(bs[c], bs[c + 1], dtype) for c in range(0, n, 2)), ()), start)
+                 lambda bs: sum((_normal(bs[c], bs[c + 1], dtype) for c in range(0, n, 2)), ()), start,
+                 bits=lambda kd, s, m: _bits(kd, block, n, dtype, s, m, pairs=True))
 
 
 def _spare(bits_u, bits_t, dtype):
-    r"""A uniform in (0, 1) from the low bits of a pair's two numbers that :func:`_normal` leaves unused (it reads
-    only their top m bits): :math:`(k + \tfrac12)\,2^{-2s}` with :math:`k = l_u 2^s + l_t`, :math:`l` the low
-    :math:`s = 64 - 52 = 12` (float64) or :math:`32 - 23 = 9` (float32) bits: the midpoint of one of :math:`2^{24}`
-    or :math:`2^{18}` equally likely cells, independent of the pair (the bits of a hash are), never 0 or 1.  (With
-    :math:`k 2^{-2s}`, 0.2.10's, a draw of exactly 0, one step in :math:`2^{18}` in float32, took any crossing
-    chance above 0 as a crossing: a stuck particle far from the threshold then reversed.)"""
-    dtype = np.dtype(dtype)
-    ut = _uint(dtype)
-    s = 8 * dtype.itemsize - np.finfo(dtype).nmant
+    r"""float32: a uniform in (0, 1) from the low bits of a pair's two numbers that :func:`_normal` leaves unused
+    (it reads only their top 23 bits): :math:`(k + \tfrac12)\,2^{-18}` with :math:`k = l_u 2^9 + l_t`, :math:`l`
+    the low 9 bits: the midpoint of one of :math:`2^{18}` equally likely cells, independent of the pair (the bits
+    of a hash are), never 0 or 1.  (With :math:`k 2^{-18}`, 0.2.10's, a draw of exactly 0, one step in
+    :math:`2^{18}`, took any crossing chance above 0 as a crossing: a stuck particle far from the threshold then
+    reversed.)"""
+    ut, s = np.uint32, 9
     low = ut((1 << s) - 1)
     k = ((bits_u & low) << ut(s + 1)) | ((bits_t & low) << ut(1)) | ut(1)  # 2k + 1, exact
     return k.astype(dtype) * np.array(2.0 ** (-2 * s - 1), dtype)
 
 
+def _spare64(w):
+    r"""float64: the uniform :math:`(k + \tfrac12)\,2^{-52}` of a 64-bit number's top 52 bits k, the midpoint of
+    one of :math:`2^{52}` equally likely cells, never 0 or 1.  (A float64 pair reads all 64 bits of its hash,
+    so its spare is another hash's: :func:`normal_pair_and_spare`.)"""
+    k = ((w >> np.uint64(12)) << np.uint64(1)) | np.uint64(1)  # 2k + 1 < 2^53, exact
+    return k.astype(jnp.float64) * np.array(2.0 ** -53, np.float64)
+
+
 def normal_pair_and_spare(key, block: int, dtype):
-    """One key's ``(block, 3)``: columns 0, 1 are :func:`normal` ``(key, (block, 2), dtype)`` and column 2 the
-    uniform of :func:`_spare` from the same bits: a third number per row at no extra hash (the per-key
-    definition that :func:`normals_and_spare` computes for every lane at once)."""
+    """One key's ``(block, 3)``: columns 0, 1 are :func:`normal` ``(key, (block, 2), dtype)`` and column 2 a
+    uniform in (0, 1) independent of them: in float32 :func:`_spare` of the pair's own bits (no extra hash), in
+    float64 :func:`_spare64` of number ``block + r`` of ``jax.random.bits(key, (2 block,), uint64)`` for row r
+    (the pairs are numbers 0 to block - 1).  The per-key definition that :func:`normals_and_spare` computes for
+    every lane at once."""
     _check_dtype(dtype)
-    b = jax.random.bits(key, (block, 2), _uint(dtype))
+    if np.dtype(dtype).itemsize == 8:
+        w = jax.random.bits(key, (2 * block,), jnp.uint64)
+        a, b = (w[:block] >> np.uint64(32)).astype(jnp.uint32), w[:block].astype(jnp.uint32)
+        return jnp.stack(_normal(a, b, dtype) + (_spare64(w[block:]),), -1)
+    b = jax.random.bits(key, (block, 2), jnp.uint32)
     return jnp.stack(_normal(b[:, 0], b[:, 1], dtype) + (_spare(b[:, 0], b[:, 1], dtype),), -1)
 
 
 def normals_and_spare(keys, block: int, dtype):
     """Every lane's :func:`normal_pair_and_spare` as 3 arrays of shape (block, lanes): the two normals are
     exactly :func:`normals` ``(keys, block, 2, dtype)``'s."""
+    if np.dtype(dtype).itemsize == 8:
+        def bits(kd, s, m):
+            both = lambda: _bits(kd, block, 2, dtype, 0, False, pairs=True) + _bits(kd, block, 1, dtype, block, False)
+            return materialised(both, kd) if m else both()
+
+        return _draw(keys, block, 2, dtype, lambda k: normal_pair_and_spare(k, block, dtype),
+                     lambda bs: _normal(bs[0], bs[1], dtype) + (_spare64(bs[2]),), n_out=3, bits=bits)
     return _draw(keys, block, 2, dtype, lambda k: normal_pair_and_spare(k, block, dtype),
                  lambda bs: _normal(bs[0], bs[1], dtype) + (_spare(bs[0], bs[1], dtype),), n_out=3)
 

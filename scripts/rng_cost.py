@@ -32,25 +32,33 @@ from dryfric_jax.excursions import BLOCK, UNROLL, block_keys  # noqa: E402
 LANES, N = 512, 1 << 23  # the bench's RNG-bound defaults
 
 
+def _pair_bits(keys, b, dtype):
+    """A block's two words of bits per step, what :func:`rng.normals` transforms (``rng._bits``): in float64
+    one hash's two 32-bit words (since 0.3.0), in float32 two 32-bit numbers."""
+    return rng._bits(jax.random.key_data(block_keys(keys, b)), BLOCK, 2, dtype, pairs=True)
+
+
 def hash_timer(dtype):
-    """A timer of the hash alone: lane-steps/s if drawing a step's two words of bits (``rng._bits``,
-    what :func:`rng.normals` transforms) were all the lanes did."""
+    """A timer of the hash alone: lane-steps/s if drawing a step's two words of bits were all the lanes did."""
     def body(keys, b, acc):
-        w1, w2 = rng._bits(jax.random.key_data(block_keys(keys, b)), BLOCK, 2, dtype)
+        w1, w2 = _pair_bits(keys, b, dtype)
         return jax.lax.fori_loop(0, BLOCK, lambda i, a: a + w1[i] + w2[i], acc, unroll=UNROLL)
 
-    return _device_timer(body, lambda m: jnp.zeros((m,), rng._uint(dtype)), LANES, BLOCK, N, 5)
+    return _device_timer(body, lambda m: jnp.zeros((m,), jnp.uint32), LANES, BLOCK, N, 5)
 
 
 def box_muller_timer(dtype):
     r"""A timer of Box-Muller normals from the same bits through XLA's ``jnp.log``, ``jnp.cos`` and
     ``jnp.sin`` (for comparison with the engine's, which evaluates its own), a step's pair
     :math:`\sqrt{-2\ln u_1}\,(\cos 2\pi u_2, \sin 2\pi u_2)` with :math:`u_1 \in (0, 1]`."""
+    def unit(w):  # on [0, 1): all 32 bits of a float64 pair's word, else jax.random.uniform's
+        return w.astype(dtype) * np.array(2.0 ** -32, dtype) if dtype == np.float64 else rng._unit(w, dtype, 0.0, 1.0)
+
     def body(keys, b, acc):
-        w1, w2 = rng._bits(jax.random.key_data(block_keys(keys, b)), BLOCK, 2, dtype)
-        u1 = np.array(1.0, dtype) - rng._unit(w1, dtype, 0.0, 1.0)
+        w1, w2 = _pair_bits(keys, b, dtype)
+        u1 = np.array(1.0, dtype) - unit(w1)
         r = jnp.sqrt(np.array(-2.0, dtype) * jnp.log(u1))
-        th = np.array(2 * np.pi, dtype) * rng._unit(w2, dtype, 0.0, 1.0)
+        th = np.array(2 * np.pi, dtype) * unit(w2)
         z1, z2 = r * jnp.cos(th), r * jnp.sin(th)
         return jax.lax.fori_loop(0, BLOCK, lambda i, a: a + z1[i] + z2[i], acc, unroll=UNROLL)
 

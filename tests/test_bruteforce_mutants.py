@@ -108,12 +108,16 @@ def test_the_smallest_counts_are_accepted_one_path_one_step_one_lane():
     """n_paths = 1, n_steps = 1, chunk_lanes = 1 are valid (the checks are ``>= 1``): U is one trapezoid
     from (x_Delta, 0), by hand.  Kills ``check_count("n_paths", n_paths, 2)`` and
     ``check_count("chunk_lanes", chunk_lanes, 2)``."""
-    m, key = _model(), jax.random.key(7)  # a key whose first step leaves the stuck state (most stay stuck)
+    m = _model()
+    for seed in range(64):  # the first key whose first step leaves the stuck state (most stay stuck)
+        key = jax.random.key(seed)
+        u, scale = _path_by_hand(float(m.x_plus), _normals(key, 0, 1, BLOCK, jnp.float64), 0, 1)
+        if scale > 0:
+            break
+    assert scale > 0
     U, t = bruteforce.simulate_bruteforce(m, key, 1, 1, chunk_lanes=1)
-    z = _normals(key, 0, 1, BLOCK, jnp.float64)
-    u, scale = _path_by_hand(float(m.x_plus), z, 0, 1)
     assert t == H and U.shape == (1,)
-    assert scale > 0 and U[0] == pytest.approx(u, rel=1e-12)
+    assert U[0] != 0 and U[0] == pytest.approx(u, rel=1e-12)
 
 
 def test_counts_above_2_31_steps_reach_the_kernel_exactly_as_int64(monkeypatch):

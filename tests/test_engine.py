@@ -566,11 +566,17 @@ def _coupled_unit(a, b):
     return jax.lax.bitcast_convert_type(_coupled_bits(a, b) | np.array(1.0).view(np.uint64), jnp.float64) - 1.0
 
 
+def _coupled_word(a, b):
+    """A 32-bit word from one threefry hash ``(a, b)`` whose top 23 bits are the float32 draw's, ``(a ^ b) >> 9``,
+    and whose low 9 bits are ``a``'s (independent of ``a ^ b``): what a float64 pair reads for its u or t."""
+    return (((a ^ b) >> np.uint32(9)) << np.uint32(9)) | (a & np.uint32(511))
+
+
 def _coupled_units(keys, block: int, normals: bool = False):
     """Every lane's two columns of coupled uniforms (counter ``2 row + column``, the layout of
     ``rng.normals`` / ``rng.uniforms``), each (block, lanes); with ``normals``, ``rng._normal`` of
-    the two columns' coupled bits instead (Box-Muller of their 52-bit cells, which lie in the
-    float32 cells of float32's u and t)."""
+    the two columns' coupled words instead (Box-Muller of their 32-bit cells, as a float64 pair's are
+    made, which lie in the float32 cells of float32's u and t)."""
     kd = jax.random.key_data(keys)
     rows = jnp.arange(block, dtype=jnp.uint32)[:, None]
 
@@ -579,8 +585,7 @@ def _coupled_units(keys, block: int, normals: bool = False):
         for c in range(2):
             i = rows * np.uint32(2) + np.uint32(c)
             ab = rng.threefry2x32(kd[:, 0][None, :], kd[:, 1][None, :], jnp.zeros_like(i), i)
-            # the 52 bits on top, where rng._normal reads them
-            out.append(_coupled_bits(*ab) << np.uint64(12) if normals else _coupled_unit(*ab))
+            out.append(_coupled_word(*ab) if normals else _coupled_unit(*ab))
         return rng._normal(*out, jnp.float64) if normals else tuple(out)
 
     # materialised as rng._bits does: unfused, XLA 0.12 (jax 0.12.0.1) compiled this model's round

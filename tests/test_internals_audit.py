@@ -223,7 +223,8 @@ def test_draw_lanes_keeps_the_waiting_time_uniform_above_zero(monkeypatch):
 def test_unit_and_normal_bit_mapping(dtype):
     """The top mantissa bits give f = (bits >> (w - nmant)) 2^-nmant exactly, [lo, hi) scales it;
     the extreme bits give finite normals: radius sqrt(-2 ln u) at the first and last cell midpoints
-    u = 2^-(nmant+1) (bits 0) and 1 - 2^-(nmant+1) (all ones), on the angle's axes."""
+    u = 2^-(m+1) (bits 0) and 1 - 2^-(m+1) (all ones), on the angle's axes (m = nmant, or 32 for a float64
+    pair's 32-bit words)."""
     ut, nm = rng._uint(dtype), np.finfo(dtype).nmant
     w = 8 * np.dtype(dtype).itemsize
     top = (1 << w) - 1
@@ -235,7 +236,12 @@ def test_unit_and_normal_bit_mapping(dtype):
     got = np.asarray(rng._unit(bits, dtype, lo, hi)).astype(float)
     ref = np.array([float(x * Fraction(hi - lo) + Fraction(lo)) for x in f])
     assert np.all(np.abs(got - ref) <= 2 * np.finfo(dtype).eps * ref) and np.all((got >= lo) & (got < hi))
-    # u from bits 0 / all ones: the first and last cells' midpoints, t from bits 0: angle 0
+    # u from bits 0 / all ones: the first and last cells' midpoints, t from bits 0: angle 0.  A float64 pair's
+    # bits are one hash's two 32-bit words, all 32 bits read (rng module docstring)
+    if dtype == np.float64:
+        ut, w, nm = np.uint32, 32, 32
+        bits = jnp.asarray(np.array([0, 1, 2, 3, (1 << 32) - 1], dtype=ut))
+        f = [Fraction(0), None, None, None, Fraction((1 << 32) - 1, 1 << 32)]
     z1, z2 = (np.asarray(a).astype(float) for a in rng._normal(bits[np.array([0, 4])], bits[np.array([0, 0])], dtype))
     u = np.array([float(f[0]), float(f[4])]) + 2.0 ** -(nm + 1)  # the cells' midpoints, exact
     assert np.all(np.isfinite(z1)) and np.allclose(z1, np.sqrt(-2 * np.log(u)), rtol=1e-6 if dtype == np.float32 else 1e-13)

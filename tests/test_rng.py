@@ -1,7 +1,7 @@
 """The engine's random numbers (dryfric_jax.rng): the bits, uniforms and keys are jax.random's bit
-for bit, the normals Box-Muller pairs of the bits' uniforms (the formula in long double, to
-rounding); every lane draws exactly its per-key numbers, on the CPU path (unrolled
-threefry) and through the lane engine's draws."""
+for bit, the normals Box-Muller pairs of the bits' uniforms (float64: one 64-bit number's two words; the
+formula in long double, to rounding); every lane draws exactly its per-key numbers, on the CPU path
+(unrolled threefry) and through the lane engine's draws."""
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -12,10 +12,6 @@ from dryfric_jax import rng
 from dryfric_jax.di import make_di_model
 from dryfric_jax.excursions import draw_block
 from dryfric_jax.pdmp import make_pdmp_model
-
-
-def _uint(dtype):
-    return np.uint64 if np.dtype(dtype).itemsize == 8 else np.uint32
 
 
 @pytest.mark.parametrize("dtype", [jnp.float32, jnp.float64])
@@ -46,14 +42,19 @@ def test_normals_are_the_per_key_normal_and_uniforms_jax_random_bit_for_bit(key,
 
 @pytest.mark.parametrize("dtype", [jnp.float32, jnp.float64])
 def test_normal_is_box_muller_of_the_bits(key, dtype):
-    """The definition, computed independently in long double: k = the top m bits of
-    ``jax.random.bits`` (m = 52 or 23), pairs (2j, 2j + 1) of the last axis, u = (k_2j + 1/2) 2^-m,
-    t = k_2j+1 2^-m, Z = sqrt(-2 ln u) (cos 2 pi t, sin 2 pi t): within 6 ulp plus the long double
-    angle's own rounding (2 pi t ~ 1e-18 absolute; tests/test_boxmuller.py checks the zeros)."""
-    m = np.finfo(dtype).nmant
-    bits = np.asarray(jax.random.bits(key, (100_000, 2), _uint(dtype)))
-    k = (bits >> _uint(dtype)(8 * np.dtype(dtype).itemsize - m)).astype(np.longdouble)
+    """The definition, computed independently in long double: pair j (numbers 2j, 2j + 1 of the last axis) has
+    u = (k + 1/2) 2^-m, t = k' 2^-m and Z = sqrt(-2 ln u) (cos 2 pi t, sin 2 pi t), where (k, k') are, in
+    float32, the top m = 23 bits of numbers 2j and 2j + 1 of ``jax.random.bits`` (uint32) and, in float64,
+    the high and low 32-bit words (m = 32) of number j of ``jax.random.bits`` (uint64): within 6 ulp plus the
+    long double angle's own rounding (2 pi t ~ 1e-18 absolute; tests/test_boxmuller.py checks the zeros)."""
+    if dtype == jnp.float64:
+        m, w = 32, np.asarray(jax.random.bits(key, (100_000,), jnp.uint64))
+        k = np.stack([w >> np.uint64(32), w & np.uint64(0xFFFFFFFF)], -1).astype(np.longdouble)
+    else:
+        m, bits = 23, np.asarray(jax.random.bits(key, (100_000, 2), jnp.uint32))
+        k = (bits >> np.uint32(9)).astype(np.longdouble)
     u, t = (k[:, 0] + 0.5) * np.longdouble(2.0) ** -m, k[:, 1] * np.longdouble(2.0) ** -m
+    assert u.min() > 0 and u.max() < 1 and t.min() >= 0 and t.max() < 1
     two_pi = 8 * np.arctan(np.longdouble(1))
     r = np.sqrt(-2 * np.log(u))
     ref = np.stack([r * np.cos(two_pi * t), r * np.sin(two_pi * t)], -1)
@@ -109,7 +110,7 @@ def test_rows_of_a_long_stream_are_the_stream(key, dtype):
     keys = jax.random.split(key, 5)
     ref = jax.vmap(lambda k: rng.normal(k, (300, 2), dtype))(keys)
     draw = jax.jit(lambda ks, s: rng.normals(ks, 50, 2, dtype, start=s))
-    plain = jax.jit(lambda kd, s: rng._bits(kd, 50, 2, dtype, s, materialise=False))
+    plain = jax.jit(lambda kd, s: rng._bits(kd, 50, 2, dtype, s, materialise=False, pairs=True))
     for s in (0, 7, 128, 250):
         got = draw(keys, s)
         bits = plain(jax.random.key_data(keys), s)
@@ -142,24 +143,27 @@ def test_key_derivations_are_jax_random_bit_for_bit(impl):
 
 @pytest.mark.parametrize("dtype", [jnp.float32, jnp.float64])
 def test_the_spare_uniform_is_the_unused_low_bits(key, dtype):
-    """normals_and_spare: the two normals are normals(keys, block, 2)'s bit for bit, and the third number is made
-    of the low bits the Box-Muller transform does not read, (l_u 2^s + l_t + 1/2) 2^-2s with s = 12 (float64) or 9
-    (float32), computed here from jax.random.bits; the CPU path, the per-key definition and the path a GPU
-    takes (rbg keys through vmap) agree bit for bit."""
-    s = 8 * np.dtype(dtype).itemsize - np.finfo(dtype).nmant
-    assert s == (12 if dtype == jnp.float64 else 9)
+    """normals_and_spare: the two normals are normals(keys, block, 2)'s bit for bit, and the third number is, in
+    float32, made of the low bits the Box-Muller transform does not read, (l_u 2^9 + l_t + 1/2) 2^-18, and in
+    float64 (whose pair reads all 64 bits of its hash) the midpoint (k + 1/2) 2^-52 of the top 52 bits of number
+    block + r of jax.random.bits(key, (2 block,), uint64); computed here from jax.random.bits; the CPU path, the
+    per-key definition and the path a GPU takes (rbg keys through vmap) agree bit for bit."""
     keys = jax.random.split(key, 19)
     got = jax.jit(lambda ks: rng.normals_and_spare(ks, 64, dtype))(keys)
     plain = rng.normals(keys, 64, 2, dtype)
-    bits = np.asarray(jax.vmap(lambda k: jax.random.bits(k, (64, 2), _uint(dtype)))(keys))  # (lanes, block, 2)
-    low = (1 << s) - 1
-    k = ((bits[:, :, 0] & low).astype(np.int64) << s) | (bits[:, :, 1] & low).astype(np.int64)
+    if dtype == jnp.float64:
+        w = np.asarray(jax.vmap(lambda k: jax.random.bits(k, (128,), jnp.uint64))(keys))[:, 64:]  # (lanes, block)
+        k, cells = (w >> np.uint64(12)).astype(np.float64), 52
+    else:
+        bits = np.asarray(jax.vmap(lambda k: jax.random.bits(k, (64, 2), jnp.uint32))(keys))  # (lanes, block, 2)
+        k = ((bits[:, :, 0] & 511).astype(np.int64) << 9) | (bits[:, :, 1] & 511).astype(np.int64)
+        cells = 18
     for c in range(2):
         np.testing.assert_array_equal(np.asarray(got[c]), np.asarray(plain[c]))
-    np.testing.assert_array_equal(np.asarray(got[2]), ((k + 0.5) * 2.0 ** (-2 * s)).astype(dtype).T)
-    # the midpoints of 2^2s cells: never 0 (a 0 would take any crossing chance > 0 as a crossing), never 1
+    np.testing.assert_array_equal(np.asarray(got[2]), ((k + 0.5) * 2.0 ** -cells).astype(dtype).T)
+    # the midpoints of 2^cells cells: never 0 (a 0 would take any crossing chance > 0 as a crossing), never 1
     u = np.asarray(got[2])
-    assert u.min() >= 2.0 ** (-2 * s - 1) and u.max() <= 1 - 2.0 ** (-2 * s - 1)
+    assert u.min() >= 2.0 ** (-cells - 1) and u.max() <= 1 - 2.0 ** (-cells - 1)
     ref = jax.vmap(lambda kk: rng.normal_pair_and_spare(kk, 64, dtype))(keys)
     for c in range(3):
         np.testing.assert_array_equal(np.asarray(got[c]), np.asarray(ref[:, :, c]).T)
