@@ -33,7 +33,7 @@ and m = 52: twice the hashing, and XLA:CPU's 64-bit integer vectors, for bits th
 need).  u is the midpoint of one of :math:`2^m` equally likely cells (never 0 or 1), so the pair's
 law is exactly invariant under the reflections :math:`t \to 1 - t`, :math:`t \to t + 1/2`, with
 :math:`|Z| \le \sqrt{2 (m + 1) \ln 2}`: 6.76 in float64 (a normal's chance to exceed it is
-1.4e-11) and 5.77 in float32.  A DI step's two normals are one pair.  The numbers are the same
+1.3e-11) and 5.77 in float32.  A DI step's two normals are one pair.  The numbers are the same
 on every platform: on a CPU the fused hash, elsewhere (a GPU, whose lowering is already
 unrolled) ``jax.random.bits`` and the same transform.
 
