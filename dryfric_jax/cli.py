@@ -408,8 +408,11 @@ def _progress_line(d):
     from .api import duration_text, left_text, status_line
 
     rel = d["D_ci"] / abs(d["D"]) if d["D"] == d["D"] and d["D"] else float("nan")
-    # before 2 excursions have closed there is no D yet: a dash, not "nan ± nan%"
+    # before 2 excursions have closed there is no D yet: a dash, not "nan ± nan%"; a D of exactly 0 (no
+    # displacement yet) has no relative CI, so its CI is shown as it is (it was shown as the dash)
     shown = f"{d['D']:.5g} ± {100 * rel:.2f}%" if rel == rel else "–"
+    if d["D"] == 0 and d["D_ci"] == d["D_ci"]:
+        shown = f"0 ± {d['D_ci']:.3g}"
     goal = f"target {100 * d['rtol']:.2g}%" if d["rtol"] else f"target N = {d['target']}"
     left = left_text(d, options=True)
     print(status_line(f"  N = {d['n_excursions']:>9d}   D = {shown}   ({goal})",
@@ -425,7 +428,11 @@ def _duration_line(d):
 
     mean = f"{d['mean_s']:.4g} s" if d["mean_s"] == d["mean_s"] else "–"
     tail = in_flight_text(d) if d["stopping"] else left_text(d, options=True)
-    print(status_line(f"  long excursions = {d['n_excursions']:>7d} of {d['target']}   mean so far = {mean}",
+    # those in flight when the rule stopped the starts finish and count: past the target it says "(N asked)", not
+    # "265 of 200"
+    k, n = d["n_excursions"], d["target"]
+    of = f"of {n}" if k <= n else f"({n} asked)"
+    print(status_line(f"  long excursions = {k:>7d} {of}   mean so far = {mean}",
                       f"   {duration_text(d['elapsed_s'])}{tail}"), end="", file=sys.stderr, flush=True)
 
 

@@ -77,3 +77,24 @@ def test_every_status_line_fits_80_columns_and_keeps_its_times(capsys, monkeypat
     _progress_line(dict(est, left_to="max_work"))
     assert capsys.readouterr().err == ("\r  N =      1200   D = 0.002 \u00b1 17.00%   (target N = 100000)   2.5 "
                                        "min\u2026\x1b[K")
+
+
+def test_a_count_past_its_target_and_a_zero_d_are_said_as_they_are(capsys, monkeypatch):
+    """The count's line past its target (those in flight when the rule stopped the starts finish and count) says
+    "265 (200 asked)", not "265 of 200"; the estimate's line shows a D of exactly 0 with its CI, where it showed
+    the dash meant for "no D yet" (which a D of nan still gets).  Review leftovers of stop 82."""
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
+    monkeypatch.setenv("COLUMNS", "200")
+    count = dict(n_excursions=265, target=200, in_flight=3, mean_s=4.25, stopping=True, elapsed_s=12.0,
+                 left_s=0.0, left_to="n_excursions")
+    _duration_line(count)
+    err = capsys.readouterr().err
+    assert "long excursions =     265 (200 asked)   mean so far = 4.25 s" in err and " of 200" not in err, err
+    _duration_line(dict(count, n_excursions=200))
+    assert "long excursions =     200 of 200   " in capsys.readouterr().err
+    est = dict(n_excursions=1200, D=0.0, D_ci=3.4e-4, target=100000, rtol=None, elapsed_s=150.0, left_s=4000.0,
+               left_to="n_excursions")
+    _progress_line(est)
+    assert "   D = 0 ± 0.00034   (target N = 100000)" in capsys.readouterr().err
+    _progress_line(dict(est, D=float("nan"), D_ci=float("nan")))
+    assert "   D = –   (target" in capsys.readouterr().err
