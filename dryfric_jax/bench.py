@@ -5,8 +5,9 @@ One run, one device, the paper's Fig. 3 point:
 * useful lane-steps/s of the DI engine, float32 and float64;
 * the device's raw normal-generation rate (the engine's generator, :mod:`dryfric_jax.rng`, drawn
   per lane and per block as the lanes draw them), as a lane-step bound at 2 normals per step,
-  and the rate of ``jax.random.normal`` (JAX's own normals, another transform of the same bits;
-  slower on a CPU, where its inverse error function takes a scalar float64 log);
+  and the rate of ``jax.random.normal`` (JAX's own normals, another transform of jax.random's bits: of
+  the same bits in float32, of twice as many in float64, whose pairs read one hash since 0.3.0; slower on
+  a CPU, where its inverse error function takes a scalar float64 log);
 * the chain floor: the same draws and transitions without the excursion bookkeeping (DI
   lane-steps/s, PDMP events/s), which splits the gap to the RNG bound into the chain's own
   arithmetic (floor / bound) and the engine's (engine / floor);
@@ -94,8 +95,8 @@ def rng_bound_timer(dtype, lanes: int = 512, block: int = BLOCK, n: int = 1 << 2
     one of its lanes draws ``(block, 2)`` normals from ``fold_in(lane_key, block_index)``, so the
     numbers stay in cache as in the engine (one huge array would measure memory bandwidth).
     ``via="engine"``: through :func:`dryfric_jax.rng.normals`, the engine's generator (the
-    bound); ``via="jax"``: through ``jax.random.normal`` (the same bits, JAX's transform and CPU
-    lowering; not the engine's numbers, :mod:`dryfric_jax.rng`).
+    bound); ``via="jax"``: through ``jax.random.normal`` (the same key's bits, JAX's transform and CPU
+    lowering; twice the engine's bits in float64; not the engine's numbers, :mod:`dryfric_jax.rng`).
     """
     def body(keys, b, acc):
         bk = block_keys(keys, b)

@@ -211,8 +211,8 @@ def _lane_blocks(model, keys, b, stop, carry, n_excursions, b_end, block: int, b
     ``stop`` (no lane starts an LE) is raised by the rule, once the lanes' total reaches ``n_excursions``, or by
     the host (``max_time``); a lane with none started then stops at once.  The loop run in pieces gives the bits
     of one run (tested).  ``bridge``: also count the crossings of the opposite threshold that X makes between two
-    steps of a stuck particle (module docstring), with a uniform per step from the spare bits of the step's
-    normals.  With ``n_dev`` > 1 this runs as one shard of the lanes (:func:`_run`): the rule's total and the
+    steps of a stuck particle (module docstring), with a uniform per step independent of the step's normals
+    (:func:`~dryfric_jax.rng.normals_and_spare`: their spare bits in float32, one more hash in float64).  With ``n_dev`` > 1 this runs as one shard of the lanes (:func:`_run`): the rule's total and the
     loop's condition are summed over the devices (``psum`` over the mesh axis ``"lanes"``), so every device runs
     the same blocks and the rule is the one-device rule."""
     dt = model.h.dtype
@@ -255,7 +255,8 @@ def _lane_blocks(model, keys, b, stop, carry, n_excursions, b_end, block: int, b
     def body(st):
         b, stop, c = st
         bk = block_keys(keys, b)
-        # the block key's normals (0.2.8's numbers, the raw count's); the bridge's uniform from their spare bits
+        # the block key's normals (the raw count's); the bridge's uniform from their spare bits (float32) or one
+        # more hash (float64, since 0.3.0)
         z1, z2, u = rng.normals_and_spare(bk, block, dt) if bridge else rng.normals(bk, block, 2, dt) + (None,)
         c = jax.lax.fori_loop(0, block, lambda i, cc: step(z1[i], z2[i], None if u is None else u[i], stop, cc), c)
         stop = stop | (total(c[8].sum()) >= n_excursions)  # from the next block on, no lane starts an LE

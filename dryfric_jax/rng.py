@@ -33,7 +33,8 @@ and m = 52: twice the hashing, and XLA:CPU's 64-bit integer vectors, for bits th
 need).  u is the midpoint of one of :math:`2^m` equally likely cells (never 0 or 1), so the pair's
 law is exactly invariant under the reflections :math:`t \to 1 - t`, :math:`t \to t + 1/2`, with
 :math:`|Z| \le \sqrt{2 (m + 1) \ln 2}`: 6.76 in float64 (a normal's chance to exceed it is
-1.3e-11) and 5.77 in float32.  A DI step's two normals are one pair.  The numbers are the same
+1.3e-11) and 5.77 in float32.  The grid moves the law by :math:`O(2^{-m})` elsewhere too (float64: t = 1/4 and
+3/4 are cells, so :math:`P(Z_1 = 0) = 2^{-31}`; the variance is :math:`1 - 8 \cdot 10^{-11}`).  A DI step's two normals are one pair.  The numbers are the same
 on every platform: on a CPU the fused hash, elsewhere (a GPU, whose lowering is already
 unrolled) ``jax.random.bits`` and the same transform.
 
@@ -155,9 +156,10 @@ def _pairs(shape) -> None:
 
 
 def normal(key, shape, dtype):
-    r"""The engine's standard normals of one key: ``jax.random.bits(key, shape)`` (64- or 32-bit
-    as ``dtype``, float64 or float32) through Box-Muller, numbers 2j and 2j + 1 of the last axis
-    a pair (module docstring; ``shape[-1]`` must be even): the per-key definition that
+    r"""The engine's standard normals of one key through Box-Muller, numbers 2j and 2j + 1 of the last axis a
+    pair (module docstring; ``shape[-1]`` must be even): in float32 from numbers 2j and 2j + 1 of
+    ``jax.random.bits(key, shape, uint32)``, in float64 from the high and low words of number j of
+    ``jax.random.bits(key, shape[:-1] + (shape[-1] / 2,), uint64)``.  The per-key definition that
     :func:`normals` computes for every lane at once.  Not ``jax.random.normal(key, shape, dtype)``."""
     _check_dtype(dtype)
     shape = tuple(shape)
