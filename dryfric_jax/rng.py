@@ -33,8 +33,9 @@ and m = 52: twice the hashing, and XLA:CPU's 64-bit integer vectors, for bits th
 need).  u is the midpoint of one of :math:`2^m` equally likely cells (never 0 or 1), so the pair's
 law is exactly invariant under the reflections :math:`t \to 1 - t`, :math:`t \to t + 1/2`, with
 :math:`|Z| \le \sqrt{2 (m + 1) \ln 2}`: 6.76 in float64 (a normal's chance to exceed it is
-1.3e-11) and 5.77 in float32.  The grid moves the law by :math:`O(2^{-m})` elsewhere too (float64: t = 1/4 and
-3/4 are cells, so :math:`P(Z_1 = 0) = 2^{-31}`; the variance is :math:`1 - 8 \cdot 10^{-11}`).  A DI step's two normals are one pair.  The numbers are the same
+1.3e-11) and 5.77 in float32.  The grid moves the law by :math:`O(2^{-m})` elsewhere too
+(float64: t = 1/4 and 3/4 are cells, so :math:`P(Z_1 = 0) = 2^{-31}`; the variance is
+:math:`1 - 8 \cdot 10^{-11}`).  A DI step's two normals are one pair.  The numbers are the same
 on every platform: on a CPU the fused hash, elsewhere (a GPU, whose lowering is already
 unrolled) ``jax.random.bits`` and the same transform.
 
