@@ -214,7 +214,8 @@ def _lane_blocks(model, keys, b, stop, carry, n_excursions, b_end, block: int, b
     steps of a stuck particle (module docstring), with a uniform per step independent of the step's normals
     (:func:`~dryfric_jax.rng.normals_and_spare`: their spare bits in float32, one more hash in float64).  With
     ``n_dev`` > 1 this runs as one shard of the lanes (:func:`_run`): the rule's total and the loop's condition
-    are summed over the devices (``psum`` over the mesh axis ``"lanes"``), so every device runs the same blocks and the rule is the one-device rule."""
+    are summed over the devices (``psum`` over the mesh axis ``"lanes"``), so every device runs the same blocks
+    and the rule is the one-device rule."""
     dt = model.h.dtype
     lanes = keys.shape[0]
 
