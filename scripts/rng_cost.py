@@ -1,12 +1,13 @@
-"""Where a normal's cost lies: the engine's threefry hash alone, the hash plus the engine's
-Box-Muller transform with its vectorised log, cosine and sine (the engine's normals: the bench's
-RNG bound, ``bench.rng_bound_timer``), ``jax.random.normal`` (the same key's bits through the
-inverse error function, twice as many in float64 since 0.3.0, with XLA:CPU's scalar float64
-logarithm: the engine's transform up to version 0.2.3), the same Box-Muller pairs with XLA's
-``jnp.log``, ``jnp.cos`` and ``jnp.sin`` (for comparison: why the engine evaluates its own),
-and numpy's ``Generator`` (PCG64, ziggurat) inside a numba loop, the bench's compiled baseline
-(``dryfric_jax.bench_numba``).  The JAX rates are timed the way the bench times its RNG bound (``bench._device_timer``: every lane draws a block from
-``fold_in(lane_key, block)`` and reads it row by row), with the CLI's XLA flags.  Run it pinned to
+"""Where a normal's cost lies: the engine's threefry hash alone, the hash plus the engine's Box-Muller
+transform with its vectorised log, cosine and sine (the engine's normals: the bench's RNG bound,
+``bench.rng_bound_timer``), ``jax.random.normal`` (the same key's bits through the inverse error
+function, twice as many in float64 since 0.3.0, with XLA:CPU's scalar float64 logarithm: the
+engine's transform up to version 0.2.3), the same Box-Muller pairs with XLA's ``jnp.log``,
+``jnp.cos`` and ``jnp.sin`` (for comparison: why the engine evaluates its own), and numpy's
+``Generator`` (PCG64, ziggurat) inside a numba loop, the bench's compiled baseline
+(``dryfric_jax.bench_numba``). The JAX rates are timed the way the bench times its RNG bound
+(``bench._device_timer``: every lane draws a block from ``fold_in(lane_key, block)`` and reads it
+row by row), with the CLI's XLA flags. Run it pinned to
 one core (one XLA device)::
 
     taskset -c 1 python scripts/rng_cost.py
