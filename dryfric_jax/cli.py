@@ -408,10 +408,10 @@ def _progress_line(d):
     from .api import duration_text, left_text, status_line
 
     rel = d["D_ci"] / abs(d["D"]) if d["D"] == d["D"] and d["D"] else float("nan")
-    # before 2 excursions have closed there is no D yet: a dash, not "nan ± nan%"; a D of exactly 0 (no
-    # displacement yet) has no relative CI, so its CI is shown as it is (it was shown as the dash)
+    # before 2 excursions have closed there is no D yet: a dash, not "nan ± nan%" (nor the 0 a run may report
+    # then); after, a D of exactly 0 has no relative CI, so its CI is shown as it is (it was shown as the dash)
     shown = f"{d['D']:.5g} ± {100 * rel:.2f}%" if rel == rel else "–"
-    if d["D"] == 0 and d["D_ci"] == d["D_ci"]:
+    if d["D"] == 0 and d["D_ci"] == d["D_ci"] and d["n_excursions"] >= 2:
         shown = f"0 ± {d['D_ci']:.3g}"
     goal = f"target {100 * d['rtol']:.2g}%" if d["rtol"] else f"target N = {d['target']}"
     left = left_text(d, options=True)

@@ -82,7 +82,8 @@ def test_every_status_line_fits_80_columns_and_keeps_its_times(capsys, monkeypat
 def test_a_count_past_its_target_and_a_zero_d_are_said_as_they_are(capsys, monkeypatch):
     """The count's line past its target (those in flight when the rule stopped the starts finish and count) says
     "265 (200 asked)", not "265 of 200"; the estimate's line shows a D of exactly 0 with its CI, where it showed
-    the dash meant for "no D yet" (which a D of nan still gets).  Review leftovers of stop 82."""
+    the dash meant for "no D yet" (which a D of nan, or of 0 before 2 excursions have closed, still gets).
+    Review leftovers of stop 82."""
     monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
     monkeypatch.setenv("COLUMNS", "200")
     count = dict(n_excursions=265, target=200, in_flight=3, mean_s=4.25, stopping=True, elapsed_s=12.0,
@@ -97,4 +98,6 @@ def test_a_count_past_its_target_and_a_zero_d_are_said_as_they_are(capsys, monke
     _progress_line(est)
     assert "   D = 0 ± 0.00034   (target N = 100000)" in capsys.readouterr().err
     _progress_line(dict(est, D=float("nan"), D_ci=float("nan")))
+    assert "   D = –   (target" in capsys.readouterr().err
+    _progress_line(dict(est, n_excursions=1, D=0.0, D_ci=0.0))  # no D yet (test_cli_input_mutants)
     assert "   D = –   (target" in capsys.readouterr().err
