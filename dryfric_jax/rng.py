@@ -172,10 +172,14 @@ def _pair_bits(key, shape, dtype):
     """The bits of one key's pairs of :func:`normal` (``shape``: the pairs), through ``jax.random.bits``: a
     64-bit number's high and low words (float64), or two 32-bit numbers (float32)."""
     if np.dtype(dtype).itemsize == 8:
-        w = jax.random.bits(key, shape, jnp.uint64)
-        return (w >> np.uint64(32)).astype(jnp.uint32), w.astype(jnp.uint32)
+        return _halves(jax.random.bits(key, shape, jnp.uint64))
     b = jax.random.bits(key, shape[:-1] + (2 * shape[-1],), jnp.uint32)
     return b[..., 0::2], b[..., 1::2]
+
+
+def _halves(w):
+    """The high and low 32-bit words (a, b) of 64-bit numbers ``a || b``: a float64 pair's bits."""
+    return (w >> np.uint64(32)).astype(jnp.uint32), w.astype(jnp.uint32)
 
 
 def per_lane(sample, keys, n: int):
@@ -310,8 +314,7 @@ def normal_pair_and_spare(key, block: int, dtype):
     _check_dtype(dtype)
     if np.dtype(dtype).itemsize == 8:
         w = jax.random.bits(key, (2 * block,), jnp.uint64)
-        a, b = (w[:block] >> np.uint64(32)).astype(jnp.uint32), w[:block].astype(jnp.uint32)
-        return jnp.stack(_normal(a, b, dtype) + (_spare64(w[block:]),), -1)
+        return jnp.stack(_normal(*_halves(w[:block]), dtype) + (_spare64(w[block:]),), -1)
     b = jax.random.bits(key, (block, 2), jnp.uint32)
     return jnp.stack(_normal(b[:, 0], b[:, 1], dtype) + (_spare(b[:, 0], b[:, 1], dtype),), -1)
 
