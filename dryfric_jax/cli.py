@@ -407,12 +407,15 @@ def _progress_line(d):
     ``--max-work`` or ``--max-time`` when that limit is projected to end the run first."""
     from .api import duration_text, left_text, status_line
 
-    rel = d["D_ci"] / abs(d["D"]) if d["D"] == d["D"] and d["D"] else float("nan")
+    D, ci = d["D"], d["D_ci"]
     # before 2 excursions have closed there is no D yet: a dash, not "nan ± nan%" (nor the 0 a run may report
     # then); after, a D of exactly 0 has no relative CI, so its CI is shown as it is (it was shown as the dash)
-    shown = f"{d['D']:.5g} ± {100 * rel:.2f}%" if rel == rel else "–"
-    if d["D"] == 0 and d["D_ci"] == d["D_ci"] and d["n_excursions"] >= 2:
-        shown = f"0 ± {d['D_ci']:.3g}"
+    if D == 0 and ci == ci and d["n_excursions"] >= 2:
+        shown = f"0 ± {ci:.3g}"
+    elif D == D and D and ci == ci:
+        shown = f"{D:.5g} ± {100 * ci / abs(D):.2f}%"
+    else:
+        shown = "–"
     goal = f"target {100 * d['rtol']:.2g}%" if d["rtol"] else f"target N = {d['target']}"
     left = left_text(d, options=True)
     print(status_line(f"  N = {d['n_excursions']:>9d}   D = {shown}   ({goal})",
