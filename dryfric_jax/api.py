@@ -25,7 +25,7 @@ from .estimators import (
 )
 from .excursions import BLOCK
 from .rounds import FINAL_DEADLINE, INTERRUPT_GRACE_S, simulate_long_excursions, work_per_excursion
-from .limits import MAX_WORK
+from .limits import MAX_WORK, refuse_known_work
 from .outfiles import dumps
 from .params import Params, check_positive, real_or_none, rounded_bound
 from .pdmp import make_pdmp_model, simulate_pdmp_bruteforce
@@ -737,11 +737,8 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
         unit = "steps" if h is not None else "events (the bound max_events is 10x the expected count)"
         raise ValueError(f"t must keep t + burn_in below 2^62 {unit} per path (got t = {t:.4g} s, burn_in = "
                          f"{burn_in:.4g} s: {bound:.3g})")
-    if work > max_work:
-        least = rounded_bound(work, lower=True, digits=3)
-        raise ValueError(f"max_work must be >= {least} {'steps' if h is not None else 'events (expected)'} for "
-                         f"t = {t:.4g} s and n_paths = {n_paths} (got {max_work:.3g}); raise max_work (--max-work) "
-                         "or lower t or n_paths")
+    refuse_known_work(work, max_work, "steps" if h is not None else "events (expected)",
+                      f"t = {t:.4g} s and n_paths = {n_paths}", "raise max_work (--max-work) or lower t or n_paths")
     if n_paths < MIN_RELIABLE_PATHS:
         notes = [*notes, f"n_paths = {n_paths} < {MIN_RELIABLE_PATHS}: the delta-method CI of D_t under-covers at "
                          "this size (0.74 at 10 paths, 0.92 at 100 for Gaussian U(t))"]

@@ -227,6 +227,15 @@ def check_work(tau: float, tau_L: float, gamma_bar: float, steps_per_tau0: float
     return min(math.exp(min(log_w, math.log(max_work))), max_work)
 
 
+def refuse_known_work(work: float, max_work: float, unit: str, what: str, fix: str, hint: str = "") -> None:
+    """Refuse (``ValueError``) a run whose work is known before it starts (paths, brute force: paths x steps)
+    beyond ``max_work``: "max_work must be >= <work, rounded up> <unit> for <what> (got <max_work><hint>); <fix>".
+    The estimator's work is predicted, not known: :func:`check_work`."""
+    if work > max_work:
+        raise ValueError(f"max_work must be >= {rounded_bound(work, lower=True, digits=3)} {unit} for {what} "
+                         f"(got {max_work:.4g}{hint}); {fix}")
+
+
 def _exp10(log_x: float) -> str:
     """``exp(log_x)`` as text, also far beyond float range ("2.5e1234", "10^(1.9e+300)"), rounded
     up: it states a lower bound ("max_work must be >= ...", a duration ">= ..."), and a max_work copied

@@ -25,7 +25,7 @@ from .api import _key, duration_text
 from .di import DIModel
 from .excursions import BLOCK, block_keys
 from .params import check_finite, check_positive, rounded_bound, shown
-from .limits import MAX_WORK
+from .limits import MAX_WORK, refuse_known_work
 from .plan import MAX_COUNT, check_count, check_max_work
 from .pdmp import PDMPModel, flow
 from .sharding import over_lanes
@@ -71,10 +71,9 @@ def _check_path_work(n_paths: int, steps: int, max_work) -> None:
     largest path scene, Table 1, is 1.25e10."""
     max_work = check_max_work(max_work)
     work = float(n_paths) * float(steps)
-    if work > max_work:
-        raise ValueError(f"max_work must be >= {rounded_bound(work, lower=True, digits=3)} lane-steps for {n_paths} "
-                         f"paths of {steps} steps (got {max_work:.4g}; at ~1e8 lane-steps/s on 2 CPU cores that is "
-                         f"{duration_text(work / 1e8)}): lower n_paths or the steps, or raise max_work")
+    refuse_known_work(work, max_work, "lane-steps", f"{n_paths} paths of {steps} steps",
+                      "lower n_paths or the steps, or raise max_work",
+                      hint=f"; at ~1e8 lane-steps/s on 2 CPU cores that is {duration_text(work / 1e8)}")
 
 
 #: the longest stretch of steps between records: its numbers are one draw of 2 per step, counted in uint32
