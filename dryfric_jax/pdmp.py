@@ -208,7 +208,12 @@ class PDMPModel(eqx.Module):
 def grid_offsets(delta: float, gamma_bar: float) -> tuple[int, int, float, float]:
     """k_+, k_- and the offsets r_+ = x_{k+} + gamma_bar - 1, r_- = x_{k-} + gamma_bar + 1 (float64);
     a threshold q grid steps from 0 and within ON_GRID_TOL * max(1, |q|) steps of a grid point is on it
-    (r = 0): the tolerance is relative beyond one step, as q's own float64 rounding is."""
+    (r = 0): the tolerance is relative beyond one step, as q's own float64 rounding is.  ``ValueError`` unless
+    ``delta`` is a finite number > 0 and ``gamma_bar`` finite (delta = 0 was a ZeroDivisionError; the public
+    functions check delta first)."""
+    if not (math.isfinite(delta) and delta > 0 and math.isfinite(gamma_bar)):
+        raise ValueError(f"delta must be a finite number > 0 and gamma_bar finite (got delta = {delta!r}, "
+                         f"gamma_bar = {gamma_bar!r})")
     qp, qm = (1.0 - gamma_bar) / delta, (-1.0 - gamma_bar) / delta
     if abs(qp - round(qp)) < ON_GRID_TOL * max(1.0, abs(qp)):
         kp, r_p = int(round(qp)), 0.0

@@ -125,15 +125,29 @@ def _without_durations(settings: dict) -> dict:
     return {k: v for k, v in settings.items() if k != DURATIONS}
 
 
+def _check_point(seed, params, settings) -> int:
+    """``ValueError`` naming the argument of :func:`point_seed` or :func:`duration_seed` where ``seed`` is not an
+    integer in [0, 2^62], ``params`` not a dict with the :data:`PARAM_KEYS`, or ``settings`` not a dict (they were
+    a KeyError, TypeError or AttributeError); the seed as an int."""
+    seed = check_seed(seed)
+    if not isinstance(params, dict) or any(k not in params for k in PARAM_KEYS):
+        raise ValueError(f"params must be a dict with the keys {', '.join(PARAM_KEYS)} (got {shown(params)})")
+    if not isinstance(settings, dict):
+        raise ValueError(f"settings must be a dict (got {shown(settings)})")
+    return seed
+
+
 def point_seed(seed: int, params: dict, settings: dict) -> int:
     """A 31-bit seed from the sweep seed and the point (stable under grid edits): the seed of its D estimate, which
     the :data:`DURATIONS` setting does not enter."""
+    seed = _check_point(seed, params, settings)
     return zlib.crc32(_ident(seed, params, _without_durations(settings)).encode()) & 0x7FFFFFFF
 
 
 def duration_seed(seed: int, params: dict, settings: dict) -> int:
     """The 31-bit seed of a point's long-excursion count (``run_sweep(durations=N)``), another stream than
     :func:`point_seed`'s."""
+    seed = _check_point(seed, params, settings)
     return zlib.crc32(("durations " + _ident(seed, params, settings)).encode()) & 0x7FFFFFFF
 
 

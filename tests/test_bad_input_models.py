@@ -100,3 +100,28 @@ def test_the_sweep_helpers_and_the_atom_refuse_by_name(tmp_path):
     for h in (0.0, float("inf"), "x", None):
         with pytest.raises(ValueError, match=r"^h_nd must be (finite and > 0|a real number) \(got "):
             white_chain_atom(0.5, h)
+
+
+def test_the_point_seeds_and_the_grid_offsets_refuse_by_name():
+    """Internal helpers that a user may call to reproduce a sweep point or inspect the PDMP's grid: a missing
+    parameter was a KeyError, a None settings an AttributeError, delta = 0 a ZeroDivisionError and delta < 0
+    returned a mirrored grid (-10, 10)."""
+    from dryfric_jax import sweep
+    from dryfric_jax.pdmp import grid_offsets
+
+    pt = dict(Gamma=1.0, Delta=1.0, tau=1.0, tau_L=1.0, gamma_bar=0.0)
+    for f in (sweep.point_seed, sweep.duration_seed):
+        s = f(3, pt, {})
+        assert 0 <= s < 2**31 and f(3, dict(pt), {}) == s and f(4, pt, {}) != s
+        for seed in (1.5, None, -1, True):
+            with pytest.raises(ValueError, match=r"^seed must be an integer in \[0, 2\^62\] \(got "):
+                f(seed, pt, {})
+        for params in ({"Gamma": 1.0}, "x", None):
+            with pytest.raises(ValueError, match=r"^params must be a dict with the keys Gamma, Delta, tau, tau_L, "):
+                f(3, params, {})
+        with pytest.raises(ValueError, match=r"^settings must be a dict \(got None\)"):
+            f(3, pt, None)
+    assert grid_offsets(0.25, 0.0) == (4, -4, 0.0, 0.0)
+    for d, gb in ((0.0, 0.0), (-0.1, 0.0), (float("nan"), 0.0), (float("inf"), 0.0), (0.1, float("inf"))):
+        with pytest.raises(ValueError, match=r"^delta must be a finite number > 0 and gamma_bar finite \(got "):
+            grid_offsets(d, gb)
