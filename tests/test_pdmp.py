@@ -187,19 +187,25 @@ def test_stiff_viscous_limit_mobility_is_exact(events, monkeypatch):
     assert r.M0_ci < 0.1 * exact and abs(r.M0 - exact) <= r.M0_ci, (r.M0, r.M0_ci, exact)
 
 
+def _slaved_chain(tau, tau_L, gb, d):
+    """The jump chain's grid x, generator Q, stationary law pi and the slaved velocity f = tau_L S(x + gb)."""
+    from dryfric_jax.noise import grid_size, stationary_law, up_probability
+
+    N = grid_size(d, tau, gb)
+    x, pi = stationary_law(N, d, tau)
+    x, pi = np.asarray(x, np.float64), np.asarray(pi, np.float64)
+    a = np.asarray(up_probability(np.arange(-N, N + 1), N, d, tau), np.float64)
+    lam, n = 2.0 / (tau * d) ** 2, 2 * N + 1
+    Q = np.diag(np.full(n, -lam)) + np.diag(lam * a[:-1], 1) + np.diag(lam * (1 - a[1:]), -1)
+    return x, Q, pi, tau_L * np.sign(x + gb) * np.maximum(np.abs(x + gb) - 1.0, 0.0)
+
+
 def _slaved_oracle(tau, tau_L, gb, d):
     r"""Exact D and M0 (nondimensional) of U = \int tau_L S(X_t + gb) dt with X the PDMP's jump chain (generator
     Q: rate Lambda = 2/(tau d)^2, up with probability alpha_k): M0 = pi.f and D = lim Var U/t = 2 <f~, g>_pi with
     -Q g = f~ = f - M0 (the Poisson equation), g pinned by pi.g = 0.  The slaved-velocity limit of the PDMP,
     tau_L << 1/Lambda, where S is the soft threshold at 1."""
-    from dryfric_jax.noise import grid_size, stationary_law, up_probability
-
-    N = grid_size(d, tau, gb)
-    x, pi = stationary_law(N, d, tau)
-    a = np.asarray(up_probability(np.arange(-N, N + 1), N, d, tau), np.float64)
-    lam, n = 2.0 / (tau * d) ** 2, 2 * N + 1
-    Q = np.diag(np.full(n, -lam)) + np.diag(lam * a[:-1], 1) + np.diag(lam * (1 - a[1:]), -1)
-    f = tau_L * np.sign(x + gb) * np.maximum(np.abs(x + gb) - 1.0, 0.0)
+    _, Q, pi, f = _slaved_chain(tau, tau_L, gb, d)
     M0 = pi @ f
     g = np.linalg.solve(np.vstack([-Q[:-1], pi]), np.concatenate([(f - M0)[:-1], [0.0]]))
     return 2.0 * pi @ ((f - M0) * g), M0
@@ -223,8 +229,19 @@ def test_stiff_viscous_limit_diffusivity_is_exact(gb):
         zM.append((r.M0 - M0) / (r.M0_ci / 1.96))
     assert max(map(abs, zD + zM)) <= 3.0, (zD, zM)
     assert abs(np.mean(zD)) <= 3 / math.sqrt(8) and abs(np.mean(zM)) <= 3 / math.sqrt(8), (zD, zM)
-    # the oracle itself: M0 as the stationary average of the soft threshold (the M0 test's formula), and D > 0
-    assert D > 0 and M0 > 0
+    # the oracle itself, by a second method: pi is Q's stationary law (pi Q = 0), and D = 2 sum_k c_k^2 / |lambda_k|
+    # over the spectrum of the symmetrised generator Pi^(1/2) Q Pi^(-1/2) (the chain is a birth-death chain, so
+    # reversible), c_k the coefficients of sqrt(pi) f~, against the Poisson solve (agreed to 2.5e-14)
+    _, Q, pi, f = _slaved_chain(tau, tau_L, gb, d)
+    lam = 2.0 / (tau * d) ** 2
+    assert np.abs(pi @ Q).max() <= 1e-12 * lam and pi @ f == M0 and D > 0 and M0 > 0
+    sq = np.sqrt(pi)
+    A = sq[:, None] * Q / sq[None, :]
+    assert np.abs(A - A.T).max() <= 1e-12 * lam
+    w, V = np.linalg.eigh((A + A.T) / 2)
+    c, slow = V.T @ (sq * (f - M0)), w < -1e-9 * lam  # the one zero eigenvalue is pi's own
+    assert slow.sum() == len(w) - 1
+    assert 2 * np.sum(c[slow] ** 2 / -w[slow]) == pytest.approx(D, rel=1e-10)
 
 
 def test_pdmp_bruteforce_counts_exactly_the_window_after_the_burn_in(key):
