@@ -490,11 +490,39 @@ def test_the_scenes_simulate_the_times_they_compare():
         exact_steps(1e-4, 2e-3)  # not even one step
 
 
-def test_fig4_records_the_di_at_the_pdmp_lags(figs):
+def test_fig4_records_the_di_at_the_pdmp_lags(figs, tmp_path, monkeypatch):
+    """The DI's records are DT_REC apart, as the PDMP's: checked on the arguments the scene passes to the two
+    samplers (spies returning stand-in paths), where the JSON's rho arrays were one array written twice and a DI
+    recorded 27 steps apart but plotted at 26 passed (a test audit); and the quick run's JSON gives each curve
+    the lags of its own recording interval."""
+    import numpy as np
+
     import dryfric_jax.figures.covariance as cov
 
     for tau, c in figs["fig4"]["curves"].items():
-        assert c["pdmp"]["rho"] == c["di"]["rho"]
         p = Params(FIG3["Gamma"], FIG3["Delta"], float(tau), FIG3["tau_L"], FIG3["gamma_bar"])
-        every = cov.DT_REC / (c["di_h"] / p.tau0)  # steps between records: a whole number
-        assert abs(every - round(every)) < 1e-9 and c["di_h"] <= default_h(p)
+        assert c["di_every"] * c["di_h"] / p.tau0 == pytest.approx(cov.DT_REC, rel=1e-12)
+        assert c["pdmp"]["rho"] == pytest.approx(c["di"]["rho"], rel=1e-12) and c["di_h"] <= default_h(p)
+    seen = []
+
+    def paths_of(n_paths, n_rec):
+        return np.random.default_rng(len(seen)).normal(size=(n_paths, n_rec))
+
+    def pdmp(model, key, n_paths, n_rec, dt, burn):
+        seen.append(("pdmp", dt, n_rec))
+        return paths_of(n_paths, n_rec)
+
+    def di(model, key, n_paths, n_rec, every, burn_steps):
+        seen.append(("di", every * float(model.h), n_rec))
+        return paths_of(n_paths, n_rec), None
+
+    monkeypatch.setattr(cov, "pdmp_stationary", pdmp)
+    monkeypatch.setattr(cov, "di_stationary", di)
+    monkeypatch.setattr(cov, "save", lambda fig, out, name, nums, t0, **k: nums)
+    nums = cov.fig4(tmp_path, True, 0)
+    assert [s[0] for s in seen] == ["pdmp", "di"] * len(cov.TAUS)
+    for j, tau in enumerate(cov.TAUS):
+        (_, dt_p, n_p), (_, dt_d, n_d) = seen[2 * j: 2 * j + 2]
+        c = nums["curves"][f"{tau:g}"]
+        assert dt_p == cov.DT_REC and dt_d == pytest.approx(cov.DT_REC, rel=1e-12) and n_p == n_d
+        assert np.allclose(c["di"]["rho"], c["pdmp"]["rho"], rtol=1e-12, atol=0)

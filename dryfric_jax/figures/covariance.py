@@ -53,9 +53,12 @@ def fig4(out_dir, quick, seed):
         report_step(f"DI stationary paths, tau={tau:g} s ({2 * j + 2} of {2 * len(TAUS)})")
         Vd, _ = di_stationary(make_di_model(p, h_nd * p.tau0), jax.random.fold_in(key, 1), paths, n_rec, every,
                               burn_steps=round(BURN_TAU0 / h_nd))
-        rho = np.arange(lags + 1) * DT_REC * p.tau0
+        # each curve at the lags it was recorded at (its interval times k), so a DI recorded at another
+        # interval than the PDMP's shows in the JSON's rho instead of being plotted at the PDMP's lags
+        rec_tau0 = {"pdmp": DT_REC, "di": every * h_nd}
         cur = {}
         for name, V, style in (("pdmp", Vp, "-"), ("di", Vd, ":")):
+            rho = np.arange(lags + 1) * rec_tau0[name] * p.tau0
             r, se = autocorrelation(V, lags, center=True)
             # a log axis cannot show r <= 0: those lags are left out (a gap), not drawn at a floor (clipping
             # them to 1e-4 drew a flat line that looked like data); the band is the estimate +- 2 SE
@@ -64,7 +67,7 @@ def fig4(out_dir, quick, seed):
             ax.fill_between(rho, np.maximum(r - 2 * se, FLOOR), np.maximum(r + 2 * se, FLOOR), color=f"C{j}",
                             alpha=0.15, lw=0)
             cur[name] = dict(rho=rho, h_over_h0=r, se=se)
-        cur["di_h"] = h_nd * p.tau0
+        cur["di_h"], cur["di_every"] = h_nd * p.tau0, every
         diff = np.abs(cur["pdmp"]["h_over_h0"] - cur["di"]["h_over_h0"])
         se = np.hypot(cur["pdmp"]["se"], cur["di"]["se"])
         cur["max_diff_in_se"] = float(np.max(diff[1:] / se[1:]))  # lag 0 is 1 by construction
