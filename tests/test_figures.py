@@ -411,7 +411,7 @@ def test_fig9_speed_against_error_slopes(figs):
         # (b) converges: the two finest steps agree within their CIs (3 SE), at the steps the scene says
         a, b = sorted(rows, key=lambda r: r[step])[:2]
         assert abs(a["D"] - b["D"]) <= 3 / 1.96 * math.hypot(a["D_ci"], b["D_ci"]), (step, a, b)
-    p = Params(**FIG3)
+    p = Params(**FIG3)  # the steps the runs report (their results' h and delta), against the scene's grid
     assert [r["h"] for r in f["di"]] == pytest.approx([x * min(p.tau0, p.tau_L) for x in (0.1, 0.03, 0.01, 0.003)])
     deltas = [d * p.Delta / p.Gamma**0.5 for d in (0.15, 0.1, 0.05, 0.025)]
     assert [r["delta"] for r in f["pdmp"]] == pytest.approx(deltas)

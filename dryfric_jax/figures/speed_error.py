@@ -206,7 +206,8 @@ def fig9(out_dir, quick, seed):
     axs[2].set_title(f"(b) PDMP at the Fig. 3 point, N = {n}", fontsize=9)
     nums = dict(D_true=D_true * p.D0, le=le, bf=bf, bf_bias=bias, le_slope=le_slope[0], le_slope_se=le_slope[1],
                 bf_envelope=env, bf_slope=bf_slope[0], bf_slope_se=bf_slope[1], theory_slopes=dict(le=-0.5, bf=-1 / 3),
-                di=[dict(h=hh, D=r.D, D_ci=r.D_ci, wall_s=r.wall_s) for hh, r in zip(hs, di)],
-                pdmp=[dict(delta=dd, D=r.D, D_ci=r.D_ci, wall_s=r.wall_s) for dd, r in zip(ds, pd)],
+                # each run's own step (its result's h or delta), not the one asked for
+                di=[dict(h=r.h, D=r.D, D_ci=r.D_ci, wall_s=r.wall_s) for r in di],
+                pdmp=[dict(delta=r.delta, D=r.D, D_ci=r.D_ci, wall_s=r.wall_s) for r in pd],
                 runs=pts.summary())
     return save(fig, out_dir, "fig9", nums, t0, quick=quick, seed=seed)
