@@ -553,8 +553,11 @@ def test_fig9_numbers_from_known_runs(tmp_path, monkeypatch):
     monkeypatch.setattr(speed_error, "estimate_diffusivity",
                         lambda q, seed, **kw: warm.append((q, seed, kw)) or SimpleNamespace(stopped_by="n_excursions"))
     monkeypatch.setattr(theory, "exact_D", lambda params: 0.3 if params == p else math.nan)
+    # a run reports the step it simulated (its result's h, delta): here 1.5x the one asked, so the JSON's are seen
+    # to be the results' (the scene recorded the steps it asked for: a test audit)
     runs = _fake_points(speed_error, monkeypatch, lambda q, seed, kw: SimpleNamespace(
-        D=1.0 + seed, D_ci=0.1 * seed, wall_s=2.0 + seed))
+        D=1.0 + seed, D_ci=0.1 * seed, wall_s=2.0 + seed, h=1.5 * kw["h"] if "h" in kw else None,
+        delta=1.5 * kw["delta"] if "delta" in kw else None))
     _no_files(speed_error, monkeypatch, [])
     f = speed_error.fig9(str(tmp_path), True, 0)
     (_, pm, h), = made
@@ -605,4 +608,4 @@ def test_fig9_numbers_from_known_runs(tmp_path, monkeypatch):
     assert warm == [(pf, 0, dict(n_excursions=lanes, lanes=lanes, method="di", h=hs[0])),
                     (pf, 0, dict(n_excursions=lanes, lanes=lanes, method="pdmp", delta=ds[0]))]
     assert f["di"] + f["pdmp"] == [dict(D=1.0 + s, D_ci=0.1 * s, wall_s=2.0 + s, **x) for s, x in
-                                   zip(seeds, [dict(h=x) for x in hs] + [dict(delta=d) for d in ds])]
+                                   zip(seeds, [dict(h=1.5 * x) for x in hs] + [dict(delta=1.5 * d) for d in ds])]
