@@ -315,8 +315,8 @@ def normal_pair_and_spare(key, block: int, dtype):
     if np.dtype(dtype).itemsize == 8:
         w = jax.random.bits(key, (2 * block,), jnp.uint64)
         return jnp.stack(_normal(*_halves(w[:block]), dtype) + (_spare64(w[block:]),), -1)
-    b = jax.random.bits(key, (block, 2), jnp.uint32)
-    return jnp.stack(_normal(b[:, 0], b[:, 1], dtype) + (_spare(b[:, 0], b[:, 1], dtype),), -1)
+    u, t = _pair_bits(key, (block,), dtype)
+    return jnp.stack(_normal(u, t, dtype) + (_spare(u, t, dtype),), -1)
 
 
 def normals_and_spare(keys, block: int, dtype):
