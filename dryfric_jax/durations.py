@@ -101,7 +101,7 @@ from .api import DryfricWarning, _key, _Record, _with_warnings, category, check_
 from .di import make_di_model
 from .excursions import BLOCK, MAX_LAYOUT, block_keys
 from .estimators import t_quantile
-from .limits import MAX_WORK, check_work, log_predicted_duration
+from .limits import MAX_WORK, check_work, le_floor, log_predicted_duration
 from .params import Params
 from .plan import check_count, check_max_time, check_max_work, choose, default_h
 from .rounds import _ABANDON, INTERRUPT_GRACE_S
@@ -392,9 +392,6 @@ MIN_RELIABLE_LE = 100
 MAX_STEPS = (2**31 - 2) * BLOCK
 #: the planned loop bound's least value in steps (:func:`default_max_steps`; the fixed default before 2026-12-06)
 MIN_DEFAULT_MAX_STEPS = 10**8
-#: :func:`le_duration_floor`'s constant: below every C measured (0.40-15; 0.40 +- 0.11 the least), so that the floor
-#: stays a lower estimate
-LE_FLOOR_C = 0.25
 
 
 def default_duration_h(params: Params) -> float:
@@ -416,8 +413,9 @@ def default_lanes(n_excursions: int) -> int:
 
 def le_duration_floor(params: Params) -> float:
     r"""A floor on the mean long-excursion duration for fast noise, in :math:`\tau_0`:
-    :math:`C\,\min(1, \tau_L')/\sqrt{\tau'}`, :math:`C =` :data:`LE_FLOOR_C`.  A stuck particle is released only
-    where its velocity reaches 0 while the force lies inside the friction window, whose chance at such a moment falls
+    :math:`C\,\min(1, \tau_L')/\sqrt{\tau'}`, :math:`C =` :data:`~dryfric_jax.limits.LE_FLOOR_C`
+    (:func:`~dryfric_jax.limits.le_floor`).  A stuck particle is released only where its velocity reaches 0 while the
+    force lies inside the friction window, whose chance at such a moment falls
     with the noise's spread :math:`1/\sqrt{\tau'}`; so for :math:`\tau' \ll 1` the LEs grow like
     :math:`1/\sqrt{\tau'}` while :func:`~dryfric_jax.limits.log_duration_scale` stays at :math:`\min(1, \tau_L')`.
     Measured (64 asked, seed 0, 0.2.11; the LE in :math:`\tau_0`, then the measured
@@ -431,7 +429,7 @@ def le_duration_floor(params: Params) -> float:
     The CIs are +-25-30%.  Without the floor the work predicted at :math:`\tau' = 10^{-3}` was 1/30 of what the lanes
     ran (2.1e9 lane-steps, 4.4e9 computed), and the fixed loop bound of 10^8 steps before 2026-12-06 truncated a
     count of 64 there."""
-    return LE_FLOOR_C * min(1.0, params.tau_L_nd) / math.sqrt(params.tau_nd)
+    return le_floor(params.tau_nd, params.tau_L_nd)
 
 
 def check_duration_run(params, h=None, n_excursions: int = 2048, dtype: str = "float64",

@@ -58,11 +58,14 @@ truncates and reports instead.  It is far too low for strong noise with stiff da
 force is inside the friction window; measured (DI, default h, N = 200, seed 0, 0.2.7), 0.25, 0.21 and
 0.16 :math:`\tau_0` at Fig. 3's :math:`\tau, \tau_L` and :math:`\Gamma = 10^3, 10^4, 10^5`, 4.2, 11 and
 26 times the prediction, which there is the runaway floor's :math:`0.5/\sqrt{\tau_L'}` term), and no
-floor in :math:`\tau_L/\tau` alone held on the measured points (README "Predicted work").  It is too low
-for fast noise without damping too (:math:`\tau' \ll 1`, :math:`\tau_L = \infty`: the DI's cycles last 23-39
-:math:`\tau_0` at :math:`\tau' = 0.01`, 5-57 at :math:`10^{-3}`-:math:`10^{-6}`, depending on h; README), where
-the long-excursion count floors its own prediction (:func:`~dryfric_jax.durations.le_duration_floor`).  There
-the run projects itself from its rounds and warns early (:func:`dryfric_jax.api.time_left`).
+floor in :math:`\tau_L/\tau` alone held on the measured points (README "Predicted work").  For fast noise
+(:math:`\tau' \ll 1`) the passage sum vanishes while the cycles last several to tens of :math:`\tau_0` (a stuck
+particle is released only where the force lies inside the friction window), so the prediction is floored there
+too: the DI's regeneration cycle at :func:`di_cycle_floor` (from h/tau), the PDMP's long excursion (and the
+long-excursion count's, :func:`~dryfric_jax.durations.le_duration_floor`) at :func:`le_floor`.  On the points
+measured the DI's cycles still last 1.5-8 times the prediction undamped (median 2.6, 12 before the floor) and up
+to 40 times with stiff damping.  Where the prediction is low the run projects itself from its rounds and warns
+early (:func:`dryfric_jax.api.time_left`).
 
 float32
 -------
@@ -163,6 +166,65 @@ def log_predicted_duration(tau: float, tau_L: float, gamma_bar: float, min_durat
     return max(log_t, math.log(min_duration)) if min_duration > 0.0 else log_t
 
 
+
+#: :func:`le_floor`'s constant: below every C measured for the long-excursion count (0.40-15; 0.40 +- 0.11 the
+#: least, :func:`~dryfric_jax.durations.le_duration_floor`), so that the floor stays a lower estimate
+LE_FLOOR_C = 0.25
+#: :func:`di_cycle_floor`: (least r = h/tau, largest r, floor in tau0 before the damping factor), largest first
+DI_CYCLE_FLOORS = ((1e-2, 10.0, 8.0), (1e-3, math.inf, 3.0))
+
+
+def le_floor(tau: float, tau_L: float) -> float:
+    r"""A floor on the mean long excursion (threshold to threshold) for fast noise, in :math:`\tau_0`:
+    :math:`C\,\min(1, \tau_L')/\sqrt{\tau'}`, :math:`C =` :data:`LE_FLOOR_C` (nondimensional arguments).  A stuck
+    particle is released only where its velocity reaches 0 while the force lies inside the friction window, whose
+    chance at such a moment falls with the noise's spread :math:`1/\sqrt{\tau'}`, so for :math:`\tau' \ll 1` the
+    LEs grow like :math:`1/\sqrt{\tau'}` while :func:`log_duration_scale` stays at :math:`\min(1, \tau_L')`; the
+    measurements are in :func:`~dryfric_jax.durations.le_duration_floor`.  It is the PDMP estimator's floor too
+    (its cycles are these LEs)."""
+    return LE_FLOOR_C * min(1.0, tau_L) / math.sqrt(tau)
+
+
+def di_cycle_floor(tau: float, tau_L: float, h: float) -> float:
+    r"""A floor on the DI estimator's mean regeneration cycle for fast noise, in :math:`\tau_0` (nondimensional
+    :math:`\tau', \tau_L', h'`), from :math:`r = h/\tau`:
+
+    .. math::
+        \frac{\tau_L'}{1 + \tau_L'} \times \begin{cases} 8 & 10^{-2} \le r \le 10 \\
+        3 & 10^{-3} \le r < 10^{-2} \text{ or } r > 10 \\ 0 & r < 10^{-3} \end{cases}
+
+    and, where :math:`r \le 10^{-2}`, at least :func:`le_floor`.  A cycle spans at least one long excursion
+    (:mod:`~dryfric_jax.regeneration`), and with the noise resolved (:math:`r \le 10^{-2}`) those last :func:`le_floor`
+    or longer.  At coarser steps the cycles depend on r more
+    than on :math:`\tau'`: the noise integrated over a step is what must fall inside the friction window.
+    Measured (2026-12-06, ``estimate_diffusivity``, seed 0, N = 200-800, CIs +-5-15%; :math:`\tau_L = \infty`,
+    :math:`\bar\gamma = 0` unless said), the mean cycle in :math:`\tau_0`:
+
+    * white at the step, :math:`r \ge 100`: 4.45-5.2 (:math:`\tau' = 10^{-7}`-:math:`10^{-6}`, :math:`h' =
+      10^{-4}`-:math:`10^{-2}`), 5.7 (:math:`\tau' = 10^{-4}`), 8.3 (:math:`10^{-3}`);
+    * :math:`r = 3`-30: 12.7-14.9 (:math:`\tau' = 10^{-5}`-:math:`10^{-3}`, r = 3, 10), 21.1 (0.01, r = 10), 8.9
+      (:math:`10^{-3}`, r = 30);
+    * :math:`r = 0.1`-1: 21-25 (:math:`\tau' = 10^{-5}`-0.1, r = 1), 19.5-40.6 (:math:`\tau' = 0.01`-1, r = 0.1),
+      22-28 (:math:`\tau' = 0.03`), 24.8 (0.3, r = 0.33);
+    * :math:`r = 0.01`-0.03: 11.8, 13.5, 37.3, 23.2 (:math:`\tau' = 0.1, 0.3, 0.01, 1`);
+    * finer, where the cycle tends to one LE as :math:`h \to 0`: 6.9, 8.6, 10.9, 15.2 (:math:`\tau' = 0.1, 0.3,
+      0.05, 1`, :math:`r = 10^{-3}`-:math:`3\cdot10^{-3}`), 5.7, 4.7-6.4, 10.8, 25.2, 11.2 (:math:`\tau' = 0.1, 0.3,
+      0.03, 0.01, 1`, :math:`h' = 10^{-5}`-:math:`10^{-4}`);
+    * damped, against the same point undamped: 0.84, 0.66-0.68, 0.48, 0.28-0.32 and 0.11-0.14 times at
+      :math:`\tau_L' = 3, 1, 0.3, 0.1, 0.01` (the factor :math:`\tau_L'/(1+\tau_L')` is 0.75, 0.5, 0.23, 0.09,
+      0.01);
+    * a bias lengthens them: 18.8 (:math:`\bar\gamma' = 0.5`) and 79 (-0.9) at :math:`\tau' = 10^{-3}`, r = 10;
+      6.0 and 26 at :math:`\tau' = 10^{-6}`.
+
+    On these 65 points the mean cycle is 1.48-40 times the prediction (the larger of this floor and
+    :func:`log_duration_scale`), 1.48-8.4 undamped at :math:`\tau' \le 0.1` (median 2.6); before the floor it was
+    1.9-117 times, and 2.6-39 (median 11.8) there."""
+    r = h / tau
+    step = next((f for lo, hi, f in DI_CYCLE_FLOORS if lo <= r <= hi), 0.0)
+    damp = tau_L / (1.0 + tau_L) if math.isfinite(tau_L) else 1.0
+    return max(step * damp, le_floor(tau, tau_L) if r <= 1e-2 else 0.0)
+
+
 def check_recurrent(tau_L: float, gamma_bar: float) -> None:
     """Refuse :math:`\\tau_L = \\infty` with :math:`|\\bar\\gamma| \\ge \\Delta` (nondimensional
     arguments): the particle runs away, D and M0 do not exist."""
@@ -173,20 +235,21 @@ def check_recurrent(tau_L: float, gamma_bar: float) -> None:
             "state")
 
 
-def tail_time_scale(tau: float, tau_L: float, gamma_bar: float) -> float:
+def tail_time_scale(tau: float, tau_L: float, gamma_bar: float, min_duration: float = 0.0) -> float:
     r"""Time scale of the excursion's tail (in :math:`\tau_0`): the largest of 1, :math:`\tau'`,
-    the predicted duration, and for :math:`|\bar\gamma'| < 1` the drift time
-    :math:`\min(1/(1-|\bar\gamma'|)^2, \tau_L')` of a velocity excursion against a weak net friction."""
+    the predicted duration (:func:`log_predicted_duration`, with ``min_duration``), and for
+    :math:`|\bar\gamma'| < 1` the drift time :math:`\min(1/(1-|\bar\gamma'|)^2, \tau_L')` of a velocity
+    excursion against a weak net friction."""
     g = abs(gamma_bar)
     drift = min(1.0 / (1.0 - g) ** 2, tau_L) if g < 1.0 else 1.0
-    return max(1.0, tau, drift, math.exp(min(log_duration_scale(tau, tau_L, gamma_bar), 700.0)))
+    return max(1.0, tau, drift, math.exp(min(log_predicted_duration(tau, tau_L, gamma_bar, min_duration), 700.0)))
 
 
 def max_steps_per_excursion(tau: float, tau_L: float, gamma_bar: float, steps_per_tau0: float,
-                            cap: float = MAX_WORK) -> int:
-    r"""Work bound of one excursion: :data:`MAX_TIME_REL` tail time scales, in steps (events), at
-    most ``cap``.  An excursion reaching it is closed, counted as truncated and reported."""
-    want = MAX_TIME_REL * tail_time_scale(tau, tau_L, gamma_bar) * steps_per_tau0
+                            cap: float = MAX_WORK, min_duration: float = 0.0) -> int:
+    r"""Work bound of one excursion: :data:`MAX_TIME_REL` tail time scales (:func:`tail_time_scale`), in steps
+    (events), at most ``cap``.  An excursion reaching it is closed, counted as truncated and reported."""
+    want = MAX_TIME_REL * tail_time_scale(tau, tau_L, gamma_bar, min_duration) * steps_per_tau0
     want = math.ceil(want) if want < 2.0**62 else 2**62  # want may be inf (tau' or 1/h' huge)
     return int(max(64, min(want, cap, 2**62)))
 

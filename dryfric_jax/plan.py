@@ -32,8 +32,8 @@ import numpy as np
 from .cost import choose_method, default_delta, default_delta_note
 from .excursions import MAX_LAYOUT, default_block, lanes_for
 from .limits import (
-    MAX_WORK, check_recurrent, check_simulable, check_work, float32_unsafe_reason, max_steps_per_excursion,
-    pdmp_float32_unsafe_reason,
+    MAX_WORK, check_recurrent, check_simulable, check_work, di_cycle_floor, float32_unsafe_reason, le_floor,
+    max_steps_per_excursion, pdmp_float32_unsafe_reason,
 )
 from .params import Params, check_params, real_or_none, rounded_bound, shown
 from .pdmp import pdmp_grid_info
@@ -217,6 +217,7 @@ class Plan:
     unit: str  # "steps" or "events"
     per_tau0: float  # steps (events) per tau0
     predicted_work: float = 0.0  # lane-steps (events) predicted for the run: a lower estimate
+    min_duration: float = 0.0  # the fast-noise floor on the predicted cycle (tau0): predicted_duration_floor
     max_steps: int = 0  # work bound per excursion
     lanes: int = 0
     block: int = 0  # steps per loop iteration (default_block unless given)
@@ -268,6 +269,16 @@ def choose(params: Params, method: str, h, delta, dtype) -> Plan:
     return plan
 
 
+def predicted_duration_floor(params: Params, plan: Plan) -> float:
+    r"""The fast-noise floor (:math:`\tau_0`) on the predicted mean cycle of ``plan``'s method: the DI's
+    regeneration cycle (:func:`~dryfric_jax.limits.di_cycle_floor`, from h/tau) or the PDMP's long excursion
+    (:func:`~dryfric_jax.limits.le_floor`).  :func:`~dryfric_jax.limits.log_duration_scale` alone, the noise's
+    passage time, vanishes for fast noise where the cycles last several to tens of :math:`\tau_0`."""
+    if plan.method == "di":
+        return di_cycle_floor(params.tau_nd, params.tau_L_nd, plan.h / params.tau0)
+    return le_floor(params.tau_nd, params.tau_L_nd)
+
+
 def plan_estimate(params: Params, *, method: str = "di", h: float | None = None, delta: float | None = None,
                   dtype="float64", n_excursions: int = 20_000, max_work: float = MAX_WORK,
                   max_steps: int | None = None, lanes: int | None = None, chunk_lanes: int | None = None,
@@ -286,13 +297,15 @@ def plan_estimate(params: Params, *, method: str = "di", h: float | None = None,
         chunk_lanes = check_count("chunk_lanes", chunk_lanes, 1)
     plan = choose(params, method, h, delta, dtype)
     nd = (params.tau_nd, params.tau_L_nd, params.gamma_bar_nd)
-    plan.predicted_work = check_work(*nd, plan.per_tau0, n_excursions, max_work, plan.unit)
+    plan.min_duration = predicted_duration_floor(params, plan)
+    plan.predicted_work = check_work(*nd, plan.per_tau0, n_excursions, max_work, plan.unit, plan.min_duration)
     plan.lanes = int(lanes or lanes_for(n_excursions, chunk_lanes))
     plan.block = int(default_block(plan.method, plan.lanes) if block is None else block1)
     check_layout(plan.lanes, plan.block)
     plan.max_work = max_work
     if max_steps is None:
-        plan.max_steps = max_steps_per_excursion(*nd, plan.per_tau0, cap=max(max_work / plan.lanes, 64))
+        plan.max_steps = max_steps_per_excursion(*nd, plan.per_tau0, cap=max(max_work / plan.lanes, 64),
+                                                 min_duration=plan.min_duration)
     else:  # the step counters are int64
         plan.max_steps = check_count("max_steps", max_steps, 1, hi=MAX_STEPS)
     return plan

@@ -237,6 +237,52 @@ def test_predicted_duration_is_the_exact_ou_passage_time():
     assert abs(lo - hi) < 1e-6
 
 
+def test_fast_noise_floors_set_the_predicted_work_and_the_excursion_bound():
+    """limits.di_cycle_floor / le_floor: for fast noise the predicted cycle is the floor, not the passage floor
+    min(1, tau_L'); the predicted work, the refusal just above it and the per-excursion bound all use it."""
+    from dryfric_jax.limits import di_cycle_floor, le_floor
+    p = dj.Params.from_nondim(1e-3)  # default h' = 0.01: h/tau = 10
+    plan = plan_estimate(p, n_excursions=1000)
+    assert plan.min_duration == di_cycle_floor(1e-3, math.inf, 0.01) == 8.0
+    need = 1000 * 8.0 * 100.0  # N x 8 tau0 x 1/h' steps
+    assert plan.predicted_work == pytest.approx(need, rel=1e-12)
+    assert abs(plan.max_steps - 1e4 * need / 1000) <= 1  # 10^4 cycles of 8 tau0 (was 10^4 tau0)
+    with pytest.raises(ValueError,
+                       match=r"^max_work must be >= 8e\+05 steps .* predicted mean duration >= 8 tau0 at 100 steps"):
+        plan_estimate(p, n_excursions=1000, max_work=need * (1 - 1e-9))
+    # the step function of r = h/tau, the damping factor, and the long-excursion floor where the noise is resolved
+    assert [di_cycle_floor(0.1, math.inf, r * 0.1) for r in (1e5, 10.0, 1e-2, 5e-3, 9e-4)] == \
+        [3.0, 8.0, 8.0, 3.0, le_floor(0.1, math.inf)]
+    assert di_cycle_floor(1e-3, 1.0, 1e-3) == 4.0 and di_cycle_floor(1e-3, 0.1, 1e-2) == pytest.approx(8 / 11)
+    assert di_cycle_floor(1e-6, math.inf, 1e-8) == le_floor(1e-6, math.inf) == 250.0
+    # the PDMP's cycles are long excursions: le_floor
+    q = dj.Params.from_nondim(0.03, 0.5)
+    assert plan_estimate(q, method="pdmp", n_excursions=10).min_duration == le_floor(0.03, 0.5) == \
+        pytest.approx(0.125 / math.sqrt(0.03), rel=1e-15)
+    # slow noise: the passage time, far above either floor, is the prediction
+    f = dj.Params(**dj.FIG3)
+    plan = plan_estimate(f, n_excursions=10)
+    assert plan.min_duration < math.exp(dj.limits.log_duration_scale(f.tau_nd, f.tau_L_nd, f.gamma_bar_nd))
+
+
+@pytest.mark.parametrize("tau,tl,h", [
+    (0.1, math.inf, 1e-3),  # h/tau = 0.01: floor 8, measured 11.8 +- 1.2 (seed 0, N = 400)
+    (0.1, 10.0, 1e-3),  # damped: floor 7.3, measured 10.4 +- 1.0
+    (1e-6, math.inf, None),  # white at the step (h/tau = 1e4): floor 3, measured 4.45 +- 0.34
+])
+def test_the_di_cycle_floor_lies_below_the_cycles_where_it_is_tightest(tau, tl, h):
+    """limits.di_cycle_floor must stay a lower estimate (else a feasible run is refused): on the three points of
+    its table where it is tightest, the cycles' 95% CI lies above it (6.2-8.4 SE at seed 0), and the run's useful work
+    above the predicted work."""
+    p = dj.Params.from_nondim(tau, tl)
+    r = _quiet(dj.estimate_diffusivity, p, 0, n_excursions=400, **({} if h is None else dict(h=h)))
+    floor = dj.limits.di_cycle_floor(tau, tl, r.h / p.tau0)
+    assert floor >= 3.0 * (1.0 if math.isinf(tl) else tl / (1 + tl))  # the floor acts here
+    assert r.n_truncated == 0
+    assert (r.mean_duration - r.mean_duration_ci) / p.tau0 > floor, (r.mean_duration / p.tau0, floor)
+    assert r.predicted_work <= r.work * r.lane_utilization
+
+
 @pytest.mark.parametrize("G,Delta,tau,tl,gb,method,n,tight", [
     (10.0, 3.84, 0.125, 0.067, 0.342, "pdmp", 2000, True),  # fast noise (tau' = 0.18), tau_L' = 0.1
     (10.0, 3.84, 0.125, 0.067, 0.342, "di", 2000, False),
