@@ -288,11 +288,12 @@ def test_the_di_cycle_floor_lies_below_the_cycles_where_it_is_tightest(tau, tl, 
     (10.0, 3.84, 0.125, 0.067, 0.342, "di", 2000, False),
     (1.0, 3.84, 0.25, 0.067, 0.342, "pdmp", 2000, True),  # tau' = 1.8
     (1.0, 3.84, 0.25, 0.067, 0.342, "di", 2000, False),
-    (8.0, 3.84, 1e-5, 0.067, 0.342, "di", 2000, False),  # white limit: the floor min(1, tau_L') acts
-    (1.0, 1.0, 0.05, 0.1, 0.089, "pdmp", 100, False),  # fast noise, the floor acts for the PDMP
+    (8.0, 3.84, 1e-5, 0.067, 0.342, "di", 2000, False),  # white limit: the deceleration floor acts (0.43 tau0)
+    (1.0, 1.0, 0.05, 0.1, 0.089, "pdmp", 100, False),  # fast noise, the deceleration floor acts for the PDMP
 ])
 def test_predicted_work_is_a_lower_estimate_of_the_measured_work(G, Delta, tau, tl, gb, method, n, tight):
-    """``predicted_work`` (N x the OU passage-time bound x the steps or noise jumps per tau0)
+    """``predicted_work`` (N x the OU passage-time bound, or the fast-noise floor where longer, x the steps or noise
+    jumps per tau0)
     never exceeds the work the run did; for the PDMP, whose excursions are the noise's passage
     cycles, it is within a factor 2 where the passage times dominate.  (Before: the PDMP counted
     2 Lambda' events per tau0 and the duration had a floor of 1 tau0, 3x above the measured work
