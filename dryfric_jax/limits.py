@@ -181,7 +181,8 @@ def le_floor(tau: float, tau_L: float) -> float:
     chance at such a moment falls with the noise's spread :math:`1/\sqrt{\tau'}`, so for :math:`\tau' \ll 1` the
     LEs grow like :math:`1/\sqrt{\tau'}` while :func:`log_duration_scale` stays at :math:`\min(1, \tau_L')`; the
     measurements are in :func:`~dryfric_jax.durations.le_duration_floor`.  It is the PDMP estimator's floor too
-    (its cycles are these LEs)."""
+    (its cycles are these LEs) on grids of :math:`\delta' \le 0.5` (:data:`~dryfric_jax.plan.PDMP_FLOOR_MAX_DELTA_ND`).
+    """
     return LE_FLOOR_C * min(1.0, tau_L) / math.sqrt(tau)
 
 

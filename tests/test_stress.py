@@ -259,10 +259,26 @@ def test_fast_noise_floors_set_the_predicted_work_and_the_excursion_bound():
     q = dj.Params.from_nondim(0.03, 0.5)
     assert plan_estimate(q, method="pdmp", n_excursions=10).min_duration == le_floor(0.03, 0.5) == \
         pytest.approx(0.125 / math.sqrt(0.03), rel=1e-15)
+    # on a coarse grid (delta' > 0.5) the PDMP is held to no floor (test below)
+    c = dj.Params.from_nondim(1e-3, 1.0)  # Gamma = Delta = 1: delta = delta'
+    assert plan_estimate(c, method="pdmp", delta=0.5, n_excursions=10).min_duration == le_floor(1e-3, 1.0)
+    assert plan_estimate(c, method="pdmp", delta=0.51, n_excursions=10).min_duration == 0.0
     # slow noise: the passage time, far above either floor, is the prediction
     f = dj.Params(**dj.FIG3)
     plan = plan_estimate(f, n_excursions=10)
     assert plan.min_duration < math.exp(dj.limits.log_duration_scale(f.tau_nd, f.tau_L_nd, f.gamma_bar_nd))
+
+
+def test_a_coarse_pdmp_grid_is_not_held_to_the_long_excursion_floor():
+    """plan.PDMP_FLOOR_MAX_DELTA_ND (an audit): with a grid step near its largest (delta' = 7.09 of 7.47 at tau' =
+    1e-3), a release needs the noise on one of the few grid levels inside the friction window and the cycles last
+    ~2 tau0, a quarter of limits.le_floor's 7.9 (seed 1: 2.06 +- 0.25): held to it, such a run was refused at a
+    max_work it then kept to.  The prediction there stays a lower estimate."""
+    from dryfric_jax.limits import le_floor
+    p = dj.Params.from_nondim(1e-3, 1.0)
+    r = _quiet(dj.estimate_diffusivity, p, 1, method="pdmp", delta=7.09, n_excursions=300)
+    assert (r.mean_duration + r.mean_duration_ci) / p.tau0 < le_floor(1e-3, 1.0)
+    assert r.predicted_work <= r.work * r.lane_utilization
 
 
 @pytest.mark.parametrize("tau,tl,h", [
