@@ -219,7 +219,10 @@ def di_cycle_floor(tau: float, tau_L: float, h: float) -> float:
 
     On these 65 points the mean cycle is 1.48-40 times the prediction (the larger of this floor and
     :func:`log_duration_scale`), 1.48-8.4 undamped at :math:`\tau' \le 0.1` (median 2.6); before the floor it was
-    1.9-117 times, and 2.6-39 (median 11.8) there."""
+    1.9-117 times, and 2.6-39 (median 11.8) there.  An audit's 136 runs elsewhere (2026-12-06, tau' = 1e-9-3,
+    h/tau = 1e-5-1e6) found no cycle whose CI lies below the floor; the least ratios 1.29 (tau' = 1e-9, h' = 1e-5:
+    3.88 +- 0.44 against 3; white at the step the cycle levels off at ~3.9-4.1 as h -> 0) and 1.32 (tau' = 0.25,
+    r = 0.01: 10.5 +- 0.55 against 8)."""
     r = h / tau
     step = next((f for lo, hi, f in DI_CYCLE_FLOORS if lo <= r <= hi), 0.0)
     damp = tau_L / (1.0 + tau_L) if math.isfinite(tau_L) else 1.0
