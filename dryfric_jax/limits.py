@@ -166,7 +166,6 @@ def log_predicted_duration(tau: float, tau_L: float, gamma_bar: float, min_durat
     return max(log_t, math.log(min_duration)) if min_duration > 0.0 else log_t
 
 
-
 #: :func:`le_floor`'s constant: below every C measured for the long-excursion count (0.40-15; 0.40 +- 0.11 the
 #: least, :func:`~dryfric_jax.durations.le_duration_floor`), so that the floor stays a lower estimate
 LE_FLOOR_C = 0.25
