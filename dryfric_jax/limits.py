@@ -180,9 +180,28 @@ def le_floor(tau: float, tau_L: float) -> float:
     chance at such a moment falls with the noise's spread :math:`1/\sqrt{\tau'}`, so for :math:`\tau' \ll 1` the
     LEs grow like :math:`1/\sqrt{\tau'}` while :func:`log_duration_scale` stays at :math:`\min(1, \tau_L')`; the
     measurements are in :func:`~dryfric_jax.durations.le_duration_floor`.  It is the PDMP estimator's floor too
-    (its cycles are these LEs) on grids of :math:`\delta' \le 0.5` (:data:`~dryfric_jax.plan.PDMP_FLOOR_MAX_DELTA_ND`).
-    """
+    (its cycles are these LEs) on fine grids: :func:`pdmp_cycle_floor`."""
     return LE_FLOOR_C * min(1.0, tau_L) / math.sqrt(tau)
+
+
+#: :func:`pdmp_cycle_floor`: the PDMP's cycles are held to :func:`le_floor` only on grids this fine (nondimensional
+#: delta', the friction window is 2 wide): on coarser ones a release needs the noise on one of the few grid levels
+#: inside the window, and the cycles are shorter.  Measured (an audit, 2026-12-06; tau' = 1e-3, seeds 1-8,
+#: N = 300-1000, in tau0 against le_floor's 7.91): 13.0 +- 3.7 and 10.8 +- 1.8 at delta' = 2 and 3, but 5.7 +- 0.85
+#: at 5 and 1.6-3.2 at 7.09 (delta'_max 7.47), where the floor refused runs that then took a quarter of its
+#: prediction; at tau' = 0.01, delta' = 2.24 1.05 times the floor.  At delta' = 1 (seed 11, N = 300-650, undamped and
+#: tau_L' = 1): 2.22 and 1.39 times it at tau' = 0.01, 2.04 and 1.23 at 3e-3, 1.35 at 1e-3 (tau_L' = 1); at 0.5,
+#: 2.61 (0.01, undamped; 2.22 at delta' = 1): finer grids lengthen the cycles.  So 0.5, with room; the default
+#: delta' is at most 0.05.
+PDMP_FLOOR_MAX_DELTA_ND = 0.5
+
+
+def pdmp_cycle_floor(tau: float, tau_L: float, delta: float) -> float:
+    r"""A floor on the PDMP estimator's mean cycle (a long excursion) for fast noise, in :math:`\tau_0`
+    (nondimensional :math:`\tau', \tau_L', \delta'`): :func:`le_floor` for :math:`\delta' \le`
+    :data:`PDMP_FLOOR_MAX_DELTA_ND`, none (0) on coarser grids, where a grid step of the order of the friction
+    window's width changes the release itself."""
+    return le_floor(tau, tau_L) if delta <= PDMP_FLOOR_MAX_DELTA_ND else 0.0
 
 
 def di_cycle_floor(tau: float, tau_L: float, h: float) -> float:

@@ -32,8 +32,8 @@ import numpy as np
 from .cost import choose_method, default_delta, default_delta_note
 from .excursions import MAX_LAYOUT, default_block, lanes_for
 from .limits import (
-    MAX_WORK, check_recurrent, check_simulable, check_work, di_cycle_floor, float32_unsafe_reason, le_floor,
-    max_steps_per_excursion, pdmp_float32_unsafe_reason,
+    MAX_WORK, check_recurrent, check_simulable, check_work, di_cycle_floor, float32_unsafe_reason,
+    max_steps_per_excursion, pdmp_cycle_floor, pdmp_float32_unsafe_reason,
 )
 from .params import Params, check_params, real_or_none, rounded_bound, shown
 from .pdmp import pdmp_grid_info
@@ -269,28 +269,15 @@ def choose(params: Params, method: str, h, delta, dtype) -> Plan:
     return plan
 
 
-#: the PDMP's cycles are held to :func:`~dryfric_jax.limits.le_floor` only on grids this fine (nondimensional
-#: delta', the friction window is 2 wide): on coarser ones a release needs the noise on one of the few grid levels
-#: inside the window, and the cycles are shorter.  Measured (an audit, 2026-12-06; tau' = 1e-3, seeds 1-8,
-#: N = 300-1000, in tau0 against le_floor's 7.91): 13.0 +- 3.7 and 10.8 +- 1.8 at delta' = 2 and 3, but 5.7 +- 0.85
-#: at 5 and 1.6-3.2 at 7.09 (delta'_max 7.47), where the floor refused runs that then took a quarter of its
-#: prediction; at tau' = 0.01, delta' = 2.24 1.05 times the floor.  At delta' = 1 (seed 11, N = 300-650, undamped and
-#: tau_L' = 1): 2.22 and 1.39 times it at tau' = 0.01, 2.04 and 1.23 at 3e-3, 1.35 at 1e-3 (tau_L' = 1); at 0.5,
-#: 2.61 (0.01, undamped; 2.22 at delta' = 1): finer grids lengthen the cycles.  So 0.5, with room; the default
-#: delta' is at most 0.05.
-PDMP_FLOOR_MAX_DELTA_ND = 0.5
-
-
 def predicted_duration_floor(params: Params, plan: Plan) -> float:
     r"""The fast-noise floor (:math:`\tau_0`) on the predicted mean cycle of ``plan``'s method: the DI's
     regeneration cycle (:func:`~dryfric_jax.limits.di_cycle_floor`, from h/tau) or the PDMP's long excursion
-    (:func:`~dryfric_jax.limits.le_floor`, for a grid step :math:`\delta' \le` :data:`PDMP_FLOOR_MAX_DELTA_ND`
-    only).  :func:`~dryfric_jax.limits.log_duration_scale` alone, the noise's passage time, vanishes for fast noise
-    where the cycles last several to tens of :math:`\tau_0`."""
+    (:func:`~dryfric_jax.limits.pdmp_cycle_floor`, from its grid step).
+    :func:`~dryfric_jax.limits.log_duration_scale` alone, the noise's passage time, vanishes for fast noise where the
+    cycles last several to tens of :math:`\tau_0`."""
     if plan.method == "di":
         return di_cycle_floor(params.tau_nd, params.tau_L_nd, plan.h / params.tau0)
-    # a grid step of the order of the friction window's width changes the release itself: no floor there
-    return le_floor(params.tau_nd, params.tau_L_nd) if plan.grid["delta_nd"] <= PDMP_FLOOR_MAX_DELTA_ND else 0.0
+    return pdmp_cycle_floor(params.tau_nd, params.tau_L_nd, plan.grid["delta_nd"])
 
 
 def plan_estimate(params: Params, *, method: str = "di", h: float | None = None, delta: float | None = None,

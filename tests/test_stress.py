@@ -270,7 +270,7 @@ def test_fast_noise_floors_set_the_predicted_work_and_the_excursion_bound():
 
 
 def test_a_coarse_pdmp_grid_is_not_held_to_the_long_excursion_floor():
-    """plan.PDMP_FLOOR_MAX_DELTA_ND (an audit): with a grid step near its largest (delta' = 7.09 of 7.47 at tau' =
+    """limits.PDMP_FLOOR_MAX_DELTA_ND (an audit): with a grid step near its largest (delta' = 7.09 of 7.47 at tau' =
     1e-3), a release needs the noise on one of the few grid levels inside the friction window and the cycles last
     ~2 tau0, a quarter of limits.le_floor's 7.9 (seed 1: 2.06 +- 0.25): held to it, such a run was refused at a
     max_work it then kept to.  The prediction there stays a lower estimate."""
