@@ -573,7 +573,8 @@ def rows(path: str, seed: int | None = None, **settings) -> list[dict]:
     the long-excursion count's :data:`LE_ROW_KEYS` (``le_duration``, its CI, ...; NaN without one),
     ``reason`` and ``stopped_by`` (``"max_time"`` for a point its time limit stopped; "" if
     unknown).  ``seed`` (the sweep seed) and keyword settings keep only the matching records (e.g.
-    ``n_excursions=500``, ``durations=2048``)."""
+    ``n_excursions=500``, ``durations=2048``; ``durations=None`` keeps the records without a count: a point given
+    ``durations`` after its D was recorded holds two records, its D's and its count's, and ``rows`` lists both)."""
     known = SETTING_KEYS + (DURATIONS,)
     unknown = sorted(set(settings) - set(known))
     if unknown:
