@@ -27,7 +27,7 @@ from .excursions import BLOCK
 from .rounds import FINAL_DEADLINE, INTERRUPT_GRACE_S, simulate_long_excursions, work_per_excursion
 from .limits import MAX_WORK, refuse_known_work
 from .outfiles import dumps
-from .params import Params, check_positive, real_or_none, rounded_bound
+from .params import Params, check_positive, real_or_none, require_x64, rounded_bound
 from .pdmp import make_pdmp_model, simulate_pdmp_bruteforce
 from .plan import (  # noqa: F401  (default_h, h_max, check_h, METHODS are part of the API)
     DTYPES, MAX_COUNT, METHODS, Plan, check_count, check_h, check_layout, check_max_time, check_max_work, check_rtol,
@@ -153,7 +153,9 @@ def check_progress(progress, name: str = "progress") -> None:
 
 def _key(key):
     """``(key, seed)`` from a seed in [0, :data:`MAX_SEED`] (None: 0) or a ``jax.random`` key
-    (``seed`` None); ``ValueError`` naming ``key`` for anything else."""
+    (``seed`` None); ``ValueError`` naming ``key`` for anything else, ``RuntimeError`` with JAX's 64-bit mode off
+    (:func:`~dryfric_jax.params.require_x64`: every runner takes its key here)."""
+    require_x64()
     if isinstance(key, jax.core.Tracer):  # vmap over keys compiled for 12 s, then a TracerArrayConversionError
         raise ValueError("key is a JAX tracer (under jax.jit, vmap or grad): the estimators run on the host, round "
                          "after round, and cannot be traced; call them in a Python loop over the keys or seeds")
@@ -178,16 +180,6 @@ def key_id(key) -> str:
     what :func:`~dryfric_jax.combine_estimates` compares to refuse a stream pooled twice."""
     data = np.asarray(jax.random.key_data(key)).ravel()
     return str(key.dtype) + "".join(f":{int(w):08x}" for w in data)
-
-
-def require_x64() -> None:
-    """``RuntimeError`` unless JAX's 64-bit mode is on.  Importing dryfric_jax turns it on (the sums are
-    float64 whatever the simulation dtype); a notebook that turned it off afterwards got five "float64
-    truncated to float32" warnings and an OverflowError from inside JAX (a user audit)."""
-    if not jax.config.jax_enable_x64:
-        raise RuntimeError("dryfric_jax needs JAX's 64-bit mode (its sums are float64 in every dtype; importing it "
-                           "turned the mode on and something turned it off): jax.config.update('jax_enable_x64', "
-                           "True) restores it, and dtype='float32' still simulates in float32")
 
 
 def _build(params: Params, plan: Plan):

@@ -28,7 +28,7 @@ from .api import MAX_SEED, DryfricWarning, EstimateResult, key_id, missing_field
 from .estimators import MIN_RELIABLE_N, ROUNDING_NOTE, long_excursion_estimates, rounding_note
 from .excursions import STAT_NAMES
 from .outfiles import from_strict
-from .params import Params, check_flag
+from .params import Params, check_flag, require_x64
 from .plan import DTYPES, MAX_COUNT
 
 # what must agree for two runs to sample the same law (the engine layout does not matter), and to
@@ -176,7 +176,9 @@ def combine_estimates(results: Sequence, *, labels: Sequence[str] | None = None,
     a key written before keys were recorded carry neither: their independence is the caller's to
     ensure, and a :class:`DryfricWarning` says so.
     """
-    if isinstance(results, (str, bytes, dict, EstimateResult)) or not hasattr(results, "__iter__"):
+    require_x64()  # with it off the pool's sums were added and its D formed in float32
+    if isinstance(results, (str, bytes, dict, EstimateResult)) or not hasattr(results, "__iter__") \
+            or getattr(results, "ndim", 1) == 0:  # a 0-d array: a TypeError from iter
         raise ValueError(f"results must be a list of EstimateResult objects (got {type(results).__name__})")
     allow_mixed_versions = check_flag("allow_mixed_versions", allow_mixed_versions)
     results = list(results)

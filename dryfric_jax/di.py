@@ -136,9 +136,10 @@ def make_di_model(params: Params, h: float, dtype=jnp.float64) -> DIModel:
     [1e-12, 0.1]*min(tau0, tau_L) s (None: the default step, :func:`~dryfric_jax.plan.default_h`),
     ``dtype`` float32 or float64 (a name or a dtype).  Unlike a planned run, float32 is used as asked
     where it is not safe (:func:`~dryfric_jax.limits.float32_unsafe_reason`)."""
-    from .params import check_params  # the planner's own checks (imported here: plan is a layer above)
+    from .params import check_params, require_x64  # the planner's own checks (imported here: plan is a layer above)
     from .plan import DTYPES, check_h, dtype_name
 
+    require_x64()  # with it off, the default float64 built a float32 model
     check_params(params)
     h = check_h(params, h)
     dtype = DTYPES[dtype_name(dtype)]

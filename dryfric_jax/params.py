@@ -184,6 +184,19 @@ def _check_scales(p: "Params") -> None:
                          f"Delta = {v['Delta']!r})")
 
 
+def require_x64() -> None:
+    """``RuntimeError`` unless JAX's 64-bit mode is on.  Importing dryfric_jax turns it on (the sums are
+    float64 whatever the simulation dtype); a notebook that turned it off afterwards got five "float64
+    truncated to float32" warnings and an OverflowError from inside JAX (a user audit).  Every runner calls it
+    (:func:`~dryfric_jax.api._key`, the model builders, :func:`~dryfric_jax.combine_estimates`): the long-excursion
+    count, a model and a pool ran silently in float32 (the count with int32 counters) and said float64 (a later
+    audit)."""
+    if not jax.config.jax_enable_x64:
+        raise RuntimeError("dryfric_jax needs JAX's 64-bit mode (its sums are float64 in every dtype; importing it "
+                           "turned the mode on and something turned it off): jax.config.update('jax_enable_x64', "
+                           "True) restores it, and dtype='float32' still simulates in float32")
+
+
 class Params(eqx.Module):
     r"""Physical parameters of the dry-friction model, SI units.
 

@@ -55,7 +55,7 @@ import numpy as np
 from . import rng
 from .excursions import BLOCK
 from .noise import check_delta, grid_size
-from .params import Params, check_params
+from .params import Params, check_params, require_x64
 
 ON_GRID_TOL = 1e-9
 
@@ -262,6 +262,7 @@ def make_pdmp_model(params: Params, delta: float, dtype=jnp.float64) -> PDMPMode
     (1/tau_L' beyond 3.4e38: the model's numbers would be inf), which is refused by name."""
     from .plan import DTYPES, dtype_name  # plan is a layer above
 
+    require_x64()
     g = pdmp_grid_info(params, delta)  # checks params, then delta
     dtype = DTYPES[dtype_name(dtype)]
     nd = params.nondim()

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import dryfric_jax as dj
-from dryfric_jax import theory
+from dryfric_jax import paths, theory
 from dryfric_jax.chain_law import white_chain_law
 
 P = dj.Params(**dj.FIG3)
@@ -72,10 +72,18 @@ def test_params_edited_around_their_checks_are_checked_again(call, field, value,
 
 
 def test_jax_64_bit_mode_turned_off_is_said_not_a_traceback_from_jax():
+    """Every runner refuses: the long-excursion count, a model built then and a pool of two results ran silently
+    in float32 (the count with int32 counters) and said float64 (an audit; the count's mean moved 5%)."""
+    runs = [dj.estimate_diffusivity(P, s, n_excursions=50) for s in (1, 2)]
+    di = dj.make_di_model(P, 1e-3)
     jax.config.update("jax_enable_x64", False)
     try:
         for call in (lambda: dj.estimate_diffusivity(P, 0, n_excursions=50, dtype="float32"),
-                     lambda: dj.bruteforce_diffusivity(P, 0, t=1.0, n_paths=4)):
+                     lambda: dj.bruteforce_diffusivity(P, 0, t=1.0, n_paths=4),
+                     lambda: dj.di_long_excursion_duration(P, 0, n_excursions=10),
+                     lambda: dj.combine_estimates(runs),
+                     lambda: dj.make_di_model(P, 1e-3), lambda: dj.make_pdmp_model(P, 0.125),
+                     lambda: paths.di_transient(di, 0, 4, [10])):
             with pytest.raises(RuntimeError, match=r"needs JAX's 64-bit mode.*jax_enable_x64', True"):
                 call()
     finally:

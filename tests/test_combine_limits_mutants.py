@@ -230,6 +230,8 @@ def test_one_result_dict_is_not_a_list_and_foreign_keys_are_ignored():
     (dict not refused up front) and K47 (unknown keys passed to EstimateResult: a TypeError)."""
     with pytest.raises(ValueError, match=r"^results must be a list of EstimateResult objects \(got dict\)"):
         combine_estimates(_run(1).to_dict())
+    with pytest.raises(ValueError, match=r"^results must be a list of EstimateResult objects \(got ndarray\)"):
+        combine_estimates(np.array(0.5))  # a 0-d array has __iter__: a TypeError from iter (an audit)
     assert _pool({**_run(1).to_dict(), "from_the_future": 1}, _run(2)).n_excursions == 800
 
 
