@@ -21,7 +21,7 @@ import jax
 import jax.numpy as jnp
 
 from . import rng
-from .ou import OUStep, ou_step
+from .ou import OUStep, check_ratio, ou_step
 from .params import Params
 from .regeneration import SplitSet, split_set
 
@@ -142,6 +142,7 @@ def make_di_model(params: Params, h: float, dtype=jnp.float64) -> DIModel:
     require_x64()  # with it off, the default float64 built a float32 model
     check_params(params)
     h = check_h(params, h)
+    check_ratio(jnp.asarray(h, jnp.float64), jnp.asarray(params.tau, jnp.float64))  # named in the user's h and tau
     dtype = DTYPES[dtype_name(dtype)]
     nd = params.nondim()
     h_nd = h / params.tau0

@@ -20,13 +20,19 @@ it is evaluated by its Taylor series :math:`\hat g = \sum_{k\ge3} (-1)^k (4-2^k)
 never from a numerical factorisation of a rounded matrix: the correlation of the pair tends
 to 1 as :math:`r \to 0`, where :math:`\det\Sigma \sim r^2/(3\tau^2)` is all that is left.
 All expressions stay accurate for :math:`r \in [10^{-8}, 10^{8}]` in float64 and float32, and
-for larger r, where :math:`\hat g = (2 - 3/r)/r` exactly and :math:`r^2` would overflow.
+for larger r, where :math:`\hat g = (2 - 3/r)/r` exactly and :math:`r^2` would overflow.  Towards small r they
+hold (to 3e-16 against 400-digit arithmetic at :math:`r = 10^{-12}`-:math:`10^{-100}`, float64) until
+:math:`(1 - e^{-r})^2` underflows: :math:`L_{21} = L_{22} = 0` from :math:`r \approx 10^{-154}` and 0/0 = NaN where
+r itself is below the dtype's normal range.  So :func:`ou_step` and :func:`ou_moments` refuse
+:math:`r <` :func:`min_ratio` (:math:`\sqrt{\text{tiny}}\cdot 10^4`: 1.5e-150 in float64, 1.1e-15 in float32), a
+``ValueError`` naming h/tau (an audit: NaN from ``make_di_model`` at :math:`\tau = 10^{299}` s, h = 1e-12 s).
 """
 from __future__ import annotations
 
 import math
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 
 from .params import check_positive
@@ -38,6 +44,22 @@ _GHAT_COEFFS = [(-1) ** k * (4 - 2**k) / math.factorial(k) for k in range(3, 3 +
 
 
 _R_HUGE = 1e8  # beyond this r the exponentials of ghat vanish (e^{-1e8} = 0)
+
+
+def min_ratio(dtype) -> float:
+    """The least h/tau :func:`ou_step` and :func:`ou_moments` accept in ``dtype`` (module docstring)."""
+    return math.sqrt(float(jnp.finfo(dtype).tiny)) * 1e4
+
+
+def check_ratio(h, tau) -> None:
+    """``ValueError`` naming h/tau below :func:`min_ratio` (concrete values only; a tracer is checked where it was
+    made).  ``h`` and ``tau`` are arrays of the dtype the step is computed in."""
+    if isinstance(h, jax.core.Tracer) or isinstance(tau, jax.core.Tracer):
+        return
+    lo = min_ratio(h.dtype)
+    if not float(h) / float(tau) >= lo:  # in Python floats: the array's own h/tau may underflow to 0
+        raise ValueError(f"h/tau must be >= {lo:.2g} in {h.dtype.name} (got h = {float(h):.3g}, tau = {float(tau):.3g}: "
+                         f"h/tau = {float(h) / float(tau):.3g}): the OU step's covariance underflows below it")
 
 
 def _ghat(r):
@@ -72,6 +94,7 @@ def ou_moments(h, tau):
     check_positive("tau", tau)
     h = jnp.asarray(h, jnp.result_type(h, float))  # an integer h made tau an integer: tau = 0.5 became 0
     tau = jnp.asarray(tau, dtype=h.dtype)
+    check_ratio(h, tau)
     r = h / tau
     em1 = jnp.expm1(-r)  # e^{-r} - 1, accurate for small r
     m1 = -em1 / r
@@ -116,6 +139,7 @@ def ou_step(h, tau, dtype=None) -> OUStep:
     dtype = jnp.result_type(float) if dtype is None else dtype_name(dtype)  # float16 was accepted, "foo" a TypeError
     h = jnp.asarray(h, jnp.result_type(h, float))
     tau = jnp.asarray(tau, h.dtype)
+    check_ratio(h, tau)
     r = h / tau
     em1 = jnp.expm1(-r)
     g = _ghat(r)

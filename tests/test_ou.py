@@ -1,4 +1,6 @@
 """Exact OU step: closed forms, Cholesky factor, sampled moments, and an independent fine-grid check."""
+import re
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -152,3 +154,39 @@ def test_an_integer_step_is_a_float_step():
     a, b = ou_step(1, 0.5), ou_step(1.0, 0.5)
     for f in ("m1", "m2", "L11", "L21", "L22"):
         assert float(getattr(a, f)) == float(getattr(b, f)), f
+
+
+@pytest.mark.parametrize("r", [1e-12, 1e-60, 1e-120, 2e-150])
+def test_tiny_steps_keep_the_leading_order_factor(r):
+    """Towards r = h/tau -> 0 the factor tends to its leading order, m = (1, 1), L11 = sqrt(2r/3), L21 =
+    sqrt(3r/2), L22 = sqrt(r/2) (over sqrt(tau); corrections O(r)), down to min_ratio, and the split set built
+    from it is finite (below ~1e-154 L21 and L22 were 0 and the split set NaN)."""
+    from dryfric_jax.regeneration import split_set
+
+    tau = 1e3
+    s = ou_step(r * tau, tau)
+    want = dict(m1=1.0, m2=1.0, L11=np.sqrt(2 * r / 3 / tau), L21=np.sqrt(1.5 * r / tau), L22=np.sqrt(r / 2 / tau))
+    for f, w in want.items():
+        assert _rel(float(getattr(s, f)), w) < 1e-11, f
+    c = split_set(s, 1.0, tau)
+    assert all(np.isfinite(float(getattr(c, f))) for f in c.__dataclass_fields__)
+
+
+def test_a_step_below_min_ratio_is_refused_by_name():
+    """h/tau below the dtype's normal range gave 0/0 = NaN in m1 and the factor, silently (an audit: ou_step(1e-310,
+    1), ou_moments(0.01, 1e308), float32 ou_moments(1e-20, 1e20), make_di_model at tau = 1e299 s, h = 1e-12 s)."""
+    import dryfric_jax as dj
+    from dryfric_jax.ou import min_ratio
+
+    assert min_ratio(np.float64) == pytest.approx(1.49e-150, rel=1e-2)
+    assert min_ratio(np.float32) == pytest.approx(1.08e-15, rel=1e-2)
+    msg = r"^h/tau must be >= 1\.5e-150 in float64 \(got h = {}, tau = {}: h/tau = {}\)"
+    for call, args in ((ou_step, (1e-310, 1.0)), (ou_moments, (0.01, 1e308)), (ou_step, (1e-6, 1e145))):
+        h, tau = args
+        with pytest.raises(ValueError, match=msg.format(*(re.escape(f"{x:.3g}") for x in (h, tau, h / tau)))):
+            call(*args)
+    with pytest.raises(ValueError, match=r"^h/tau must be >= 1\.1e-15 in float32 \(got h = 1e-20, tau = 1e\+20"):
+        ou_moments(np.float32(1e-20), np.float32(1e20))
+    with pytest.raises(ValueError, match=r"^h/tau must be >= 1\.5e-150 in float64 \(got h = 1e-12, tau = 1e\+299"):
+        dj.make_di_model(dj.Params(1.0, 1.0, 1e299, 1.0, 0.0), 1e-12)
+    assert np.isfinite(float(ou_step(1e-6, 1e143).L22))  # just above it
