@@ -30,8 +30,8 @@ from .outfiles import dumps
 from .params import Params, check_positive, real_or_none, require_x64, rounded_bound
 from .pdmp import make_pdmp_model, simulate_pdmp_bruteforce
 from .plan import (  # noqa: F401  (default_h, h_max, check_h, METHODS are part of the API)
-    DTYPES, MAX_COUNT, METHODS, Plan, check_count, check_h, check_layout, check_max_time, check_max_work, check_rtol,
-    choose, default_h, h_max, plan_estimate, scalar, shown,
+    DTYPES, MAX_COUNT, METHODS, Plan, check_count, check_h, check_layout, check_max_time, check_max_work,
+    check_method, check_rtol, choose, default_h, h_max, plan_estimate, scalar, shown,
 )
 
 class DryfricWarning(UserWarning):
@@ -701,8 +701,8 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
     (each chunk shape is compiled to its own code: 2.6e-16 relative in a path's U, measured).
     """
     require_x64()
-    if method == "auto":
-        raise ValueError("method must be 'di' or 'pdmp' for brute force (got 'auto')")
+    if not (isinstance(method, str) and method in ("di", "pdmp")):  # 5 was told the list with 'auto' in it
+        raise ValueError(f"method must be 'di' or 'pdmp' for brute force (got {shown(method)})")
     n_paths = check_count("n_paths", n_paths, MIN_PATHS, hi=MAX_COUNT, why=" (with 2 paths the D_t CI is 0)")
     max_work = check_max_work(max_work)
     block = check_layout(None, block)[1]
@@ -712,6 +712,7 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
         if method == "di":  # it was taken and ignored
             raise ValueError("max_events must not be given with method 'di': it bounds the PDMP's events per "
                              "path (the DI runs exactly t/h steps)")
+    check_method(method, h, delta, auto=False)
     plan = choose(params, method, h, delta, dtype)
     notes, method, h, grid, dname = plan.notes, plan.method, plan.h, plan.grid, plan.dtype
     check_positive("t", t)

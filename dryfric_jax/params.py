@@ -87,6 +87,15 @@ def plain_number(x):
     return x if f is None else f
 
 
+def refuse_traced(name: str, value, what: str) -> None:
+    """``ValueError`` naming ``name`` if ``value`` is a JAX tracer (under ``jax.jit``, ``vmap`` or ``grad``):
+    ``what`` computes on the host, from numbers; a tracer failed deep inside with JAX's ConcretizationTypeError,
+    or was refused as out of a range it may lie in (an audit)."""
+    if isinstance(value, jax.core.Tracer):
+        raise ValueError(f"{name} is a JAX tracer (under jax.jit, vmap or grad): {what} computes on the host from "
+                         "numbers and cannot be traced; call it with numbers (in a Python loop over them)")
+
+
 def check_params(params) -> None:
     """``ValueError`` unless ``params`` is a valid :class:`Params` with concrete values (a dict, say,
     failed later with an AttributeError).

@@ -35,7 +35,7 @@ from .limits import (
     MAX_WORK, check_recurrent, check_simulable, check_work, di_cycle_floor, float32_unsafe_reason,
     max_steps_per_excursion, pdmp_cycle_floor, pdmp_float32_unsafe_reason,
 )
-from .params import Params, check_params, real_or_none, rounded_bound, shown
+from .params import Params, check_params, real_or_none, refuse_traced, rounded_bound, shown
 from .pdmp import pdmp_grid_info
 
 METHODS = ("di", "pdmp", "auto")
@@ -93,6 +93,7 @@ def real(x) -> float | None:
 def check_h(params: Params, h: float) -> float:
     if h is None:
         return default_h(params)
+    refuse_traced("h", h, "the range check of the step h")
     hm = h_max(params)
     lo = H_MIN_REL * min(params.tau0, params.tau_L)
     v = real(h)
@@ -174,15 +175,18 @@ def check_max_time(max_time) -> float | None:
     return v
 
 
-def check_method(method, h=None, delta=None) -> None:
-    """``ValueError`` unless ``method`` is one of :data:`METHODS` and takes the step given (h or delta)."""
+def check_method(method, h=None, delta=None, *, auto: bool = True) -> None:
+    """``ValueError`` unless ``method`` is one of :data:`METHODS` and takes the step given (h or delta); the
+    message offers 'auto' only where the caller takes it (``auto``: brute force does not, and its refusal sent
+    the user to a method it then refused, an audit)."""
     if not isinstance(method, str) or method not in METHODS:
         raise ValueError(f"method must be one of {list(METHODS)} (got {shown(method)})")
+    alt = " or 'auto'" if auto else ""
     if method == "di" and delta is not None:
-        raise ValueError("delta must not be given with method 'di': it is the PDMP noise grid step "
-                         "(method 'pdmp' or 'auto')")
+        raise ValueError(f"delta must not be given with method 'di': it is the PDMP noise grid step "
+                         f"(method 'pdmp'{alt})")
     if method == "pdmp" and h is not None:
-        raise ValueError("h must not be given with method 'pdmp': it is the DI step (method 'di' or 'auto')")
+        raise ValueError(f"h must not be given with method 'pdmp': it is the DI step (method 'di'{alt})")
 
 
 def check_settings(*, method="di", h=None, delta=None, dtype="float64", n_excursions=20_000, rtol=None,

@@ -23,7 +23,7 @@ import numpy as np
 from scipy import integrate, special
 
 from .limits import check_recurrent
-from .params import Params, check_finite, check_params, check_positive
+from .params import Params, check_finite, check_params, check_positive, refuse_traced
 
 
 #: tau/tau0 above which the white-noise values are said not to be the params' (their tau is not used)
@@ -362,7 +362,10 @@ def _closed_form_args(Gamma, Delta=None, **kw) -> dict:
     """Validate a closed form's arguments by name (``ValueError``, as Params does): they were
     taken as they came, so a NaN gave NaN and a zero a ZeroDivisionError.  Returns them by name
     as Python floats: a numpy float32 argument made the formula compute in float32 (D = 2e60
-    refused as an overflow, an M0 of 1e-40 returned as 0.0)."""
+    refused as an overflow, an M0 of 1e-40 returned as 0.0).  A tracer is refused by name (a
+    ConcretizationTypeError from inside JAX before)."""
+    for name, v in {"Gamma": Gamma, "Delta": Delta, **kw}.items():
+        refuse_traced(name, v, "the closed form")
     check_positive("Gamma", Gamma)
     if Delta is not None:
         check_positive("Delta", Delta)
@@ -523,7 +526,9 @@ def propagator(v, t, v0):
 
 
 def first_moment(t, v0):
-    r""":math:`\langle v(t)\rangle` from :math:`v_0` (Touchette eq. 2.11 with :math:`\Gamma_w = 2`), :math:`a = |v_0|`:
+    r""":math:`\langle v(t)\rangle` from :math:`v_0` (Touchette eq. 2.11 with :math:`\Gamma_w = 2`), :math:`a = |v_0|`;
+    nondimensional, as :func:`propagator`: ``t`` in :math:`\tau_0` and ``v0`` (and the result) in :math:`v_0` units
+    (``Params.tau0``, ``Params.v0``), not seconds and m/s:
 
     .. math::
         \frac{\mathrm{sgn}(v_0)}2\Big[(a-t)\operatorname{erfc}\frac{t-a}{2\sqrt t}
@@ -596,6 +601,14 @@ TABLE1_TIMES = (0.05, 0.125, 0.25, 0.5, 1.0, 2.5)
 def first_moment_unit_intensity(t, v0):
     r"""The paper's printed Table 1 convention (:math:`\Gamma_w = \Gamma`, i.e. this model with
     :math:`\Gamma` halved), in the paper's units: the halved model has :math:`\tau_0/2` and
-    :math:`v_0/2`, so the value is :math:`\tfrac12\langle v\rangle(2t;\ 2v_0)`."""
+    :math:`v_0/2`, so the value is :math:`\tfrac12\langle v\rangle(2t;\ 2v_0)`.  ``t`` and ``v0`` must be
+    finite with ``t >= 0`` and both at most half of float64's largest number in size (8.99e307), since they are
+    doubled: beyond it they were refused as "got inf", a value never passed (an audit)."""
     check_finite("v0", v0)
-    return 0.5 * first_moment(2.0 * _real_array(t), 2.0 * v0)
+    t = _times(t, zero_ok=True)
+    half_max = sys.float_info.max / 2.0
+    if abs(float(v0)) > half_max:
+        raise ValueError(f"v0 must satisfy |v0| <= {half_max:.3g} (it is doubled; got {float(v0)!r})")
+    if np.any(t > half_max):
+        raise ValueError(f"t must be <= {half_max:.3g} (it is doubled; got {float(t[t > half_max].flat[0])!r})")
+    return 0.5 * first_moment(2.0 * t, 2.0 * v0)

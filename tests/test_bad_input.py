@@ -265,3 +265,38 @@ def test_combine_labels_must_be_one_string_per_result(labels):
         dj.combine_estimates(rs, labels=labels)
     with pytest.raises(ValueError, match="^results must share h"):
         dj.combine_estimates(rs, labels=["a", "b"])
+
+
+@pytest.mark.parametrize("call,name", [
+    (lambda x: theory.D_pure_dry(x, 3.84), "Gamma"),
+    (lambda x: theory.D_constant_bias(5.0, x, 0.3), "Delta"),
+    (lambda x: theory.M0_constant_bias(5.0, 3.84, x), "gamma_bar"),
+    (lambda x: theory.D_viscous_only(5.0, x), "tau_L"),
+    (lambda x: dj.make_di_model(P, x * 1e-3), "h"),
+])
+@pytest.mark.parametrize("transform", [jax.grad, jax.jit])
+def test_closed_forms_and_the_step_under_a_transformation_name_the_tracer(call, name, transform):
+    """The closed forms raised JAX's ConcretizationTypeError, and make_di_model under jit said "h must be in
+    [6.7e-14, 0.0067] s (got JitTracer(...))", a range its value lay in (an audit)."""
+    with pytest.raises(ValueError, match=f"^{name} is a JAX tracer \\(under jax.jit, vmap or grad\\)"):
+        transform(call)(0.3)
+
+
+def test_the_unit_intensity_moment_names_the_callers_values():
+    """t and v0 are doubled: 1e308 was refused as "got inf", a value never passed (an audit)."""
+    with pytest.raises(ValueError, match=r"^t must be <= 8\.99e\+307 \(it is doubled; got 1e\+308\)"):
+        theory.first_moment_unit_intensity(1e308, 1.0)
+    with pytest.raises(ValueError, match=r"^v0 must satisfy \|v0\| <= 8\.99e\+307 \(it is doubled; got -1e\+308\)"):
+        theory.first_moment_unit_intensity(1.0, -1e308)
+    assert theory.first_moment_unit_intensity(8e307, 1.0) == 0.5 * theory.first_moment(1.6e308, 2.0)
+
+
+@pytest.mark.parametrize("kw,match", [
+    (dict(delta=0.05), r"^delta must not be given with method 'di': it is the PDMP noise grid step \(method 'pdmp'\)$"),
+    (dict(method="pdmp", h=1e-3), r"^h must not be given with method 'pdmp': it is the DI step \(method 'di'\)$"),
+    (dict(method=5), r"^method must be 'di' or 'pdmp' for brute force \(got 5\)$"),
+])
+def test_brute_force_offers_only_the_methods_it_takes(kw, match):
+    """Its refusals offered method 'auto', which it then refused (an audit)."""
+    with pytest.raises(ValueError, match=match):
+        dj.bruteforce_diffusivity(P, 0, t=1.0, n_paths=10, **kw)
