@@ -123,6 +123,11 @@ def _check_length(x, k: int, name: str) -> None:
         shape = None
     if shape is None or len(shape) != 1 or shape[0] < k:
         raise ValueError(f"x must be a vector of at least {k} numbers for {name} (got shape {shape})")
+    if isinstance(x, jax.core.Tracer):  # under grad/jit: the values are checked where they are concrete
+        return
+    a = np.asarray(x)  # strings were a TypeError from the division, x_3 = 0 a NaN or inf (an audit)
+    if a.dtype.kind not in "iuf" or not np.all(np.isfinite(a)) or not a[2] > 0:
+        raise ValueError(f"x must hold finite real numbers with x_3 = E[t] > 0 for {name} (got {str(a.tolist())[:80]})")
 
 
 def grad_psi_D_by_hand(x):

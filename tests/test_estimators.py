@@ -187,6 +187,11 @@ def test_delta_method_refuses_what_gave_nan_or_a_number_from_clamped_indices():
         delta_method(psi_D, m[:2], c[:2, :2], 100)
     with pytest.raises(ValueError, match=r"^x must be a vector of at least 3 numbers for psi_M"):
         psi_M(np.ones(2))
+    # called directly: strings were a TypeError from the division, E[t] = 0 a NaN or inf with a numpy warning
+    for psi, x in ((psi_D, ["a"] * 5), (psi_D, [1.0, 2.0, 0.0, 1.0, 1.0]), (psi_M, [1.0, 2.0, np.nan])):
+        msg = rf"^x must hold finite real numbers with x_3 = E\[t\] > 0 for {psi.__name__}"
+        with pytest.raises(ValueError, match=msg):
+            psi(x)
     with pytest.raises(ValueError, match=r"^psi and its gradient must be finite at mean \(got estimate nan"):
         delta_method(psi_D, np.zeros(5), c, 100)
     with pytest.raises(ValueError, match=r"^cov must be a covariance matrix"):
