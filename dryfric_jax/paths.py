@@ -9,8 +9,10 @@ nondimensional (:math:`\tau_0, u_0`); times are in steps of the model's h.
   (stationary noise), V recorded after the given step counts (paper Figs. 6, Table 1);
 * :func:`di_stationary`: paths after a burn-in, V and U recorded every ``every`` steps (Figs. 4, 5, 7);
 * :func:`pdmp_stationary`: the PDMP's V on a time grid after a burn-in (Fig. 4);
-* :func:`di_excursion`: one long excursion step by step (Figs. 1-2; the PDMP's is
-  :func:`~dryfric_jax.pdmp.excursion_skeleton`).
+* :func:`di_long_excursion`: one of the paper's long excursions step by step, from release to release (Figs.
+  1-2; the PDMP's is :func:`~dryfric_jax.pdmp.excursion_skeleton`);
+* :func:`di_excursion`: one Nummelin regeneration cycle step by step (C_+ to C_- to C_+: one or more of the
+  paper's long excursions, :mod:`dryfric_jax.regeneration`).
 """
 from __future__ import annotations
 
@@ -317,7 +319,8 @@ MAX_EXCURSION_STEPS = 2**31 - 1
 
 
 def di_excursion(model: DIModel, key, max_steps: int = 200_000) -> dict:
-    """One long excursion of the DI (regeneration on C_+, through C_-, back to C_+) step by step.
+    """One regeneration cycle of the DI (regeneration on C_+, through C_-, back to C_+) step by step: the D
+    estimator's cycle, one or more of the paper's long excursions (those are :func:`di_long_excursion`'s).
 
     Returns nondimensional numpy arrays ``t, x, v, U`` (index 0 is the state before the first
     step of the excursion), ``i_half`` (the step at which the -HLE begins) and ``complete``
@@ -334,6 +337,123 @@ def di_excursion(model: DIModel, key, max_steps: int = 200_000) -> dict:
     out = dict(t=np.arange(n + 1) * float(model.h), x=out["X"], v=out["V"], U=out["U"], i_half=int(n_half),
                complete=bool(phase == 3))
     return out
+
+
+@partial(jax.jit, static_argnames=("max_steps",))
+def _long_excursion(model: DIModel, key, max_seek, *, max_steps: int):
+    """The loop of :func:`di_long_excursion`: returns the recorded states' last index n, the phase (4: complete,
+    5: stopped by ``max_steps``; below 2: the seek ran out), i_half, V one step before the start, the buffers."""
+    dt = model.h.dtype
+    buf = dict(X=jnp.zeros(max_steps + 1, dt), V=jnp.zeros(max_steps + 1, dt), U=jnp.zeros(max_steps + 1))
+    k_start, k_steps = jax.random.split(key)
+    x0 = _stationary_sd(model) * jax.random.normal(k_start, (), dt)
+    put = lambda bb, j, vals: {k: bb[k].at[j].set(vals[k]) for k in bb}  # noqa: E731
+
+    def cond(c):
+        i, phase = c[0], c[2]
+        # phase 0: seeking a release towards V < 0; 1: then one towards V > 0 (the start); 2: +HLE; 3: -HLE;
+        # 4: done; 5: stopped by max_steps.  The seek (phases 0, 1) is bounded by max_seek steps, the HLEs by
+        # the buffers (max_steps recorded steps)
+        return (phase < 4) & ((phase >= 2) | (i < max_seek))
+
+    def body(c):
+        i, n, phase, n_half, v_before, X, V, V_prev, U, b = c
+        z1, z2 = model.draw(jax.random.fold_in(k_steps, i.astype(jnp.uint32)), 1)
+        _, Xn, Vn, dU = model.move(X, V, z1[0], z2[0])
+        release = (V_prev == 0) & (V == 0) & (Vn != 0)  # stuck a whole step, then moving (durations.py)
+        up, down = release & (Vn > 0), release & (Vn < 0)
+        start = (phase == 1) & up
+        # the start's step records the state before it (index 0, U = 0) and after it (index 1); in the HLEs each
+        # step records the state after it, the end's too (the release that starts the next +HLE)
+        b = jax.lax.cond(start, lambda bb: put(bb, 0, dict(X=X, V=V, U=0.0)), lambda bb: bb, b)
+        U = jnp.where(start, 0.0, U) + dU
+        rec = start | (phase == 2) | (phase == 3)
+        full = rec & (n + 1 > max_steps)
+        rec = rec & ~full
+        b = jax.lax.cond(rec, lambda bb: put(bb, n + 1, dict(X=Xn, V=Vn, U=U)), lambda bb: bb, b)
+        n_half = jnp.where((phase == 2) & down & ~full, n, n_half)  # the state before the release towards V < 0
+        v_before = jnp.where(start, V_prev, v_before)
+        phase = jnp.where(full, 5, jnp.where((phase == 0) & down, 1, jnp.where(start, 2, jnp.where(
+            (phase == 2) & down, 3, jnp.where((phase == 3) & up, 4, phase)))))
+        return i + 1, n + rec, phase, n_half, v_before, Xn, Vn, V, U, b
+
+    z = jnp.asarray(0.0, dt)
+    init = (jnp.asarray(0, jnp.int64), jnp.asarray(0, jnp.int64), jnp.asarray(0), jnp.asarray(-1, jnp.int64), z,
+            x0, z, z, jnp.asarray(0.0, jnp.float64), buf)
+    _, n, phase, n_half, v_before, *_, b = jax.lax.while_loop(cond, body, init)
+    return n, phase, n_half, v_before, b
+
+
+#: the default bound of :func:`di_long_excursion`'s seek for a start, in units of ``max_steps``
+SEEK_FACTOR = 50
+
+
+def di_long_excursion(model: DIModel, key, max_steps: int = 200_000, max_seek: int | None = None) -> dict:
+    r"""One of the paper's long excursions of the DI (section 6.1, Figs. 1-2), step by step: a +HLE from a
+    release towards :math:`V > 0` to the first release towards :math:`V < 0`, then the -HLE to the next release
+    towards :math:`V > 0`.
+
+    A *release* is the rule of :mod:`dryfric_jax.durations`: step n releases the particle when it was stuck a
+    whole step and then moves,
+
+    .. math::
+        V_{n-1} = V_n = 0 \ne V_{n+1}, \qquad \text{towards } \operatorname{sign}(V_{n+1}),
+
+    so that a V passing through 0 for one step is not one.  In continuous time a release towards
+    :math:`V > 0` happens only where X crosses :math:`x_{\Delta}` (the state is then :math:`(x_{\Delta}, 0)`),
+    one towards :math:`V < 0` only at :math:`x_{-\Delta}`; an HLE therefore ends where the direction of release
+    changes.  This is not :func:`di_excursion`'s Nummelin cycle (C_+ to C_- to C_+, cut by a coin:
+    :mod:`dryfric_jax.regeneration`), which spans a random number >= 1 of these long excursions.
+
+    The chain (:meth:`~dryfric_jax.di.DIModel.move`) starts as the durations count's lanes do: X from its
+    stationary law, :math:`V_0 = 0`.  It runs until a release towards :math:`V < 0` and then until the next
+    release towards :math:`V > 0`: that step, a change of direction as the count's excursions start at, starts
+    the +HLE.  Index 0 of the returned arrays is the state before it (:math:`t = 0`, :math:`V = 0`,
+    :math:`U = 0`), index 1 the state after it; ``i_half`` is the index of the state before the first release
+    towards :math:`V < 0` (the -HLE's start: the halves are ``[0, i_half]`` and ``[i_half, end]``), and the last
+    index is the state *after* the next release towards :math:`V > 0`, so that the first and the last recorded
+    moves are both releases towards :math:`V > 0`.  The excursion's duration, between its two releases towards
+    :math:`V > 0`, is therefore
+
+    .. math::
+        t_{\mathrm{le}} = (\texttt{len(t)} - 2)\,h = t_{-2},
+
+    returned as ``duration`` (the count's :math:`d\,h`; NaN where ``complete`` is False), and
+    :math:`U = \sum h (V_n + V_{n+1})/2` (trapezoid) from index 0.  The release is the plain rule: the count's
+    bridge correction (crossings of the opposite threshold between two steps of a stuck particle,
+    :func:`~dryfric_jax.durations.bridge_crossing`) is random and moves nothing in the path, so a plotted path
+    uses the raw rule; its mean duration is the raw count's (``bridge=False``; tested), biased like
+    :math:`\sqrt h` against the continuum (+0.5% or less at Fig. 3's point and default step, more at small
+    tau/h: :mod:`dryfric_jax.durations`).
+
+    Keys: ``split(key)`` gives the start's key (X_0 = its normal times the stationary sd) and the steps' key
+    ``k``; step i (counted from the start of the run, the seek included) uses ``model.draw(fold_in(k, i), 1)``.
+
+    Returns nondimensional numpy arrays ``t, x, v, U`` (``t`` = index x h), ``i_half``, ``duration``, ``v_before``
+    (V one step before index 0: 0, by the release rule) and ``complete`` (False if ``max_steps`` recorded steps
+    stopped it, or if no start was found within ``max_seek`` steps: the arrays are then empty and ``i_half`` is
+    -1).  ``key`` is a ``jax.random`` key or an integer seed in [0, 2^62]; ``max_steps`` an integer in [1,
+    2^31 - 1] (its buffers hold max_steps + 1 states); ``max_seek`` an integer >= 1 with ``max_seek +
+    max_steps`` < 2^32 (the steps are folded into the key in 32 bits), default :data:`SEEK_FACTOR` x
+    ``max_steps`` (as far as that bound allows).  ``ValueError`` naming the argument.
+    """
+    _check_model(model)
+    key = _key(key)[0]
+    max_steps = check_count("max_steps", max_steps, 1, MAX_EXCURSION_STEPS, " (its buffers hold max_steps + 1 states)")
+    most_seek = 2**32 - 1 - max_steps
+    if max_seek is None:
+        max_seek = min(SEEK_FACTOR * max_steps, most_seek)
+    max_seek = check_count("max_seek", max_seek, 1, most_seek,
+                           " (2^32 - 1 - max_steps: the steps are folded into the key in 32 bits)")
+    n, phase, n_half, v_before, b = jax.device_get(
+        _long_excursion(model, key, jnp.asarray(max_seek, jnp.int64), max_steps=max_steps))
+    n, phase = int(n), int(phase)
+    m = n + 1 if phase >= 2 else 0
+    out = {k: np.asarray(v)[:m].astype(np.float64) for k, v in b.items()}
+    h = float(model.h)
+    complete = phase == 4
+    return dict(t=np.arange(m) * h, x=out["X"], v=out["V"], U=out["U"], i_half=int(n_half) if phase >= 3 else -1,
+                duration=(n - 1) * h if complete else float("nan"), v_before=float(v_before), complete=complete)
 
 
 @partial(jax.jit, static_argnames=("n_records",))
