@@ -60,13 +60,19 @@ def test_fig1_2_caption_parameters_units_and_the_excursions_numbers(tmp_path, mo
     tau0 (E04), delta = 0.25 (E05), the DI step in tau0 units (E06), tau = 1 s (E07), the half time one
     event late (E08), U at the half (E09), len(t) steps (E10), X one before the half (E11), complete always
     True (E12), X at the second record (E13), the duration one record short (E14), the rows' names cut (E16),
-    the duration in tau0 (E17)."""
+    the duration in tau0 (E17).  The DI row is ``paths.di_long_excursion`` (the paper's long excursion from release
+    to release, not ``di_excursion``'s regeneration cycle: an audit), whose last state is the one after the next
+    release, so its duration, U and steps end one state before the last (its ``duration``); the JSON says which
+    definition each row plots and holds the plotted arrays (t, X, V, U in SI units, i_half), the same numbers as
+    the figure's lines."""
     made, keys, figs = [], [], []
     exc = lambda complete: dict(t=_T, x=_X, v=_V, U=_U, i_half=2, complete=complete)  # noqa: E731
+    di = dict(exc(False), duration=_T[-2], v_before=0.0)
     monkeypatch.setattr(excursion, "make_pdmp_model", lambda p, d: made.append(("pdmp", p, d)) or "pdmp")
     monkeypatch.setattr(excursion, "make_di_model", lambda p, h: made.append(("di", p, h)) or "di")
     monkeypatch.setattr(excursion, "excursion_skeleton", lambda m, k: keys.append((m, _key(k))) or exc(True))
-    monkeypatch.setattr(excursion, "di_excursion", lambda m, k: keys.append((m, _key(k))) or exc(False))
+    monkeypatch.setattr(excursion, "di_long_excursion", lambda m, k: keys.append((m, _key(k))) or di)
+    assert not hasattr(excursion, "di_excursion")  # the cycle is not what the figure plots
     _no_files(excursion, monkeypatch, figs)
     f = excursion.fig1_2(str(tmp_path), True, 3)
     tau0, v0, u0, sx = G5 / DELTA**2, G5 / DELTA, G5**2 / DELTA**3, DELTA / math.sqrt(G5)
@@ -74,11 +80,19 @@ def test_fig1_2_caption_parameters_units_and_the_excursions_numbers(tmp_path, mo
     assert made == [("pdmp", p, 0.125), ("di", p, pytest.approx(0.01 * min(tau0, TAU_L), rel=1e-12))]
     assert [m for m, _ in keys] == ["pdmp", "di"]
     assert sorted(f) == ["DI (h = default)", "PDMP (delta = 0.125)"]
-    for name, complete in (("PDMP (delta = 0.125)", True), ("DI (h = default)", False)):
-        assert f[name] == pytest.approx(dict(duration_s=3.1 * tau0, half_s=1.2 * tau0, U_m=0.25 * u0,
-                                             steps_or_events=4, complete=complete, x_start=0.91 * sx,
+    for name, complete, end in (("PDMP (delta = 0.125)", True, 4), ("DI (h = default)", False, 3)):
+        path = f[name].pop("path")
+        d = f[name].pop("definition")  # the PDMP's s_+ -> s_- -> s_+, the DI's releases (section 6.1)
+        assert ("section 3" if complete else "section 6.1") in d and ("release" in d) is not complete, d
+        assert f[name] == pytest.approx(dict(duration_s=_T[end] * tau0, half_s=1.2 * tau0, U_m=_U[end] * u0,
+                                             steps_or_events=end, complete=complete, x_start=0.91 * sx,
                                              x_half=0.3 * sx), rel=1e-12)
         assert type(f[name]["steps_or_events"]) is int and f[name]["complete"] is complete
+        want = dict(t_s=_T * tau0, X=_X * sx, V_m_s=_V * v0, U_m=_U * u0)
+        assert sorted(path) == sorted([*want, "i_half"]) and path["i_half"] == 2
+        for k, a in want.items():
+            assert path[k] == pytest.approx(list(a), rel=1e-12), k
+        assert type(path["i_half"]) is int and all(type(a) is list for k, a in path.items() if k != "i_half")
     for row in (figs[0][0:4], figs[0][4:8]):  # X, V, U (each in two halves), V against X
         (tx, x), _ = row[0]
         (tv, v), _ = row[1]
@@ -89,6 +103,11 @@ def test_fig1_2_caption_parameters_units_and_the_excursions_numbers(tmp_path, mo
         assert x == pytest.approx(_X[:3] * sx, rel=1e-12) and xv == pytest.approx(_X[:3] * sx, rel=1e-12)
         assert v == pytest.approx(_V[:3] * v0, rel=1e-12) and vx == pytest.approx(_V[:3] * v0, rel=1e-12)
         assert u == pytest.approx(_U[:3] * u0, rel=1e-12)
+        (tx2, x2), (tv2, v2), (tu2, u2) = row[0][1], row[1][1], row[2][1]  # the second halves, from i_half on
+        for t in (tx2, tv2, tu2):
+            assert t == pytest.approx(_T[2:] * tau0, rel=1e-12)
+        assert x2 == pytest.approx(_X[2:] * sx, rel=1e-12)
+        assert v2 == pytest.approx(_V[2:] * v0, rel=1e-12) and u2 == pytest.approx(_U[2:] * u0, rel=1e-12)
 
 
 # ---- covariance.py (Fig. 4) ---------------------------------------------------------------------------------

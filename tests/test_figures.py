@@ -137,6 +137,35 @@ def test_fig5_and_fig6_json_hold_the_plotted_histograms(figs):
             assert dev == pytest.approx(g["max_ft_dev"][tau][i], rel=1e-12), (tau, i)
 
 
+def test_fig1_2_json_holds_the_plotted_excursions_and_the_di_row_is_release_to_release(figs):
+    """The numbers behind Figs. 1-2 (an audit: the JSON held summary numbers only, and the DI row was a Nummelin
+    cycle of ~3 of the paper's long excursions): each row's t, X, V, U as plotted, from which its reported
+    duration, half time, U and X are recomputed here; the DI's V runs from a release towards V > 0 (V = 0, then
+    moving up) through the only change of direction of release to V < 0, at i_half, to the next release towards
+    V > 0, its last recorded move (the releases read from the JSON's V; the first needs V one step before, 0 by
+    the rule, which the JSON does not hold)."""
+    import numpy as np
+
+    g = figs["fig1_2"]
+    for name, last in (("PDMP (delta = 0.125)", 1), ("DI (h = default)", 2)):
+        r = g[name]
+        path = r["path"]
+        t, x, v, U, k = (np.array(path[c]) for c in ("t_s", "X", "V_m_s", "U_m", "i_half"))
+        assert r["complete"] and len(t) == len(x) == len(v) == len(U) == r["steps_or_events"] + last
+        assert r["duration_s"] == t[-last] and r["half_s"] == t[k] and r["U_m"] == U[-last]
+        assert r["x_start"] == x[0] and r["x_half"] == x[k] and t[0] == 0.0 and U[0] == 0.0
+    r = g["DI (h = default)"]
+    v, k = np.array(r["path"]["V_m_s"]), r["path"]["i_half"]
+    assert "section 6.1" in r["definition"] and "release" in r["definition"]
+    rel = [(0, 1)] if v[0] == 0 and v[1] > 0 else []  # stuck a step before index 0: the rule, not in the JSON
+    j = np.nonzero((v[:-2] == 0) & (v[1:-1] == 0) & (v[2:] != 0))[0] + 1
+    rel += [(int(i), int(np.sign(v[i + 1]))) for i in j]
+    assert rel[0] == (0, 1) and rel[-1] == (len(v) - 2, 1)
+    assert [(i, s) for (i, s), (_, s0) in zip(rel[1:], rel[:-1]) if s != s0] == [(k, -1), (len(v) - 2, 1)]
+    h = default_h(Params(**FIG3))
+    np.testing.assert_allclose(np.diff(r["path"]["t_s"]), h, rtol=1e-9)
+
+
 def test_fig7_correlation_matches_touchette(figs):
     dev = figs["fig7"]["max_dev_in_se"]
     for tau in ("5e-05", "0.0005", "0.005"):
