@@ -472,7 +472,7 @@ def test_fig5_histogram_total_variation_and_u_paths(tmp_path, monkeypatch):
     histogram, in its denominator).  The bins run from -x in steps of 4.8e-4 past 2x: 16 bins, their
     centres asked of the density; with a flat density of e = 0.9 / 16 per bin the total variation is
     (|n0/N - e| + |n10/N - e| + |n15/N - e| + 13 e) / 2 exactly.  The U(t) panel: 10 paths at records
-    1..n of the step h, over 2 s, in metres."""
+    1..n of the step h, over 2 s, in metres, and the JSON's ``U_paths`` the same arrays."""
     p = Params(0.16, diffusivity.DELTA, 1e-5, diffusivity.TAU_L, diffusivity.GBAR)
     bw, x = 4.8e-4, 10.5 * 4.8e-4 / 2
     calls, mids, figs = [], [], []
@@ -507,6 +507,12 @@ def test_fig5_histogram_total_variation_and_u_paths(tmp_path, monkeypatch):
     assert len(lines) == 10
     for i, (t, u) in enumerate(lines):
         assert t == pytest.approx(np.arange(1, n_rec + 1) * h, rel=1e-12) and u == pytest.approx(i * p.u0, rel=1e-12)
+    # the JSON holds the panel's paths as plotted (an audit: it held none of them): the same numbers
+    up = f["U_paths"]
+    assert type(up["t_s"]) is list and len(up["U_m"]) == 10 and all(type(u) is list for u in up["U_m"])
+    np.testing.assert_array_equal(up["t_s"], lines[0][0])
+    for u, (_, line) in zip(up["U_m"], lines):
+        np.testing.assert_array_equal(u, line)
 
 
 def test_fig9_numbers_from_known_runs(tmp_path, monkeypatch):

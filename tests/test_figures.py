@@ -166,6 +166,19 @@ def test_fig1_2_json_holds_the_plotted_excursions_and_the_di_row_is_release_to_r
     np.testing.assert_allclose(np.diff(r["path"]["t_s"]), h, rtol=1e-9)
 
 
+def test_fig5_json_holds_the_plotted_u_paths(figs):
+    """The right panel's 10 paths of U, as plotted (an audit: the JSON had none): on the grid h, 2h, ..., 2 s, in
+    metres, 10 different paths that start a step from U = 0 and spread (Var U(t) ~ 2 D t, D ~ 1e-4 m^2/s)."""
+    import numpy as np
+
+    f = figs["fig5"]
+    t, U = np.array(f["U_paths"]["t_s"]), np.array(f["U_paths"]["U_m"])
+    assert U.shape == (10, len(t)) and t[-1] == pytest.approx(2.0, abs=f["h"])
+    np.testing.assert_allclose(t, np.arange(1, len(t) + 1) * f["h"], rtol=1e-12)
+    assert np.all(np.abs(U[:, 0]) < 1e-3 * np.abs(U).max()) and len({u[-1] for u in U}) == 10
+    assert 1e-3 < np.std(U[:, -1]) < 0.1
+
+
 def test_fig7_correlation_matches_touchette(figs):
     dev = figs["fig7"]["max_dev_in_se"]
     for tau in ("5e-05", "0.0005", "0.005"):

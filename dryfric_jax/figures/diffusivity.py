@@ -273,6 +273,8 @@ def fig5(out_dir, quick, seed):
                 p_stuck_chain=law.p_stuck,
                 total_variation=float(0.5 * np.abs(prob - exact).sum()),
                 histogram=dict(edges=edges.tolist(), measured=prob.tolist(), exact=exact.tolist()),  # as plotted
+                # the right panel's 10 paths as plotted, in float64 (10 x 18 432 points: 5.4 MB of the JSON)
+                U_paths=dict(t_s=tt.tolist(), U_m=(U * p.u0).tolist()),
                 zero_bin=dict(v=float(mid[k0]), measured=float(prob[k0]), exact_density=float(exact[k0]),
                               with_chain_atom=float(exact[k0] + law.p_stuck)) if has_zero else None)
     return save(fig, out_dir, "fig5", nums, t0, quick=quick, seed=seed)
