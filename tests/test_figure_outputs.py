@@ -214,7 +214,8 @@ def test_runs_of_another_version_are_said_before_the_scene_computes_them_again(t
 
 
 @pytest.mark.parametrize("name,layout,kept", [("fig3", None, False), ("fig3", 1, False), ("fig3", 2, True),
-                                              ("fig6", None, False), ("fig4", None, True), ("fig4", 1, True)])
+                                              ("fig6", None, False), ("fig4", None, True), ("fig4", 1, True),
+                                              ("fig1_2", 1, False), ("fig5", 1, False), ("fig5", 2, True)])
 def test_a_scene_json_of_an_older_layout_is_not_finished(tmp_path, name, layout, kept):
     """Fig. 3's JSON of 0.2.7 made before the DI durations by counting releases (no ``le_dur``) was taken
     as finished, so a rerun kept a figure without them: a scene's layout (common.SCENE_LAYOUT) is checked too;

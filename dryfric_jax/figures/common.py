@@ -51,8 +51,10 @@ def save(fig, out_dir: str, name: str, numbers: dict, t0: float, *, quick: bool,
 
 #: a scene's JSON layout, raised when a scene gains numbers without a new package version (its points, D and M0,
 #: unchanged): a JSON of an older layout is not taken as finished.  2: Fig. 3's DI durations by counting releases
-#: (``le_dur``), Fig. 6's velocity atom at 0 (``p_zero``); both came in 0.2.7
-SCENE_LAYOUT = {"fig3": 2, "fig6": 2}
+#: (``le_dur``), Fig. 6's velocity atom at 0 (``p_zero``); both came in 0.2.7.  Figs. 1-2: 2 since the DI row is one
+#: of the paper's long excursions (it was a regeneration cycle) and the JSON holds the plotted arrays; Fig. 5: 2 since
+#: its JSON holds the plotted U(t) paths (both 2026-12-07, 0.3.0)
+SCENE_LAYOUT = {"fig1_2": 2, "fig3": 2, "fig5": 2, "fig6": 2}
 
 
 def _meta(quick: bool, seed: int, name: str) -> dict:
