@@ -76,6 +76,7 @@ from .limits import MAX_WORK
 from .outfiles import check_writable, claim, drop_claims_dir, dumps, locked, put_record, read_records, write_records
 from .params import FIG3, Params, check_flag, check_positive, plain_number, real_or_none, shown
 from .plan import check_count, check_max_time, check_settings, plan_estimate
+from .interrupts import held_interrupts
 from .rounds import abandon_on_interrupt
 
 PARAM_KEYS = ("Gamma", "Delta", "tau", "tau_L", "gamma_bar")
@@ -433,11 +434,17 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
                     else:
                         within = None if point_progress is None else functools.partial(
                             _within, point_progress, dict(params=pt, done=done, total=total))
-                        rec = _compute(out, ident, pt, seed, settings, max_time, within)
+                        rec = _compute(out, pt, seed, settings, max_time, within)
                         if rec is None:  # Ctrl-C: the point in progress is not written
                             interrupted = True
                             break
-                        computed += 1
+                        # a finished point is written and counted whole: a Ctrl-C or SIGTERM meanwhile acts after
+                        with held_interrupts():
+                            # the file read again under its lock: another sweep's records are kept, a record of
+                            # this point (a rerun with more time, or the other sweep's) is replaced in place
+                            put_record(out, rec, lambda old: _rec_ident(old) == ident, read_results)
+                            computed += 1
+                            have[ident] = rec
                     c.finish()
             except KeyboardInterrupt:  # also while waiting for another sweep's point
                 interrupted = True
@@ -474,8 +481,9 @@ def _within(point_progress, where: dict, stage: str, d: dict) -> None:
     point_progress({**d, "stage": stage, **where})
 
 
-def _compute(out: str, ident: str, pt: dict, seed: int, settings: dict, max_time, within=None) -> dict | None:
-    """Run one point and write its record (``"ok"`` or ``"failed"``); None if Ctrl-C stopped it.  ``within(stage,
+def _compute(out: str, pt: dict, seed: int, settings: dict, max_time, within=None) -> dict | None:
+    """Run one point and return its record (``"ok"`` or ``"failed"``), for the caller to write; None if Ctrl-C
+    stopped it.  ``within(stage,
     dict)``, if given, is called with the D estimate's (``"D"``) and the count's (``"durations"``) progress."""
     method, h, delta, dtype, n_excursions, rtol, max_work = (settings[k] for k in SETTING_KEYS)
     s = point_seed(seed, pt, settings)
@@ -510,9 +518,6 @@ def _compute(out: str, ident: str, pt: dict, seed: int, settings: dict, max_time
         rec = _record(seed, pt, settings, "failed", max_time, reason=str(e), stopped_by=e.stopped_by)
     else:
         rec = _record(seed, pt, settings, "ok", max_time, result=res, **extra)
-    # the file read again under its lock: another sweep's records are kept, a record of this point
-    # (a rerun with more time, or the other sweep's) is replaced in place
-    put_record(out, rec, lambda old: _rec_ident(old) == ident, read_results)
     return rec
 
 

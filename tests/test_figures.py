@@ -291,6 +291,27 @@ def test_a_kept_run_of_this_version_without_its_result_is_refused_by_name(tmp_pa
         points.Points(str(tmp_path), "s")
 
 
+def test_a_ctrl_c_while_a_run_is_written_keeps_it(tmp_path, monkeypatch):
+    """A Ctrl-C during a finished run's write (the points file read and rewritten under its lock) acts after
+    it: the run is kept and reused (a sweep's point was lost so: an audit)."""
+    import signal
+
+    from dryfric_jax.figures import points
+    from dryfric_jax.params import FIG3, Params
+
+    real = points.put_record
+
+    def signalled(*a, **k):
+        signal.raise_signal(signal.SIGINT)
+        real(*a, **k)
+
+    monkeypatch.setattr(points, "put_record", signalled)
+    with pytest.raises(KeyboardInterrupt):
+        points.Points(str(tmp_path), "s").estimate(Params(**FIG3), 3, n_excursions=64)
+    again = points.Points(str(tmp_path), "s")
+    assert again.kept(Params(**FIG3), 3, n_excursions=64)
+
+
 def test_figure_points_of_another_version_are_recomputed(tmp_path, monkeypatch):
     """A kept run is reused only by the package version that made it."""
     from dryfric_jax.figures import points
