@@ -114,12 +114,14 @@ def _check_chain_h(params: Params, h, nodes_per_sd: int, law: float) -> float:
     hm = h_max(params)
     lo = max(H_MIN_REL * min(params.tau0, params.tau_L), need)
     v = None if h is None else real_or_none(h)
-    if need <= hm and v is not None and math.isfinite(v) and not lo <= v <= hm:
+    # a NaN, an inf or a non-number too: they were told check_h's wider range, which the chain law refuses in part
+    if h is not None and need <= hm and not (v is not None and lo <= v <= hm):
+        finite = v is not None and math.isfinite(v) and v > 0
         raise ValueError(f"h must be in [{rounded_bound(lo, lower=True)}, {rounded_bound(hm, lower=False)}] s for the "
-                         f"chain law (got {shown(h)}): " + (
+                         f"chain law (got {shown(h)})" + ("" if not finite else ": " + (
                              f"below it its grid of nodes_per_sd = {nodes_per_sd} per step-noise sd would exceed "
                              f"{MAX_NODES} nodes" if v < lo else "above it the step is coarse against min(tau0, "
-                             "tau_L), the range every DI step is held to"))
+                             "tau_L), the range every DI step is held to")))
     return check_h(params, h)
 
 

@@ -54,11 +54,16 @@ def check_delta(delta: float, tau: float, gamma_bar: float = 0.0, *, scale: floa
     v = real_or_none(delta)
     ok = v is not None and math.isfinite(v) and 0 < v / scale < dm
     if not ok:
+        # the least delta whose grid fits (grid_size's bound), stated too: "(0, ...)" alone sent a user to a
+        # 1e-9 that grid_size then refused (an audit)
+        least = rounded_bound(required_reach(tau, gamma_bar) / (2**30 - 2) * scale, lower=True)
+        low = (f"; and delta >= {least} here, or the grid exceeds {2**31 - 1} points" if float(least) < dm * scale
+               else f"; no delta is admissible here (its grid would exceed {2**31 - 1} points): use method 'di'")
         raise ValueError(
             f"delta must be in (0, {rounded_bound(dm * scale, lower=False)}) for these parameters "
             f"(got {shown(delta)}): the noise grid must "
             f"cover 8 standard deviations of N(0, 1/tau) and the stick thresholds while keeping "
-            f"tau*delta*L_X < 2 (up-probabilities in [0, 1])")
+            f"tau*delta*L_X < 2 (up-probabilities in [0, 1]){low}")
 
 
 def grid_size(delta: float, tau: float, gamma_bar: float = 0.0, shown_as: str | None = None,

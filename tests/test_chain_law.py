@@ -91,6 +91,10 @@ def test_chain_law_refuses_a_step_too_small_or_too_large():
     assert white_chain_law(p, top).n_nodes <= dj.chain_law.MAX_NODES
     with pytest.raises(ValueError, match=re.escape(f"h must be in [{need:.4g}, {top:.4g}] s for the chain law")):
         white_chain_law(p, 0.0)
+    for bad in (math.nan, math.inf, -1.0):  # these were told check_h's wider range (an audit)
+        with pytest.raises(ValueError, match=re.escape(f"h must be in [{need:.4g}, {top:.4g}] s for the chain law "
+                                                       f"(got {bad!r})") + "$"):
+            white_chain_law(p, bad)
     with pytest.raises(ValueError, match="no admissible h"):  # the bump at v* = 50 with sd 10 spans +-350
         white_chain_law(dj.Params.from_nondim(1e-4, 100.0, 1.5), 0.05)
     # above the range: the reason is the step's own bound, not the grid's size (it said "below it ... would exceed"

@@ -191,3 +191,18 @@ def test_grid_limits_are_exclusive_as_stated():
         check_delta(delta_max(1.0), 1.0)
     with pytest.raises(ValueError, match="too small: the noise grid would have"):  # more than 2^31 - 1 points
         grid_size(8 / (2**30 + 100), 1.0)
+
+
+def test_a_refused_delta_is_told_the_least_delta_whose_grid_fits():
+    """"(0, delta_max)" alone sent a user to a delta that grid_size then refused for its size (an audit: 1e-9 after
+    "delta must be in (0, 0.3338)"); the least delta is said, and it fits, where half of it does not."""
+    import re
+
+    with pytest.raises(ValueError) as e:
+        check_delta(0.0, 1.0)
+    least = float(re.search(r"; and delta >= (\S+) here, or the grid exceeds 2147483647 points$", str(e.value)).group(1))
+    assert 2 * grid_size(least, 1.0) + 1 <= 2**31 - 1
+    with pytest.raises(ValueError, match="is too small: the noise grid would have"):
+        grid_size(least / 2, 1.0)
+    with pytest.raises(ValueError, match=r"; no delta is admissible here \(its grid would exceed 2147483647 points\)"):
+        check_delta(math.nan, 1e12)  # the thresholds' reach needs 1e-9, delta_max is ~4e-12
