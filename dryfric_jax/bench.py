@@ -171,6 +171,11 @@ def _ratios(m: dict) -> dict:
     return out
 
 
+#: most rounds of a bench or a layout sweep (each ~1-2 min on 2 CPU cores at the default N): 10^23 was taken and
+#: ran until killed, with nothing printed (an audit)
+MAX_REPEAT = 1000
+
+
 def run_bench(n_excursions: int = 10_000, numba_excursions: int = 10_000, seed: int = 0, repeat: int = 1) -> dict:
     """The side-by-side bench (module docstring), ``repeat`` rounds.
 
@@ -182,7 +187,7 @@ def run_bench(n_excursions: int = 10_000, numba_excursions: int = 10_000, seed: 
     that round's value** (a ratio is not recomputed from the medians), and with ``repeat > 1``
     also ``ranges`` (min, max over the rounds) and ``rounds`` (every round's numbers).
     """
-    check_count("repeat", repeat, lo=1)
+    check_count("repeat", repeat, lo=1, hi=MAX_REPEAT)
     # a small bench (the tests) is small throughout: the floors' and numba's work scale with N
     # below the default N = 1e4 (2**23 lane-steps per timing, 1e4 numba excursions: ~1 s per timing)
     floor_n = int(min(1 << 23, max(1 << 20, 840 * n_excursions)))
@@ -335,7 +340,7 @@ def tune_layout(lanes_list, blocks, dtype: str = "float32", n_excursions: int = 
                          f"(got lanes {lanes_list}, block {blocks})")
     if dtype not in ("float32", "float64"):
         raise ValueError(f"dtype must be 'float32' or 'float64' (got {dtype!r})")
-    check_count("repeat", repeat, lo=1)
+    check_count("repeat", repeat, lo=1, hi=MAX_REPEAT)
     unrolls = [excursions.QUIET_UNROLL] if not unrolls else [int(u) for u in unrolls]
     for u in unrolls:
         check_count("unroll", u, lo=1)

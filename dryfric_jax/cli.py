@@ -29,6 +29,7 @@ import warnings
 
 from . import compile_cache, interrupts
 from .api import MAX_FIGURE_SEED
+from .bench import MAX_REPEAT
 from .durations import MAX_COUNT_LANES, NoCountError
 from .durations import MAX_STEPS as DUR_MAX_STEPS
 from .estimators import MIN_PATHS, MIN_RELIABLE_PATHS
@@ -387,7 +388,7 @@ def build_parser() -> argparse.ArgumentParser:
     bn.add_argument("--n-excursions", type=_count_option("n-excursions"), default=10_000,
                     help="excursions per DI/PDMP run (default 10000); a smaller N also shortens the RNG, chain-floor "
                          "and numba timings")
-    bn.add_argument("--repeat", type=_int_at_least("repeat", 1), default=1,
+    bn.add_argument("--repeat", type=_int_at_least("repeat", 1, MAX_REPEAT), default=1,
                     help="rounds, each measuring every number (or timing every layout) once; prints the "
                          "medians of the rounds and their ranges, each ratio taken within its round (default 1)")
     bn.add_argument("--lanes", type=_list_of(_int_at_least("lanes", 1), "lanes"), default=None,

@@ -147,6 +147,8 @@ BAD += [
     (["estimate", "--block", "4096"], "block must be an integer in [1, 1024]"),
     (["bench", "--lanes", "64", "--dtype", "half"], "dtype"),
     (["bench", "--repeat", "0"], "--repeat"),
+    # 10^23 rounds were taken and ran until killed, nothing printed (an audit)
+    (["bench", "--repeat", "1001"], "--repeat must be an integer in [1, 1000] (got '1001')"),
     (["estimate", "--seed", str(2**70)], "--seed"),  # was an OverflowError traceback
     (["figures", "--seed", "-1", "--out", "figs"], "--seed"),
     (["estimate", "--Gamma", "1e-300"], "Gamma and Delta"),  # tau0 underflows
