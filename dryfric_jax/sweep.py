@@ -177,6 +177,12 @@ def _is_real(x) -> bool:
     return True
 
 
+def _is_finite(x) -> bool:
+    """:func:`_is_real` and finite: a result's numbers (a hand-edited D of NaN passed as a finished point, never
+    rerun: an audit)."""
+    return _is_real(x) and math.isfinite(float(x))
+
+
 def _check_record(rec: dict) -> None:
     """Raise (TypeError) unless ``rec`` has the shape of a sweep record: what resuming, counting and
     :func:`rows` read.  A hand-edited line used to fail with a KeyError after new points had run."""
@@ -187,11 +193,11 @@ def _check_record(rec: dict) -> None:
           and not isinstance(rec["sweep_seed"], bool) and status(rec) in ("ok", "refused", "failed"))
     if ok and status(rec) == "ok":
         res = rec.get("result")
-        ok = isinstance(res, dict) and all(_is_real(res.get(k)) for k in ("D", "D_ci", "M0", "M0_ci", "n_truncated"))
+        ok = isinstance(res, dict) and all(_is_finite(res.get(k)) for k in ("D", "D_ci", "M0", "M0_ci", "n_truncated"))
         if ok and rec["settings"].get(DURATIONS) is not None:  # the count's numbers, or why there are none
             d = rec.get(DURATIONS)
             ok = isinstance(d, dict) and (isinstance(d.get("reason"), str) or all(
-                _is_real(d.get(k)) for k in ("mean", "ci", "n_excursions", "n_truncated")))
+                _is_finite(d.get(k)) for k in ("mean", "ci", "n_excursions", "n_truncated")))
     elif ok:
         ok = isinstance(rec.get("reason"), str)
     if not ok:

@@ -53,6 +53,8 @@ def _file(tmp_path, *recs):
     dict(sweep_seed=True),  # not the sweep seed 1
     dict(result={**RESULT, "M0": "x"}),  # every number a table reads, M0 too
     dict(result={**RESULT, "M0_ci": None}),
+    dict(result={**RESULT, "D": float("nan")}),  # kept as a finished point, never rerun (an audit)
+    dict(result={**RESULT, "D_ci": float("inf")}),
     dict(status="refused", reason=5),  # a reason is text (the progress line and the refusal cut it at ':')
     dict(status="failed", reason="fewer than 2 complete excursions", sweep_seed="0"),  # a reason does not excuse it
 ])
