@@ -627,3 +627,25 @@ def test_a_ctrl_c_finishes_the_excursions_in_flight_and_a_second_drops_them(monk
     _ctrl_c_at(monkeypatch, {30})
     with abandon_on_interrupt(), pytest.raises(KeyboardInterrupt):
         di_long_excursion_duration(FAST, 5, **kw)
+
+
+def test_the_first_piece_is_at_most_a_block_at_many_lanes(monkeypatch):
+    """The first piece ran 4 blocks whatever the lanes: 1e9 lane-steps at 2^21 lanes, and --max-time 2, which acts
+    between pieces, ended the count after 70 s (an audit).  It is 4 blocks up to 2^13 lanes (2^22 lane-steps), 1
+    from 2^15."""
+    from dryfric_jax import durations
+
+    real, first = durations.over_lanes, []
+
+    def over_lanes(fn, *a, **k):
+        if fn is durations._lane_blocks and not first:
+            first.append(int(a[0][6]))  # the blocks the piece runs to
+        return real(fn, *a, **k)
+
+    monkeypatch.setattr(durations, "over_lanes", over_lanes)
+    p = dj.Params.from_nondim(0.3)
+    for lanes, blocks in ((64, 4), (1 << 15, 1)):
+        first.clear()
+        with pytest.raises(durations.NoCountError):  # the limit ends it after the first piece
+            dj.di_long_excursion_duration(p, 0, n_excursions=2, n_lanes=lanes, max_time=1e-9)
+        assert first == [blocks], (lanes, first)
