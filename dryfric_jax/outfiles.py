@@ -145,12 +145,35 @@ def check_writable_dir(path: str, name: str = "out") -> None:
         raise ValueError(f"{name} must be a writable directory, or a new one in an existing directory (got {path!r})")
 
 
+def _tmp_prefix(path: str) -> str:
+    """The name :func:`write_atomic`'s temporary files for ``path`` begin with: ``.<name>.dryfric-``, so that those
+    a kill left behind can be told apart by the file they were for (:func:`_drop_stale_tmp`)."""
+    return f".{os.path.basename(path)}.dryfric-"
+
+
+def _drop_stale_tmp(path: str) -> None:
+    """Remove the temporary files of ``path`` that a killed write left (a SIGKILL between :func:`write_atomic`'s
+    creating and renaming one; each a whole copy of the results, 10 MB in an audit, one more per kill).  Called
+    only under a held :func:`locked` of ``path``: every writer of a results file holds that lock, so any such file
+    then is no one's."""
+    real = os.path.realpath(path)
+    d, prefix = os.path.dirname(real), _tmp_prefix(real)
+    try:
+        names = os.listdir(d)
+    except OSError:
+        return
+    for name in names:
+        if name.startswith(prefix) and name.endswith(".tmp"):
+            with contextlib.suppress(OSError):
+                os.unlink(os.path.join(d, name))
+
+
 def write_atomic(path: str, text: str | bytes) -> None:
     """Write ``text`` (or bytes: a figure's PNG or PDF) to a temporary file in the same directory, fsync,
     then rename over ``path``: a reader (or a kill at any moment) sees the old file or the new one, never a part."""
     path = os.path.realpath(path)  # a symlinked file is replaced where it lies; the link stays
     d = os.path.dirname(path)
-    fd, tmp = tempfile.mkstemp(dir=d, prefix=".dryfric-", suffix=".tmp")
+    fd, tmp = tempfile.mkstemp(dir=d, prefix=_tmp_prefix(path), suffix=".tmp")
     try:
         with os.fdopen(fd, "wb" if isinstance(text, bytes) else "w") as f:
             f.write(text)
@@ -211,6 +234,8 @@ def locked(path: str):
             if fd is not None:
                 os.close(fd)
             fd = None
+    if fd is not None:  # held: no other writer of this file is at work
+        _drop_stale_tmp(path)
     try:
         yield
     finally:

@@ -62,3 +62,20 @@ def test_a_failed_write_keeps_the_old_file_and_leaves_no_temporary_file(tmp_path
     with pytest.raises(OSError, match="No space left"):
         write_atomic(str(path), "new\n")
     assert path.read_text() == "old\n" and os.listdir(tmp_path) == ["r.jsonl"]
+
+
+def test_a_killed_writes_temporary_file_is_removed_by_the_next_locked_write(tmp_path, monkeypatch):
+    """A SIGKILL between write_atomic's creating and renaming its temporary file left it beside the results, a
+    whole copy of them, one more per kill (an audit: 10 MB each).  The next write under the file's lock removes
+    those of that file only; another file's are left alone (its writer may be at work)."""
+    path = tmp_path / "r.jsonl"
+    stale = tmp_path / ".r.jsonl.dryfric-abc123.tmp"
+    other = tmp_path / ".fig3.json.dryfric-xyz789.tmp"
+    stale.write_text("a killed write\n")
+    other.write_text("another file's write\n")
+    outfiles.put_record(str(path), {"a": 1}, lambda old: False, lambda p: [])
+    assert sorted(os.listdir(tmp_path)) == sorted([".fig3.json.dryfric-xyz789.tmp", "r.jsonl"])
+    seen, real = [], os.replace
+    monkeypatch.setattr(os, "replace", lambda a, b: (seen.append(os.path.basename(a)), real(a, b))[1])
+    write_atomic(str(path), "x\n")  # its own temporary file is named for its target
+    assert seen[0].startswith(".r.jsonl.dryfric-") and seen[0].endswith(".tmp")
