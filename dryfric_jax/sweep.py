@@ -400,6 +400,10 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
         stale = set(grid_idents) - set(refused)
         pairs = [(_rec_ident(r), r) for r in records]
         pairs = [(i, r) for i, r in pairs if status(r) != "refused" or i not in stale]
+        # a point recorded twice (a hand-edited file) keeps its first record: both were kept, and rows() listed the
+        # point twice (an audit)
+        seen: set = set()
+        pairs = [(i, r) for i, r in pairs if not (i in seen or seen.add(i))]
         kept, have = [r for _, r in pairs], dict(pairs)
         new_refused = [(i, pt, why) for i, (pt, why) in refused.items() if i not in have]
         for i, pt, why in new_refused:

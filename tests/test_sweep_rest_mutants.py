@@ -275,3 +275,15 @@ def test_a_setting_beyond_float_range_refuses_the_file_by_line(tmp_path, capsys)
 
     assert main(["sweep", "--Gamma", "6", "--n-excursions", "50", "--out", str(out)]) == 2
     assert "--out must be a dryfric sweep file (JSON Lines)" in capsys.readouterr().err and out.read_text() == text
+
+
+def test_a_point_recorded_twice_keeps_one_record_on_resume(tmp_path, calls):
+    """A hand-edited file holding one record twice was resumed with both kept, and rows() listed the point twice
+    (an audit); the resume keeps the first and computes nothing."""
+    out = str(tmp_path / "s.jsonl")
+    assert sweep.run_sweep(sweep.grid(Gamma=[2.0, 3.0]), out, **KW)["computed"] == 2
+    first, second = _lines(out)
+    outfiles.write_records(out, [first, second, {**first, "finished_at": "edited"}])
+    r = sweep.run_sweep(sweep.grid(Gamma=[2.0, 3.0]), out, **KW)
+    assert (r["computed"], r["skipped"]) == (0, 2) and len(calls) == 2
+    assert _lines(out) == [first, second] and len(sweep.rows(out)) == 2
