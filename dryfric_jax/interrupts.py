@@ -179,8 +179,8 @@ def held_interrupts():
     finally:
         for s, h in old.items():
             signal.signal(s, h)
-        if held:
-            signal.raise_signal(held[0])
+        if held:  # SIGTERM first where both came: the command's exit status is then 143, as a scheduler expects
+            signal.raise_signal(signal.SIGTERM if signal.SIGTERM in held else held[0])
 
 
 def exit_status(rc: int) -> int:

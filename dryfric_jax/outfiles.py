@@ -17,6 +17,8 @@ except ImportError:  # not POSIX (Windows): no lock
 
 import numpy as np
 
+from .interrupts import held_interrupts
+
 from .params import shown
 
 
@@ -316,12 +318,16 @@ def drop_claims_dir(path: str) -> None:
         os.rmdir(claims_dir(path))
 
 
-def put_record(path: str, rec: dict, same, read) -> None:
+def put_record(path: str, rec: dict, same, read, done=None) -> None:
     """Write one finished record to a JSON Lines results file that other processes may update too:
     under :func:`locked`, the file is read again (``read(path)``), so the records they wrote
     meanwhile are kept; ``rec`` replaces the first record ``same(old)`` holds for, or is appended;
-    the file is rewritten atomically (:func:`write_records`)."""
-    with locked(path):
+    the file is rewritten atomically (:func:`write_records`).  A Ctrl-C or SIGTERM breaks the wait for the lock
+    as usual, but once the lock is held it acts only after the write and ``done()`` (the caller's bookkeeping
+    of it, if given; :func:`~dryfric_jax.interrupts.held_interrupts`): a sweep's finished point caught by one
+    during its write was lost (an audit), and a hold over the wait made a process waiting on a stuck lock
+    deaf to Ctrl-C (the review after it)."""
+    with locked(path), held_interrupts():
         records = read(path)
         at = next((k for k, old in enumerate(records) if same(old)), None)
         if at is None:
@@ -329,6 +335,8 @@ def put_record(path: str, rec: dict, same, read) -> None:
         else:
             records[at] = rec
         write_records(path, records)
+        if done is not None:
+            done()
 
 
 def write_records(path: str, records: list[dict]) -> None:

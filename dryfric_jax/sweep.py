@@ -76,7 +76,6 @@ from .limits import MAX_WORK
 from .outfiles import check_writable, claim, drop_claims_dir, dumps, locked, put_record, read_records, write_records
 from .params import FIG3, Params, check_flag, check_positive, plain_number, real_or_none, shown
 from .plan import check_count, check_max_time, check_settings, plan_estimate
-from .interrupts import held_interrupts
 from .rounds import abandon_on_interrupt
 
 PARAM_KEYS = ("Gamma", "Delta", "tau", "tau_L", "gamma_bar")
@@ -428,7 +427,7 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
     skipped = done - sum(i in have and status(have[i]) == "refused" for i in distinct)
     if progress:
         progress(done, total, None)
-    computed, interrupted, later = 0, False, []
+    interrupted, later, tally = False, [], []  # tally: the points computed and written
     # a point another sweep is computing (claimed) is left for later and waited for after the others:
     # it is usually finished by then, and is not computed twice
     for wait, queue in ((False, todo), (True, later)):
@@ -448,16 +447,16 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
                         if rec is None:  # Ctrl-C: the point in progress is not written
                             interrupted = True
                             break
-                        # a finished point is written and counted whole: a Ctrl-C or SIGTERM meanwhile acts after
-                        with held_interrupts():
-                            # the file read again under its lock: another sweep's records are kept, a record of
-                            # this point (a rerun with more time, or the other sweep's) is replaced in place
-                            put_record(out, rec, lambda old: _rec_ident(old) == ident, read_results)
-                            computed += 1
-                            have[ident] = rec
+                        # the file read again under its lock: another sweep's records are kept, a record of this
+                        # point (a rerun with more time, or the other sweep's) is replaced in place; a Ctrl-C or
+                        # SIGTERM during the write acts after it and its count (put_record)
+                        put_record(out, rec, lambda old: _rec_ident(old) == ident, read_results,
+                                   done=lambda: tally.append(ident))
                     c.finish()
             except KeyboardInterrupt:  # also while waiting for another sweep's point
                 interrupted = True
+                if ident in tally:  # written before the signal acted
+                    have[ident] = rec
                 break
             have[ident] = rec
             done += 1
@@ -470,7 +469,7 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
     count = {k: sum(status(r) == k for r in mine) for k in ("refused", "failed")}
     truncated = sum(status(r) == "ok" and (r["result"].get("n_truncated", 0) > 0
                                            or (r.get(DURATIONS) or {}).get("n_truncated", 0) > 0) for r in mine)
-    return dict(computed=computed, skipped=skipped, total=total, duplicates=len(full) - total,
+    return dict(computed=len(tally), skipped=skipped, total=total, duplicates=len(full) - total,
                 interrupted=interrupted, refused=count["refused"], failed=count["failed"], truncated=truncated,
                 time_limited=sum(map(_time_limited, mine)), no_count=sum(map(_count_failed, mine)))
 

@@ -296,16 +296,17 @@ def test_a_ctrl_c_while_a_run_is_written_keeps_it(tmp_path, monkeypatch):
     it: the run is kept and reused (a sweep's point was lost so: an audit)."""
     import signal
 
+    from dryfric_jax import outfiles
     from dryfric_jax.figures import points
     from dryfric_jax.params import FIG3, Params
 
-    real = points.put_record
+    real = outfiles.write_records
 
     def signalled(*a, **k):
-        signal.raise_signal(signal.SIGINT)
+        signal.raise_signal(signal.SIGINT)  # in the middle of the write, the lock held
         real(*a, **k)
 
-    monkeypatch.setattr(points, "put_record", signalled)
+    monkeypatch.setattr(outfiles, "write_records", signalled)
     with pytest.raises(KeyboardInterrupt):
         points.Points(str(tmp_path), "s").estimate(Params(**FIG3), 3, n_excursions=64)
     again = points.Points(str(tmp_path), "s")

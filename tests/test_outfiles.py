@@ -79,3 +79,31 @@ def test_a_killed_writes_temporary_file_is_removed_by_the_next_locked_write(tmp_
     monkeypatch.setattr(os, "replace", lambda a, b: (seen.append(os.path.basename(a)), real(a, b))[1])
     write_atomic(str(path), "x\n")  # its own temporary file is named for its target
     assert seen[0].startswith(".r.jsonl.dryfric-") and seen[0].endswith(".tmp")
+
+
+def test_a_ctrl_c_breaks_the_wait_for_the_lock(tmp_path):
+    """put_record holds a Ctrl-C during its write, but not while it waits for the lock: held over the wait, a
+    process waiting on a stuck lock (another sweep stopped with Ctrl-Z) could not be interrupted (a review)."""
+    import signal
+    import subprocess
+    import sys
+    import threading
+    import time
+
+    if outfiles.fcntl is None:
+        pytest.skip("no flock here")
+    holder = subprocess.Popen([sys.executable, "-c", "import fcntl, os, sys, time; fd = os.open(sys.argv[1], "
+                               "os.O_RDONLY); fcntl.flock(fd, fcntl.LOCK_EX); print('held', flush=True); "
+                               "time.sleep(20)", str(tmp_path)], stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        main = threading.main_thread().ident  # to the thread waiting in flock, as a terminal's Ctrl-C reaches it
+        timer = threading.Timer(0.3, lambda: signal.pthread_kill(main, signal.SIGINT))
+        t0 = time.monotonic()
+        timer.start()
+        with pytest.raises(KeyboardInterrupt):
+            outfiles.put_record(str(tmp_path / "r.jsonl"), {"a": 1}, lambda old: False, lambda p: [])
+        assert time.monotonic() - t0 < 10 and not (tmp_path / "r.jsonl").exists()
+    finally:
+        holder.kill()
+        holder.wait()

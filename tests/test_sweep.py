@@ -701,18 +701,20 @@ def test_a_signal_while_a_finished_point_is_written_keeps_it(tmp_path, monkeypat
     import signal
     import types
 
-    calls, real = [], sweep.put_record
+    from dryfric_jax import outfiles
+
+    calls, real = [], outfiles.write_records
 
     def good(*a, **k):
         calls.append(1)
         return types.SimpleNamespace(stopped_by="n_excursions", to_dict=lambda: dict(_GOOD["result"], params={}, seed=0))
 
     def signalled(*a, **k):
-        signal.raise_signal(getattr(signal, signum))  # in the middle of the write
+        signal.raise_signal(getattr(signal, signum))  # in the middle of the write, the lock held
         real(*a, **k)
 
     monkeypatch.setattr(sweep, "estimate_diffusivity", good)
-    monkeypatch.setattr(sweep, "put_record", signalled)
+    monkeypatch.setattr(outfiles, "write_records", signalled)
     out = tmp_path / "s.jsonl"
     rc = main(["sweep", "--Gamma", "2,3", "--n-excursions", "50", "--out", str(out)])
     assert rc == (130 if signum == "SIGINT" else 143) and len(calls) == 1

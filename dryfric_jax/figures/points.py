@@ -43,7 +43,6 @@ from ..api import (
     BruteForceResult, DryfricWarning, EstimateResult, bruteforce_diffusivity, estimate_diffusivity, missing_fields,
 )
 from ..durations import LEDuration, di_long_excursion_duration
-from ..interrupts import held_interrupts
 from ..outfiles import claim, put_record, read_records
 from ..rounds import abandon_on_interrupt
 
@@ -210,9 +209,8 @@ class Points:
                        result=r.to_dict())
             # keeps what others wrote there; the stamp is not taken again (another process may write the
             # file between this write and a stamp), so the next run reads the file once more.  A Ctrl-C or SIGTERM
-            # during the write acts after it: the run is kept (a sweep's point was lost so: an audit)
-            with held_interrupts():
-                put_record(self.path, rec, lambda old: old["ident"] == ident, _read)
+            # during the write acts after it (put_record): the run is kept
+            put_record(self.path, rec, lambda old: old["ident"] == ident, _read)
             c.finish()
         self._done[ident] = rec
         self.computed += 1
