@@ -40,7 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import linalg, special
 
-from .params import Params, check_params, check_positive, real_or_none, rounded_bound, shown
+from .params import Params, check_params, check_positive, real_or_none, refuse_traced, rounded_bound, shown
 from .plan import H_MIN_REL, check_count, check_h, h_max
 from .theory import _nd, _scale
 
@@ -110,6 +110,7 @@ def _check_chain_h(params: Params, h, nodes_per_sd: int, law: float) -> float:
     raised 1% above the least h whose grid fits ``MAX_NODES`` (:func:`_least_h`), so that the range a refusal
     prints is the one accepted (an audit: h = 0 was told [6.7e-14, 0.0067] s, then 1e-12 was refused for its
     grid).  Where no admissible h fits, the grid's own refusal in :func:`white_chain_law` says so."""
+    refuse_traced("h", h, "the chain law")  # before the range test, which took a tracer for a bad number
     need = 1.01 * _least_h(params, law, nodes_per_sd)
     hm = h_max(params)
     lo = max(H_MIN_REL * min(params.tau0, params.tau_L), need)

@@ -29,7 +29,7 @@ import math
 
 import numpy as np
 
-from .params import real_or_none, rounded_bound, shown
+from .params import real_or_none, refuse_traced, rounded_bound, shown
 
 COVER_SD = 8.0
 
@@ -49,7 +49,9 @@ def delta_max(tau: float, gamma_bar: float = 0.0) -> float:
 
 
 def check_delta(delta: float, tau: float, gamma_bar: float = 0.0, *, scale: float = 1.0) -> None:
-    """ValueError naming delta and its admissible range (in units of ``scale``, e.g. physical)."""
+    """ValueError naming delta and its admissible range (in units of ``scale``, e.g. physical); a JAX tracer is
+    refused as one (it was told the range)."""
+    refuse_traced("delta", delta, "the noise grid's check")
     dm = delta_max(tau, gamma_bar)
     v = real_or_none(delta)
     ok = v is not None and math.isfinite(v) and 0 < v / scale < dm

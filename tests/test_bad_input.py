@@ -273,6 +273,8 @@ def test_combine_labels_must_be_one_string_per_result(labels):
     (lambda x: theory.M0_constant_bias(5.0, 3.84, x), "gamma_bar"),
     (lambda x: theory.D_viscous_only(5.0, x), "tau_L"),
     (lambda x: dj.make_di_model(P, x * 1e-3), "h"),
+    (lambda x: white_chain_law(dj.Params.from_nondim(1.0), x * 0.03).p_stuck, "h"),  # told the chain law's range
+    (lambda x: dj.make_pdmp_model(P, x * 0.4), "delta"),  # told "delta must be in (0, 0.3338)"
 ])
 @pytest.mark.parametrize("transform", [jax.grad, jax.jit])
 def test_closed_forms_and_the_step_under_a_transformation_name_the_tracer(call, name, transform):
