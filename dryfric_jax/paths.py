@@ -314,7 +314,7 @@ def _excursion(model: DIModel, key, *, max_steps: int):
     return n, phase, n_half, b
 
 
-#: largest ``max_steps`` of :func:`di_excursion` (three buffers of max_steps + 1 states)
+#: largest ``max_steps`` of :func:`di_excursion` and :func:`di_long_excursion` (three buffers of max_steps + 1 states)
 MAX_EXCURSION_STEPS = 2**31 - 1
 
 
@@ -342,7 +342,9 @@ def di_excursion(model: DIModel, key, max_steps: int = 200_000) -> dict:
 @partial(jax.jit, static_argnames=("max_steps",))
 def _long_excursion(model: DIModel, key, max_seek, *, max_steps: int):
     """The loop of :func:`di_long_excursion`: returns the recorded states' last index n, the phase (4: complete,
-    5: stopped by ``max_steps``; below 2: the seek ran out), i_half, V one step before the start, the buffers."""
+    5: stopped by ``max_steps``; below 2: the seek ran out), i_half, the buffers.  V before the first step is NaN,
+    "not stuck", so the first step is no release, as in the count's lanes (:func:`~dryfric_jax.durations._lane_start`:
+    a V_{-1} of 0 made a move at step 0 one, starting 8-18% of the seeds' excursions elsewhere: a review)."""
     dt = model.h.dtype
     buf = dict(X=jnp.zeros(max_steps + 1, dt), V=jnp.zeros(max_steps + 1, dt), U=jnp.zeros(max_steps + 1))
     k_start, k_steps = jax.random.split(key)
@@ -357,7 +359,7 @@ def _long_excursion(model: DIModel, key, max_seek, *, max_steps: int):
         return (phase < 4) & ((phase >= 2) | (i < max_seek))
 
     def body(c):
-        i, n, phase, n_half, v_before, X, V, V_prev, U, b = c
+        i, n, phase, n_half, X, V, V_prev, U, b = c
         z1, z2 = model.draw(jax.random.fold_in(k_steps, i.astype(jnp.uint32)), 1)
         _, Xn, Vn, dU = model.move(X, V, z1[0], z2[0])
         release = (V_prev == 0) & (V == 0) & (Vn != 0)  # stuck a whole step, then moving (durations.py)
@@ -372,16 +374,15 @@ def _long_excursion(model: DIModel, key, max_seek, *, max_steps: int):
         rec = rec & ~full
         b = jax.lax.cond(rec, lambda bb: put(bb, n + 1, dict(X=Xn, V=Vn, U=U)), lambda bb: bb, b)
         n_half = jnp.where((phase == 2) & down & ~full, n, n_half)  # the state before the release towards V < 0
-        v_before = jnp.where(start, V_prev, v_before)
         phase = jnp.where(full, 5, jnp.where((phase == 0) & down, 1, jnp.where(start, 2, jnp.where(
             (phase == 2) & down, 3, jnp.where((phase == 3) & up, 4, phase)))))
-        return i + 1, n + rec, phase, n_half, v_before, Xn, Vn, V, U, b
+        return i + 1, n + rec, phase, n_half, Xn, Vn, V, U, b
 
     z = jnp.asarray(0.0, dt)
-    init = (jnp.asarray(0, jnp.int64), jnp.asarray(0, jnp.int64), jnp.asarray(0), jnp.asarray(-1, jnp.int64), z,
-            x0, z, z, jnp.asarray(0.0, jnp.float64), buf)
-    _, n, phase, n_half, v_before, *_, b = jax.lax.while_loop(cond, body, init)
-    return n, phase, n_half, v_before, b
+    init = (jnp.asarray(0, jnp.int64), jnp.asarray(0, jnp.int64), jnp.asarray(0), jnp.asarray(-1, jnp.int64),
+            x0, z, jnp.asarray(jnp.nan, dt), jnp.asarray(0.0, jnp.float64), buf)
+    _, n, phase, n_half, *_, b = jax.lax.while_loop(cond, body, init)
+    return n, phase, n_half, b
 
 
 #: the default bound of :func:`di_long_excursion`'s seek for a start, in units of ``max_steps``
@@ -406,7 +407,7 @@ def di_long_excursion(model: DIModel, key, max_steps: int = 200_000, max_seek: i
     :mod:`dryfric_jax.regeneration`), which spans a random number >= 1 of these long excursions.
 
     The chain (:meth:`~dryfric_jax.di.DIModel.move`) starts as the durations count's lanes do: X from its
-    stationary law, :math:`V_0 = 0`.  It runs until a release towards :math:`V < 0` and then until the next
+    stationary law, :math:`V_0 = 0`, not stuck before its first step (which is thus no release).  It runs until a release towards :math:`V < 0` and then until the next
     release towards :math:`V > 0`: that step, a change of direction as the count's excursions start at, starts
     the +HLE.  Index 0 of the returned arrays is the state before it (:math:`t = 0`, :math:`V = 0`,
     :math:`U = 0`), index 1 the state after it; ``i_half`` is the index of the state before the first release
@@ -429,8 +430,7 @@ def di_long_excursion(model: DIModel, key, max_steps: int = 200_000, max_seek: i
     Keys: ``split(key)`` gives the start's key (X_0 = its normal times the stationary sd) and the steps' key
     ``k``; step i (counted from the start of the run, the seek included) uses ``model.draw(fold_in(k, i), 1)``.
 
-    Returns nondimensional numpy arrays ``t, x, v, U`` (``t`` = index x h), ``i_half``, ``duration``, ``v_before``
-    (V one step before index 0: 0, by the release rule) and ``complete`` (False if ``max_steps`` recorded steps
+    Returns nondimensional numpy arrays ``t, x, v, U`` (``t`` = index x h), ``i_half``, ``duration`` and ``complete`` (False if ``max_steps`` recorded steps
     stopped it, or if no start was found within ``max_seek`` steps: the arrays are then empty and ``i_half`` is
     -1).  ``key`` is a ``jax.random`` key or an integer seed in [0, 2^62]; ``max_steps`` an integer in [1,
     2^31 - 1] (its buffers hold max_steps + 1 states); ``max_seek`` an integer >= 1 with ``max_seek +
@@ -445,7 +445,7 @@ def di_long_excursion(model: DIModel, key, max_steps: int = 200_000, max_seek: i
         max_seek = min(SEEK_FACTOR * max_steps, most_seek)
     max_seek = check_count("max_seek", max_seek, 1, most_seek,
                            " (2^32 - 1 - max_steps: the steps are folded into the key in 32 bits)")
-    n, phase, n_half, v_before, b = jax.device_get(
+    n, phase, n_half, b = jax.device_get(
         _long_excursion(model, key, jnp.asarray(max_seek, jnp.int64), max_steps=max_steps))
     n, phase = int(n), int(phase)
     m = n + 1 if phase >= 2 else 0
@@ -453,7 +453,7 @@ def di_long_excursion(model: DIModel, key, max_steps: int = 200_000, max_seek: i
     h = float(model.h)
     complete = phase == 4
     return dict(t=np.arange(m) * h, x=out["X"], v=out["V"], U=out["U"], i_half=int(n_half) if phase >= 3 else -1,
-                duration=(n - 1) * h if complete else float("nan"), v_before=float(v_before), complete=complete)
+                duration=(n - 1) * h if complete else float("nan"), complete=complete)
 
 
 @partial(jax.jit, static_argnames=("n_records",))

@@ -67,7 +67,7 @@ def test_fig1_2_caption_parameters_units_and_the_excursions_numbers(tmp_path, mo
     the figure's lines."""
     made, keys, figs = [], [], []
     exc = lambda complete: dict(t=_T, x=_X, v=_V, U=_U, i_half=2, complete=complete)  # noqa: E731
-    di = dict(exc(False), duration=_T[-2], v_before=0.0)
+    di = dict(exc(False), duration=_T[-2])
     monkeypatch.setattr(excursion, "make_pdmp_model", lambda p, d: made.append(("pdmp", p, d)) or "pdmp")
     monkeypatch.setattr(excursion, "make_di_model", lambda p, h: made.append(("di", p, h)) or "di")
     monkeypatch.setattr(excursion, "excursion_skeleton", lambda m, k: keys.append((m, _key(k))) or exc(True))
