@@ -406,15 +406,15 @@ def di_long_excursion(model: DIModel, key, max_steps: int = 200_000, max_seek: i
     changes.  This is not :func:`di_excursion`'s Nummelin cycle (C_+ to C_- to C_+, cut by a coin:
     :mod:`dryfric_jax.regeneration`), which spans a random number >= 1 of these long excursions.
 
-    The chain (:meth:`~dryfric_jax.di.DIModel.move`) starts as the durations count's lanes do: X from its
-    stationary law, :math:`V_0 = 0`, not stuck before its first step (which is thus no release).  It runs until a
-    release towards :math:`V < 0` and then until the next release towards :math:`V > 0`: that step, a change of direction as the count's excursions start at, starts
-    the +HLE.  Index 0 of the returned arrays is the state before it (:math:`t = 0`, :math:`V = 0`,
-    :math:`U = 0`), index 1 the state after it; ``i_half`` is the index of the state before the first release
-    towards :math:`V < 0` (the -HLE's start: the halves are ``[0, i_half]`` and ``[i_half, end]``), and the last
-    index is the state *after* the next release towards :math:`V > 0`, so that the first and the last recorded
-    moves are both releases towards :math:`V > 0`.  The excursion's duration, between its two releases towards
-    :math:`V > 0`, is therefore
+    The chain (:meth:`~dryfric_jax.di.DIModel.move`) starts as the durations count's lanes do: X from its stationary
+    law, :math:`V_0 = 0`, not stuck before its first step (which is thus no release).  It runs until a release
+    towards :math:`V < 0` and then until the next release towards :math:`V > 0`: that step, a change of direction as
+    the count's excursions start at, starts the +HLE.  Index 0 of the returned arrays is the state before it
+    (:math:`t = 0`, :math:`V = 0`, :math:`U = 0`), index 1 the state after it; ``i_half`` is the index of the state
+    before the first release towards :math:`V < 0` (the -HLE's start: the halves are ``[0, i_half]`` and ``[i_half,
+    end]``), and the last index is the state *after* the next release towards :math:`V > 0`, so that the first and
+    the last recorded moves are both releases towards :math:`V > 0`.  The excursion's duration, between its two
+    releases towards :math:`V > 0`, is therefore
 
     .. math::
         t_{\mathrm{le}} = (\texttt{len(t)} - 2)\,h = t_{-2},
@@ -432,10 +432,10 @@ def di_long_excursion(model: DIModel, key, max_steps: int = 200_000, max_seek: i
 
     Returns nondimensional numpy arrays ``t, x, v, U`` (``t`` = index x h), ``i_half``, ``duration`` and
     ``complete`` (False if ``max_steps`` recorded steps stopped it, or if no start was found within ``max_seek``
-    steps: the arrays are then empty and ``i_half`` is -1).  ``key`` is a ``jax.random`` key or an integer seed in [0, 2^62]; ``max_steps`` an integer in [1,
-    2^31 - 1] (its buffers hold max_steps + 1 states); ``max_seek`` an integer >= 1 with ``max_seek +
-    max_steps`` < 2^32 (the steps are folded into the key in 32 bits), default :data:`SEEK_FACTOR` x
-    ``max_steps`` (as far as that bound allows).  ``ValueError`` naming the argument.
+    steps: the arrays are then empty and ``i_half`` is -1).  ``key`` is a ``jax.random`` key or an integer seed in
+    [0, 2^62]; ``max_steps`` an integer in [1, 2^31 - 1] (its buffers hold max_steps + 1 states); ``max_seek`` an
+    integer >= 1 with ``max_seek + max_steps`` < 2^32 (the steps are folded into the key in 32 bits), default
+    :data:`SEEK_FACTOR` x ``max_steps`` (as far as that bound allows).  ``ValueError`` naming the argument.
     """
     _check_model(model)
     key = _key(key)[0]
