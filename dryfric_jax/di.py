@@ -21,7 +21,7 @@ import jax
 import jax.numpy as jnp
 
 from . import rng
-from .ou import OUStep, check_ratio, ou_step
+from .ou import OUStep, check_ratio, min_ratio, ou_step
 from .params import Params
 from .regeneration import SplitSet, split_set
 
@@ -135,14 +135,19 @@ def make_di_model(params: Params, h: float, dtype=jnp.float64) -> DIModel:
     naming the one that is wrong: ``params`` a :class:`~dryfric_jax.Params`, ``h`` in
     [1e-12, 0.1]*min(tau0, tau_L) s (None: the default step, :func:`~dryfric_jax.plan.default_h`),
     ``dtype`` float32 or float64 (a name or a dtype).  Unlike a planned run, float32 is used as asked
-    where it is not safe (:func:`~dryfric_jax.limits.float32_unsafe_reason`)."""
+    where it is not safe (:func:`~dryfric_jax.limits.float32_unsafe_reason`).  An h/tau below
+    :func:`~dryfric_jax.ou.min_ratio` is refused (:func:`~dryfric_jax.ou.ou_step`: the step's covariance underflows),
+    and so is a tau too long for any allowed h."""
     from .params import check_params, require_x64  # the planner's own checks (imported here: plan is a layer above)
-    from .plan import DTYPES, check_h, dtype_name
+    from .plan import DTYPES, check_h, dtype_name, h_max
 
     require_x64()  # with it off, the default float64 built a float32 model
     check_params(params)
+    if h_max(params) / params.tau < min_ratio(jnp.float64):  # no step would do: said so, not of the default h alone
+        raise ValueError(f"tau = {params.tau:.3g} s is too long for any step h <= {h_max(params):.3g} s (the largest "
+                         f"allowed): h/tau would be below {min_ratio(jnp.float64):.2g}, where the OU step underflows")
     h = check_h(params, h)
-    check_ratio(jnp.asarray(h, jnp.float64), jnp.asarray(params.tau, jnp.float64))  # named in the user's h and tau
+    check_ratio(h, params.tau, jnp.float64)  # named in the user's h and tau
     dtype = DTYPES[dtype_name(dtype)]
     nd = params.nondim()
     h_nd = h / params.tau0

@@ -22,10 +22,12 @@ to 1 as :math:`r \to 0`, where :math:`\det\Sigma \sim r^2/(3\tau^2)` is all that
 All expressions stay accurate for :math:`r \in [10^{-8}, 10^{8}]` in float64 and float32, and
 for larger r, where :math:`\hat g = (2 - 3/r)/r` exactly and :math:`r^2` would overflow.  Towards small r they
 hold (to 3e-16 against 400-digit arithmetic at :math:`r = 10^{-12}`-:math:`10^{-100}`, float64) until
-:math:`(1 - e^{-r})^2` underflows: :math:`L_{21} = L_{22} = 0` from :math:`r \approx 10^{-154}` and 0/0 = NaN where
-r itself is below the dtype's normal range.  So :func:`ou_step` and :func:`ou_moments` refuse
-:math:`r <` :func:`min_ratio` (:math:`\sqrt{\text{tiny}}\cdot 10^4`: 1.5e-150 in float64, 1.1e-15 in float32), a
-``ValueError`` naming h/tau (an audit: NaN from ``make_di_model`` at :math:`\tau = 10^{299}` s, h = 1e-12 s).
+:math:`(1 - e^{-r})^2` underflows: :math:`L_{21} = L_{22} = 0` below :math:`r \approx 2\sqrt{\text{tiny}}` (the
+factor is exact to rounding at 2, 3, 4 and 8 :math:`\sqrt{\text{tiny}}` and 0 at 1.5, in float64 and float32,
+measured) and 0/0 = NaN where r itself is below the dtype's normal range.  So :func:`ou_step` and :func:`ou_moments`
+refuse :math:`r <` :func:`min_ratio` (:math:`4\sqrt{\text{tiny}}` of the dtype they compute in: 6.0e-154 in float64,
+4.3e-19 in float32), a ``ValueError`` naming h/tau (an audit: NaN from ``make_di_model`` at :math:`\tau = 10^{299}`
+s, h = 1e-12 s), and :func:`ou_step` a factor that its cast to float32 rounds to 0.
 """
 from __future__ import annotations
 
@@ -47,19 +49,22 @@ _R_HUGE = 1e8  # beyond this r the exponentials of ghat vanish (e^{-1e8} = 0)
 
 
 def min_ratio(dtype) -> float:
-    """The least h/tau :func:`ou_step` and :func:`ou_moments` accept in ``dtype`` (module docstring)."""
-    return math.sqrt(float(jnp.finfo(dtype).tiny)) * 1e4
+    """The least h/tau :func:`ou_step` and :func:`ou_moments` accept when they compute in ``dtype`` (module
+    docstring): 4 sqrt(tiny), twice the least r where the factor is still exact to rounding (a margin of 1e4
+    refused float32 steps that were exact: a review)."""
+    return 4.0 * math.sqrt(float(jnp.finfo(dtype).tiny))
 
 
-def check_ratio(h, tau) -> None:
-    """``ValueError`` naming h/tau below :func:`min_ratio` (concrete values only; a tracer is checked where it was
-    made).  ``h`` and ``tau`` are arrays of the dtype the step is computed in."""
+def check_ratio(h, tau, dtype) -> None:
+    """``ValueError`` naming h/tau below :func:`min_ratio` of ``dtype``, the dtype the step is computed in, from the
+    caller's ``h`` and ``tau`` as given (a float32 cast made tau = 1e39 "inf"); concrete values only (a tracer is
+    checked where it was made)."""
     if isinstance(h, jax.core.Tracer) or isinstance(tau, jax.core.Tracer):
         return
-    lo = min_ratio(h.dtype)
-    if not float(h) / float(tau) >= lo:  # in Python floats: the array's own h/tau may underflow to 0
-        raise ValueError(f"h/tau must be >= {lo:.2g} in {h.dtype.name} (got h = {float(h):.3g}, tau = {float(tau):.3g}: "
-                         f"h/tau = {float(h) / float(tau):.3g}): the OU step's covariance underflows below it")
+    lo, h, tau = min_ratio(dtype), float(h), float(tau)
+    if not h / tau >= lo:  # in Python floats: the array's own h/tau may underflow to 0
+        raise ValueError(f"h/tau must be >= {lo:.2g} in {jnp.dtype(dtype).name} (got h = {h:.3g}, tau = {tau:.3g}: "
+                         f"h/tau = {h / tau:.3g}): the OU step's covariance underflows below it")
 
 
 def _ghat(r):
@@ -92,9 +97,9 @@ def ou_moments(h, tau):
     """
     check_positive("h", h)  # concrete values only, as in ou_step (0 or -1 gave NaN or a negative variance)
     check_positive("tau", tau)
+    check_ratio(h, tau, jnp.result_type(h, float))
     h = jnp.asarray(h, jnp.result_type(h, float))  # an integer h made tau an integer: tau = 0.5 became 0
     tau = jnp.asarray(tau, dtype=h.dtype)
-    check_ratio(h, tau)
     r = h / tau
     em1 = jnp.expm1(-r)  # e^{-r} - 1, accurate for small r
     m1 = -em1 / r
@@ -137,9 +142,9 @@ def ou_step(h, tau, dtype=None) -> OUStep:
     check_positive("h", h)  # concrete values only; a tracer is checked where it was made
     check_positive("tau", tau)
     dtype = jnp.result_type(float) if dtype is None else dtype_name(dtype)  # float16 was accepted, "foo" a TypeError
+    check_ratio(h, tau, jnp.result_type(h, float))
     h = jnp.asarray(h, jnp.result_type(h, float))
     tau = jnp.asarray(tau, h.dtype)
-    check_ratio(h, tau)
     r = h / tau
     em1 = jnp.expm1(-r)
     g = _ghat(r)
@@ -150,7 +155,14 @@ def ou_step(h, tau, dtype=None) -> OUStep:
     L11 = jnp.sqrt(g) / sqt
     L21 = q / jnp.sqrt(g) / sqt
     L22 = jnp.sqrt(det / g) / sqt
-    return OUStep(-em1 / r, jnp.exp(-r), L11, L21, L22).astype(dtype)
+    step = OUStep(-em1 / r, jnp.exp(-r), L11, L21, L22)
+    out = step.astype(dtype)
+    if not isinstance(L22, jax.core.Tracer):  # the factor computed in float64, then cast: float32 may round it to 0
+        lost = [f for f in ("L11", "L21", "L22") if getattr(out, f) == 0 < getattr(step, f)]
+        if lost:  # the noise would not move X (ou_step(1e-100, 1, dtype='float32') gave L = 0: a review)
+            raise ValueError(f"h/tau = {float(r):.3g} is too small for dtype {jnp.dtype(dtype).name}: the OU step's "
+                             f"factor ({', '.join(lost)}) rounds to 0 in it; use float64")
+    return out
 
 
 def ou_moments_reference(h: float, tau: float, digits: int = 60):

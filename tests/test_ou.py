@@ -174,19 +174,33 @@ def test_tiny_steps_keep_the_leading_order_factor(r):
 
 def test_a_step_below_min_ratio_is_refused_by_name():
     """h/tau below the dtype's normal range gave 0/0 = NaN in m1 and the factor, silently (an audit: ou_step(1e-310,
-    1), ou_moments(0.01, 1e308), float32 ou_moments(1e-20, 1e20), make_di_model at tau = 1e299 s, h = 1e-12 s)."""
+    1), ou_moments(0.01, 1e308), float32 ou_moments(1e-20, 1e20), make_di_model at tau = 1e299 s, h = 1e-12 s).  The
+    bound is the dtype the step is computed in, from the caller's values, 4 sqrt(tiny); a margin of 1e4 refused
+    exact float32 steps, a float32 cast named tau = 1e39 "inf", and a float64 factor cast to float32 came out 0 (a
+    review)."""
     import dryfric_jax as dj
     from dryfric_jax.ou import min_ratio
 
-    assert min_ratio(np.float64) == pytest.approx(1.49e-150, rel=1e-2)
-    assert min_ratio(np.float32) == pytest.approx(1.08e-15, rel=1e-2)
-    msg = r"^h/tau must be >= 1\.5e-150 in float64 \(got h = {}, tau = {}: h/tau = {}\)"
-    for call, args in ((ou_step, (1e-310, 1.0)), (ou_moments, (0.01, 1e308)), (ou_step, (1e-6, 1e145))):
+    assert min_ratio(np.float64) == pytest.approx(5.97e-154, rel=1e-2)
+    assert min_ratio(np.float32) == pytest.approx(4.34e-19, rel=1e-2)
+    msg = r"^h/tau must be >= 6e-154 in float64 \(got h = {}, tau = {}: h/tau = {}\)"
+    for call, args in ((ou_step, (1e-310, 1.0)), (ou_moments, (0.01, 1e308)), (ou_step, (1e-6, 1e150))):
         h, tau = args
         with pytest.raises(ValueError, match=msg.format(*(re.escape(f"{x:.3g}") for x in (h, tau, h / tau)))):
             call(*args)
-    with pytest.raises(ValueError, match=r"^h/tau must be >= 1\.1e-15 in float32 \(got h = 1e-20, tau = 1e\+20"):
+    with pytest.raises(ValueError, match=r"^h/tau must be >= 4\.3e-19 in float32 \(got h = 1e-20, tau = 1e\+20"):
         ou_moments(np.float32(1e-20), np.float32(1e20))
-    with pytest.raises(ValueError, match=r"^h/tau must be >= 1\.5e-150 in float64 \(got h = 1e-12, tau = 1e\+299"):
-        dj.make_di_model(dj.Params(1.0, 1.0, 1e299, 1.0, 0.0), 1e-12)
-    assert np.isfinite(float(ou_step(1e-6, 1e143).L22))  # just above it
+    with pytest.raises(ValueError, match=r"^h/tau must be >= 4\.3e-19 in float32 \(got h = 0\.001, tau = 1e\+39"):
+        ou_moments(np.float32(1e-3), 1e39)
+    with pytest.raises(ValueError, match=r"^h/tau must be >= 6e-154 in float64 \(got h = 1e-12, tau = 1e\+152"):
+        dj.make_di_model(dj.Params(1.0, 1.0, 1e152, 1.0, 0.0), 1e-12)
+    for h in (1e-12, None):  # no allowed h would do: said so, also of the default h
+        with pytest.raises(ValueError, match=r"^tau = 1e\+299 s is too long for any step h <= 0\.1 s"):
+            dj.make_di_model(dj.Params(1.0, 1.0, 1e299, 1.0, 0.0), h)
+    with pytest.raises(ValueError, match=r"^h/tau = 1e-100 is too small for dtype float32: the OU step's factor "
+                                         r"\(L11, L21, L22\) rounds to 0 in it; use float64"):
+        ou_step(1e-100, 1.0, dtype="float32")
+    # just above the bounds the factor is exact (the leading order, corrections O(r))
+    for h, dt in ((1e-153, None), (np.float32(5e-19), None), (1e-17, "float32")):
+        s = ou_step(h, np.float32(1.0) if isinstance(h, np.float32) else 1.0, dtype=dt)
+        assert _rel(float(s.L22), np.sqrt(float(h) / 2)) < 2e-7
