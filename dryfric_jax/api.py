@@ -78,6 +78,31 @@ def short_horizon_note(params: Params, t: float) -> str | None:
             "tau0/t) after a burn_in of 20 tau0; -53% at t = 10 tau_c, gamma_bar' = 0.9); raise t, add burn_in, or "
             "use estimate_diffusivity, which has no horizon bias")
 
+#: brute force's M0_t from rest: the lag of E[U(t)] behind M0 t, in correlation times (an audit, 2026-12-07: 2.9
+#: tau_c at tau' = tau_L' = 3, gamma_bar' = -0.7), and the burn-in (in tau_c) after which it was gone
+M0_LAG_TAU_C, M0_BURN_IN_TAU_C = 3.0, 20.0
+
+
+def m0_lag_note(params: Params, t: float, burn_in: float, m0_t: float, m0_ci: float) -> str | None:
+    r"""The warning for brute force's :math:`\hat M_0^t` where its start from rest may bias it against its CI, None
+    otherwise.  The velocity starts at 0, so :math:`E[U(t)] \approx M_0 (t - L)` with a lag L of a few correlation
+    times (:func:`correlation_time`), and :math:`M_0^t` is low in size by :math:`M_0 L/t`, which its CI, of order
+    :math:`\sqrt{D/(t N')}`, does not include, and which more paths make larger against it.  An audit (2026-12-07)
+    measured :math:`L \approx 2.9\,\tau_c` (:math:`\tau' = \tau_L' = 3, \bar\gamma' = -0.7`, 4000 paths at t
+    = 100 :math:`\tau_c`: M0_t 2.5-3.3% toward 0, 4.8-6.3 SE, at 3 seeds; -2.6 to -4.2 SE at white-noise points),
+    gone after a burn-in of 20 :math:`\tau_c` (+0.2 SE).  Said where ``burn_in`` < :data:`M0_BURN_IN_TAU_C`
+    :math:`\tau_c` and :data:`M0_LAG_TAU_C` :math:`\tau_c |M_0^t|/t` exceeds a fifth of the CI half-width (an order
+    of magnitude: L is not known in advance)."""
+    tc = correlation_time(params)
+    lag = M0_LAG_TAU_C * tc * abs(m0_t) / t
+    if burn_in >= M0_BURN_IN_TAU_C * tc or not lag > 0.2 * m0_ci:
+        return None
+    return (f"M0_t is biased toward 0 by O(tau_c/t): the paths start at rest, so E[U(t)]/t lags M0 by ~{M0_LAG_TAU_C:g} "
+            f"tau_c |M0|/t ~ {lag:.2g} m/s here (tau_c = {tc:.3g} s), against its CI half-width {m0_ci:.2g}, which "
+            f"does not include it (measured: 2.5-3.3% low at t = 100 tau_c); add burn_in >= {M0_BURN_IN_TAU_C:g} "
+            f"tau_c = {M0_BURN_IN_TAU_C * tc:.3g} s, or use estimate_diffusivity, which has no such bias")
+
+
 #: the notes of an estimate whose excursions were truncated, by cause (the CLI names the option
 #: that helps from them): the final round's deadline (2 max_time) or the work bound max_steps
 FINAL_CUT = "the final round, which finishes the excursions in flight, was cut"
@@ -694,10 +719,11 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
     needs more than ``max_work`` steps (events) is refused before it starts.
 
     A horizon under 100 correlation times (:func:`correlation_time`) is warned about
-    (:func:`short_horizon_note`: D_t = D (1 - 5.4 tau0/t) from rest with white noise and tau_L = inf),
-    and so is a D_t CI of 0 (paths too short for the noise to spread them).  With the seed, ``block``
-    (steps whose numbers are drawn at once) fixes the numbers and is recorded; ``chunk_lanes`` (paths
-    compiled and run at once) does not change the random numbers, and the results only to rounding
+    (:func:`short_horizon_note`: D_t = D (1 - 5.4 tau0/t) from rest with white noise and tau_L = inf), so is
+    an M0_t whose start from rest may lag it toward 0 by more than a fifth of its CI (:func:`m0_lag_note`: at any
+    horizon, without a burn-in of 20 tau_c), and so is a D_t CI of 0 (paths too short for the noise to spread
+    them).  With the seed, ``block`` (steps whose numbers are drawn at once) fixes the numbers and is
+    recorded; ``chunk_lanes`` (paths compiled and run at once) does not change the random numbers, and the results only to rounding
     (each chunk shape is compiled to its own code: 2.6e-16 relative in a path's U, measured).
     """
     require_x64()
@@ -772,6 +798,11 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
                 "rounding, so the result has no error bar; t is too short for the noise to spread the paths")
         warnings.warn(zero, DryfricWarning, stacklevel=2)
         notes = [*notes, zero]
+    lag = m0_lag_note(params, t_nd * params.tau0, burn_in, float(e["M0_t"] * params.v0),
+                      float(e["M0_t_ci"] * params.v0))
+    if lag:  # issued after the run, as the zero CI's: it needs M0_t and its CI
+        warnings.warn(lag, DryfricWarning, stacklevel=2)
+        notes = [*notes, lag]
     return BruteForceResult(
         D_t=float(e["D_t"] * params.D0), D_t_ci=float(e["D_t_ci"] * params.D0), M0_t=float(e["M0_t"] * params.v0),
         M0_t_ci=float(e["M0_t_ci"] * params.v0), t=t_nd * params.tau0, n_paths=int(n_paths), method=method, h=h,

@@ -306,7 +306,9 @@ def build_parser() -> argparse.ArgumentParser:
                          "are finished, so a few more are counted")
     du.add_argument("--max-time", type=_number("max-time"), default=None,
                     help="time limit, s: past it no excursion starts and those in flight finish (the mean stays "
-                         "consistent, over fewer); at twice it those still in flight are left out (exit 3)")
+                         "consistent, over fewer); at twice it those still in flight are left out (exit 3); it acts "
+                         "between the count's pieces, the least one block of 128 steps of every lane (at 2^21 lanes "
+                         "~7 s on 2 CPU cores)")
     du.add_argument("--n-lanes", type=_int_at_least("n-lanes", 1, MAX_COUNT_LANES, "2^21"), default=None,
                     help="lanes (default: the power of 2 nearest n-excursions/3, in [32, 256]); they change the "
                          "random numbers, not the law")
@@ -390,7 +392,8 @@ def build_parser() -> argparse.ArgumentParser:
                          "and numba timings")
     bn.add_argument("--repeat", type=_int_at_least("repeat", 1, MAX_REPEAT), default=1,
                     help="rounds, each measuring every number (or timing every layout) once; prints the "
-                         "medians of the rounds and their ranges, each ratio taken within its round (default 1)")
+                         "medians of the rounds and their ranges, each ratio taken within its round (default 1, at "
+                         f"most {MAX_REPEAT})")
     bn.add_argument("--lanes", type=_list_of(_int_at_least("lanes", 1), "lanes"), default=None,
                     help="layout sweep instead of the side-by-side bench: DI lane-steps/s for these lane "
                          "counts (comma-separated; default: the run's own) ...")

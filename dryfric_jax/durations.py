@@ -303,8 +303,9 @@ def _run(model, keys, n_excursions: int, max_blocks: int, block: int = BLOCK, br
         keys = jnp.concatenate([keys, keys[jnp.arange(pad) % n]])
     carry = over_lanes(_lane_start, (model, keys, live), (False, True, True))
     b, stop = jnp.zeros(n + pad, jnp.int32), jnp.zeros(n + pad, bool)
-    # the first piece 4 blocks, fewer from 2^15 lanes (at most ~2^22 lane-steps, 1 block at least): at 2^21 lanes 4
-    # blocks are 1e9 lane-steps, and --max-time 2 (which acts between pieces) ended the count after 70 s (an audit)
+    # the first piece 4 blocks up to 2^13 lanes (~2^22 lane-steps), 1 block from 2^15 (at 2^21 lanes still 2.7e8
+    # lane-steps, ~7 s on 2 cores, which --max-time cannot cut: it acts between pieces); it was 4 blocks at any lane
+    # count, and --max-time 2 at 2^21 lanes ended the count after 70 s (an audit)
     first_chunk = int(min(4, max(1, (1 << 22) // ((n + pad) * block))))
     done, chunk, ended, deadline, first = 0, first_chunk, "n_excursions", None, []
     while True:

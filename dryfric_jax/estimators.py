@@ -98,8 +98,9 @@ MIN_PATHS = 3
 
 def psi_D(x):
     r""":math:`\Psi_D(x) = (x_2 - 2x_1x_4/x_3 + x_1^2x_5/x_3^2)/x_3` for :math:`x = E(U, U^2, t, Ut, t^2)` (a vector
-    of at least 5; ``ValueError`` otherwise: JAX clamps an index past the end, so a 2-vector gave a number)."""
-    _check_length(x, 5, "psi_D")
+    of at least 5; ``ValueError`` otherwise: JAX clamps an index past the end, so a 2-vector gave a number; and,
+    called on concrete numbers, for a non-finite entry or :math:`x_3 \le 0`)."""
+    _check_vector(x, 5, "psi_D")
     m = x[0] / x[2]
     return (x[1] - 2 * m * x[3] + m * m * x[4]) / x[2]
 
@@ -110,13 +111,15 @@ def psi_D_paper(x):
 
 
 def psi_M(x):
-    r""":math:`\Psi_M(x) = x_1/x_3` (a vector of at least 3; ``ValueError`` otherwise)."""
-    _check_length(x, 3, "psi_M")
+    r""":math:`\Psi_M(x) = x_1/x_3` (a vector of at least 3; ``ValueError`` otherwise, and on concrete numbers for a
+    non-finite entry or :math:`x_3 \le 0`)."""
+    _check_vector(x, 3, "psi_M")
     return x[0] / x[2]
 
 
-def _check_length(x, k: int, name: str) -> None:
-    """``ValueError`` unless ``x`` is a vector of at least ``k`` entries (its shape is static, also under jit)."""
+def _check_vector(x, k: int, name: str) -> None:
+    """``ValueError`` unless ``x`` is a vector of at least ``k`` entries (its shape is static, also under jit) and,
+    where concrete (not under jit or grad), of finite real numbers with ``x[2]`` (a mean duration) > 0."""
     try:
         shape = jnp.shape(x)
     except (TypeError, ValueError):

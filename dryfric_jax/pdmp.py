@@ -381,8 +381,10 @@ def excursion_skeleton(model: PDMPModel, key, max_events: int = 200_000) -> dict
 
     Returns nondimensional numpy arrays ``t, x, y, v, U`` at the event times (index 0 is s_+),
     ``i_half`` (index of s_-) and ``complete`` (False if ``max_events`` stopped it first).
-    Between events v follows :func:`flow` and X is constant.
+    Between events v follows :func:`flow` and X is constant.  ``RuntimeError`` with JAX's 64-bit mode off
+    (:func:`~dryfric_jax.params.require_x64`; it returned float32 times and int32 levels: a review).
     """
+    require_x64()
     n, phase, i_half, b = jax.device_get(_skeleton(model, key, max_events=int(max_events)))
     n = int(n)
     out = {k: np.asarray(v)[: n + 1] for k, v in b.items()}

@@ -75,7 +75,8 @@ def test_jax_64_bit_mode_turned_off_is_said_not_a_traceback_from_jax():
     """Every runner refuses: the long-excursion count, a model built then and a pool of two results ran silently
     in float32 (the count with int32 counters) and said float64 (an audit; the count's mean moved 5%)."""
     runs = [dj.estimate_diffusivity(P, s, n_excursions=50) for s in (1, 2)]
-    di = dj.make_di_model(P, 1e-3)
+    di, pd = dj.make_di_model(P, 1e-3), dj.make_pdmp_model(P, 0.125)
+    key = jax.random.key(0)
     jax.config.update("jax_enable_x64", False)
     try:
         for call in (lambda: dj.estimate_diffusivity(P, 0, n_excursions=50, dtype="float32"),
@@ -83,7 +84,8 @@ def test_jax_64_bit_mode_turned_off_is_said_not_a_traceback_from_jax():
                      lambda: dj.di_long_excursion_duration(P, 0, n_excursions=10),
                      lambda: dj.combine_estimates(runs),
                      lambda: dj.make_di_model(P, 1e-3), lambda: dj.make_pdmp_model(P, 0.125),
-                     lambda: paths.di_transient(di, 0, 4, [10])):
+                     lambda: paths.di_transient(di, 0, 4, [10]),
+                     lambda: dj.pdmp.excursion_skeleton(pd, key)):  # float32 times, int32 levels (a review)
             with pytest.raises(RuntimeError, match=r"needs JAX's 64-bit mode.*jax_enable_x64', True"):
                 call()
     finally:
