@@ -723,8 +723,8 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
     an M0_t whose start from rest may lag it toward 0 by more than a fifth of its CI (:func:`m0_lag_note`: at any
     horizon, without a burn-in of 20 tau_c), and so is a D_t CI of 0 (paths too short for the noise to spread
     them).  With the seed, ``block`` (steps whose numbers are drawn at once) fixes the numbers and is
-    recorded; ``chunk_lanes`` (paths compiled and run at once) does not change the random numbers, and the results only to rounding
-    (each chunk shape is compiled to its own code: 2.6e-16 relative in a path's U, measured).
+    recorded; ``chunk_lanes`` (paths compiled and run at once) does not change the random numbers, and the
+    results only to rounding (each chunk shape is compiled to its own code: 2.6e-16 relative in a path's U, measured).
     """
     require_x64()
     if not (isinstance(method, str) and method in ("di", "pdmp")):  # 5 was told the list with 'auto' in it
