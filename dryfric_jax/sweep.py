@@ -399,10 +399,7 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
         stale = set(grid_idents) - set(refused)
         pairs = [(_rec_ident(r), r) for r in records]
         pairs = [(i, r) for i, r in pairs if status(r) != "refused" or i not in stale]
-        # a point recorded twice (a hand-edited file) keeps its first record: both were kept, and rows() listed the
-        # point twice (an audit)
-        seen: set = set()
-        pairs = [(i, r) for i, r in pairs if not (i in seen or seen.add(i))]
+        pairs = _one_per_point(pairs, max_time, out)
         kept, have = [r for _, r in pairs], dict(pairs)
         new_refused = [(i, pt, why) for i, (pt, why) in refused.items() if i not in have]
         for i, pt, why in new_refused:
@@ -560,6 +557,25 @@ def _outdated(rec: dict) -> bool:
     return status(rec) != "refused" and rec.get("version") != __version__
 
 
+def _one_per_point(pairs: list, max_time, out: str) -> list:
+    """``(identity, record)`` pairs with one record per point: where a file holds a point twice (hand-edited or
+    merged), the first record this sweep would not rerun (not stopped short of ``max_time``, not of another version),
+    else the first; a :class:`DryfricWarning` says how many.  Both were kept, and rows() listed the point twice (an
+    audit); keeping the first whatever it was dropped a finished record for a stale one (a review)."""
+    best: dict = {}
+    for k, (i, r) in enumerate(pairs):
+        stale = _more_time(r, max_time) or _outdated(r)
+        if i not in best or (best[i][1] and not stale):
+            best[i] = (k, stale)
+    if len(best) == len(pairs):
+        return pairs
+    n = len(pairs) - len(best)
+    warnings.warn(f"{out} held {n} record{'s' if n > 1 else ''} of points recorded already (a hand-edited or merged "
+                  "file): kept one record per point, a finished one where there was one", DryfricWarning, stacklevel=3)
+    keep = {k for k, _ in best.values()}
+    return [pr for k, pr in enumerate(pairs) if k in keep]
+
+
 def _rec_ident(rec: dict) -> str:
     return _ident(rec["sweep_seed"], rec["params"], rec["settings"])
 
@@ -596,7 +612,8 @@ def rows(path: str, seed: int | None = None, **settings) -> list[dict]:
     if seed is not None:  # 'a' or -1 matched nothing and gave [] without a word
         seed = check_seed(seed)
     out = []
-    for r in read_results(path):
+    pairs = _one_per_point([(_rec_ident(r), r) for r in read_results(path)], None, path)  # as a resume keeps them
+    for _, r in pairs:
         if (seed is not None and r["sweep_seed"] != seed) or any(r["settings"].get(k) != v
                                                                  for k, v in settings.items()):
             continue

@@ -279,11 +279,25 @@ def test_a_setting_beyond_float_range_refuses_the_file_by_line(tmp_path, capsys)
 
 def test_a_point_recorded_twice_keeps_one_record_on_resume(tmp_path, calls):
     """A hand-edited file holding one record twice was resumed with both kept, and rows() listed the point twice
-    (an audit); the resume keeps the first and computes nothing."""
+    (an audit); the resume keeps one, the finished one where the other would be rerun (keeping the first whatever
+    it was dropped a finished record for an old version's: a review), says so, and computes nothing."""
     out = str(tmp_path / "s.jsonl")
     assert sweep.run_sweep(sweep.grid(Gamma=[2.0, 3.0]), out, **KW)["computed"] == 2
     first, second = _lines(out)
-    outfiles.write_records(out, [first, second, {**first, "finished_at": "edited"}])
-    r = sweep.run_sweep(sweep.grid(Gamma=[2.0, 3.0]), out, **KW)
+    outfiles.write_records(out, [{**first, "version": "0.0.1"}, second, first, {**second, "note": "edited"}])
+    with pytest.warns(DryfricWarning, match=r"held 2 records of points recorded already .* kept one record per point"):
+        r = sweep.run_sweep(sweep.grid(Gamma=[2.0, 3.0]), out, **KW)
     assert (r["computed"], r["skipped"]) == (0, 2) and len(calls) == 2
-    assert _lines(out) == [first, second] and len(sweep.rows(out)) == 2
+    assert _lines(out) == [second, first] and len(sweep.rows(out)) == 2
+
+
+def test_rows_of_a_file_holding_a_point_twice_list_it_once(tmp_path, calls):
+    """rows() listed a point recorded twice twice until a resume rewrote the file (a review); it lists it once, the
+    record a resume would keep, and says so."""
+    out = str(tmp_path / "s.jsonl")
+    sweep.run_sweep(sweep.grid(Gamma=[2.0]), out, **KW)
+    (first,) = _lines(out)
+    outfiles.write_records(out, [{**first, "version": "0.0.1"}, first])
+    with pytest.warns(DryfricWarning, match="held 1 record of points recorded already"):
+        (row,) = sweep.rows(out)
+    assert row["D"] == first["result"]["D"] and len(_lines(out)) == 2  # read only
