@@ -9,6 +9,7 @@ import math
 import os
 import stat
 import tempfile
+import time
 
 try:
     import fcntl
@@ -153,21 +154,29 @@ def _tmp_prefix(path: str) -> str:
     return f".{os.path.basename(path)}.dryfric-"
 
 
+#: a temporary file of :func:`write_atomic` this old (s) is a killed write's: a live write takes seconds
+STALE_TMP_S = 600.0
+
+
 def _drop_stale_tmp(path: str) -> None:
     """Remove the temporary files of ``path`` that a killed write left (a SIGKILL between :func:`write_atomic`'s
-    creating and renaming one; each a whole copy of the results, 10 MB in an audit, one more per kill).  Called
-    only under a held :func:`locked` of ``path``: every writer of a results file holds that lock, so any such file
-    then is no one's."""
+    creating and renaming one; each a whole copy of the results, 10 MB in an audit, one more per kill), and those
+    of the older unnamed kind (``.dryfric-*.tmp``, before 2026-12-07), older than :data:`STALE_TMP_S`.  Called only
+    under a held :func:`locked` of ``path``: every writer of a results file holds that lock; the age also spares a
+    writer on another host where the lock is per host (NFS with ``local_lock``: a review)."""
     real = os.path.realpath(path)
     d, prefix = os.path.dirname(real), _tmp_prefix(real)
     try:
         names = os.listdir(d)
     except OSError:
         return
+    now = time.time()
     for name in names:
-        if name.startswith(prefix) and name.endswith(".tmp"):
+        if (name.startswith(prefix) or name.startswith(".dryfric-")) and name.endswith(".tmp"):
+            f = os.path.join(d, name)
             with contextlib.suppress(OSError):
-                os.unlink(os.path.join(d, name))
+                if now - os.stat(f).st_mtime > STALE_TMP_S:
+                    os.unlink(f)
 
 
 def write_atomic(path: str, text: str | bytes) -> None:

@@ -2,6 +2,7 @@
 import json
 import math
 import os
+import time
 
 import numpy as np
 import pytest
@@ -67,14 +68,18 @@ def test_a_failed_write_keeps_the_old_file_and_leaves_no_temporary_file(tmp_path
 def test_a_killed_writes_temporary_file_is_removed_by_the_next_locked_write(tmp_path, monkeypatch):
     """A SIGKILL between write_atomic's creating and renaming its temporary file left it beside the results, a
     whole copy of them, one more per kill (an audit: 10 MB each).  The next write under the file's lock removes
-    those of that file only; another file's are left alone (its writer may be at work)."""
+    those of that file, and those of the older unnamed kind, older than STALE_TMP_S (a live write takes seconds;
+    the age spares another host's writer where the lock is per host: a review); another file's are left alone."""
     path = tmp_path / "r.jsonl"
-    stale = tmp_path / ".r.jsonl.dryfric-abc123.tmp"
-    other = tmp_path / ".fig3.json.dryfric-xyz789.tmp"
-    stale.write_text("a killed write\n")
-    other.write_text("another file's write\n")
+    names = {"stale": ".r.jsonl.dryfric-abc123.tmp", "unnamed": ".dryfric-old456.tmp",
+             "fresh": ".r.jsonl.dryfric-new000.tmp", "other": ".fig3.json.dryfric-xyz789.tmp"}
+    old = time.time() - outfiles.STALE_TMP_S - 60
+    for what, name in names.items():
+        (tmp_path / name).write_text(what + "\n")
+        if what != "fresh":
+            os.utime(tmp_path / name, (old, old))
     outfiles.put_record(str(path), {"a": 1}, lambda old: False, lambda p: [])
-    assert sorted(os.listdir(tmp_path)) == sorted([".fig3.json.dryfric-xyz789.tmp", "r.jsonl"])
+    assert sorted(os.listdir(tmp_path)) == sorted([names["fresh"], names["other"], "r.jsonl"])
     seen, real = [], os.replace
     monkeypatch.setattr(os, "replace", lambda a, b: (seen.append(os.path.basename(a)), real(a, b))[1])
     write_atomic(str(path), "x\n")  # its own temporary file is named for its target
