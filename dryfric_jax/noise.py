@@ -48,6 +48,13 @@ def delta_max(tau: float, gamma_bar: float = 0.0) -> float:
     return 4.0 / (a + math.hypot(a, 4.0 * math.sqrt(tau)))
 
 
+def least_delta(tau: float, gamma_bar: float = 0.0, scale: float = 1.0) -> str | None:
+    """The smallest delta whose grid fits (at most 2^31 - 1 points), in units of ``scale``, as a refusal states it:
+    rounded up, so that it is admissible; None where it would not stay below delta_max (no delta is admissible)."""
+    shown_least = rounded_bound(required_reach(tau, gamma_bar) / (2**30 - 2) * scale, lower=True)
+    return shown_least if float(shown_least) < delta_max(tau, gamma_bar) * scale else None
+
+
 def check_delta(delta: float, tau: float, gamma_bar: float = 0.0, *, scale: float = 1.0) -> None:
     """ValueError naming delta and its admissible range (in units of ``scale``, e.g. physical); a JAX tracer is
     refused as one (it was told the range)."""
@@ -58,8 +65,8 @@ def check_delta(delta: float, tau: float, gamma_bar: float = 0.0, *, scale: floa
     if not ok:
         # the least delta whose grid fits (grid_size's bound), stated too: "(0, ...)" alone sent a user to a
         # 1e-9 that grid_size then refused (an audit)
-        least = rounded_bound(required_reach(tau, gamma_bar) / (2**30 - 2) * scale, lower=True)
-        low = (f"; and delta >= {least} here, or the grid exceeds {2**31 - 1} points" if float(least) < dm * scale
+        least = least_delta(tau, gamma_bar, scale)
+        low = (f"; and delta >= {least} here, or the grid exceeds {2**31 - 1} points" if least is not None
                else f"; no delta is admissible here (its grid would exceed {2**31 - 1} points): use method 'di'")
         raise ValueError(
             f"delta must be in (0, {rounded_bound(dm * scale, lower=False)}) for these parameters "
@@ -78,9 +85,8 @@ def grid_size(delta: float, tau: float, gamma_bar: float = 0.0, shown_as: str | 
     n = reach / delta  # may be inf
     if not n <= 2**30 - 2:  # 2 ceil(n) + 3 <= 2**31 - 1 points
         shown_as = shown_as or f"delta' = {delta!r}"
-        least = reach / (2**30 - 2)  # the smallest delta' whose grid fits, stated rounded up: it must stay below
-        shown_least = rounded_bound(least * (scale or 1.0), lower=True)  # delta_max to be admissible
-        if float(shown_least) < delta_max(tau, gamma_bar) * (scale or 1.0):
+        shown_least = least_delta(tau, gamma_bar, scale or 1.0)
+        if shown_least is not None:
             name, unit = ("delta'", "") if scale is None else ("delta", " s^-1/2")
             fix = f"{name} must be >= {shown_least}{unit} here, or use method 'di'"
         else:

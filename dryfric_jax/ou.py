@@ -97,8 +97,9 @@ def ou_moments(h, tau):
     """
     check_positive("h", h)  # concrete values only, as in ou_step (0 or -1 gave NaN or a negative variance)
     check_positive("tau", tau)
-    check_ratio(h, tau, jnp.result_type(h, float))
-    h = jnp.asarray(h, jnp.result_type(h, float))  # an integer h made tau an integer: tau = 0.5 became 0
+    ct = jnp.result_type(h, float)  # the dtype it computes in
+    check_ratio(h, tau, ct)
+    h = jnp.asarray(h, ct)  # an integer h made tau an integer: tau = 0.5 became 0
     tau = jnp.asarray(tau, dtype=h.dtype)
     r = h / tau
     em1 = jnp.expm1(-r)  # e^{-r} - 1, accurate for small r
@@ -142,8 +143,9 @@ def ou_step(h, tau, dtype=None) -> OUStep:
     check_positive("h", h)  # concrete values only; a tracer is checked where it was made
     check_positive("tau", tau)
     dtype = jnp.result_type(float) if dtype is None else dtype_name(dtype)  # float16 was accepted, "foo" a TypeError
-    check_ratio(h, tau, jnp.result_type(h, float))
-    h = jnp.asarray(h, jnp.result_type(h, float))
+    ct = jnp.result_type(h, float)  # the dtype it computes in
+    check_ratio(h, tau, ct)
+    h = jnp.asarray(h, ct)
     tau = jnp.asarray(tau, h.dtype)
     r = h / tau
     em1 = jnp.expm1(-r)
