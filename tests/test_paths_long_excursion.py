@@ -44,17 +44,44 @@ def _check_structure(e, h):
     return rel
 
 
+def _replay(m, key, n_steps):
+    """The chain of the docstring's keys, replayed here by a ``lax.scan`` (independent of the function's loop and
+    flags): X_0 = the stationary sd x normal(split(key)[0]), V_0 = 0, step i from model.draw(fold_in(split(key)[1],
+    i), 1).  Returns X and V at steps 0..n_steps and the changes of release direction, (index, sign), the first
+    step no release (V_{-1} "not stuck", NaN, as in the count's lanes)."""
+    ks, kst = jax.random.split(key)
+
+    def step(c, i):
+        X, V = c
+        z1, z2 = m.draw(jax.random.fold_in(kst, i), 1)
+        _, Xn, Vn, _ = m.move(X, V, z1[0], z2[0])
+        return (Xn, Vn), (Xn, Vn)
+
+    x0 = _stationary_sd(m) * jax.random.normal(ks, (), m.h.dtype)
+    _, (xs, vs) = jax.lax.scan(step, (x0, jax.numpy.zeros((), m.h.dtype)),
+                               jax.numpy.arange(n_steps, dtype=np.uint32))
+    xs, vs = np.concatenate([[float(x0)], np.asarray(xs)]), np.concatenate([[0.0], np.asarray(vs)])
+    rel = _releases(math.nan, vs)
+    return xs, vs, [(i, s) for (i, s), (_, s0) in zip(rel[1:], rel[:-1]) if s != s0]
+
+
 def test_fig3_point_seed_0_is_one_long_excursion():
-    """Figs. 1-2's DI row (Fig. 3's parameters, the default step, seed 0): one long excursion, 2.316 s (its +HLE
-    1.196 s), where ``di_excursion``'s cycle was 18.68 s with ~3 of them.  More than one release towards V > 0
-    in the +HLE (the particle sticks and moves on), so the rule is "the direction changes", not "any release"."""
+    """Figs. 1-2's DI row (Fig. 3's parameters, the default step, seed 0): one long excursion (2.316 s, its +HLE
+    1.196 s, measured), where ``di_excursion``'s cycle was 18.68 s with ~3 of them.  Its start, half and end are
+    the replayed chain's first change of release direction to V > 0, the next (to V < 0) and the one after.  More
+    than one release towards V > 0 in the +HLE (the particle sticks and moves on), so the rule is "the direction
+    changes", not "any release"."""
     p = Params(**FIG3)
     h = default_h(p)
     m = make_di_model(p, h)
     e = di_long_excursion(m, jax.random.key(0))
     rel = _check_structure(e, h / p.tau0)
-    assert e["duration"] * p.tau0 == pytest.approx(2.31619, rel=1e-9)
-    assert e["t"][e["i_half"]] * p.tau0 == pytest.approx(1.19595, rel=1e-9)
+    _, _, changes = _replay(m, jax.random.key(0), 60_000)
+    k = next(j for j, (_, s) in enumerate(changes) if s == 1)  # to V > 0, after a release to V < 0
+    (start, _), (half, down), (end, up) = changes[k:k + 3]
+    assert (down, up) == (-1, 1)
+    assert e["duration"] == pytest.approx((end - start) * h / p.tau0, rel=1e-12)
+    assert e["i_half"] == half - start
     assert len(rel) > 3
 
 
@@ -76,20 +103,9 @@ def test_the_steps_are_the_chain_of_the_documented_keys(seed):
     m = make_di_model(Params.from_nondim(tau), h)
     key = jax.random.key(seed)
     e = di_long_excursion(m, key, 100_000)
-    ks, kst = jax.random.split(key)
-
-    def step(c, i):
-        X, V = c
-        z1, z2 = m.draw(jax.random.fold_in(kst, i), 1)
-        _, Xn, Vn, _ = m.move(X, V, z1[0], z2[0])
-        return (Xn, Vn), (Xn, Vn)
-
-    x0 = _stationary_sd(m) * jax.random.normal(ks, (), m.h.dtype)
     N = 30_000
-    _, (xs, vs) = jax.lax.scan(step, (x0, jax.numpy.zeros((), m.h.dtype)), jax.numpy.arange(N, dtype=np.uint32))
-    xs, vs = np.concatenate([[float(x0)], np.asarray(xs)]), np.concatenate([[0.0], np.asarray(vs)])
-    rel = _releases(math.nan, vs)
-    firsts = [i for (i, s), (_, s0) in zip(rel[1:], rel[:-1]) if s == 1 and s0 == -1]
+    xs, vs, changes = _replay(m, key, N)
+    firsts = [i for i, s in changes if s == 1]  # a change to V > 0: a release to V < 0 came before
     assert firsts and firsts[0] + len(e["v"]) <= N + 1
     s = firsts[0]
     assert s >= 1 and vs[s - 1] == vs[s] == 0.0 < vs[s + 1]  # the start is a release towards V > 0
