@@ -10,9 +10,7 @@ nondimensional (:math:`\tau_0, u_0`); times are in steps of the model's h.
 * :func:`di_stationary`: paths after a burn-in, V and U recorded every ``every`` steps (Figs. 4, 5, 7);
 * :func:`pdmp_stationary`: the PDMP's V on a time grid after a burn-in (Fig. 4);
 * :func:`di_long_excursion`: one of the paper's long excursions step by step, from release to release (Figs.
-  1-2; the PDMP's is :func:`~dryfric_jax.pdmp.excursion_skeleton`);
-* :func:`di_excursion`: one Nummelin regeneration cycle step by step (C_+ to C_- to C_+: one or more of the
-  paper's long excursions, :mod:`dryfric_jax.regeneration`).
+  1-2; the PDMP's is :func:`~dryfric_jax.pdmp.excursion_skeleton`).
 """
 from __future__ import annotations
 
@@ -274,69 +272,8 @@ def autocorrelation(V: np.ndarray, max_lag: int, center: bool = True) -> tuple[n
     return r, resid.std(0, ddof=1) / (np.sqrt(V.shape[0]) * b)
 
 
-@partial(jax.jit, static_argnames=("max_steps",))
-def _excursion(model: DIModel, key, *, max_steps: int):
-    dt = model.h.dtype
-    buf = dict(X=jnp.zeros(max_steps + 1, dt), V=jnp.zeros(max_steps + 1, dt), U=jnp.zeros(max_steps + 1))
-
-    def cond(c):
-        i, n, phase, *_ = c
-        # at n = max_steps the buffers are full, but one more coin may still end the -HLE there
-        return (i < 50 * max_steps) & ((n < max_steps) | ((n == max_steps) & (phase == 2))) & (phase < 3)
-
-    def body(c):
-        i, n, phase, n_half, X, V, U, b = c
-        kb = jax.random.fold_in(key, i)
-        z1, z2 = model.draw(kb, 1)
-        r = (z1[0], z2[0])
-        (Xn, Vn), dU, _, candidate = model.advance((X, V), r, phase != 1)
-        heads = candidate & model.coin((X, V), r, phase != 1, jax.random.fold_in(model.coin_key(kb), 0))
-        # phase 0: seeking a regeneration on C_+; 1: +HLE (until C_-); 2: -HLE (until C_+); 3: done; 4: max_steps
-        start = (phase == 0) & heads
-        U = jnp.where(start, 0.0, U)
-        put = lambda bb, j, vals: {k: bb[k].at[j].set(vals[k]) for k in bb}  # noqa: E731
-        b = jax.lax.cond(start, lambda bb: put(bb, 0, dict(X=X, V=V, U=0.0)), lambda bb: bb, b)
-        ends = (phase == 2) & heads  # the regenerating step belongs to the next excursion
-        rec = ((phase == 1) | (phase == 2) | start) & ~ends
-        full = rec & (n == max_steps)  # a state past the buffers: stopped by max_steps, not complete
-        rec = rec & ~full
-        U = U + jnp.where(rec, dU, 0.0)
-        n = n + rec
-        b = jax.lax.cond(rec, lambda bb: put(bb, n, dict(X=Xn, V=Vn, U=U)), lambda bb: bb, b)
-        n_half = jnp.where((phase == 1) & heads, n - 1, n_half)
-        phase = jnp.where(start, 1, jnp.where(heads & (phase == 1), 2, jnp.where(ends, 3, phase)))
-        phase = jnp.where(full, 4, phase)
-        return i + 1, n, phase, n_half, Xn, Vn, U, b
-
-    init = (jnp.asarray(0), jnp.asarray(0), jnp.asarray(0), jnp.asarray(-1), jnp.asarray(model.x_plus, dt),
-            jnp.asarray(0.0, dt), jnp.asarray(0.0, jnp.float64), buf)
-    _, n, phase, n_half, _, _, _, b = jax.lax.while_loop(cond, body, init)
-    return n, phase, n_half, b
-
-
-#: largest ``max_steps`` of :func:`di_excursion` and :func:`di_long_excursion` (three buffers of max_steps + 1 states)
+#: largest ``max_steps`` of :func:`di_long_excursion` (three buffers of max_steps + 1 states)
 MAX_EXCURSION_STEPS = 2**31 - 1
-
-
-def di_excursion(model: DIModel, key, max_steps: int = 200_000) -> dict:
-    """One regeneration cycle of the DI (regeneration on C_+, through C_-, back to C_+) step by step: the D
-    estimator's cycle, one or more of the paper's long excursions (those are :func:`di_long_excursion`'s).
-
-    Returns nondimensional numpy arrays ``t, x, v, U`` (index 0 is the state before the first
-    step of the excursion), ``i_half`` (the step at which the -HLE begins) and ``complete``
-    (False if ``max_steps`` stopped it first).  The seek before the first regeneration is bounded
-    by 50 ``max_steps`` steps.  ``key`` is a ``jax.random`` key or an integer seed in [0, 2^62];
-    ``max_steps`` an integer in [1, 2^31 - 1] (its buffers hold max_steps + 1 states).
-    """
-    _check_model(model)
-    key = _key(key)[0]
-    max_steps = check_count("max_steps", max_steps, 1, MAX_EXCURSION_STEPS, " (its buffers hold max_steps + 1 states)")
-    n, phase, n_half, b = jax.device_get(_excursion(model, key, max_steps=max_steps))
-    n = int(n)
-    out = {k: np.asarray(v)[: n + 1].astype(np.float64) for k, v in b.items()}
-    out = dict(t=np.arange(n + 1) * float(model.h), x=out["X"], v=out["V"], U=out["U"], i_half=int(n_half),
-               complete=bool(phase == 3))
-    return out
 
 
 @partial(jax.jit, static_argnames=("max_steps",))
@@ -403,7 +340,7 @@ def di_long_excursion(model: DIModel, key, max_steps: int = 200_000, max_seek: i
     so that a V passing through 0 for one step is not one.  In continuous time a release towards
     :math:`V > 0` happens only where X crosses :math:`x_{\Delta}` (the state is then :math:`(x_{\Delta}, 0)`),
     one towards :math:`V < 0` only at :math:`x_{-\Delta}`; an HLE therefore ends where the direction of release
-    changes.  This is not :func:`di_excursion`'s Nummelin cycle (C_+ to C_- to C_+, cut by a coin:
+    changes.  This is not the D estimator's Nummelin cycle (C_+ to C_- to C_+, cut by a coin:
     :mod:`dryfric_jax.regeneration`), which spans a random number >= 1 of these long excursions.
 
     The chain (:meth:`~dryfric_jax.di.DIModel.move`) starts as the durations count's lanes do: X from its stationary

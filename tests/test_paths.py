@@ -9,7 +9,7 @@ import pytest
 
 from dryfric_jax import rng
 from dryfric_jax.params import FIG3, Params
-from dryfric_jax.paths import (autocorrelation, autocovariance, di_excursion, di_stationary, di_transient,
+from dryfric_jax.paths import (autocorrelation, autocovariance, di_stationary, di_transient,
                                pdmp_stationary)
 from dryfric_jax.pdmp import flow, make_pdmp_model
 
@@ -251,9 +251,6 @@ _V_NAN = np.where(np.arange(50) == 3, np.nan, _V)
     (lambda m: di_stationary(m, 0, 2, 3, burn_steps=2**31), r"^burn_steps must be an integer in \[0, 2147483647\]"),
     (lambda m: di_stationary(m, 0, 2, 3, every=2**31), r"^every must be an integer in \[1, 2147483647\] \(steps"),
     (lambda m: di_transient(m, 0, 2, [1, 2**31 + 5]), r"^record_steps must be at most 2147483647 apart"),
-    (lambda m: di_excursion(m, 0, -1), r"^max_steps must be an integer in \[1, "),  # was an IndexError
-    (lambda m: di_excursion(m, 0, 0), r"^max_steps must be an integer in \[1, "),
-    (lambda m: di_excursion(m, 0, 2**40), r"^max_steps must be an integer in \[1, "),
 ])
 def test_path_recorders_refuse_bad_arguments_by_name(di_model, call, match):
     with pytest.raises(ValueError, match=match):
@@ -269,7 +266,6 @@ def test_path_recorders_take_an_int_seed_as_the_api_does(di_model):
     a = di_stationary(di_model, np.int64(5), np.int64(2), np.array(3), 2, 1)
     for x, y in zip(a, di_stationary(di_model, k, 2, 3, 2, 1)):
         np.testing.assert_array_equal(x, y)
-    np.testing.assert_array_equal(di_excursion(di_model, 5, 2000)["v"], di_excursion(di_model, k, 2000)["v"])
     r, se = autocorrelation(_V, np.int64(49))
     assert r.shape == se.shape == (50,) and r[0] == 1.0 and np.all(np.isfinite(se))
 
@@ -382,30 +378,6 @@ def test_record_steps_may_repeat_and_are_not_bools(di_model):
             _record_steps(bad)
     V = di_transient(di_model, 0, 2, [0, 4, 4])
     assert np.all(V[:, 0] == 1.0) and np.array_equal(V[:, 1], V[:, 2]) and np.all(V[:, 1] != 1.0)
-
-
-@pytest.mark.parametrize("tau,h,seed", [(0.05, 2e-3, 1), (1.0, 1e-2, 0)])
-def test_di_excursion_is_one_excursion_from_c_plus_through_c_minus_to_c_plus(tau, h, seed):
-    """The arrays of Figs. 1-2: one state per step (t = k h), stuck in C_+ at index 0 and at the
-    end (the state whose coin ends it; the regenerating step belongs to the next excursion),
-    stuck in C_- at i_half (the state whose coin began the -HLE), and U the trapezoid sum of v
-    from 0.  The runs are 4289 and 3258 states long."""
-    from dryfric_jax.di import make_di_model
-
-    m = make_di_model(Params.from_nondim(tau), h)
-    e = di_excursion(m, seed, 100_000)
-    n, k = len(e["t"]), e["i_half"]
-    assert e["complete"] and 100 < k < n - 100 and len(e["x"]) == len(e["v"]) == len(e["U"]) == n
-    np.testing.assert_array_equal(e["t"], np.arange(n) * h)
-    inside = lambda s, x: float(s.c1) <= x <= float(s.c2)  # noqa: E731
-    assert e["v"][0] == e["v"][k] == e["v"][-1] == 0.0
-    assert inside(m.plus, e["x"][0]) and inside(m.minus, e["x"][k]) and inside(m.plus, e["x"][-1])
-    trapezoid = np.concatenate([[0.0], np.cumsum(0.5 * h * (e["v"][1:] + e["v"][:-1]))])
-    np.testing.assert_allclose(e["U"], trapezoid, rtol=0, atol=1e-12 * max(1.0, np.abs(trapezoid).max()))
-    assert np.ptp(e["U"]) > 10 * h  # U moves (an all-zero U would match an all-zero v)
-    short = di_excursion(m, seed, k + 1)  # stopped in the -HLE: the same states so far, not complete
-    assert not short["complete"] and len(short["t"]) == k + 2
-    np.testing.assert_array_equal(short["x"], e["x"][: k + 2])
 
 
 def test_the_model_refusals_name_functions_that_exist():

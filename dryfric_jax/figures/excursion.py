@@ -5,7 +5,7 @@ through its values at the events; s_+ through s_- back to s_+, :func:`~dryfric_j
 and DI (every step; from a release towards V > 0 through the first release towards V < 0 to the next release
 towards V > 0, :func:`~dryfric_jax.paths.di_long_excursion`: the paper's long excursion of section 6.1 as
 :mod:`dryfric_jax.durations` counts them.  Until 2026-12-07 the DI row was one Nummelin regeneration cycle,
-:func:`~dryfric_jax.paths.di_excursion`, which spans one or more of them: ~3 at seed 0).  Columns: X(t), V(t),
+the D estimator's, which spans one or more of them: ~3 at seed 0).  Columns: X(t), V(t),
 U(t), V against X.  Fig. 3 parameters (Gamma = 5, Delta = 3.84, tau = 0.5, tau_L = 0.067, gamma_bar = 0.342), SI
 units.  The excursion shown is the first one a fixed seed produces; its length is random.
 
