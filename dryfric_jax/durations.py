@@ -186,6 +186,13 @@ def bridge_crossing(d0, d1, var1):
     return jnp.where((d0 > 0) & (d1 > 0), jnp.exp(-2.0 * d0 * d1 / var1), 1.0)
 
 
+def released(stuck, V, Vn):
+    r"""The release rule: step n releases the particle when it was stuck a whole step and then moves,
+    :math:`V_{n-1} = V_n = 0 \ne V_{n+1}` (``stuck``: :math:`V_{n-1} = 0`), towards :math:`\operatorname{sign}
+    (V_{n+1})`; a V that lands on 0 for one step while passing through it is no release (module docstring)."""
+    return stuck & (V == 0) & (Vn != 0)
+
+
 def _lane_start(model, keys, live):
     """The lanes' state before the first block (:func:`_lane_blocks`): X drawn from its stationary law, V = 0,
     nothing counted; a lane not ``live`` (padding to a multiple of the devices) is stopped from the start and
@@ -195,8 +202,7 @@ def _lane_start(model, keys, live):
     dt = model.h.dtype
     lanes = keys.shape[0]
     x0 = jax.vmap(lambda k: jax.random.normal(jax.random.fold_in(k, 2**31 - 1), (), dt))(keys)
-    sd = jnp.sqrt((model.ou.L21.astype(jnp.float64) ** 2 + model.ou.L22.astype(jnp.float64) ** 2)
-                  / (1.0 - model.ou.m2.astype(jnp.float64) ** 2)).astype(dt)  # the X chain's stationary sd
+    sd = model.ou.stationary_sd()
     zero_i = jnp.zeros(lanes, jnp.int32)
     zero_n = jnp.zeros(lanes, jnp.int64)
     no = jnp.zeros(lanes, bool)
@@ -232,7 +238,7 @@ def _lane_blocks(model, keys, b, stop, carry, n_excursions, b_end, block: int, b
     def step(z1, z2, u, stop, c):
         X, V, stuck, last, ph, n, s0, off, N, S, Q = c
         _, Xn, Vn, _ = model.move(X, V, z1, z2)
-        release = stuck & (V == 0) & (Vn != 0)  # stuck a whole step before: not a pass through 0
+        release = released(stuck, V, Vn)
         s = jnp.sign(Vn).astype(jnp.int32)
         if bridge:  # X's path between X_n and X_{n+1} crossed the opposite threshold while the particle stayed put
             up = last < 0  # the opposite threshold is x_plus after a release down, x_minus after one up

@@ -27,6 +27,7 @@ from .excursions import BLOCK, block_keys
 from .params import check_finite, check_positive, rounded_bound, shown
 from .limits import MAX_WORK, refuse_known_work
 from .plan import MAX_COUNT, check_count, check_max_work
+from .durations import released
 from .pdmp import PDMPModel, flow
 from .sharding import over_lanes
 
@@ -110,15 +111,6 @@ def _segment(model: DIModel, carry, keys, n_steps: int, block: int = BLOCK):
     return run(carry, n_blocks * block, rest) if rest else carry
 
 
-def _stationary_sd(model: DIModel):
-    r"""Standard deviation of the stationary law of the model's discrete X chain,
-    :math:`\sqrt{(L_{21}^2 + L_{22}^2)/(1 - m_2^2)}`, computed in float64 (in the model's dtype it was
-    8% off at h/tau = 1e-7 in float32): :math:`1/\sqrt{\tau'}` for a float64 model (tested), that of
-    the rounded chain for a float32 one (:func:`_check_model` refuses :math:`m_2 = 1`)."""
-    c = [jnp.asarray(a, jnp.float64) for a in (model.ou.L21, model.ou.L22, model.ou.m2)]
-    return jnp.sqrt((c[0] ** 2 + c[1] ** 2) / (1.0 - c[2] ** 2)).astype(model.h.dtype)
-
-
 def _transient(model, keys, x0, v0, *, segments):
     c = (x0, jnp.full(x0.shape, v0, model.h.dtype), jnp.zeros(x0.shape, jnp.float64))
     out = []
@@ -150,7 +142,7 @@ def di_transient(model: DIModel, key, n_paths: int, record_steps, v0: float = 1.
     if max(segments) > MAX_SEGMENT:
         raise ValueError(f"record_steps must be at most {MAX_SEGMENT} apart{SEGMENT_WHY} "
                          f"(got a gap of {max(segments)})")
-    sd = _stationary_sd(model)
+    sd = model.ou.stationary_sd()  # finite: _check_model refuses m2 = 1
     out = []
     for c in range(-(-n_paths // chunk)):
         m = min(chunk, n_paths - c * chunk)
@@ -164,7 +156,7 @@ def di_transient(model: DIModel, key, n_paths: int, record_steps, v0: float = 1.
 def _stationary(model, keys, *, n_records, every, burn):
     dt = model.h.dtype
     x0 = jax.vmap(lambda k: jax.random.normal(jax.random.fold_in(k, n_records + 1), (), dt))(keys)
-    c = (x0 * _stationary_sd(model), jnp.zeros(x0.shape, dt), jnp.zeros(x0.shape, jnp.float64))
+    c = (x0 * model.ou.stationary_sd(), jnp.zeros(x0.shape, dt), jnp.zeros(x0.shape, jnp.float64))
     if burn:
         c = _segment(model, c, block_keys(keys, n_records), burn)
     c = (c[0], c[1], jnp.zeros(x0.shape, jnp.float64))  # U counted from the end of the burn-in
@@ -285,7 +277,7 @@ def _long_excursion(model: DIModel, key, max_seek, *, max_steps: int):
     dt = model.h.dtype
     buf = dict(X=jnp.zeros(max_steps + 1, dt), V=jnp.zeros(max_steps + 1, dt), U=jnp.zeros(max_steps + 1))
     k_start, k_steps = jax.random.split(key)
-    x0 = _stationary_sd(model) * jax.random.normal(k_start, (), dt)
+    x0 = model.ou.stationary_sd() * jax.random.normal(k_start, (), dt)
     put = lambda bb, j, vals: {k: bb[k].at[j].set(vals[k]) for k in bb}  # noqa: E731
 
     def cond(c):
@@ -299,7 +291,7 @@ def _long_excursion(model: DIModel, key, max_seek, *, max_steps: int):
         i, n, phase, n_half, X, V, V_prev, U, b = c
         z1, z2 = model.draw(jax.random.fold_in(k_steps, i.astype(jnp.uint32)), 1)
         _, Xn, Vn, dU = model.move(X, V, z1[0], z2[0])
-        release = (V_prev == 0) & (V == 0) & (Vn != 0)  # stuck a whole step, then moving (durations.py)
+        release = released(V_prev == 0, V, Vn)
         up, down = release & (Vn > 0), release & (Vn < 0)
         start = (phase == 1) & up
         # the start's step records the state before it (index 0, U = 0) and after it (index 1); in the HLEs each

@@ -121,13 +121,13 @@ def test_di_recorders_match_the_per_path_definition(dtype):
     the last place: the two programs may contract a multiply-add differently (a wrong number
     would move a path by O(h^1/2) at once)."""
     from dryfric_jax.di import make_di_model
-    from dryfric_jax.paths import _stationary_sd, di_stationary, di_transient
+    from dryfric_jax.paths import di_stationary, di_transient
 
     m = make_di_model(Params.from_nondim(0.05), 2e-3, dtype)
     key = jax.random.key(11)
     steps = (0, 5, 5 + 128, 5 + 128 + 300)
     V = di_transient(m, key, 5, steps, v0=1.0, chunk=4)  # a chunk of 1: padded on 2 devices
-    sd = _stationary_sd(m)
+    sd = m.ou.stationary_sd()
     eps = float(jnp.finfo(dtype).eps)
     close = lambda a, b: np.testing.assert_allclose(a, np.asarray(b), rtol=16 * eps, atol=16 * eps)  # noqa: E731
 
@@ -289,7 +289,6 @@ def test_the_stationary_start_is_the_noise_law(tau):
     """The paths start with X from the stationary law of the OU noise, N(0, 1/tau') (no test saw
     a start 3 times too wide: the tests of the paths run where one step forgets X)."""
     from dryfric_jax.di import make_di_model
-    from dryfric_jax.paths import _stationary_sd
 
     p = Params.from_nondim(tau)
     for h in (1e-3, 0.1):  # h/tau from 1e-6 to 100
@@ -297,7 +296,7 @@ def test_the_stationary_start_is_the_noise_law(tau):
         # rel = 1e-12 written here was 3e-11 in effect (pytest's absolute 1e-12 on an sd of 0.03), until the
         # conftest made rel alone relative
         rel = max(1e-13, 1e-16 * tau / h)
-        assert float(_stationary_sd(make_di_model(p, h * p.tau0))) == pytest.approx(1 / math.sqrt(tau), rel=rel)
+        assert float(make_di_model(p, h * p.tau0).ou.stationary_sd()) == pytest.approx(1 / math.sqrt(tau), rel=rel)
 
 
 def test_a_float32_model_whose_noise_decay_rounds_to_1_is_refused():

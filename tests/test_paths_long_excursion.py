@@ -12,7 +12,7 @@ from dryfric_jax.di import make_di_model
 from dryfric_jax.durations import di_long_excursion_duration
 from dryfric_jax.estimators import t_quantile
 from dryfric_jax.params import FIG3, Params
-from dryfric_jax.paths import _stationary_sd, di_long_excursion
+from dryfric_jax.paths import di_long_excursion
 from dryfric_jax.plan import default_h
 
 
@@ -57,7 +57,7 @@ def _replay(m, key, n_steps):
         _, Xn, Vn, _ = m.move(X, V, z1[0], z2[0])
         return (Xn, Vn), (Xn, Vn)
 
-    x0 = _stationary_sd(m) * jax.random.normal(ks, (), m.h.dtype)
+    x0 = m.ou.stationary_sd() * jax.random.normal(ks, (), m.h.dtype)
     _, (xs, vs) = jax.lax.scan(step, (x0, jax.numpy.zeros((), m.h.dtype)),
                                jax.numpy.arange(n_steps, dtype=np.uint32))
     xs, vs = np.concatenate([[float(x0)], np.asarray(xs)]), np.concatenate([[0.0], np.asarray(vs)])

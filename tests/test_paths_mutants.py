@@ -15,7 +15,7 @@ import pytest
 from dryfric_jax import rng
 from dryfric_jax.di import make_di_model
 from dryfric_jax.params import Params
-from dryfric_jax.paths import _stationary_sd, di_transient
+from dryfric_jax.paths import di_transient
 
 TAU = 0.05  # tau' (pure dry friction: Gamma = Delta = 1, b = 0)
 H = 2e-3  # h'
@@ -71,7 +71,7 @@ def test_di_transient_starts_at_v0_and_chunks_that_divide_n_paths(v0):
 
 
 def test_stationary_sd_of_a_float32_model_is_that_of_its_rounded_chain():
-    """Kills: _stationary_sd computed in the model's dtype instead of float64 (2.5e-5 relative off
+    """Kills: OUStep.stationary_sd computed in the model's dtype instead of float64 (2.5e-5 relative off
     at h/tau = 1e-4 in float32; immaterial to any figure, which all run float64, but the docstring
     promises float64).  Oracle: the exact stationary sd of the AR(1) chain X' = m2 X + L21 z1 +
     L22 z2 with the model's float32 coefficients, sqrt((L21^2 + L22^2) / (1 - m2^2)) in numpy
@@ -80,7 +80,7 @@ def test_stationary_sd_of_a_float32_model_is_that_of_its_rounded_chain():
     m = make_di_model(p, 1e-3 * p.tau0, "float32")
     l21, l22, m2 = (np.float64(np.asarray(a)) for a in (m.ou.L21, m.ou.L22, m.ou.m2))
     exact = math.sqrt((l21**2 + l22**2) / (1.0 - m2**2))
-    sd = _stationary_sd(m)
+    sd = m.ou.stationary_sd()
     assert sd.dtype == jnp.float32
     assert float(sd) == pytest.approx(exact, rel=1e-6)
     # near the OU law 1/sqrt(tau'): m2's float32 rounding (6e-8) moves 1 - m2^2 = 2e-4 by up to 3e-4
