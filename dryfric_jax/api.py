@@ -727,8 +727,7 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
     results only to rounding (each chunk shape is compiled to its own code: 2.6e-16 relative in a path's U, measured).
     """
     require_x64()
-    if not (isinstance(method, str) and method in ("di", "pdmp")):  # 5 was told the list with 'auto' in it
-        raise ValueError(f"method must be 'di' or 'pdmp' for brute force (got {shown(method)})")
+    check_method(method, h, delta, auto=False)  # 'auto' refused, and 5 not told a list with 'auto' in it
     n_paths = check_count("n_paths", n_paths, MIN_PATHS, hi=MAX_COUNT, why=" (with 2 paths the D_t CI is 0)")
     max_work = check_max_work(max_work)
     block = check_layout(None, block)[1]
@@ -738,7 +737,6 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
         if method == "di":  # it was taken and ignored
             raise ValueError("max_events must not be given with method 'di': it bounds the PDMP's events per "
                              "path (the DI runs exactly t/h steps)")
-    check_method(method, h, delta, auto=False)
     plan = choose(params, method, h, delta, dtype)
     notes, method, h, grid, dname = plan.notes, plan.method, plan.h, plan.grid, plan.dtype
     check_positive("t", t)

@@ -176,11 +176,12 @@ def check_max_time(max_time) -> float | None:
 
 
 def check_method(method, h=None, delta=None, *, auto: bool = True) -> None:
-    """``ValueError`` unless ``method`` is one of :data:`METHODS` and takes the step given (h or delta); the
-    message offers 'auto' only where the caller takes it (``auto``: brute force does not, and its refusal sent
-    the user to a method it then refused, an audit)."""
-    if not isinstance(method, str) or method not in METHODS:
-        raise ValueError(f"method must be one of {list(METHODS)} (got {shown(method)})")
+    """``ValueError`` unless ``method`` is one of :data:`METHODS` and takes the step given (h or delta).  Where the
+    caller does not take 'auto' (``auto=False``: brute force), 'auto' is refused and no message offers it (brute
+    force's refusal sent the user to a method it then refused, an audit)."""
+    if not (isinstance(method, str) and method in METHODS and (auto or method != "auto")):
+        ok = "one of " + str(list(METHODS)) if auto else "'di' or 'pdmp' for brute force"
+        raise ValueError(f"method must be {ok} (got {shown(method)})")
     alt = " or 'auto'" if auto else ""
     if method == "di" and delta is not None:
         raise ValueError(f"delta must not be given with method 'di': it is the PDMP noise grid step "

@@ -299,6 +299,7 @@ def test_the_unit_intensity_moment_names_the_callers_values():
     (dict(delta=0.05), r"^delta must not be given with method 'di': it is the PDMP noise grid step \(method 'pdmp'\)$"),
     (dict(method="pdmp", h=1e-3), r"^h must not be given with method 'pdmp': it is the DI step \(method 'di'\)$"),
     (dict(method=5), r"^method must be 'di' or 'pdmp' for brute force \(got 5\)$"),
+    (dict(method="auto"), r"^method must be 'di' or 'pdmp' for brute force \(got 'auto'\)$"),
 ])
 def test_brute_force_offers_only_the_methods_it_takes(kw, match):
     """Its refusals offered method 'auto', which it then refused (an audit)."""
