@@ -250,11 +250,22 @@ def combine_estimates(results: Sequence, *, labels: Sequence[str] | None = None,
     total = {k: math.fsum(r.sums[k] for r in rs) for k in STAT_NAMES}
     if total["n"] > MAX_COUNT:
         raise ValueError(f"results must hold at most 2^62 excursions together (got {total['n']:.3g})")
-    out = _result(first, rs, total, seeds, said)
+    out = _result(_reference(rs), rs, total, seeds, said)
     if not all(map(math.isfinite, (out.D, out.D_ci, out.M0, out.M0_ci))) or out.D < 0:
         raise ValueError(f"results must hold consistent excursion sums: they give D = {out.D:.3g} +- {out.D_ci:.3g}, "
                          f"M0 = {out.M0:.3g} (a hand-edited file?)")
     return out
+
+
+def _reference(rs) -> EstimateResult:
+    """The run whose params, step and settings the pool reports and scales D and M0 by: the least by its params,
+    h, delta, L_X and method reason, so that the choice does not depend on the order of the runs (the first run's
+    made the pool's last digits depend on it where the runs' parameters differ within :func:`_same`'s 1e-12: an
+    audit).  The fields compared are those the runs may differ in; runs equal in all of them report the same."""
+    def order(r):
+        return (sorted(r.params.items()), r.h is None, r.h or 0.0, r.delta is None, r.delta or 0.0,
+                r.L_X is None, r.L_X or 0.0, r.method_reason)
+    return min(rs, key=order)
 
 
 def _result(first: EstimateResult, rs, total: dict, seeds, said=()) -> EstimateResult:
@@ -277,7 +288,7 @@ def _result(first: EstimateResult, rs, total: dict, seeds, said=()) -> EstimateR
         first, D=float(e["D"] * p.D0), D_ci=float(e["D_ci"] * p.D0), M0=float(e["M0"] * p.v0),
         M0_ci=float(e["M0_ci"] * p.v0), mean_duration=float(e["mean_duration"]) * p.tau0,
         mean_duration_ci=float(e["mean_duration_ci"]) * p.tau0, n_excursions=e["n_excursions"],
-        n_truncated=sum(r.n_truncated for r in rs), seed=None, wall_s=wall, lane_steps_per_s=rate,
+        n_truncated=sum(r.n_truncated for r in rs), seed=None, key=None, wall_s=wall, lane_steps_per_s=rate,
         events_per_s=None if first.events_per_s is None else rate,
         lane_utilization=useful / slots if slots else first.lane_utilization,
         work=sum(r.work for r in rs), predicted_work=math.fsum(r.predicted_work for r in rs),

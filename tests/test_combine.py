@@ -372,6 +372,23 @@ def test_the_pool_does_not_depend_on_the_order_of_the_runs(runs):
             (first.D, first.D_ci, first.M0, first.M0_ci, first.mean_duration, first.sums), order
 
 
+def test_runs_whose_params_differ_within_rounding_pool_the_same_in_any_order(runs):
+    """Runs whose parameters agree to 1e-12 (the same run; 'Params.from_nondim' and SI input differ in the last
+    bit) pool: the pool's params, its D and M0 (scaled by them) and its key were the first run's, so its last
+    digits followed the order of the files (an audit: Gamma 5.000000000000001 first gave D ...608, second ...6062).
+    Every field but the list of seeds, which keeps the order given, is now the same in every order."""
+    a, b, c = runs
+    p = dict(b.params, Gamma=b.params["Gamma"] * (1 + 8e-16), Delta=b.params["Delta"] * (1 - 8e-16))
+    assert p != b.params
+    b = dataclasses.replace(b, params=p, key="key<fry>:00000000:0000002a", seed=None, method_reason="other")
+    pools = [combine_estimates(list(order)).to_dict() for order in itertools.permutations([a, b, c])]
+    for pool in pools:
+        assert {k: v for k, v in pool.items() if k != "combined_from"} == \
+            {k: v for k, v in pools[0].items() if k != "combined_from"}
+    assert pools[0]["key"] is None and pools[0]["seed"] is None  # a pool is named by combined_from
+    assert sorted(map(str, pools[0]["combined_from"])) == sorted(map(str, [a.seed, b.key, c.seed]))
+
+
 @pytest.mark.parametrize("field,other", [("method", "pdmp"), ("delta", 0.01), ("L_X", 0.5), ("dtype", "float32")])
 def test_every_setting_of_the_law_must_be_shared(runs, field, other):
     """Runs of another method, step or dtype sample another law: each one alone is refused, naming it
