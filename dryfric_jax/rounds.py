@@ -26,6 +26,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax.sharding import NamedSharding, PartitionSpec, SingleDeviceSharding
 
+from .interrupts import held_interrupts
 from .excursions import (
     BLOCK, SEEK, STAT_NAMES, _events_layout, _Lane, _run_round, _sharded_round, init_lanes, lanes_for,
 )
@@ -127,7 +128,7 @@ class Lanes:
         self.events = _events_layout(self.devices, chain, events)
         # the final round's tail runs on n / COMPACT lanes (see _compact_tail)
         self.compact = compact and self.n // nd >= COMPACT_MIN_PER_DEVICE
-        self.slot_steps, self.paid, self.last = 0, 0, None
+        self.slot_steps, self.paid, self.last, self.rounds = 0, 0, None, 0
         if nd > 1:
             self._f, self._sharding = _sharded_round(self.devices, block, self.events)
             self._rep = NamedSharding(self._sharding.mesh, PartitionSpec())
@@ -192,11 +193,16 @@ class Lanes:
         stats, n_trunc, steps, done, phase, work = (np.stack(stats, axis=1)[:r], np.asarray(n_trunc)[:r],
                                                     np.asarray(steps)[:r], np.asarray(done)[:r],
                                                     np.asarray(phase)[:r], np.asarray(work)[:r])
-        self.paid += int(work.sum()) if finish else int(nb.max()) * self.block * r
-        self.lane = lane  # only once the round has completed (Ctrl-C keeps the previous state)
-        self.last = ExcursionStats(stats, int(n_trunc.sum()), int(steps.sum()), self.slot_steps,
-                                   int((~done).sum()), int((phase != SEEK).sum()), steps)
-        return self.last
+        paid = self.paid + (int(work.sum()) if finish else int(nb.max()) * self.block * r)
+        last = ExcursionStats(stats, int(n_trunc.sum()), int(steps.sum()), self.slot_steps,
+                              int((~done).sum()), int((phase != SEEK).sum()), steps)
+        # the round is kept only once it has completed, and all of it or none: a Ctrl-C before this keeps the
+        # previous state (the round reruns with the same key), and one here waits for the end of the block.  The
+        # lanes set before the stats were built, or before the caller counted the round, made a Ctrl-C there run
+        # the next round on the round's key again (a reproducibility audit); the caller's key is ``rounds``
+        with held_interrupts():
+            self.paid, self.lane, self.last, self.rounds = paid, lane, last, self.rounds + 1
+        return last
 
     def _compact_tail(self, host: _Lane, keys, nb, budget, small: int, deadline=None) -> _Lane:
         """The final round's tail on a compacted batch.  The first part of the round stopped once
@@ -300,15 +306,14 @@ def simulate_long_excursions(chain, key, n_excursions: int, *, lanes: int | None
     round_lane_steps = ROUND_LANE_STEPS if round_lane_steps is None else round_lane_steps
     ln = Lanes(chain, lanes, block=block, max_steps=max_steps)
     closed = lambda st: st.n_excursions + st.n_truncated  # truncated count too: work stays bounded
-    total, budget, r, want, stopped = None, pilot_budget, 0, n_excursions, "n_excursions"
+    total, budget, want, stopped = None, pilot_budget, n_excursions, "n_excursions"
     t_start = _now()
     # the final round finishes the excursions in flight; past 2 max_time it is cut between calls
     deadline = None if max_time is None else t_start + FINAL_DEADLINE * max_time
     while True:  # paused rounds, then a final round; again if the target moved (precision targets)
         try:
             while True:
-                total = ln.advance(jax.random.fold_in(key, r), budget)
-                r += 1
+                total = ln.advance(jax.random.fold_in(key, ln.rounds), budget)
                 if progress is not None:
                     progress(total)
                 done = closed(total)
@@ -339,21 +344,24 @@ def simulate_long_excursions(chain, key, n_excursions: int, *, lanes: int | None
                     budget = max(block, min(budget, int((max_work - ln.paid) // ln.n_real) + block))
         except KeyboardInterrupt:
             stopped = "interrupted"
+            total = ln.last  # the rounds kept (Lanes._round), the last one's too if the Ctrl-C came as it returned
             if total is None or _ABANDON[0]:
                 raise
             deadline = _grace(deadline, total.n_in_flight)
         first_ctrl_c = stopped != "interrupted"  # the run's first Ctrl-C may still come, in this round
         while True:
+            kept = ln.rounds
             try:
-                total = ln.finish(jax.random.fold_in(key, r), deadline=deadline)
-                r += 1
+                total = ln.finish(jax.random.fold_in(key, ln.rounds), deadline=deadline)
                 if total.n_unfinished and deadline is not None and stopped != "interrupted" and _now() >= deadline:
                     stopped = "max_time"  # the deadline cut the final round (whatever ended the rounds)
             except KeyboardInterrupt:
                 stopped = "interrupted"
                 if _ABANDON[0]:
                     raise
-                if first_ctrl_c:  # the first Ctrl-C finishes the in-flight excursions: the final round
+                if ln.rounds > kept:  # the Ctrl-C came as the final round returned: it is kept, and complete
+                    total = ln.last
+                elif first_ctrl_c:  # the first Ctrl-C finishes the in-flight excursions: the final round
                     first_ctrl_c = False  # runs again from its start (same key, lanes unchanged: same chains)
                     deadline = _grace(deadline, total.n_in_flight)
                     continue

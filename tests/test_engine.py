@@ -248,6 +248,58 @@ def test_ctrl_c_acts_between_the_calls_of_a_final_round(monkeypatch):
     assert len(calls) == 3 and ln.lane is before
 
 
+@pytest.mark.parametrize("where", ["before the round is kept", "as the round is kept"])
+def test_a_ctrl_c_at_the_end_of_a_round_never_runs_a_kept_rounds_key_again(monkeypatch, where):
+    """Round r runs on fold_in(key, r).  The lanes were kept before the round's stats were built and before the
+    caller counted the round, so a Ctrl-C in between (a window of microseconds; injected here) ran the final round
+    on the key of the paused round just kept, on lanes that had used it (a reproducibility audit).  Now a round
+    is kept all at once, after its stats: a Ctrl-C before that reruns it on the same key from the same lanes (not
+    kept), one during it waits for its end and the round is kept; either way no kept round's key runs again, and
+    the kept rounds' keys are fold_in(key, 0), fold_in(key, 1), ... in order."""
+    import contextlib
+
+    from dryfric_jax import rounds
+
+    chain = make_di_model(dj.Params.from_nondim(0.5, 1.0, 0.2), 0.02)
+    key, seen, real = jax.random.key(3), [], Lanes._round
+
+    def recording(self, k, *a, **kw):
+        before = self.lane
+        try:
+            return real(self, k, *a, **kw)
+        finally:  # kept: the lanes moved on
+            seen.append((np.asarray(jax.random.key_data(k)).tobytes(), self.lane is not before))
+
+    monkeypatch.setattr(Lanes, "_round", recording)
+    calls = [0]
+    if where == "before the round is kept":
+        real_stats = rounds.ExcursionStats
+
+        def stats(*a):
+            calls[0] += 1
+            if calls[0] == 2:  # the second round's stats
+                raise KeyboardInterrupt
+            return real_stats(*a)
+        monkeypatch.setattr(rounds, "ExcursionStats", stats)
+    else:
+        real_held = rounds.held_interrupts
+
+        @contextlib.contextmanager
+        def held():
+            with real_held():
+                yield
+            calls[0] += 1
+            if calls[0] == 2:  # a signal held over the second round's keeping, raised at its end
+                raise KeyboardInterrupt
+        monkeypatch.setattr(rounds, "held_interrupts", held)
+    total, stopped = simulate_long_excursions(chain, key, 2000, lanes=64, block=8)
+    assert stopped == "interrupted" and calls[0] >= 2 and len(seen) >= 3
+    assert seen[1][1] == (where == "as the round is kept")
+    kept = [k for k, ok in seen if ok]
+    assert kept == [np.asarray(jax.random.key_data(jax.random.fold_in(key, i))).tobytes() for i in range(len(kept))]
+    assert total.n_excursions >= 2 and total.n_in_flight == 0  # the final round finished the excursions in flight
+
+
 def test_max_time_cuts_the_final_round_and_counts_what_it_cut(monkeypatch):
     """max_time bounds the run at about FINAL_DEADLINE x max_time: the rounds stop once max_time has
     passed, and the final round, which finishes the excursions in flight, stops between its calls
@@ -310,8 +362,10 @@ def test_pilot_rounds_stay_within_a_rounds_lane_steps(monkeypatch):
         return st
 
     monkeypatch.setattr(Lanes, "advance", advance)
+    # bounded, so that a defect cannot hang the suite (a mutant that ran every round on one key cycled the lanes
+    # through the same numbers for ~10 min under the default bounds): ~5e4 lane-steps are needed
     simulate_long_excursions(chain, jax.random.key(3), 40, lanes=16, block=8, pilot_budget=16,
-                             round_lane_steps=16 * 64)
+                             round_lane_steps=16 * 64, max_steps=10**5, max_work=10**8)
     pilot = [b for (b, _), closed_before in zip(seen, [0] + [c for _, c in seen]) if closed_before == 0]
     assert len(pilot) >= 3 and max(pilot) == 64, pilot  # 16, 64, 64, ...; it was 16, 64, 256, ...
 

@@ -283,7 +283,8 @@ def test_excursion_stats_total_sums_every_lane_by_name():
 
 class _Script:
     """Replaces Lanes.advance/finish: the k-th paused (final) round returns ``rounds[k]`` (``finals[k]``),
-    the last one repeated, and adds its ``paid``; records budgets, keys and the lanes' settings."""
+    the last one repeated, and adds its ``paid``; records budgets, keys and the lanes' settings.  Each round is
+    kept as Lanes._round keeps one: ``rounds`` counted (the next round's key), ``last`` its stats."""
 
     def __init__(self, monkeypatch, rounds, finals=(None,), more=(), clock=None, limit=12):
         self.rounds, self.finals, self.more_left = list(rounds), list(finals), list(more)
@@ -296,6 +297,7 @@ class _Script:
             assert len(script.budgets) <= limit, "runaway paused rounds"
             st, paid = script.rounds[min(len(script.budgets), len(script.rounds)) - 1]
             ln.paid += paid
+            ln.rounds, ln.last = ln.rounds + 1, st
             return st
 
         def finish(ln, key, budget=0, deadline=None):
@@ -304,7 +306,9 @@ class _Script:
             n = sum(1 for k in script.keys if k[0] == "f")
             assert n <= limit, "runaway final rounds"
             st = script.finals[min(n, len(script.finals)) - 1]
-            return st if st is not None else _stats(closed=10)
+            st = st if st is not None else _stats(closed=10)
+            ln.rounds, ln.last = ln.rounds + 1, st
+            return st
 
         monkeypatch.setattr(Lanes, "advance", advance)
         monkeypatch.setattr(Lanes, "finish", finish)
