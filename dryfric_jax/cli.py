@@ -7,7 +7,8 @@ excursions hit the work bound, so it is biased (``--allow-truncated`` accepts it
 130 Ctrl-C (what the completed rounds reached is printed; nothing if fewer than 2 excursions closed);
 143 SIGTERM (``kill``, a batch scheduler's time limit), taken as a Ctrl-C: the same is printed and kept;
 141 stdout's reader closed the pipe before the output was written (``dryfric estimate | true``), quietly, as SIGPIPE
-would.
+would; 1 when stdout cannot be written (a full disk); ``--out`` and the files of ``sweep`` and ``figures`` are written
+first, so both keep them.
 ``sweep`` runs every point it can: 1 if a point ended without a result (or, with ``--durations``, without its
 count's mean), else 3 if a point's
 excursions were truncated (``--allow-truncated``), else 0; its refused and failed points are
@@ -567,7 +568,7 @@ def _check_out(path, inputs=()):
 
 def _write_out(path, obj):
     """Write the result's JSON to ``--out``; a failure (the disk filled up during the run, ...) is
-    an error after the result has been printed, so nothing computed is lost."""
+    an error once the result has been printed (:func:`_report`), so nothing computed is lost."""
     if path is not None:
         try:
             write_atomic(path, dumps(obj, indent=1))
@@ -662,18 +663,25 @@ def _warnings_as_lines(progress_line: bool = False):
         yield
 
 
-def _report(a, r, print_text):
-    """A result's warnings on stderr, its JSON by ``--json`` to stdout (otherwise
-    ``print_text(r)``), then to ``--out`` (atomically): printed first, so a failed write loses
-    nothing."""
-    for w in r.warnings:
+def _report(a, r, print_text, warn: bool = True):
+    """A result to ``--out`` (atomically), then its warnings on stderr (``warn``) and its JSON by ``--json`` to stdout
+    (otherwise ``print_text(r)``): each survives the other's failure.  A failed write is an error after the result
+    has been printed; a stdout or stderr that cannot be written (its reader gone, ``| true``, or a full disk) leaves
+    the file written (it was printed first, and a pipe closed by the reader lost the file: an audit)."""
+    try:
+        _write_out(a.out, r.to_dict())
+        failed = None
+    except RuntimeError as e:
+        failed = e
+    for w in r.warnings if warn else ():
         print(f"dryfric: warning: {w}", file=sys.stderr)
     if a.json:
         print(dumps(r.to_dict()), flush=True)
     else:
         print_text(r)
         sys.stdout.flush()
-    _write_out(a.out, r.to_dict())
+    if failed is not None:
+        raise failed
 
 
 def _print_bruteforce(r):
@@ -737,6 +745,10 @@ def _run(a) -> int:
             raise RuntimeError(f"could not write a figure into --out {a.out!r} ({e}); the finished runs of Figs. 3, "
                                "8 and 9 are kept in *.points.jsonl there: the same command resumes") from None
         print(f"figures written to {a.out}")
+        if "table1" in nums:
+            from .figures.touchette import table1_text
+
+            print(table1_text(nums["table1"]))
         # truncated excursions of the scenes' runs, Fig. 3's DI duration lanes stopped by their bound and its missing
         # DI duration points
         what = (("n_truncated", "truncated excursions"),
@@ -796,8 +808,7 @@ def _run(a) -> int:
                                            n_lanes=a.n_lanes, max_steps=a.max_steps, dtype=a.dtype,
                                            bridge=not a.no_bridge, max_time=a.max_time,
                                            progress=_duration_line if show else None, **_work_options(a))
-        print(dumps(r.to_dict()) if a.json else r.summary(), flush=True)  # its warnings were said above
-        _write_out(a.out, r.to_dict())
+        _report(a, r, lambda r: print(r.summary()), warn=False)  # its warnings were said as they came
         if r.stopped_by == "interrupted":  # a Ctrl-C (SIGTERM): what was counted is above, and in --out
             return 130
         if r.n_truncated and not a.allow_truncated:
@@ -986,6 +997,11 @@ def main(argv=None) -> int:
     except BrokenPipeError:  # the reader of stdout left (`dryfric estimate | head -1`): stop as SIGPIPE would
         _drop_stdout()
         return EXIT_BROKEN_PIPE
+    except OSError as exc:  # stdout or stderr not writable (a full disk: `> /dev/full`); files are written first
+        _drop_stdout()
+        with contextlib.suppress(OSError):
+            print(f"dryfric: error: could not write the output ({exc})", file=sys.stderr)
+        return 1
 
 
 #: exit status when stdout's reader closed the pipe: 128 + SIGPIPE, what a shell reports for a program

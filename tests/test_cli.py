@@ -951,6 +951,60 @@ def test_a_closed_stdout_pipe_ends_quietly_with_141():
     assert (p.wait(timeout=300), err) == (141, "")
 
 
+_CMDS_WITH_OUT = {
+    "bruteforce": ["bruteforce", "--t", "0.5", "--n-paths", "16", "--json"],
+    "estimate": ["estimate", "--n-excursions", "200", "--seed", "3"],
+    "duration": ["duration", "--n-excursions", "20", "--seed", "3", "--json"],
+    "figures": ["figures", "--fig", "table1", "--quick"],
+}
+
+
+@pytest.mark.parametrize("stdout", ["closed pipe", "/dev/full"])
+@pytest.mark.parametrize("cmd", list(_CMDS_WITH_OUT))
+def test_a_stdout_that_cannot_be_written_loses_no_result(tmp_path, cmd, stdout):
+    """The result went to stdout first and to --out after, so a reader that left (``| true``: exit 141) or a
+    full stdout (``> /dev/full``: a traceback) lost the finished run's file; Table 1 printed its rows before its
+    files were written, so ``figures`` lost the scene (and with ``--fig all`` the scenes after it) and blamed the
+    write (an audit).  Now the file is written, and the exit is 141 quietly, or 1 with one line naming the output."""
+    import os
+    import pathlib
+
+    if stdout == "/dev/full" and not os.path.exists("/dev/full"):
+        pytest.skip("no /dev/full here")
+    out = tmp_path / ("figs" if cmd == "figures" else "r.json")
+    env = {**os.environ, "PYTHONPATH": str(pathlib.Path(__file__).parent.parent)}
+    code = f"import sys; from dryfric_jax.cli import main; sys.exit(main({_CMDS_WITH_OUT[cmd] + ['--out', str(out)]!r}))"
+    if stdout == "closed pipe":
+        p = subprocess.Popen([sys.executable, "-c", code], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        p.stdout.close()
+        err = p.stderr.read().decode()
+        rc = p.wait(timeout=600)
+        assert rc == 141 and "Traceback" not in err and "error" not in err, err[-800:]
+    else:
+        with open("/dev/full", "w") as full:
+            p = subprocess.run([sys.executable, "-c", code], env=env, stdout=full, stderr=subprocess.PIPE, text=True,
+                               timeout=600)
+        rc, err = p.returncode, p.stderr
+        assert rc == 1 and "Traceback" not in err, err[-800:]
+        assert err.strip().splitlines()[-1].startswith("dryfric: error: could not write the output ("), err[-800:]
+    if cmd == "figures":
+        assert (out / "table1.json").exists() and (out / "table1.png").exists()
+    else:
+        assert json.loads(out.read_text())["n_paths" if cmd == "bruteforce" else "n_excursions"] > 0
+
+
+def test_figures_prints_table_1_once_its_files_are_written_also_when_kept(tmp_path, capsys):
+    """Table 1's rows are printed by the command after the scenes are written (from the scene's JSON), also by a
+    rerun that finds the scene written and does not compute it again."""
+    for _ in range(2):
+        assert main(["figures", "--fig", "table1", "--quick", "--out", str(tmp_path)]) == 0
+        out = capsys.readouterr().out.splitlines()
+        nums = json.loads((tmp_path / "table1.json").read_text())
+        row = next(x for x in out if x.strip().startswith("MC (this model)"))
+        assert [float(v) for v in row.split(")")[1].split()] == [round(v, 3) for v in nums["mc"]]
+        assert out[0] == f"figures written to {tmp_path}" and len(out) == 7
+
+
 def test_work_refusal_suggests_raising_max_work_only_when_a_float_could_allow_it(capsys):
     """Past float range (log work > log(1.8e308)) no ``--max-work`` allows the run: the message said
     "max_work must be >= 10^(1.9e+30) steps ... Raise --max-work".  Within it, it still says so."""

@@ -49,8 +49,8 @@ def table1(out_dir, quick, seed):
     mc, se = V.mean(0), V.std(0, ddof=1) / np.sqrt(n)
     exact = [theory.first_moment(t, 1.0) for t in T_TABLE]
     unit = [theory.first_moment_unit_intensity(t, 1.0) for t in T_TABLE]
-    rows = [("t'", T_TABLE), ("MC (this model)", mc), ("MC 2 SE", 2 * se), ("exact, this model", exact),
-            ("exact, unit-intensity noise (Gamma_w = Gamma)", unit), ("paper's printed EF row", PAPER_ROW)]
+    rows = _table1_rows(dict(t=T_TABLE, mc=mc, se=se, exact_model=exact, exact_unit_intensity=unit,
+                             paper_row=PAPER_ROW))
     fig, ax = plt.subplots(figsize=(11, 2.6))
     ax.axis("off")
     # fixed font and a wide first column: left to itself matplotlib shrank every cell to 2 pt to fit the labels
@@ -63,8 +63,21 @@ def table1(out_dir, quick, seed):
     nums = dict(t=T_TABLE, mc=mc, se=se, exact_model=exact, exact_unit_intensity=unit, paper_row=PAPER_ROW,
                 max_abs_err=float(np.max(np.abs(mc - exact))), max_err_in_se=float(np.max(np.abs(mc - exact) / se)),
                 tau_nd=tau, h_nd=h, n_paths=n)
-    print("\n".join(f"{r[0]:>48s} " + " ".join(f"{v:6.3f}" for v in r[1]) for r in rows))
     return save(fig, out_dir, "table1", nums, t0, quick=quick, seed=seed)
+
+
+def _table1_rows(nums):
+    return [("t'", nums["t"]), ("MC (this model)", nums["mc"]), ("MC 2 SE", 2 * np.asarray(nums["se"])),
+            ("exact, this model", nums["exact_model"]),
+            ("exact, unit-intensity noise (Gamma_w = Gamma)", nums["exact_unit_intensity"]),
+            ("paper's printed EF row", nums["paper_row"])]
+
+
+def table1_text(nums) -> str:
+    """Table 1's rows as text, from the scene's numbers (its JSON): what ``dryfric figures`` prints once the
+    scenes are written (the scene printed them before it wrote its files, so a closed stdout lost the scene, and
+    with ``--fig all`` Figs. 7-9 too: an audit)."""
+    return "\n".join(f"{r[0]:>48s} " + " ".join(f"{float(v):6.3f}" for v in r[1]) for r in _table1_rows(nums))
 
 
 def freeman_tukey(count, expected):
