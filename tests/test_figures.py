@@ -168,7 +168,8 @@ def test_fig1_2_json_holds_the_plotted_excursions_and_the_di_row_is_release_to_r
 
 def test_fig5_json_holds_the_plotted_u_paths(figs):
     """The right panel's 10 paths of U, as plotted (an audit: the JSON had none): on the grid h, 2h, ..., 2 s, in
-    metres, 10 different paths that start a step from U = 0 and spread (Var U(t) ~ 2 D t, D ~ 1e-4 m^2/s)."""
+    metres, 10 different paths that start a step from U = 0 and spread (Var U(t) ~ D t, MODEL_NOTES §1, with D ~
+    1e-4 m^2/s: a sanity bound only)."""
     import numpy as np
 
     f = figs["fig5"]
