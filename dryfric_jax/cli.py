@@ -36,6 +36,7 @@ from .durations import MAX_STEPS as DUR_MAX_STEPS
 from .estimators import MIN_PATHS, MIN_RELIABLE_PATHS
 from .outfiles import check_writable, check_writable_dir, dumps, loads, write_atomic
 from .params import FIG3, Params
+from .plan import MAX_BLOCK, MAX_LANES, MAX_STEPS
 from .xla_flags import use_all_cpu_cores
 
 
@@ -253,13 +254,13 @@ def build_parser() -> argparse.ArgumentParser:
                         "long again; any still running are counted as truncated: exit 3); checked between the "
                         "engine's calls of 2^26-2^27 lane-steps (a few seconds on 2 CPU cores at Fig. 3's point, "
                         "longer where a step costs more), so it may be passed by up to one call")
-    e.add_argument("--lanes", type=_int_at_least("lanes", 1), default=None,
+    e.add_argument("--lanes", type=_int_at_least("lanes", 1, MAX_LANES, "2^22"), default=None,
                    help="engine lanes (default: a power of two near N/32, 512-4096 on a CPU (fewer when N < 512), "
                         "up to 2^18 on a GPU; 'dryfric bench --lanes ...' measures layouts); the law does not change, "
                         "the random streams do")
-    e.add_argument("--block", type=_int_at_least("block", 1), default=None,
+    e.add_argument("--block", type=_int_at_least("block", 1, MAX_BLOCK), default=None,
                    help="engine block size K, steps per loop iteration (default 128; 256 for the DI on a GPU)")
-    e.add_argument("--max-steps", type=_int_at_least("max-steps", 1), default=None,
+    e.add_argument("--max-steps", type=_int_at_least("max-steps", 1, MAX_STEPS, "2^62"), default=None,
                    help="work bound per excursion, steps (events); longer excursions are truncated and reported "
                         "(default: 1e4 of the excursion's time scales, README 'Validity ranges')")
     e.add_argument("--allow-truncated", action="store_true",
@@ -395,10 +396,10 @@ def build_parser() -> argparse.ArgumentParser:
                     help="rounds, each measuring every number (or timing every layout) once; prints the "
                          "medians of the rounds and their ranges, each ratio taken within its round (default 1, at "
                          f"most {MAX_REPEAT})")
-    bn.add_argument("--lanes", type=_list_of(_int_at_least("lanes", 1), "lanes"), default=None,
+    bn.add_argument("--lanes", type=_list_of(_int_at_least("lanes", 1, MAX_LANES, "2^22"), "lanes"), default=None,
                     help="layout sweep instead of the side-by-side bench: DI lane-steps/s for these lane "
                          "counts (comma-separated; default: the run's own) ...")
-    bn.add_argument("--block", type=_list_of(_int_at_least("block", 1), "block"), default=None,
+    bn.add_argument("--block", type=_list_of(_int_at_least("block", 1, MAX_BLOCK), "block"), default=None,
                     help="... and these block sizes K (default: the run's own, 128 on a CPU); each layout runs "
                          "max(N, 8 lanes) excursions at the Fig. 3 point")
     bn.add_argument("--dtype", choices=("float32", "float64"), default="float32",
