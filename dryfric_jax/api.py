@@ -91,14 +91,17 @@ def m0_lag_note(params: Params, t: float, burn_in: float, m0_t: float, m0_ci: fl
     measured :math:`L \approx 2.9\,\tau_c` (:math:`\tau' = \tau_L' = 3, \bar\gamma' = -0.7`, 4000 paths at t
     = 100 :math:`\tau_c`: M0_t 2.5-3.3% toward 0, 4.8-6.3 SE, at 3 seeds; -2.6 to -4.2 SE at white-noise points),
     gone after a burn-in of 20 :math:`\tau_c` (+0.2 SE).  Said where ``burn_in`` < :data:`M0_BURN_IN_TAU_C`
-    :math:`\tau_c` and :data:`M0_LAG_TAU_C` :math:`\tau_c |M_0^t|/t` exceeds a fifth of the CI half-width (an order
-    of magnitude: L is not known in advance)."""
+    :math:`\tau_c` and :data:`M0_LAG_TAU_C` :math:`\tau_c |M_0|/t` exceeds a fifth of the CI half-width (an order
+    of magnitude: L is not known in advance), with :math:`|M_0|` taken as :math:`|\hat M_0^t|` and the lag as at
+    most :math:`|M_0|` (t under 3 tau_c); never at :math:`\bar\gamma = 0`, where :math:`M_0 = 0` by symmetry and
+    there is no lag.  The note fired there on noise, and quoted lags larger than M0 itself at short t (a
+    hard-cases audit)."""
     tc = correlation_time(params)
-    lag = M0_LAG_TAU_C * tc * abs(m0_t) / t
-    if burn_in >= M0_BURN_IN_TAU_C * tc or not lag > 0.2 * m0_ci:
+    lag = min(M0_LAG_TAU_C * tc / t, 1.0) * abs(m0_t)
+    if params.gamma_bar == 0 or burn_in >= M0_BURN_IN_TAU_C * tc or not lag > 0.2 * m0_ci:
         return None
-    return (f"M0_t is biased toward 0 by O(tau_c/t): the paths start at rest, so E[U(t)]/t lags M0 by ~{M0_LAG_TAU_C:g} "
-            f"tau_c |M0|/t ~ {lag:.2g} m/s here (tau_c = {tc:.3g} s), against its CI half-width {m0_ci:.2g}, which "
+    return (f"M0_t is biased toward 0 by O(tau_c/t): the paths start at rest, so E[U(t)]/t lags M0 by "
+            f"~min({M0_LAG_TAU_C:g} tau_c/t, 1) |M0| ~ {lag:.2g} m/s here (tau_c = {tc:.3g} s), against its CI half-width {m0_ci:.2g}, which "
             f"does not include it (measured: 2.5-3.3% low at t = 100 tau_c); add burn_in >= {M0_BURN_IN_TAU_C:g} "
             f"tau_c = {M0_BURN_IN_TAU_C * tc:.3g} s, or use estimate_diffusivity, which has no such bias")
 
@@ -646,7 +649,9 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
     if dropped:
         notes.append(f"{dropped} in-flight excursions dropped (a second interrupt) and counted as truncated: D is "
                      f"biased low by O(lanes/N) = O({dropped / max(sim.n_excursions, 1):.2g})")
-    elif stopped in ("max_time", "work_bound"):
+    elif stopped in ("max_time", "work_bound") and (rtol or sim.n_excursions < n_excursions):
+        # (not where the final round's in-flight excursions brought N to the count asked: "before the 300
+        # excursions: result of 428" contradicted itself, a hard-cases audit)
         what = f"max_time reached ({max_time} s)" if stopped == "max_time" else \
             f"work bound reached (max_work = {max_work:.3g} {unit}, predicted >= {plan.predicted_work:.3g})"
         notes.append(f"{what} before the " + (f"target rtol = {rtol}" if rtol else f"{n_excursions} excursions")

@@ -408,3 +408,25 @@ def test_a_run_near_the_runaway_bias_with_damping_that_sets_the_excursions_is_wa
             assert note.startswith(f"|gamma_bar|/Delta = {abs(g):.4g}, near the runaway bias (|gamma_bar| = Delta), "
                                    f"with damping so weak (tau_L/tau0 = {tl:.3g}) that it sets") and "0 of 6" in note
     assert "with damping so weak" not in near_runaway_note(1e4, 0.99)  # (1 - g)^2 tau_L' = 1: drift-limited
+
+
+def test_max_time_that_ended_the_rounds_is_no_shortfall_where_n_was_reached(monkeypatch):
+    """The final round finishes the lanes' excursions in flight, which can bring N past the count asked after
+    max_time ended the rounds: the warning then said "max_time reached (60 s) before the 300 excursions: result of
+    428 excursions", and the duration count "stopped the count at 257 of the 200 asked" (a hard-cases audit).
+    Replayed here by runs that reach their N, reported as ended by max_time: no shortfall is said, and stopped_by
+    still says what ended the rounds."""
+    from dryfric_jax import durations
+
+    real_sim, real_count = api.simulate_long_excursions, durations._run
+    monkeypatch.setattr(api, "simulate_long_excursions", lambda *a, **k: (real_sim(*a, **k)[0], "max_time"))
+    monkeypatch.setattr(durations, "_run", lambda *a, **k: (*real_count(*a, **k)[:-1], "max_time"))
+    p = dj.Params.from_nondim(1e-5, 1.0, 0.3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", dj.DryfricWarning)
+        r = dj.estimate_diffusivity(p, 0, n_excursions=200, max_time=100.0)
+        d = dj.di_long_excursion_duration(dj.Params.from_nondim(0.5), 0, n_excursions=20, max_time=100.0)
+    assert r.stopped_by == "max_time" and r.n_excursions >= 200 and r.n_truncated == 0
+    assert not [w for w in r.warnings if "max_time" in w], r.warnings
+    assert d.stopped_by == "max_time" and d.n_excursions >= 20 and d.n_truncated == 0
+    assert not [w for w in d.warnings if "max_time" in w], d.warnings

@@ -192,3 +192,23 @@ def test_m0_t_from_rest_lags_and_is_said_and_a_burn_in_removes_it():
         assert bool(lag) is said and any(n.startswith("M0_t is biased") for n in r.warnings) is said
         z = (abs(le.M0) - abs(r.M0_t)) / math.hypot(le.M0_ci, r.M0_t_ci) * 1.96  # > 0: M0_t smaller in size
         assert (z > 3) if said else (abs(z) < 3), (burn_in, z)
+
+
+def test_the_m0_lag_note_is_not_said_where_m0_is_0_and_never_quotes_more_than_m0():
+    """At gamma_bar = 0, M0 = 0 by symmetry: M0_t is noise, with no lag, and the note fired on it (an audit: M0_t =
+    0.00328 +- 0.024 "lags M0 by ~0.0098 m/s" at t = tau_c).  At t < 3 tau_c the lag 3 tau_c |M0|/t exceeded
+    M0 itself (~4.1e4 m/s quoted where M0 = 999): it is quoted as at most |M0_t|."""
+    import re
+
+    from dryfric_jax.api import correlation_time, m0_lag_note
+
+    p0 = dj.Params(1.0, 1.0, 1e-6, math.inf, 0.0)
+    tc = correlation_time(p0)
+    assert m0_lag_note(p0, tc, 0.0, 0.00328, 0.024) is None
+    p = dj.Params(1.0, 1.0, 1e-6, math.inf, 0.5)
+    tc = correlation_time(p)
+    note = m0_lag_note(p, 0.1 * tc, 0.0, 0.8, 0.01)  # 3 tau_c/t = 30: 24 m/s quoted before
+    assert float(re.search(r"\|M0\| ~ ([0-9.e+-]+) m/s", note).group(1)) == 0.8
+    note = m0_lag_note(p, 100 * tc, 0.0, 0.8, 0.01)  # 3 tau_c/t = 0.03: 0.024 m/s > 0.2 x 0.01
+    assert float(re.search(r"\|M0\| ~ ([0-9.e+-]+) m/s", note).group(1)) == 0.024
+    assert m0_lag_note(p, 100 * tc, 20 * tc, 0.8, 0.01) is None  # burnt in
