@@ -37,6 +37,11 @@ COMPACT = 8
 COMPACT_MIN_PER_DEVICE = 64
 # lane-steps (idle lanes included) of one call of a final round (Lanes._call): ~4 s on 2 CPU cores
 FINAL_CALL_LANE_STEPS = 2**27
+#: once the wall time of a block is known (the last call's), a final round's call is also cut to about this many
+#: seconds, but to no fewer than FINAL_CALL_MIN_BLOCKS blocks: the lane-steps alone made calls of 15-100 s with few
+#: lanes (the PDMP at tau' = 1e-3, 8 lanes or 1), past the grace a Ctrl-C is promised (a hard-cases audit)
+FINAL_CALL_S = 2.0
+FINAL_CALL_MIN_BLOCKS = 64
 # lane-steps of a paused round at most (simulate_long_excursions; a few seconds on a CPU, never below 4
 # blocks): progress, max_time and Ctrl-C act between rounds.  On an H200 2^26 is ~7 ms of work, so a run
 # at 2^18 lanes and K = 1024 makes rounds of 4 blocks (PERFORMANCE.md "On an H200"; device_check --round-steps)
@@ -129,6 +134,7 @@ class Lanes:
         # the final round's tail runs on n / COMPACT lanes (see _compact_tail)
         self.compact = compact and self.n // nd >= COMPACT_MIN_PER_DEVICE
         self.slot_steps, self.paid, self.last, self.rounds = 0, 0, None, 0
+        self._block_s = None  # wall seconds of one block in the last call (at its width): sizes a final round's calls
         if nd > 1:
             self._f, self._sharding = _sharded_round(self.devices, block, self.events)
             self._rep = NamedSharding(self._sharding.mesh, PartitionSpec())
@@ -146,7 +152,8 @@ class Lanes:
         the blocks each device ran.
 
         A paused round is one call (its budget bounds it).  A final round runs in calls of at most
-        ``FINAL_CALL_LANE_STEPS`` lane-steps each (a few seconds on a CPU), each continuing the
+        ``FINAL_CALL_LANE_STEPS`` lane-steps each, and of about ``FINAL_CALL_S`` seconds once the last call has
+        timed a block (but at least ``FINAL_CALL_MIN_BLOCKS`` blocks), each continuing the
         last, so that a Ctrl-C acts between calls: the in-flight excursions of a heavy-tailed
         case can take minutes to finish, and one call would not return before they have (seen:
         > 6 min at Fig. 3's tau = 1 s, Gamma = 1).  The result is the same as one call (tested).
@@ -154,12 +161,18 @@ class Lanes:
         stay unfinished (``n_unfinished``, reported as truncated)."""
         nd = len(self.devices)
         per_dev = keys.shape[0] // nd
-        cap = max(1, FINAL_CALL_LANE_STEPS // (keys.shape[0] * self.block)) if finish else np.iinfo(np.int64).max
+        most = max(1, FINAL_CALL_LANE_STEPS // (keys.shape[0] * self.block)) if finish else np.iinfo(np.int64).max
         args = (np.int64(budget), np.int64(self.max_steps), np.bool_(finish), np.int64(min_active))
         b0, total = np.asarray(b0, np.int64), np.zeros(nd, np.int64)
         keys = jax.device_put(keys, self._sharding)  # once per round (the lanes are already on their devices)
         while True:
+            cap = most  # by time too where a block's time is known (a call that compiled overstates it: shorter calls)
+            if finish and self._block_s is not None:
+                cap = min(most, max(FINAL_CALL_MIN_BLOCKS, int(FINAL_CALL_S / max(self._block_s, 1e-12))))
+            t = time.perf_counter()
             lane, nb = self._call_once(lane, keys, b0, args + (np.bool_(fresh), np.int64(cap)))
+            if nb.max() > 0:
+                self._block_s = (time.perf_counter() - t) / int(nb.max())
             self.slot_steps += int(nb.sum()) * self.block * per_dev
             total, b0, fresh = total + nb, b0 + np.repeat(nb, per_dev), False
             # every device stopped on its own condition, or the deadline has passed
@@ -286,7 +299,8 @@ def simulate_long_excursions(chain, key, n_excursions: int, *, lanes: int | None
             have passed (between calls of a few seconds): the excursions still in flight are
             then left unfinished (``n_unfinished``, reported as truncated), so the run takes
             at most about twice ``max_time``, plus one round and one call (``round_lane_steps``
-            and ``FINAL_CALL_LANE_STEPS`` lane-steps; no compacted tail starts past the deadline).
+            lane-steps, and ``FINAL_CALL_LANE_STEPS`` lane-steps or ~``FINAL_CALL_S`` once a block is timed; no
+            compacted tail starts past the deadline).
         max_work: stop the same way once the lanes have paid for this many lane-steps.
         progress: optional ``progress(stats)`` called after every round.
 

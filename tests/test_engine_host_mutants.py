@@ -139,6 +139,28 @@ def test_final_round_calls_are_capped_at_final_call_lane_steps(monkeypatch, per_
     assert got.n_unfinished == 0 and got.slot_steps == int(blocks.sum()) * 8 * (8 // ND)
 
 
+def test_final_round_calls_are_cut_by_time_once_a_block_is_timed(monkeypatch):
+    """Once the last call timed a block, a final round's calls are also cut to ~FINAL_CALL_S seconds, but to no
+    fewer than FINAL_CALL_MIN_BLOCKS blocks: with 1 s a block, FINAL_CALL_S = 0 and a floor of 3 blocks, the calls
+    are those of a lane-step cap of 3 blocks, and the sums the clock's, as one call gives.  The lane-steps alone made
+    final calls of 15-100 s with few lanes, past the 20 s a Ctrl-C is promised (a hard-cases audit).  Untimed (a new
+    Lanes), the round is one call, and its call times a block."""
+    calls = _counting_calls(monkeypatch)
+    ln = Lanes(_clock(), 8, block=8, events="wait")
+    one = ln.finish(jax.random.key(0), 300)
+    assert len(calls) == 1 and ln._block_s is not None and ln._block_s > 0
+    calls.clear()
+    monkeypatch.setattr(rd, "FINAL_CALL_S", 0.0)
+    monkeypatch.setattr(rd, "FINAL_CALL_MIN_BLOCKS", 3)
+    ln = Lanes(_clock(), 8, block=8, events="wait")
+    ln._block_s = 1.0
+    many = ln.finish(jax.random.key(0), 300)
+    blocks = _device_blocks(8, 300, "wait")
+    assert len(calls) == int((blocks // 3).max()) + 1 > 3
+    np.testing.assert_array_equal(many.stats, one.stats)
+    assert (many.n_unfinished, many.slot_steps) == (one.n_unfinished, one.slot_steps)
+
+
 def test_a_paused_round_is_one_call_whatever_the_final_call_cap(monkeypatch):
     """A paused round is one call of ceil(budget / block) blocks (its budget bounds it), even with
     compaction on (128 lanes) and a final-call cap of one block: 3 blocks of 8 steps for budget
