@@ -42,7 +42,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .params import check_positive, real_or_none, shown
+from .params import brief, check_positive, real_or_none, shown
 
 #: Below this many excursions the 95% delta-method CI for D is not trusted.  Measured coverage
 #: (README "Confidence intervals", scripts/ci_calibration.py): with viscous damping (paper's tau_L) it
@@ -76,15 +76,19 @@ def near_runaway_note(tau_L: float, gamma_bar: float) -> str | None:
     if tau_L * (1.0 - g) ** 2 < 1.0:  # the damping stops the drift
         if tau_L < DAMPED_RUNAWAY_TAU_L:
             return None
-        return (f"|gamma_bar|/Delta = {g:.4g}, near the runaway bias (|gamma_bar| = Delta), with damping so weak "
+        return (f"|gamma_bar|/Delta = {brief(g)}, near the runaway bias (|gamma_bar| = Delta), with damping so weak "
                 f"(tau_L/tau0 = {tau_L:.3g}) that it sets the excursions' length: the D interval may cover far less "
                 "than 95% (measured: 2 of 6 runs covered at tau_L/tau0 = 5e3, 0.99 Delta, N = 2e3; 0 of 6 at 1e5, "
                 "0.999 Delta, misses of 4-68 half-widths, all low, and 5 half-widths low at N = 2e4); where "
                 "tau << tau0 'dryfric theory' (theory.exact_D) gives the exact D")
-    return (f"|gamma_bar|/Delta = {g:.4g}, near the runaway bias (|gamma_bar| = Delta) with no damping to stop "
+    return (f"|gamma_bar|/Delta = {brief(g)}, near the runaway bias (|gamma_bar| = Delta) with no damping to stop "
             "the drift: the D interval covers far less than 95% (measured at tau_L = inf: 0.83 at 0.9 Delta, "
             "0.78 at 0.95 Delta with N = 2e4; 0.50 at 0.99 Delta with N = 1e4, 0.24 with N = 2e3), its misses are "
-            "low and may be by many half-widths; where tau << tau0 'dryfric theory' (theory.exact_D) gives the exact D")
+            "low and may be by many half-widths" + (
+                "; beyond 0.99 Delta, where no coverage was measured, D and M0 may be low by orders of magnitude "
+                "(at 0.999999 Delta, white noise, 428 excursions: D 2.8e6 +- 1.6e6 against the exact 4e24, M0 36 "
+                "against 1e6, in units of Delta, Gamma)" if g > 0.99 else "")
+            + "; where tau << tau0 'dryfric theory' (theory.exact_D) gives the exact D")
 
 
 #: N' below which the brute-force CI of D^t under-covers: the delta-method CI of a variance needs

@@ -91,7 +91,7 @@ import sys
 import numpy as np
 from scipy import integrate, special
 
-from .params import rounded_bound
+from .params import brief, rounded_bound
 
 #: default cap on the lane-steps (DI) or events (PDMP) of one run: on a 2-core CPU ~15-25 min of DI
 #: lane-steps (7e7-1.2e8 per second, float64, 0.2.5) or ~30-50 min of PDMP events (3.5e7-5.6e7 per
@@ -295,9 +295,7 @@ def check_work(tau: float, tau_L: float, gamma_bar: float, steps_per_tau0: float
         key = max(factors, key=factors.get)
         why = {"n": "many excursions (lower N)",
                "steps": "each excursion needs many small steps (h or delta small against the excursion)",
-               "t": "the bias |gamma_bar| >= Delta keeps the particle moving" if abs(gamma_bar) >= 1.0 else
-               "the noise rarely reaches the far threshold (slow weak noise: tau large against tau0)"
-               }[key]
+               "t": _long_duration_reason(tau, tau_L, gamma_bar)}[key]
         # beyond float range no max_work (a finite number) allows the run: do not suggest raising it
         beyond = log_w > math.log(sys.float_info.max)
         head = f"max_work must be >= {_exp10(log_w)} {unit} for these parameters" + (
@@ -310,10 +308,25 @@ def check_work(tau: float, tau_L: float, gamma_bar: float, steps_per_tau0: float
                    + " h or delta, lower N, or use the white-noise theory when tau << tau0")
         raise ValueError(
             f"{head}: {n_excursions} excursions of predicted mean duration >= {_exp10(log_t)} tau0 at "
-            f"{steps_per_tau0:.3g} {unit} per tau0 (tau' = {tau:.3g}, tau_L' = {tau_L:.3g}, "
-            f"gamma_bar' = {gamma_bar:.3g}); {why}.  {fix}")
+            f"{steps_per_tau0:.3g} {unit} per tau0 (tau' = {brief(tau, 3)}, tau_L' = {brief(tau_L, 3)}, "
+            f"gamma_bar' = {brief(gamma_bar, 3)}); {why}.  {fix}")
     # accepted: log_w <= log(max_work) <= log(largest float), up to rounding, so exp cannot overflow
     return min(math.exp(min(log_w, math.log(max_work))), max_work)
+
+
+def _long_duration_reason(tau: float, tau_L: float, gamma_bar: float) -> str:
+    """Why :func:`log_duration_scale` predicts long excursions: its largest term.  "Slow weak noise" was said
+    for every |gamma_bar'| < 1, also at tau' = 1e-6 near the runaway bias, where the drift sets the length (a
+    hard-cases audit)."""
+    g = abs(gamma_bar)
+    if g >= 1.0:
+        return "the bias |gamma_bar| >= Delta keeps the particle moving"
+    xp, xm = 1.0 - gamma_bar, -1.0 - gamma_bar
+    passage = float(np.logaddexp(log_ou_passage_time(xp, xm, tau), log_ou_passage_time(xm, xp, tau)))
+    if -math.log((1.0 - g) + 0.5 / math.sqrt(tau_L)) > passage:
+        return ("the bias |gamma_bar| close to Delta, with weak damping, keeps the particle drifting (near the "
+                "runaway bias |gamma_bar| = Delta)")
+    return "the noise rarely reaches the far threshold (slow weak noise: tau large against tau0)"
 
 
 def refuse_known_work(work: float, max_work: float, unit: str, what: str, fix: str, hint: str = "") -> None:

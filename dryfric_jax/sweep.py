@@ -74,7 +74,7 @@ from .durations import (TAU_STEPS, NoCountError, check_duration_run, default_dur
                         di_long_excursion_duration, max_steps_for)
 from .limits import MAX_WORK
 from .outfiles import check_writable, claim, drop_claims_dir, dumps, locked, put_record, read_records, write_records
-from .params import FIG3, Params, check_flag, check_positive, plain_number, real_or_none, shown
+from .params import FIG3, Params, brief, check_flag, check_positive, plain_number, real_or_none, shown
 from .plan import check_count, check_max_time, check_settings, plan_estimate
 from .rounds import abandon_on_interrupt
 
@@ -647,7 +647,7 @@ def _bar(done: int, total: int, width: int = 30) -> str:
 
 
 def _where(p: dict, axes) -> str:
-    return "  " + " ".join(f"{k}={p[k]:.4g}" for k in axes) + ": "
+    return "  " + " ".join(f"{k}={brief(p[k])}" for k in axes) + ": "  # 0.999999 and 1.000001 not both "1"
 
 
 def point_line(d: dict, axes=("Gamma", "tau")) -> None:

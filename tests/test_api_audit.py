@@ -430,3 +430,27 @@ def test_max_time_that_ended_the_rounds_is_no_shortfall_where_n_was_reached(monk
     assert not [w for w in r.warnings if "max_time" in w], r.warnings
     assert d.stopped_by == "max_time" and d.n_excursions >= 20 and d.n_truncated == 0
     assert not [w for w in d.warnings if "max_time" in w], d.warnings
+
+
+def test_near_the_runaway_bias_messages_tell_the_bias_from_1_and_name_the_drift():
+    """A hard-cases audit: at gamma_bar' = 0.999999 a work refusal printed "gamma_bar' = 1" (refused as having no
+    stationary state) and blamed "slow weak noise" at tau' = 1e-6, the near-runaway note said |gamma_bar|/Delta =
+    1, and a sweep labelled 0.999999 and 1.000001 both gamma_bar=1.  The estimate there was 18 orders of magnitude
+    low (D 2.8e6 against 4e24), which the note's coverage figures (measured up to 0.99 Delta) did not suggest."""
+    from dryfric_jax import limits, sweep
+    from dryfric_jax.estimators import near_runaway_note
+    from dryfric_jax.params import brief
+
+    assert [brief(x) for x in (0.999999, 1.000001, 0.5, 0.342, 1.0, math.inf, 1e-6)] == \
+        ["0.999999", "1.000001", "0.5", "0.342", "1", "inf", "1e-06"]
+    with pytest.raises(ValueError) as e:
+        limits.check_work(1e-6, math.inf, 0.999999, 100.0, 20_000)
+    assert "gamma_bar' = 0.999999)" in str(e.value) and "keeps the particle drifting" in str(e.value)
+    with pytest.raises(ValueError, match="slow weak noise"):
+        limits.check_work(100.0, math.inf, 0.3, 100.0, 20_000)
+    note = near_runaway_note(math.inf, 0.999999)
+    assert note.startswith("|gamma_bar|/Delta = 0.999999, ") and "low by orders of magnitude" in note
+    assert "orders of magnitude" not in near_runaway_note(math.inf, 0.99)
+    a, b = (sweep._where(dict(Gamma=1.0, tau=1e-6, gamma_bar=g), ("Gamma", "tau", "gamma_bar")) for g in
+            (0.999999, 1.000001))
+    assert a != b and "gamma_bar=0.999999" in a
