@@ -882,7 +882,13 @@ def _theory(a, params) -> int:
 
         with warnings.catch_warnings(record=True) as said:
             warnings.simplefilter("always", DryfricWarning)
-            law = white_chain_law(params, a.h)
+            try:
+                law = white_chain_law(params, a.h)
+            except ValueError as e:  # the continuum's D and M0 are still printed (it printed nothing: an audit)
+                print(dumps({**out, "refused": {"h": str(e)}}) if a.json else
+                      f"white-noise D  = {out['D']:.6g} m^2/s\nwhite-noise M0 = {out['M0']:.6g} m/s")
+                raise _UserError(f"{e} (the white-noise D and M0 are printed above; the DI chain at --h is not "
+                                 "computed)") from None
         notes = list(dict.fromkeys(str(w.message) for w in said if issubclass(w.category, DryfricWarning)))
         for w in said:
             if not issubclass(w.category, DryfricWarning):

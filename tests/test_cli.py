@@ -480,6 +480,22 @@ def test_theory_says_the_chain_laws_warning(capsys):
     assert note.startswith("the chain law's M0 is unreliable here")
 
 
+def test_theory_prints_the_continuum_when_the_chain_law_at_h_is_refused(capsys):
+    """The chain law at --h may be refused (its grid too wide near the runaway bias); the white-noise D and M0 are
+    still printed, and the error says so (it exited 2 with nothing printed: a hard-cases audit)."""
+    from dryfric_jax import theory
+
+    argv = ["theory", "--nondim", "--tau", "1e-5", "--tau-L", "inf", "--gamma-bar", "0.9", "--h", "0.01"]
+    p = Params.from_nondim(1e-5, math.inf, 0.9)
+    assert main(argv) == 2
+    cap = capsys.readouterr()
+    assert cap.out == f"white-noise D  = {theory.exact_D(p):.6g} m^2/s\nwhite-noise M0 = {theory.exact_M0(p):.6g} m/s\n"
+    assert "grid nodes" in cap.err and "(the white-noise D and M0 are printed above" in cap.err
+    assert main(argv + ["--json"]) == 2
+    out = json.loads(capsys.readouterr().out)
+    assert (out["D"], out["M0"]) == (theory.exact_D(p), theory.exact_M0(p)) and "grid nodes" in out["refused"]["h"]
+
+
 def test_theory_prints_m0_when_only_d_leaves_float64(capsys):
     """At tau_L = 1e-300 s, D ~ 2 tau_L^2 Gamma underflows float64 but M0 ~ 3e-301 m/s does not: D is
     refused by name (exit 2) and M0 still printed, in text and in JSON (the whole output was refused)."""
