@@ -259,12 +259,13 @@ def combine_estimates(results: Sequence, *, labels: Sequence[str] | None = None,
 
 def _reference(rs) -> EstimateResult:
     """The run whose params, step and settings the pool reports and scales D and M0 by: the least by its params,
-    h, delta, L_X and method reason, so that the choice does not depend on the order of the runs (the first run's
-    made the pool's last digits depend on it where the runs' parameters differ within :func:`_same`'s 1e-12: an
-    audit).  The fields compared are those the runs may differ in; runs equal in all of them report the same."""
+    h, delta, L_X, ci_level and method reason, so that the choice does not depend on the order of the runs (the
+    first run's made the pool's last digits depend on it where the runs' parameters differ within :func:`_same`'s
+    1e-12: an audit).  These are the fields that :func:`_result` takes from it and that the runs may differ in (the
+    others must be equal); runs equal in all of them report the same.  (The pool's notes keep the runs' order.)"""
     def order(r):
         return (sorted(r.params.items()), r.h is None, r.h or 0.0, r.delta is None, r.delta or 0.0,
-                r.L_X is None, r.L_X or 0.0, r.method_reason)
+                r.L_X is None, r.L_X or 0.0, r.ci_level, r.method_reason)
     return min(rs, key=order)
 
 

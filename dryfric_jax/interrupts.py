@@ -169,18 +169,35 @@ def held_interrupts():
         yield
         return
     held, old = [], {}
-    for s in (signal.SIGINT, signal.SIGTERM):
-        h = signal.getsignal(s)
-        if h is not None and h != signal.SIG_IGN:
-            old[s] = h
-            signal.signal(s, lambda signum, frame: held.append(signum))
+    with _blocked():  # the handlers swapped as one step: a signal between two swaps left Ctrl-C held for good
+        for s in (signal.SIGINT, signal.SIGTERM):
+            h = signal.getsignal(s)
+            if h is not None and h != signal.SIG_IGN:
+                old[s] = h
+                signal.signal(s, lambda signum, frame: held.append(signum))
     try:
         yield
     finally:
-        for s, h in old.items():
-            signal.signal(s, h)
+        with _blocked():  # restored as one step too (a signal arriving now goes to the restored handler)
+            for s, h in old.items():
+                signal.signal(s, h)
         if held:  # SIGTERM first where both came: the command's exit status is then 143, as a scheduler expects
             signal.raise_signal(signal.SIGTERM if signal.SIGTERM in held else held[0])
+
+
+@contextlib.contextmanager
+def _blocked():
+    """SIGINT and SIGTERM blocked at the OS level within (they stay pending and are delivered as it ends), where the
+    platform can (POSIX); elsewhere nothing.  Swapping two handlers is two steps, and a signal between them, taken
+    by the first handler (SIGTERM as a KeyboardInterrupt), skipped the rest (a review)."""
+    if not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
+    before = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, before)
 
 
 def exit_status(rc: int) -> int:

@@ -205,6 +205,9 @@ def test_the_m0_lag_note_is_not_said_where_m0_is_0_and_never_quotes_more_than_m0
     p0 = dj.Params(1.0, 1.0, 1e-6, math.inf, 0.0)
     tc = correlation_time(p0)
     assert m0_lag_note(p0, tc, 0.0, 0.00328, 0.024) is None
+    # where it would be said at any other gamma_bar (a review: the case above alone passed without the rule)
+    assert m0_lag_note(p0, 100 * tc, 0.0, 0.8, 0.01) is None
+    assert m0_lag_note(dj.Params(1.0, 1.0, 1e-6, math.inf, 1e-300), 100 * tc, 0.0, 0.8, 0.01) is not None
     p = dj.Params(1.0, 1.0, 1e-6, math.inf, 0.5)
     tc = correlation_time(p)
     note = m0_lag_note(p, 0.1 * tc, 0.0, 0.8, 0.01)  # 3 tau_c/t = 30: 24 m/s quoted before

@@ -173,6 +173,19 @@ def test_a_paused_round_is_one_call_whatever_the_final_call_cap(monkeypatch):
     assert ln.paid == 24 * 128 and st.slot_steps == 24 * 128
 
 
+def test_a_paused_round_is_not_cut_by_time(monkeypatch):
+    """The time cap is a final round's only: a paused round's length fixes the random streams, so a timed block and
+    a time cap of 0 leave it one call of ceil(budget / block) blocks (cut by time, it ran 1 call of 1 block, marked
+    its lanes done and paid 192 slots instead of 640: a review)."""
+    calls = _counting_calls(monkeypatch)
+    monkeypatch.setattr(rd, "FINAL_CALL_S", 0.0)
+    monkeypatch.setattr(rd, "FINAL_CALL_MIN_BLOCKS", 1)
+    ln = Lanes(_clock(), 8, block=8, events="branch")
+    ln._block_s = 1.0
+    st = ln.advance(jax.random.key(0), 80)
+    assert calls == [8] and np.all(np.asarray(ln.lane.work) == 80) and st.slot_steps == 80 * 8
+
+
 def test_a_final_round_call_at_the_deadline_is_the_last(monkeypatch):
     """Past the deadline, or at it (``_now() >= deadline``), no further call starts: with one block
     per call and the clock standing exactly at the deadline, the round stops after one call, and

@@ -34,6 +34,46 @@ import pytest
 from dryfric_jax import cli, interrupts, rounds
 
 
+def test_a_signal_while_the_handlers_are_swapped_is_held_not_lost(monkeypatch):
+    """held_interrupts swaps SIGINT's and SIGTERM's handlers one after the other; a SIGTERM between the two (taken
+    as a Ctrl-C, as under sigterm_as_ctrl_c) left the context before its ``try``, with SIGINT's handler the hold
+    for good, so that every later Ctrl-C was swallowed (a review).  The swap is now one step: the SIGTERM is held,
+    raised at the end, and both handlers are restored."""
+    import os
+    import signal
+
+    if not hasattr(signal, "pthread_sigmask"):
+        pytest.skip("no signal masks here")
+
+    def on_term(signum, frame):
+        raise KeyboardInterrupt
+
+    def on_int(signum, frame):
+        pass
+
+    before = signal.signal(signal.SIGINT, on_int), signal.signal(signal.SIGTERM, on_term)
+    real, swaps = signal.signal, []
+
+    def swap(s, h):
+        out = real(s, h)
+        swaps.append(s)
+        if len(swaps) == 1:  # between the two swaps
+            os.kill(os.getpid(), signal.SIGTERM)
+        return out
+    try:
+        monkeypatch.setattr(signal, "signal", swap)
+        ran = []
+        with pytest.raises(KeyboardInterrupt):
+            with interrupts.held_interrupts():
+                ran.append(1)
+        monkeypatch.setattr(signal, "signal", real)
+        assert ran == [1] and len(swaps) == 4
+        assert signal.getsignal(signal.SIGINT) is on_int and signal.getsignal(signal.SIGTERM) is on_term
+    finally:
+        signal.signal(signal.SIGINT, before[0])
+        signal.signal(signal.SIGTERM, before[1])
+
+
 # --------------------------------------------------------------------------------------------- launched_as_cli
 @pytest.mark.parametrize("argv,orig,is_cli", [
     (["/venv/Scripts/dryfric-script.py", "theory"], ["python", "/venv/Scripts/dryfric-script.py", "theory"], True),
@@ -241,13 +281,14 @@ def _stats(n, in_flight):
 
 class _Lanes:
     """Stand-in lanes: each ``advance`` / ``finish`` call takes the next item of its script, a round's counts
-    or ``KeyboardInterrupt`` (the Ctrl-C that arrives during that round); a call past the script fails."""
+    or ``KeyboardInterrupt`` (the Ctrl-C that arrives during that round, before it is kept); a call past the script
+    fails.  A round is kept as ``Lanes._round`` keeps one: counted in ``rounds``, its counts in ``last``."""
     script = dict(advance=[], finish=[])
     calls = []
     deadlines = []
 
     def __init__(self, chain, lanes, block, max_steps):
-        self.n_real, self.paid = lanes, 0
+        self.n_real, self.paid, self.rounds, self.last = lanes, 0, 0, None
 
     def _next(self, what):
         _Lanes.calls.append(what)
@@ -256,6 +297,7 @@ class _Lanes:
         if item is KeyboardInterrupt:
             raise KeyboardInterrupt
         self.paid += 100
+        self.rounds, self.last = self.rounds + 1, item
         return item
 
     def advance(self, key, budget):
