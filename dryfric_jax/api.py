@@ -101,9 +101,10 @@ def m0_lag_note(params: Params, t: float, burn_in: float, m0_t: float, m0_ci: fl
     if params.gamma_bar == 0 or burn_in >= M0_BURN_IN_TAU_C * tc or not lag > 0.2 * m0_ci:
         return None
     return (f"M0_t is biased toward 0 by O(tau_c/t): the paths start at rest, so E[U(t)]/t lags M0 by "
-            f"~min({M0_LAG_TAU_C:g} tau_c/t, 1) |M0| ~ {lag:.2g} m/s here (tau_c = {tc:.3g} s), against its CI half-width {m0_ci:.2g}, which "
-            f"does not include it (measured: 2.5-3.3% low at t = 100 tau_c); add burn_in >= {M0_BURN_IN_TAU_C:g} "
-            f"tau_c = {M0_BURN_IN_TAU_C * tc:.3g} s, or use estimate_diffusivity, which has no such bias")
+            f"~min({M0_LAG_TAU_C:g} tau_c/t, 1) |M0| ~ {lag:.2g} m/s here (tau_c = {tc:.3g} s), against its CI "
+            f"half-width {m0_ci:.2g}, which does not include it (measured: 2.5-3.3% low at t = 100 tau_c); add "
+            f"burn_in >= {M0_BURN_IN_TAU_C:g} tau_c = {M0_BURN_IN_TAU_C * tc:.3g} s, or use estimate_diffusivity, "
+            "which has no such bias")
 
 
 #: the notes of an estimate whose excursions were truncated, by cause (the CLI names the option
