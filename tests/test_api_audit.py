@@ -441,8 +441,8 @@ def test_near_the_runaway_bias_messages_tell_the_bias_from_1_and_name_the_drift(
     from dryfric_jax.estimators import near_runaway_note
     from dryfric_jax.params import brief
 
-    assert [brief(x) for x in (0.999999, 1.000001, 0.5, 0.342, 1.0, math.inf, 1e-6)] == \
-        ["0.999999", "1.000001", "0.5", "0.342", "1", "inf", "1e-06"]
+    assert [brief(x) for x in (0.999999, 1.000001, -0.99999, 0.5, 0.342, 1.0, math.inf, 1e-6, -0.0890625, 2e-7)] \
+        == ["0.999999", "1.000001", "-0.99999", "0.5", "0.342", "1", "inf", "1e-06", "-0.08906", "2e-07"]
     with pytest.raises(ValueError) as e:
         limits.check_work(1e-6, math.inf, 0.999999, 100.0, 20_000)
     assert "gamma_bar' = 0.999999)" in str(e.value) and "keeps the particle drifting" in str(e.value)
