@@ -168,36 +168,31 @@ def held_interrupts():
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    held, old = [], {}
-    with _blocked():  # the handlers swapped as one step: a signal between two swaps left Ctrl-C held for good
+    held, old, active = [], {}, [True]
+
+    def hold(signum, frame):
+        if active[0]:
+            held.append(signum)
+        else:  # left in place by a restore that a signal cut short: act as the handler it replaced
+            signal.signal(signum, old[signum])
+            signal.raise_signal(signum)
+    # The handlers are swapped one at a time inside the try, so that a signal between two swaps (taken by the
+    # handler not yet swapped: SIGTERM as a KeyboardInterrupt) still restores those swapped; a hold left in place
+    # by a restore cut short acts as the handler it replaced.  Swapped before the try, such a SIGTERM left Ctrl-C
+    # held for good (a review).
+    try:
         for s in (signal.SIGINT, signal.SIGTERM):
             h = signal.getsignal(s)
             if h is not None and h != signal.SIG_IGN:
                 old[s] = h
-                signal.signal(s, lambda signum, frame: held.append(signum))
-    try:
+                signal.signal(s, hold)
         yield
     finally:
-        with _blocked():  # restored as one step too (a signal arriving now goes to the restored handler)
-            for s, h in old.items():
-                signal.signal(s, h)
+        active[0] = False
+        for s, h in old.items():
+            signal.signal(s, h)
         if held:  # SIGTERM first where both came: the command's exit status is then 143, as a scheduler expects
             signal.raise_signal(signal.SIGTERM if signal.SIGTERM in held else held[0])
-
-
-@contextlib.contextmanager
-def _blocked():
-    """SIGINT and SIGTERM blocked at the OS level within (they stay pending and are delivered as it ends), where the
-    platform can (POSIX); elsewhere nothing.  Swapping two handlers is two steps, and a signal between them, taken
-    by the first handler (SIGTERM as a KeyboardInterrupt), skipped the rest (a review)."""
-    if not hasattr(signal, "pthread_sigmask"):
-        yield
-        return
-    before = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
-    try:
-        yield
-    finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, before)
 
 
 def exit_status(rc: int) -> int:

@@ -34,22 +34,22 @@ import pytest
 from dryfric_jax import cli, interrupts, rounds
 
 
-def test_a_signal_while_the_handlers_are_swapped_is_held_not_lost(monkeypatch):
-    """held_interrupts swaps SIGINT's and SIGTERM's handlers one after the other; a SIGTERM between the two (taken
-    as a Ctrl-C, as under sigterm_as_ctrl_c) left the context before its ``try``, with SIGINT's handler the hold
-    for good, so that every later Ctrl-C was swallowed (a review).  The swap is now one step: the SIGTERM is held,
-    raised at the end, and both handlers are restored."""
-    import os
+@pytest.mark.parametrize("at", [1, 3])
+def test_a_signal_while_the_handlers_are_swapped_never_leaves_one_held(monkeypatch, at):
+    """held_interrupts swaps SIGINT's and SIGTERM's handlers one after the other, and back.  A SIGTERM between the
+    two swaps (taken as a Ctrl-C, as under sigterm_as_ctrl_c) left the context before its ``try``, with SIGINT's
+    handler the hold for good, so that every later Ctrl-C was swallowed (a review).  Now the swaps are inside the
+    ``try``: the SIGTERM acts at once and both handlers are restored (``at`` 1).  A restore cut short by a signal
+    (a Ctrl-C raised after SIGINT's is restored, ``at`` 3) leaves SIGTERM's hold in place, which then acts as the
+    handler it replaced.  The signals are raised in this thread (``signal.raise_signal``), so they are taken at
+    once."""
     import signal
 
-    if not hasattr(signal, "pthread_sigmask"):
-        pytest.skip("no signal masks here")
-
     def on_term(signum, frame):
-        raise KeyboardInterrupt
+        raise KeyboardInterrupt("term")
 
     def on_int(signum, frame):
-        pass
+        raise KeyboardInterrupt("int")
 
     before = signal.signal(signal.SIGINT, on_int), signal.signal(signal.SIGTERM, on_term)
     real, swaps = signal.signal, []
@@ -57,18 +57,22 @@ def test_a_signal_while_the_handlers_are_swapped_is_held_not_lost(monkeypatch):
     def swap(s, h):
         out = real(s, h)
         swaps.append(s)
-        if len(swaps) == 1:  # between the two swaps
-            os.kill(os.getpid(), signal.SIGTERM)
+        if len(swaps) == at:
+            signal.raise_signal(signal.SIGTERM if at == 1 else signal.SIGINT)
         return out
     try:
         monkeypatch.setattr(signal, "signal", swap)
-        ran = []
-        with pytest.raises(KeyboardInterrupt):
+        with pytest.raises(KeyboardInterrupt) as e:
             with interrupts.held_interrupts():
-                ran.append(1)
+                pass
         monkeypatch.setattr(signal, "signal", real)
-        assert ran == [1] and len(swaps) == 4
-        assert signal.getsignal(signal.SIGINT) is on_int and signal.getsignal(signal.SIGTERM) is on_term
+        assert str(e.value) == ("term" if at == 1 else "int")
+        assert signal.getsignal(signal.SIGINT) is on_int
+        if at == 1:
+            assert signal.getsignal(signal.SIGTERM) is on_term
+        for s, name in ((signal.SIGINT, "int"), (signal.SIGTERM, "term")):  # neither is held
+            with pytest.raises(KeyboardInterrupt, match=f"^{name}$"):
+                signal.raise_signal(s)
     finally:
         signal.signal(signal.SIGINT, before[0])
         signal.signal(signal.SIGTERM, before[1])
