@@ -210,7 +210,7 @@ class Lanes:
         last = ExcursionStats(stats, int(n_trunc.sum()), int(steps.sum()), self.slot_steps,
                               int((~done).sum()), int((phase != SEEK).sum()), steps)
         # the round is kept only once it has completed, and all of it or none: a Ctrl-C before this keeps the
-        # previous state (the round reruns with the same key), and one here waits for the end of the block.  The
+        # previous state (the round reruns with the same key), and one here waits until the round is kept.  The
         # lanes set before the stats were built, or before the caller counted the round, made a Ctrl-C there run
         # the next round on the round's key again (a reproducibility audit); the caller's key is ``rounds``
         with held_interrupts():
