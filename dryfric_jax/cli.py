@@ -877,6 +877,7 @@ def _theory(a, params) -> int:
             raise _UserError(why + (f" ({kept[0]} printed above{skipped})" if kept else ""))
         if a.h is not None:
             out["mean_v2"] = theory.exact_mean_square_velocity(params)
+    continuum = f"white-noise D  = {out['D']:.6g} m^2/s\nwhite-noise M0 = {out['M0']:.6g} m/s"
     if a.h is not None:  # the chain law's own warnings said (an unreliable M0 was printed without a word: an audit)
         from .chain_law import white_chain_law
 
@@ -885,8 +886,7 @@ def _theory(a, params) -> int:
             try:
                 law = white_chain_law(params, a.h)
             except ValueError as e:  # the continuum's D and M0 are still printed (it printed nothing: an audit)
-                print(dumps({**out, "refused": {"h": str(e)}}) if a.json else
-                      f"white-noise D  = {out['D']:.6g} m^2/s\nwhite-noise M0 = {out['M0']:.6g} m/s")
+                print(dumps({**out, "refused": {"h": str(e)}}) if a.json else continuum)
                 raise _UserError(f"{e} (the white-noise D and M0 are printed above; the DI chain at --h is not "
                                  "computed)") from None
         notes = list(dict.fromkeys(str(w.message) for w in said if issubclass(w.category, DryfricWarning)))
@@ -899,7 +899,7 @@ def _theory(a, params) -> int:
     if a.json:
         print(dumps(out))
     else:
-        print(f"white-noise D  = {out['D']:.6g} m^2/s\nwhite-noise M0 = {out['M0']:.6g} m/s")
+        print(continuum)
         if a.h is not None:
             rel = lambda x, y: f"{100 * (x / y - 1):+.2f}%" if y else "white noise: 0"
             print(f"DI chain at h = {a.h:.4g} s (white noise, exact): D = {law.D:.6g} ({rel(law.D, out['D'])}), "

@@ -49,8 +49,10 @@ def table1(out_dir, quick, seed):
     mc, se = V.mean(0), V.std(0, ddof=1) / np.sqrt(n)
     exact = [theory.first_moment(t, 1.0) for t in T_TABLE]
     unit = [theory.first_moment_unit_intensity(t, 1.0) for t in T_TABLE]
-    rows = _table1_rows(dict(t=T_TABLE, mc=mc, se=se, exact_model=exact, exact_unit_intensity=unit,
-                             paper_row=PAPER_ROW))
+    nums = dict(t=T_TABLE, mc=mc, se=se, exact_model=exact, exact_unit_intensity=unit, paper_row=PAPER_ROW,
+                max_abs_err=float(np.max(np.abs(mc - exact))), max_err_in_se=float(np.max(np.abs(mc - exact) / se)),
+                tau_nd=tau, h_nd=h, n_paths=n)
+    rows = _table1_rows(nums)
     fig, ax = plt.subplots(figsize=(11, 2.6))
     ax.axis("off")
     # fixed font and a wide first column: left to itself matplotlib shrank every cell to 2 pt to fit the labels
@@ -60,9 +62,6 @@ def table1(out_dir, quick, seed):
     table.set_fontsize(9)
     table.scale(1.0, 1.3)
     ax.set_title(f"Table 1: E[V'(t')] from v'=1, tau'={tau:g}, h'={h:g}, {n} paths")
-    nums = dict(t=T_TABLE, mc=mc, se=se, exact_model=exact, exact_unit_intensity=unit, paper_row=PAPER_ROW,
-                max_abs_err=float(np.max(np.abs(mc - exact))), max_err_in_se=float(np.max(np.abs(mc - exact) / se)),
-                tau_nd=tau, h_nd=h, n_paths=n)
     return save(fig, out_dir, "table1", nums, t0, quick=quick, seed=seed)
 
 
