@@ -150,16 +150,24 @@ def log_duration_scale(tau: float, tau_L: float, gamma_bar: float) -> float:
     a lower bound; the bias part (:math:`|\bar\gamma'| \ge 1`) an order of
     magnitude.  Arguments are the nondimensional :math:`\tau', \tau_L', \bar\gamma'`.
     """
-    xp, xm = 1.0 - gamma_bar, -1.0 - gamma_bar
-    passage = float(np.logaddexp(log_ou_passage_time(xp, xm, tau), log_ou_passage_time(xm, xp, tau)))
+    passage, drift = _log_passage_and_drift(tau, tau_L, gamma_bar)
     log_t = max(passage, math.log(min(1.0, tau_L)))
     g = abs(gamma_bar)
-    if g < 1.0:  # the slow deceleration near the runaway bias (module docstring)
-        log_t = max(log_t, -math.log((1.0 - g) + 0.5 / math.sqrt(tau_L)))
+    if drift is not None:  # the slow deceleration near the runaway bias (module docstring)
+        log_t = max(log_t, drift)
     if g >= 1.0 and math.isfinite(tau_L):
         z = (g - 1.0) * math.sqrt(tau_L + tau)
         log_t = max(log_t, math.log(tau_L) + 0.5 * z * z - math.log(max(z, 1.0)))
     return log_t
+
+
+def _log_passage_and_drift(tau: float, tau_L: float, gamma_bar: float) -> tuple:
+    r""":func:`log_duration_scale`'s two terms: the log of the OU passage part (both passage times) and of the slow
+    deceleration near the runaway bias (None where :math:`|\bar\gamma'| \ge 1`)."""
+    xp, xm = 1.0 - gamma_bar, -1.0 - gamma_bar
+    passage = float(np.logaddexp(log_ou_passage_time(xp, xm, tau), log_ou_passage_time(xm, xp, tau)))
+    g = abs(gamma_bar)
+    return passage, (-math.log((1.0 - g) + 0.5 / math.sqrt(tau_L)) if g < 1.0 else None)
 
 
 def log_predicted_duration(tau: float, tau_L: float, gamma_bar: float, min_duration: float = 0.0) -> float:
@@ -318,12 +326,10 @@ def _long_duration_reason(tau: float, tau_L: float, gamma_bar: float) -> str:
     """Why :func:`log_duration_scale` predicts long excursions: its largest term.  "Slow weak noise" was said
     for every |gamma_bar'| < 1, also at tau' = 1e-6 near the runaway bias, where the drift sets the length (a
     hard-cases audit)."""
-    g = abs(gamma_bar)
-    if g >= 1.0:
+    passage, drift = _log_passage_and_drift(tau, tau_L, gamma_bar)
+    if drift is None:
         return "the bias |gamma_bar| >= Delta keeps the particle moving"
-    xp, xm = 1.0 - gamma_bar, -1.0 - gamma_bar
-    passage = float(np.logaddexp(log_ou_passage_time(xp, xm, tau), log_ou_passage_time(xm, xp, tau)))
-    if -math.log((1.0 - g) + 0.5 / math.sqrt(tau_L)) > passage:
+    if drift > passage:
         return ("the bias |gamma_bar| close to Delta, with weak damping, keeps the particle drifting (near the "
                 "runaway bias |gamma_bar| = Delta)")
     return "the noise rarely reaches the far threshold (slow weak noise: tau large against tau0)"
