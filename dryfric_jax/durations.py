@@ -458,7 +458,7 @@ def check_duration_run(params, h=None, n_excursions: int = 2048, dtype: str = "f
     if default:
         h = default_duration_h(params)
     try:
-        plan = choose(params, "di", h, None, dtype)
+        plan = choose(params, "di", h, None, dtype, excursions=True)
     except ValueError as e:  # the default step refused: say it is tau that is too short, not an h never given
         if not (default and str(e).startswith("h must")):
             raise

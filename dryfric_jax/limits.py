@@ -295,6 +295,7 @@ def check_work(tau: float, tau_L: float, gamma_bar: float, steps_per_tau0: float
     Predicted work = N x predicted duration (:func:`log_predicted_duration`: :func:`log_duration_scale`, or
     ``min_duration`` where that is longer) x ``steps_per_tau0``.
     """
+    check_duration_in_range(tau, tau_L, gamma_bar)
     log_t = log_predicted_duration(tau, tau_L, gamma_bar, min_duration)
     log_w = math.log(n_excursions) + log_t + math.log(steps_per_tau0)
     if log_w > math.log(max_work):
@@ -308,18 +309,28 @@ def check_work(tau: float, tau_L: float, gamma_bar: float, steps_per_tau0: float
         beyond = log_w > math.log(sys.float_info.max)
         head = f"max_work must be >= {_exp10(log_w)} {unit} for these parameters" + (
             ", beyond float range (no max_work allows them)" if beyond else f" (got {max_work:.3g})")
-        if log_t > math.log(sys.float_info.max):  # one excursion alone lasts > 1.8e308 tau0: nothing can help
-            fix = ("No h, delta or N makes this run feasible" + (
-                "; the white-noise theory ('dryfric theory') gives D when tau << tau0" if tau < 1.0 else ""))
-        else:
-            fix = (("Coarsen" if beyond else "Raise max_work (--max-work), coarsen")
-                   + " h or delta, lower N, or use the white-noise theory when tau << tau0")
+        fix = (("Coarsen" if beyond else "Raise max_work (--max-work), coarsen")
+               + " h or delta, lower N, or use the white-noise theory when tau << tau0")
         raise ValueError(
             f"{head}: {n_excursions} excursions of predicted mean duration >= {_exp10(log_t)} tau0 at "
             f"{steps_per_tau0:.3g} {unit} per tau0 (tau' = {brief(tau, 3)}, tau_L' = {brief(tau_L, 3)}, "
             f"gamma_bar' = {brief(gamma_bar, 3)}); {why}.  {fix}")
     # accepted: log_w <= log(max_work) <= log(largest float), up to rounding, so exp cannot overflow
     return min(math.exp(min(log_w, math.log(max_work))), max_work)
+
+
+def check_duration_in_range(tau: float, tau_L: float, gamma_bar: float) -> None:
+    r"""Refuse (``ValueError``) parameters whose predicted mean excursion alone (:func:`log_duration_scale`) lasts
+    past float range, > 1.8e308 :math:`\tau_0`: no method, h, delta, N or max_work makes such an estimate feasible.
+    The PDMP's grid refusal said "use method 'di'" there, which the DI then refused too (an audit)."""
+    log_t = log_predicted_duration(tau, tau_L, gamma_bar)
+    if log_t > math.log(sys.float_info.max):
+        raise ValueError(
+            f"the parameters must give excursions of predicted mean duration < 1.8e308 tau0 (float range; got >= "
+            f"{_exp10(log_t)} tau0 at tau' = {brief(tau, 3)}, tau_L' = {brief(tau_L, 3)}, "
+            f"gamma_bar' = {brief(gamma_bar, 3)}); "
+            f"{_long_duration_reason(tau, tau_L, gamma_bar)}.  No h, delta or N makes this run feasible" + (
+                "; the white-noise theory ('dryfric theory') gives D when tau << tau0" if tau < 1.0 else ""))
 
 
 def _long_duration_reason(tau: float, tau_L: float, gamma_bar: float) -> str:

@@ -30,11 +30,15 @@ def shown(x, width: int = 60, head: int = 24) -> str:
 
 
 def brief(x: float, digits: int = 4) -> str:
-    """``x`` to ``digits`` significant digits, or to 12 where that rounding would show a whole number that ``x`` is
-    not: 0.999999 is not shown as 1, which near the runaway bias is another case (a hard-cases audit: a refusal said
-    gamma_bar' = 1 and a sweep labelled 0.999999 and 1.000001 both gamma_bar=1)."""
+    """``x`` to ``digits`` significant digits, or to the fewest more (at most 12) where that rounding would show a
+    whole number that ``x`` is not: 0.999999 is not shown as 1, which near the runaway bias is another case (a
+    hard-cases audit: a refusal said gamma_bar' = 1 and a sweep labelled 0.999999 and 1.000001 both gamma_bar=1);
+    1170.2857 is shown as 1170.3, not to 12 digits."""
     text = f"{x:.{digits}g}"
-    return text if not math.isfinite(x) or float(text) == x or not float(text).is_integer() else f"{x:.12g}"
+    while math.isfinite(x) and not float(x).is_integer() and float(text).is_integer() and digits < 12:
+        digits += 1
+        text = f"{x:.{digits}g}"
+    return text
 
 
 def rounded_bound(x: float, *, lower: bool, digits: int = 4) -> str:

@@ -32,8 +32,8 @@ import numpy as np
 from .cost import choose_method, default_delta, default_delta_note
 from .excursions import MAX_LAYOUT, default_block, lanes_for
 from .limits import (
-    MAX_WORK, check_recurrent, check_simulable, check_work, di_cycle_floor, float32_unsafe_reason,
-    max_steps_per_excursion, pdmp_cycle_floor, pdmp_float32_unsafe_reason,
+    MAX_WORK, check_duration_in_range, check_recurrent, check_simulable, check_work, di_cycle_floor,
+    float32_unsafe_reason, max_steps_per_excursion, pdmp_cycle_floor, pdmp_float32_unsafe_reason,
 )
 from .params import Params, check_params, real_or_none, refuse_traced, rounded_bound, shown
 from .pdmp import pdmp_grid_info
@@ -230,13 +230,17 @@ class Plan:
     notes: list = field(default_factory=list)  # e.g. float32 -> float64
 
 
-def choose(params: Params, method: str, h, delta, dtype) -> Plan:
-    """Steps 1-3 of the module docstring (no work bounds): method, h or delta, dtype."""
+def choose(params: Params, method: str, h, delta, dtype, *, excursions: bool = False) -> Plan:
+    """Steps 1-3 of the module docstring (no work bounds): method, h or delta, dtype.  ``excursions``: the plan is
+    for excursions, which must end (:func:`~dryfric_jax.limits.check_duration_in_range`, before any h or delta);
+    brute force's fixed horizon need not."""
     check_params(params)
     check_method(method, h, delta)
     dtype = dtype_name(dtype)
     check_recurrent(params.tau_L_nd, params.gamma_bar_nd)
     check_simulable(params.tau_L_nd, params.tau_L, params.tau0)
+    if excursions:
+        check_duration_in_range(params.tau_nd, params.tau_L_nd, params.gamma_bar_nd)
     d = real(delta)
     if d is not None and math.isfinite(d):  # as a float (an int of 400 digits stays itself, for check_delta to show)
         delta = d
@@ -301,7 +305,7 @@ def plan_estimate(params: Params, *, method: str = "di", h: float | None = None,
     lanes, block1 = check_layout(lanes, 1 if block is None else block)  # a default K is fitted to the lanes below
     if chunk_lanes is not None:
         chunk_lanes = check_count("chunk_lanes", chunk_lanes, 1)
-    plan = choose(params, method, h, delta, dtype)
+    plan = choose(params, method, h, delta, dtype, excursions=True)
     nd = (params.tau_nd, params.tau_L_nd, params.gamma_bar_nd)
     plan.min_duration = predicted_duration_floor(params, plan)
     plan.predicted_work = check_work(*nd, plan.per_tau0, n_excursions, max_work, plan.unit, plan.min_duration)

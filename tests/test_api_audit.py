@@ -443,6 +443,9 @@ def test_near_the_runaway_bias_messages_tell_the_bias_from_1_and_name_the_drift(
 
     assert [brief(x) for x in (0.999999, 1.000001, -0.99999, 0.5, 0.342, 1.0, math.inf, 1e-6, -0.0890625, 2e-7)] \
         == ["0.999999", "1.000001", "-0.99999", "0.5", "0.342", "1", "inf", "1e-06", "-0.08906", "2e-07"]
+    # widened by the fewest digits that show it is not whole (it went to 12: tau' = 1170.28571429); whole floats, as
+    # every float past 2^53 is, are never widened
+    assert [brief(x) for x in (1170.2857142857, 156.818285714, 7.3728e30)] == ["1170.3", "156.8", "7.373e+30"]
     with pytest.raises(ValueError) as e:
         limits.check_work(1e-6, math.inf, 0.999999, 100.0, 20_000)
     assert "gamma_bar' = 0.999999)" in str(e.value) and "keeps the particle drifting" in str(e.value)

@@ -158,9 +158,9 @@ BAD += [
     (["estimate", "--Gamma", "1e-300"], "Gamma and Delta"),  # tau0 underflows
     (["estimate", "--tau", "1e300"], "tau must keep"),
     # a 1e30-digit work bound, in brief, and no advice to raise max_work (no float is large enough)
-    (["estimate", "--Gamma", "1e-30"], "max_work must be >= 10^(1."),
+    (["estimate", "--Gamma", "1e-30"], "predicted mean duration < 1.8e308 tau0 (float range; got >= 10^(1.9e+30)"),
     (["estimate", "--gamma-bar", "1e300"],  # its log overflows: the bound as 10^(float max), it said "inf"
-     "max_work must be >= 10^(1.79e+308) steps for these parameters, beyond float range"),
+     "predicted mean duration < 1.8e308 tau0 (float range; got >= 10^(1.79e+308) tau0"),
     # beyond int64: a TypeError traceback from lanes_for (np.log2 of a Python int)
     (["estimate", "--n-excursions", str(2**70), "--max-work", "1e308", "--max-time", "5"],
      "--n-excursions must be an integer in [2, 2^62]"),
@@ -1028,12 +1028,33 @@ def test_figures_prints_table_1_once_its_files_are_written_also_when_kept(tmp_pa
 def test_work_refusal_suggests_raising_max_work_only_when_a_float_could_allow_it(capsys):
     """Past float range (log work > log(1.8e308)) no ``--max-work`` allows the run: the message said
     "max_work must be >= 10^(1.9e+30) steps ... Raise --max-work".  Within it, it still says so."""
-    assert main(["estimate", "--Gamma", "1e-30"]) == 2
+    assert main(["estimate", "--Gamma", "6.3e-3"]) == 2  # predicted mean duration 2.1e303 tau0, x 20000 x 100 steps
     err = capsys.readouterr().err
     assert "Raise max_work" not in err and "beyond float range (no max_work allows them)" in err
+    assert "Coarsen h or delta, lower N" in err
     # the duration alone is out of reach (tau' = 7e30): no h, delta or N helps, so none is suggested (a
     # hard-cases audit: "Coarsen h or delta, lower N" at Delta = 1e8, where nothing could help)
+    assert main(["estimate", "--Gamma", "1e-30"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("dryfric: error: the parameters must give excursions of predicted mean duration < "
+                          "1.8e308 tau0 (float range; got >= 10^(1.9e+30) tau0 at tau' = 7.37e+30, ")
     assert err.rstrip().endswith(".  No h, delta or N makes this run feasible") and "Coarsen" not in err
+
+
+@pytest.mark.parametrize("cmd", [["estimate", "--method", "pdmp"], ["estimate", "--method", "di"],
+                                 ["estimate", "--method", "auto"], ["duration"]])
+def test_a_run_whose_excursions_cannot_end_is_refused_for_that_whatever_the_method(capsys, cmd):
+    """At gamma_bar' = 1e20 one excursion lasts past float range: the PDMP said "no delta is admissible for these
+    parameters: use method 'di'", which then refused the run too (a hard-cases audit).  Every excursion method now
+    says the duration is out of reach, before any h or delta; brute force, whose horizon is fixed, can use the DI."""
+    assert main([*cmd, "--nondim", "--gamma-bar", "1e20"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("dryfric: error: the parameters must give excursions of predicted mean duration < "
+                          "1.8e308 tau0 (float range; got >= 10^(3.64e+39) tau0 at ")
+    assert err.rstrip().endswith(".  No h, delta or N makes this run feasible") and "method 'di'" not in err
+    assert main(["bruteforce", "--nondim", "--gamma-bar", "1e20", "--method", "pdmp", "--t", "1",
+                 "--n-paths", "10"]) == 2
+    assert capsys.readouterr().err.rstrip().endswith("no delta is admissible for these parameters: use method 'di'")
     assert main(["estimate", "--max-work", "1e3"]) == 2
     err = capsys.readouterr().err
     assert "max_work must be >= " in err and "(got 1e+03)" in err and "Raise max_work (--max-work), coarsen h" in err

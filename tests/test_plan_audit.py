@@ -238,8 +238,8 @@ def test_passage_to_where_the_path_already_is_takes_no_time_and_a_huge_bias_is_r
     duration there let the run start instead)."""
     assert limits.log_ou_passage_time(0.5, 0.5, 1.0) == -math.inf
     assert limits.log_ou_passage_time(-7.0, -7.0, 2.0) == -math.inf
-    with pytest.raises(ValueError,
-                       match=r"^max_work must be >= 10\^\(1.79e\+308\) steps for these parameters, beyond float range"):
+    with pytest.raises(ValueError, match=r"^the parameters must give excursions of predicted mean duration < 1.8e308 "
+                                         r"tau0 \(float range; got >= 10\^\(1.79e\+308\) tau0 at "):
         plan_estimate(dj.Params(5.0, 3.84, 0.5, 0.067, 1e300), n_excursions=100)
 
 
