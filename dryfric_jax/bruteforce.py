@@ -1,4 +1,4 @@
-r"""Brute force on a fixed horizon (paper section 4.2, Algorithm 2's idea on the DI).
+r"""Brute force on a fixed horizon (paper section 5.2, Algorithm 2's idea on the DI).
 
 N' independent paths of the same discrete chain as :mod:`dryfric_jax.excursions` (no
 regeneration, no reset) start at :math:`(X, V) = (x_{\Delta}, 0)`, optionally run ``burn_in``

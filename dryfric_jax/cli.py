@@ -608,10 +608,6 @@ def _read_results(paths):
     return out, labels
 
 
-def _print_estimate(r):
-    print(r.summary())  # the warnings go to stderr (_report)
-
-
 @contextlib.contextmanager
 def _warnings_kept_in_result():
     """Silence the library's DryfricWarnings: each is also in ``result.warnings``, which
@@ -664,11 +660,13 @@ def _warnings_as_lines(progress_line: bool = False):
         yield
 
 
-def _report(a, r, print_text, warn: bool = True):
+def _report(a, r, text=lambda r: r.summary(), warn: bool = True):
     """A result to ``--out`` (atomically), then its warnings on stderr (``warn``) and its JSON by ``--json`` to stdout
-    (otherwise ``print_text(r)``): each survives the other's failure.  A failed write is an error after the result
+    (otherwise ``text(r)``): each survives the other's failure.  A failed write is an error after the result
     has been printed; a stdout or stderr that cannot be written (its reader gone, ``| true``, or a full disk) leaves
-    the file written (it was printed first, and a pipe closed by the reader lost the file: an audit)."""
+    the file written (it was printed first, and a pipe closed by the reader lost the file: an audit).  stdout gets
+    one write, also unbuffered (``PYTHONUNBUFFERED``): ``print`` wrote the text and its newline apart, and ``| head
+    -1``, leaving between them, made the second fail (exit 141 in 1-3 of 6 runs: a docs audit)."""
     try:
         _write_out(a.out, r.to_dict())
         failed = None
@@ -676,17 +674,10 @@ def _report(a, r, print_text, warn: bool = True):
         failed = e
     for w in r.warnings if warn else ():
         print(f"dryfric: warning: {w}", file=sys.stderr)
-    if a.json:
-        print(dumps(r.to_dict()), flush=True)
-    else:
-        print_text(r)
-        sys.stdout.flush()
+    sys.stdout.write((dumps(r.to_dict()) if a.json else text(r)) + "\n")
+    sys.stdout.flush()
     if failed is not None:
         raise failed
-
-
-def _print_bruteforce(r):
-    print(r.summary())
 
 
 def _work_options(a):
@@ -772,7 +763,7 @@ def _run(a) -> int:
         with _warnings_kept_in_result():
             results, labels = _read_results(a.files)
             r = combine_estimates(results, labels=labels, allow_mixed_versions=a.allow_mixed_versions)
-        _report(a, r, _print_estimate)
+        _report(a, r)
         return _truncation_exit(a, r, "")
     params = _params(a)
     if a.cmd == "theory":
@@ -789,12 +780,7 @@ def _run(a) -> int:
                                          progress=_progress_line if show else None, **_work_options(a),
                                          **({} if a.block is None else dict(block=a.block)))
 
-        def text(r):
-            _print_estimate(r)
-            if a.method == "auto":
-                print(r.method_reason)
-
-        _report(a, r, text)
+        _report(a, r, lambda r: r.summary() + (f"\n{r.method_reason}" if a.method == "auto" else ""))
         if r.stopped_by == "interrupted":
             return 130
         return _truncation_exit(a, r, _truncation_remedy(r))
@@ -809,7 +795,7 @@ def _run(a) -> int:
                                            n_lanes=a.n_lanes, max_steps=a.max_steps, dtype=a.dtype,
                                            bridge=not a.no_bridge, max_time=a.max_time,
                                            progress=_duration_line if show else None, **_work_options(a))
-        _report(a, r, lambda r: print(r.summary()), warn=False)  # its warnings were said as they came
+        _report(a, r, warn=False)  # its warnings were said as they came
         if r.stopped_by == "interrupted":  # a Ctrl-C (SIGTERM): what was counted is above, and in --out
             return 130
         if r.n_truncated and not a.allow_truncated:
@@ -823,7 +809,7 @@ def _run(a) -> int:
             r = api.bruteforce_diffusivity(params, a.seed, t=a.t, n_paths=a.n_paths, method=a.method, h=a.h,
                                            delta=a.delta, burn_in=a.burn_in, dtype=a.dtype, max_events=a.max_events,
                                            **_work_options(a))
-        _report(a, r, _print_bruteforce)
+        _report(a, r)
         return 0
     raise _UserError(f"unknown command {a.cmd!r}")
 

@@ -1,6 +1,6 @@
 r"""Where the CI comes from: ratio estimators and their delta-method confidence intervals.
 
-Long excursions (paper section 4.1 and appendix D, corrected).  The excursions are i.i.d.
+Long excursions (paper section 5.1 and appendix D, corrected).  The excursions are i.i.d.
 regeneration cycles with displacement U and duration t.  The regenerative central limit
 theorem (e.g. Asmussen, *Applied Probability and Queues*, VI.3) gives
 
@@ -26,7 +26,7 @@ and :math:`\sqrt N(\Psi(\hat{\boldsymbol S}_N) - \Psi(\boldsymbol S)) \to \mathc
 ``jax.grad``; :math:`\hat{\mathbf C}_N` from the sufficient statistics (all products of two
 entries of :math:`\boldsymbol X`).  The CI is :math:`\hat D_N \pm q_{1-\alpha/2}\hat\sigma_N/\sqrt N`.
 
-Brute force (section 4.2): :math:`\hat D^t_{N'} = \Phi(\hat{\boldsymbol R})` with
+Brute force (section 5.2): :math:`\hat D^t_{N'} = \Phi(\hat{\boldsymbol R})` with
 :math:`\boldsymbol Y = (U(t)/\sqrt t, U(t)^2/t)` and :math:`\Phi(\boldsymbol y) = y_2 - y_1^2`.
 
 The delta-method CI under-covers for small N because U per excursion is heavy-tailed

@@ -1,6 +1,7 @@
 r"""The PDMP Z = (X, Y, V): exact event-driven simulation of the jump-noise model.
 
-Paper section 3 and appendices B-C, nondimensional units (:math:`\Gamma = \Delta = 1`), with the
+Paper section 3 and appendices A, B and E (printed letters; the source labels them app:genX, app:PDMP and
+app:C), nondimensional units (:math:`\Gamma = \Delta = 1`), with the
 errata of MODEL_NOTES section 3.  X is the jump noise of :mod:`dryfric_jax.noise` (integer
 index k), Y the mode (+1 sliding up, -1 sliding down, 0 stuck), V the velocity.
 
@@ -90,7 +91,7 @@ def flow(v, a, kappa, s):
 
 
 def displacement(v, a, kappa, s):
-    r"""Displacement :math:`\int_0^s v` while sliding (appendix C's displacement, stable form)."""
+    r"""Displacement :math:`\int_0^s v` while sliding (appendix B's U(T_1), appendix E's displacement(), stable form)."""
     return v * s + (a - kappa * v) * s * s * phi2(-kappa * s)
 
 
