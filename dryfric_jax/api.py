@@ -78,6 +78,32 @@ def short_horizon_note(params: Params, t: float) -> str | None:
             "tau0/t) after a burn_in of 20 tau0; -53% at t = 10 tau_c, gamma_bar' = 0.9); raise t, add burn_in, or "
             "use estimate_diffusivity, which has no horizon bias")
 
+#: brute force's D_t: its O(1/t) bias b/t, b in correlation times, from rest and after a burn-in of
+#: D_BURN_IN_TAU_C tau_c (white noise, tau_L = inf, where tau_c = tau0: :func:`short_horizon_note`)
+D_BIAS_TAU_C, D_BIAS_BURNT_TAU_C, D_BURN_IN_TAU_C = 5.4, 2.8, 20.0
+
+
+def d_bias_note(params: Params, t: float, burn_in: float, d_t: float, d_ci: float) -> str | None:
+    r"""The warning for brute force's :math:`\hat D^t` at a horizon past :data:`MIN_HORIZON` :math:`\tau_c` (shorter
+    ones have :func:`short_horizon_note`) whose O(1/t) bias may still exceed a fifth of its CI half-width, None
+    otherwise.  :math:`D^t \approx D(1 - b/t)` with :math:`b \approx` :data:`D_BIAS_TAU_C` :math:`\tau_c` from rest
+    (:data:`D_BIAS_BURNT_TAU_C` after a burn-in of :data:`D_BURN_IN_TAU_C` :math:`\tau_c`), measured with white
+    noise and :math:`\tau_L = \infty`; less with damping (~1.3 :math:`\tau_c` at Fig. 3's point), so it is an upper
+    estimate.  The bias does not shrink with N' and the half-width does not depend on t: an audit (2026-12-07) found
+    10^4 paths at t = 100 :math:`\tau_0` (white noise, :math:`\tau_L = \infty`) covering the exact D in 28% of
+    runs (D_t = 9.36 +- 0.37 against 10), silently.  Never where the CI is 0 (its own note)."""
+    tc = correlation_time(params)
+    coef = D_BIAS_BURNT_TAU_C if burn_in >= D_BURN_IN_TAU_C * tc else D_BIAS_TAU_C
+    bias = coef * tc / t * abs(d_t)
+    if t < MIN_HORIZON * tc or not d_ci > 0 or not bias > 0.2 * d_ci:
+        return None
+    return (f"D_t is biased low by O(tau_c/t) also at t = {t / tc:.3g} tau_c: by up to ~{coef:g} tau_c/t D_t ~ "
+            f"{bias:.2g} m^2/s here (tau_c = {tc:.3g} s; "
+            f"measured with white noise, tau_L = inf; less with damping), against its CI half-width {d_ci:.2g}, which "
+            f"does not include it (it shrinks with more paths, the bias does not); t >= {bias / (0.2 * d_ci) * t:.3g} "
+            "s brings it under a fifth of the half-width, or use estimate_diffusivity, which has no horizon bias")
+
+
 #: brute force's M0_t from rest: the lag of E[U(t)] behind M0 t, in correlation times (an audit, 2026-12-07: 2.9
 #: tau_c at tau' = tau_L' = 3, gamma_bar' = -0.7), and the burn-in (in tau_c) after which it was gone
 M0_LAG_TAU_C, M0_BURN_IN_TAU_C = 3.0, 20.0
@@ -725,7 +751,8 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
     needs more than ``max_work`` steps (events) is refused before it starts.
 
     A horizon under 100 correlation times (:func:`correlation_time`) is warned about
-    (:func:`short_horizon_note`: D_t = D (1 - 5.4 tau0/t) from rest with white noise and tau_L = inf), so is
+    (:func:`short_horizon_note`: D_t = D (1 - 5.4 tau0/t) from rest with white noise and tau_L = inf), so is a
+    longer one where that bias may exceed a fifth of D_t's CI (:func:`d_bias_note`: many paths), so is
     an M0_t whose start from rest may lag it toward 0 by more than a fifth of its CI (:func:`m0_lag_note`: at any
     horizon, without a burn-in of 20 tau_c), and so is a D_t CI of 0 (paths too short for the noise to spread
     them).  With the seed, ``block`` (steps whose numbers are drawn at once) fixes the numbers and is
@@ -802,11 +829,12 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
                 "rounding, so the result has no error bar; t is too short for the noise to spread the paths")
         warnings.warn(zero, DryfricWarning, stacklevel=2)
         notes = [*notes, zero]
-    lag = m0_lag_note(params, t_nd * params.tau0, burn_in, float(e["M0_t"] * params.v0),
-                      float(e["M0_t_ci"] * params.v0))
-    if lag:  # issued after the run, as the zero CI's: it needs M0_t and its CI
-        warnings.warn(lag, DryfricWarning, stacklevel=2)
-        notes = [*notes, lag]
+    t_s = t_nd * params.tau0
+    for note in (d_bias_note(params, t_s, burn_in, float(e["D_t"] * params.D0), float(e["D_t_ci"] * params.D0)),
+                 m0_lag_note(params, t_s, burn_in, float(e["M0_t"] * params.v0), float(e["M0_t_ci"] * params.v0))):
+        if note:  # issued after the run, as the zero CI's: they need the estimates and their CIs
+            warnings.warn(note, DryfricWarning, stacklevel=2)
+            notes = [*notes, note]
     return BruteForceResult(
         D_t=float(e["D_t"] * params.D0), D_t_ci=float(e["D_t_ci"] * params.D0), M0_t=float(e["M0_t"] * params.v0),
         M0_t_ci=float(e["M0_t_ci"] * params.v0), t=t_nd * params.tau0, n_paths=int(n_paths), method=method, h=h,

@@ -10,6 +10,8 @@ A brute-force audit found three defects, each pinned here by a test that failed 
    and ``block`` did too, unrecorded.  Now a path's key does not depend on the chunk, and the block
    is in the result (and its JSON) with the version.
 3. A PDMP run of t = 1e-9 s returned D_t = 1.9e-77 with a CI of 0, exit 0, silently.
+
+A later audit found the bias past 100 correlation times beyond the CI of many paths, unsaid; and M0_t's lag.
 """
 import json
 import math
@@ -160,6 +162,32 @@ def test_the_bias_the_warning_quotes_is_there(burn_in):
     assert _notes(rec, "correlation times")
     assert r.D_t + r.D_t_ci < D, (r.D_t, r.D_t_ci, D)
     assert abs(r.D_t - D * (1 - coefficient / 20.0)) <= r.D_t_ci, (r.D_t, r.D_t_ci, D)
+
+
+def test_a_d_t_bias_beyond_its_ci_past_100_correlation_times_is_said():
+    """An audit (2026-12-07): past 100 tau_c no warning came, yet the O(1/t) bias stays while the CI shrinks with the
+    paths: at t = 100 tau0 (white noise, tau_L = inf) 10^4 paths covered the exact D in 28% of runs, and seed 3 gave
+    D_t = 9.36 +- 0.37 against 10, silently.  Now api.d_bias_note says so, with the horizon that would bring the
+    quoted bias (5.4 tau_c/t D_t from rest, 2.8 after a burn-in) under a fifth of the half-width; not where it is
+    under it, nor below 100 tau_c (short_horizon_note's), nor with a CI of 0 (its own note)."""
+    import re
+
+    from dryfric_jax.api import d_bias_note
+
+    D = white_chain_law(WHITE, H).D
+    with warnings.catch_warnings(record=True) as rec:
+        warnings.simplefilter("always")
+        r = dj.bruteforce_diffusivity(WHITE, 3, t=100.0, n_paths=10_000, h=H)
+    said = _notes(rec, "D_t is biased low by O(tau_c/t) also at t = 100 tau_c: by up to ~5.4 tau_c/t D_t")
+    assert said and said == [w for w in r.warnings if w.startswith("D_t is biased low")]
+    assert r.D_t + r.D_t_ci < D, (r.D_t, r.D_t_ci, D)  # the bias the note is about, at this seed
+    t_fix = float(re.search(r"t >= ([0-9.e+]+) s brings", said[0]).group(1))
+    assert t_fix == pytest.approx(5.4 * r.D_t / (0.2 * r.D_t_ci), rel=1e-2)  # tau_c = 1 s
+    assert "~2.8 tau_c/t D_t ~ 0.28 m^2/s" in d_bias_note(WHITE, 100.0, 20.0, 10.0, 0.37)  # burnt in
+    assert d_bias_note(WHITE, 100.0, 0.0, 10.0, 2.8) is None  # 0.54 m^2/s under a fifth of 2.8
+    assert d_bias_note(WHITE, 1000.0, 0.0, 10.0, 0.37) is None  # 0.054 under 0.074
+    assert d_bias_note(WHITE, 99.9, 0.0, 10.0, 0.37) is None and short_horizon_note(WHITE, 99.9)
+    assert d_bias_note(WHITE, 100.0, 0.0, 0.0, 0.0) is None
 
 
 # ---------------------------------------------------------------- 3. a CI of 0
