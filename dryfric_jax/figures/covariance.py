@@ -75,7 +75,7 @@ def fig4(out_dir, quick, seed):
     ax.set_xlabel("rho (s)")
     ax.set_ylabel("h(rho) / h(0)")
     ax.set_ylim(FLOOR, 1.5)
-    ax.set_title(f"bands: estimate +- 2 SE; lags where the estimate is <= 0 are gaps (log axis, from {FLOOR:g})",
-                 fontsize=8)
+    ax.set_title("bands: estimate +- 2 SE, pointwise; lags where the estimate is <= 0 are gaps "
+                 f"(log axis, from {FLOOR:g})", fontsize=8)
     ax.legend(fontsize=7)
     return save(fig, out_dir, "fig4", nums, t0, quick=quick, seed=seed)
