@@ -113,12 +113,16 @@ def _agree(x, dx, y, dy, z=2.81):
 
 @pytest.mark.slow
 def test_pdmp_agrees_with_di_at_fig3_point():
-    """Paper's Fig. 3 point; delta = 0.0625 (delta' = 0.036), DI at the default h = 0.01 tau_L."""
+    """Paper's Fig. 3 point; delta = 0.0625 (delta' = 0.036), DI at the default h = 0.01 tau_L.  6e4 excursions each:
+    at 2e4 the tolerance was 7.3% of D, and a PDMP D scaled by 0.94 passed (a test audit, 2026-12-07); the
+    comparison exists to catch the grid's few-% biases (0.12 s^-1/2 left the PDMP 6-7% low at Gamma = 1, tau = 1 s)."""
     p = dj.Params(**dj.FIG3)
-    pd = _quiet(dj.estimate_diffusivity, p, 21, method="pdmp", delta=0.0625, n_excursions=20_000)
-    di = _quiet(dj.estimate_diffusivity, p, 22, method="di", n_excursions=20_000)
+    pd = _quiet(dj.estimate_diffusivity, p, 21, method="pdmp", delta=0.0625, n_excursions=60_000)
+    di = _quiet(dj.estimate_diffusivity, p, 22, method="di", n_excursions=60_000)
     assert pd.n_truncated == 0 and di.n_truncated == 0
-    assert pd.D_ci < 0.05 * pd.D and di.D_ci < 0.05 * di.D  # the comparison has teeth
+    # the comparison has teeth: 2.81 combined SE is under 4.5% of D (measured 4.3%), 8% of M0 (7.3%)
+    assert 2.81 / 1.96 * math.hypot(pd.D_ci, di.D_ci) < 0.045 * di.D
+    assert 2.81 / 1.96 * math.hypot(pd.M0_ci, di.M0_ci) < 0.08 * di.M0
     assert _agree(pd.D, pd.D_ci, di.D, di.D_ci), (pd.D, pd.D_ci, di.D, di.D_ci)
     assert _agree(pd.M0, pd.M0_ci, di.M0, di.M0_ci), (pd.M0, pd.M0_ci, di.M0, di.M0_ci)
     assert pd.events_per_s > 0 and pd.delta == 0.0625 and pd.L_X >= 8 / math.sqrt(p.tau)
@@ -147,12 +151,14 @@ def test_default_delta_resolves_the_noise_sd(Gamma, tau):
 @pytest.mark.slow
 def test_pdmp_long_excursions_agree_with_pdmp_bruteforce():
     """Same PDMP (coarse delta' = 0.15, so the test is about the PDMP, not its limit): the
-    long-excursion D, M0 and the fixed-horizon D^t, M0^t (t = 200 tau0 after a burn-in) agree."""
+    long-excursion D, M0 and the fixed-horizon D^t, M0^t (t = 200 tau0 = 200 tau_c after a burn-in of 20, where
+    D^t's O(1/t) bias is at most ~1.4%: api.d_bias_note) agree.  1.2e5 excursions and 1.6e4 paths: with 4e4 and
+    4000 the tolerance was 7.8% of D and a PDMP D scaled by 0.94 passed (a test audit, 2026-12-07)."""
     p = dj.Params.from_nondim(1.0, 0.5, 0.1)
-    le = _quiet(dj.estimate_diffusivity, p, 31, method="pdmp", delta=0.15, n_excursions=40_000)
-    bf = dj.bruteforce_diffusivity(p, 32, method="pdmp", delta=0.15, t=200.0, n_paths=4000, burn_in=20.0)
+    le = _quiet(dj.estimate_diffusivity, p, 31, method="pdmp", delta=0.15, n_excursions=120_000)
+    bf = _quiet(dj.bruteforce_diffusivity, p, 32, method="pdmp", delta=0.15, t=200.0, n_paths=16_000, burn_in=20.0)
     assert bf.n_unfinished == 0 and le.n_truncated == 0
-    assert bf.D_t_ci < 0.06 * bf.D_t
+    assert 2.81 / 1.96 * math.hypot(le.D_ci, bf.D_t_ci) < 0.045 * le.D  # teeth: measured 3.9% of D
     assert _agree(le.D, le.D_ci, bf.D_t, bf.D_t_ci), (le.D, le.D_ci, bf.D_t, bf.D_t_ci)
     assert _agree(le.M0, le.M0_ci, bf.M0_t, bf.M0_t_ci), (le.M0, le.M0_ci, bf.M0_t, bf.M0_t_ci)
     # float32 simulation (float64 statistics): the same D and M0 within the CIs
