@@ -366,6 +366,13 @@ def test_estimators_on_extreme_parameters(G, tau, r, tl, gb, dtype, method, expe
     assert all(math.isfinite(v) for v in nums), nums
     assert res.D > 0 and res.D_ci > 0 and res.M0_ci > 0 and res.mean_duration > 0
     assert res.n_excursions >= 2
+    if p.tau_nd < 1e-6:  # white noise: D and M0 are known (the step's bias, ~1e-2 here, is far inside CIs of 25-55%)
+        # within 2.81 SE of the exact values (they were checked finite and > 0 only: a test audit; measured 0.07,
+        # 0.43 and 1.73 SE).  At N = 200 the CIs are 25-55% of D: this catches gross errors (a factor 2 where the CI
+        # is under ~35%, a wrong scale or sign), not percent-level ones, which test_di_exact checks
+        from dryfric_jax import theory
+        assert abs(res.D - theory.exact_D(p)) <= 2.81 / 1.96 * res.D_ci, (res.D, res.D_ci, theory.exact_D(p))
+        assert abs(res.M0 - theory.exact_M0(p)) <= 2.81 / 1.96 * res.M0_ci, (res.M0, res.M0_ci, theory.exact_M0(p))
     # bounded work: the cap plus at most one excursion bound per lane in the final round
     assert res.work <= res.max_work + (res.max_steps + 64) * 2 * 256
     # truncation is never silent
