@@ -293,7 +293,9 @@ def check_work(tau: float, tau_L: float, gamma_bar: float, steps_per_tau0: float
     r"""Refuse (``ValueError``) a run whose predicted work exceeds ``max_work``; return the prediction.
 
     Predicted work = N x predicted duration (:func:`log_predicted_duration`: :func:`log_duration_scale`, or
-    ``min_duration`` where that is longer) x ``steps_per_tau0``.
+    ``min_duration`` where that is longer) x ``steps_per_tau0``.  Parameters whose excursions outlast float range are
+    refused first, as :func:`check_duration_in_range` refuses them (the planner has done so already, before h or
+    delta; this keeps the function safe on its own).
     """
     check_duration_in_range(tau, tau_L, gamma_bar)
     log_t = log_predicted_duration(tau, tau_L, gamma_bar, min_duration)

@@ -10,7 +10,8 @@ feasible before paying for it.
 Decisions, in order:
 
 1. the model has a stationary state (:func:`~dryfric_jax.limits.check_recurrent`), and a
-   simulable one (:func:`~dryfric_jax.limits.check_simulable`: :math:`\tau_L' \ge 10^{-60}`);
+   simulable one (:func:`~dryfric_jax.limits.check_simulable`: :math:`\tau_L' \ge 10^{-60}`), whose excursions end
+   within float range (:func:`~dryfric_jax.limits.check_duration_in_range`: no h or delta could help);
 2. the method (``"auto"``: :mod:`dryfric_jax.cost`), the DI step h (:func:`check_h`) or the
    PDMP grid step delta (:func:`~dryfric_jax.noise.check_delta`);
 3. the dtype: the DI and the PDMP fall back to float64 where float32 is not safe

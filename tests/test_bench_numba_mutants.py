@@ -30,7 +30,7 @@ phase.
 Oracles: the docstrings (``_finished``, ``_work_each``, run_numba's bounds, plan.MAX_STEPS, the series cut of
 float64 in pdmp's docstring); regeneration.SplitSet.log_coin / contains and pdmp's event / hitting_time
 (a = 0: +inf) as the rules to reproduce; hand arithmetic on scripted generators (a trivial OU pair, h = 1/2,
-binary fractions; the PDMP without drag); the closed-form drag flow of appendix C in 50-digit decimals.  Every
+binary fractions; the PDMP without drag); the closed-form drag flow of appendices B and E in 50-digit decimals.  Every
 test runs the workers' plain Python (``py_func``) or fake rows: the file takes ~3 s.
 """
 import math

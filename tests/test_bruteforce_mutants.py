@@ -369,7 +369,7 @@ def test_the_di_worker_closes_an_excursion_at_max_steps_counts_it_and_seeks_agai
 #  E4 (-1, -1, 0), a = -1/2: flow e4 = 0.75, jump up to k = 0 (u2 < alpha_-1)
 #  E5 (0, -1, v4), a = 1/2: flow T* to v = 0, stuck (clock e = 10)
 #  E6 stuck: wait e6 = 0.3, jump up to k = 1: s_+, the excursion closes.
-# The flow with drag kappa and constant a (paper appendix C, by hand): v(s) = v0 E + a (1 - E)/kappa,
+# The flow with drag kappa and constant a (paper appendices B and E, by hand): v(s) = v0 E + a (1 - E)/kappa,
 # x(s) = v0 (1 - E)/kappa + a (kappa s - 1 + E)/kappa^2, E = exp(-kappa s); T* = ln(1 - kappa v0/a)/kappa;
 # kappa = 0: v0 + a s, v0 s + a s^2/2, -v0/a.  Evaluated with 60-digit decimals.
 _E = [0.5, 10.0, 0.25, 0.75, 10.0, 0.3]

@@ -4,8 +4,8 @@ D and M0 from quadrature (MODEL_NOTES section 2; quadrature checked against clos
 test_theory.py).  Slow, but it runs in CI.
 
 Replicates are groups of 16 lanes, each lane refilling under a budget sized for 1.05 N / 16
-excursions and finishing its in-flight excursion (every replicate ends with about N, at least 0.98 N).  h = 0.03 tau_L has a measured
-D bias of -0.1% +- 1.0%, far below the replicate half-width (~4%).
+excursions and finishing its in-flight excursion (every replicate ends with about N, at least 0.98 N).  h = 0.03
+tau_L has a measured D bias of -0.1% +- 1.0%, far below the replicate half-width (~4%).
 
 Without viscous damping (tau_L = inf) the D interval covers only ~0.90 at N = 1e4..1e5 (measured,
 README): that case is warned about, not calibrated here.

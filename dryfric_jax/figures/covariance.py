@@ -3,9 +3,9 @@ r"""Fig. 4 (paper section 7.1): normalised stationary velocity covariance :math:
 (Gamma = 5, tau_L = 0.067, gamma_bar = 0.342): PDMP (delta = 0.125) solid, DI dotted.
 
 Long stationary runs: each path starts at s_+ (PDMP) or (x_Delta-ish stationary X, V = 0) (DI)
-and is discarded for a burn-in of ``BURN_TAU0`` = 50 tau0 (17-68 times the noise's correlation time tau' = 0.74-2.95 of the
-scene, whose relaxation sets the law of (X, V); not several excursion durations: at tau = 1 s the PDMP's mean excursion, 16 s, is about the
-burn-in's 17 s), then
+and is discarded for a burn-in of ``BURN_TAU0`` = 50 tau0 (17-68 times the noise's correlation time
+tau' = 0.74-2.95 of the scene, whose relaxation sets the law of (X, V); not several excursion durations: at
+tau = 1 s the PDMP's mean excursion, 16 s, is about the burn-in's 17 s), then
 V is recorded every ``DT_REC`` tau0; the covariance is the FFT autocorrelation per path around
 the grand mean, averaged over paths, and normalised by its lag-0 value; the SE of that ratio
 comes from the paths by the delta method (:func:`~dryfric_jax.paths.autocorrelation`).
