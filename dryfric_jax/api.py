@@ -88,7 +88,8 @@ def d_bias_note(params: Params, t: float, burn_in: float, d_t: float, d_ci: floa
     r"""The warning for brute force's :math:`\hat D^t` whose O(1/t) bias may exceed a fifth of its CI half-width, None
     otherwise; for horizons past :data:`MIN_HORIZON` :math:`\tau_c`, shorter ones having :func:`short_horizon_note`
     (the caller asks this one only where that one was not said: it checks the horizon asked for, this the one
-    simulated, whole steps of h, which may fall just under: t = 100 at h = 0.03 ran 99.99, and neither was said).  :math:`D^t \approx D(1 - b/t)` with :math:`b \approx` :data:`D_BIAS_TAU_C` :math:`\tau_c` from rest
+    simulated, whole steps of h, which may fall just under: t = 100 at h = 0.03 ran 99.99, and neither was said).
+    :math:`D^t \approx D(1 - b/t)` with :math:`b \approx` :data:`D_BIAS_TAU_C` :math:`\tau_c` from rest
     (:data:`D_BIAS_BURNT_TAU_C` after a burn-in of :data:`D_BURN_IN_TAU_C` :math:`\tau_c`), measured with white
     noise and :math:`\tau_L = \infty`; less with damping (~1.3 :math:`\tau_c` at Fig. 3's point), so it is an upper
     estimate.  The bias does not shrink with N' and the half-width does not depend on t: an audit (2026-12-07) found

@@ -3,7 +3,8 @@
 
 Brute force starts at (x_Delta, 0), burns in 20 tau0 (20 tau_c here) and runs a horizon of 200 tau_c, so that
 its O(1/t) bias, at most ~2.8 tau_c/t after a burn-in (the white-noise, undamped coefficient; less with this
-damping), 1.4%, is well below the tolerance (api.d_bias_note still warns: a fifth of these CIs is ~0.4%).  The tolerance is 2.81 combined SE (family-wise over the
+damping), 1.4%, is well below the tolerance (api.d_bias_note still warns: a fifth of these CIs is
+~0.4%).  The tolerance is 2.81 combined SE (family-wise over the
 6 comparisons) and at most 4.5% of D: a test audit (2026-12-07) found the old one (1.96 SE, CIs up to 10% of D,
 tau_L = inf in the first case, where the CI under-covers) passed a long-excursion D scaled by 0.94.
 """
