@@ -64,6 +64,9 @@ def correlation_time(params: Params) -> float:
 #: brute force's D_t: its O(1/t) bias b/t, b in correlation times, from rest and after a burn-in of
 #: D_BURN_IN_TAU_C tau_c (white noise, tau_L = inf, where tau_c = tau0: :func:`short_horizon_note`)
 D_BIAS_TAU_C, D_BIAS_BURNT_TAU_C, D_BURN_IN_TAU_C = 5.4, 2.8, 20.0
+#: brute force's bias notes (:func:`d_bias_note`, :func:`m0_lag_note`) are said where the bias they estimate
+#: exceeds this share of the CI half-width (a Gaussian 95% interval then covers ~0.93)
+BIAS_SHARE_OF_CI = 0.2
 
 
 def short_horizon_note(params: Params, t: float) -> str | None:
@@ -98,13 +101,14 @@ def d_bias_note(params: Params, t: float, burn_in: float, d_t: float, d_ci: floa
     tc = correlation_time(params)
     coef = D_BIAS_BURNT_TAU_C if burn_in >= D_BURN_IN_TAU_C * tc else D_BIAS_TAU_C
     bias = coef * tc / t * abs(d_t)
-    if not d_ci > 0 or not bias > 0.2 * d_ci:
+    if not d_ci > 0 or not bias > BIAS_SHARE_OF_CI * d_ci:
         return None
     return (f"D_t is biased low by O(tau_c/t) also at t = {t / tc:.3g} tau_c: by up to ~{coef:g} tau_c/t D_t ~ "
             f"{bias:.2g} m^2/s here (tau_c = {tc:.3g} s; "
             f"measured with white noise, tau_L = inf; less with damping), against its CI half-width {d_ci:.2g}, which "
-            f"does not include it (it shrinks with more paths, the bias does not); t >= {bias / (0.2 * d_ci) * t:.3g} "
-            "s brings it under a fifth of the half-width, or use estimate_diffusivity, which has no horizon bias")
+            "does not include it (it shrinks with more paths, the bias does not); "
+            f"t >= {bias / (BIAS_SHARE_OF_CI * d_ci) * t:.3g} s brings it under a fifth of the half-width, or use "
+            "estimate_diffusivity, which has no horizon bias")
 
 
 #: brute force's M0_t from rest: the lag of E[U(t)] behind M0 t, in correlation times (an audit, 2026-12-07: 2.9
@@ -127,7 +131,7 @@ def m0_lag_note(params: Params, t: float, burn_in: float, m0_t: float, m0_ci: fl
     hard-cases audit)."""
     tc = correlation_time(params)
     lag = min(M0_LAG_TAU_C * tc / t, 1.0) * abs(m0_t)
-    if params.gamma_bar == 0 or burn_in >= M0_BURN_IN_TAU_C * tc or not lag > 0.2 * m0_ci:
+    if params.gamma_bar == 0 or burn_in >= M0_BURN_IN_TAU_C * tc or not lag > BIAS_SHARE_OF_CI * m0_ci:
         return None
     return (f"M0_t is biased toward 0 by O(tau_c/t): the paths start at rest, so E[U(t)]/t lags M0 by "
             f"~min({M0_LAG_TAU_C:g} tau_c/t, 1) |M0| ~ {lag:.2g} m/s here (tau_c = {tc:.3g} s), against its CI "

@@ -1049,6 +1049,8 @@ def test_a_run_whose_excursions_cannot_end_is_refused_for_that_whatever_the_meth
     says the duration is out of reach, before any h or delta; brute force, whose horizon is fixed, can use the DI."""
     assert main([*cmd, "--nondim", "--gamma-bar", "1e20"]) == 2
     err = capsys.readouterr().err
+    # the damped runaway's Arrhenius term (README "Validity ranges"): z^2/2 / ln 10 decades, z = 1e20 sqrt(tau' +
+    # tau_L') = 1e20 sqrt(1.4746 + 0.1977), so 3.631e39, rounded up to 3 digits
     assert err.startswith("dryfric: error: the parameters must give excursions of predicted mean duration < "
                           "1.8e308 tau0 (float range; got >= 10^(3.64e+39) tau0 at ")
     assert err.rstrip().endswith(".  No h, delta or N makes this run feasible") and "method 'di'" not in err
