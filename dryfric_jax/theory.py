@@ -463,6 +463,67 @@ def D_viscous_only(Gamma, tau_L) -> float:
     return _product("D", a, [(2.0, 1), (a["tau_L"], 2), (a["Gamma"], 1)])
 
 
+def _horizon_args(Gamma, Delta, gamma_bar):
+    r"""Validated ``(a, r^2, ((\Delta - \bar\gamma)(\Delta + \bar\gamma))`` as :func:`_gaps` pairs ``)``."""
+    a = _closed_form_args(Gamma, Delta, gamma_bar=gamma_bar)
+    _check_bias(a["Delta"], a["gamma_bar"])
+    return a, (a["gamma_bar"] / a["Delta"]) ** 2, _gaps(a["Delta"], a["gamma_bar"])
+
+
+def horizon_bias(Gamma, Delta, gamma_bar=0.0, *, stationary: bool = False) -> float:
+    r"""Brute force's horizon bias b (s), exact for white noise, :math:`\tau_L = \infty`, :math:`b = \bar\gamma`,
+    :math:`|\bar\gamma| < \Delta`: :math:`\operatorname{Var} U(t) = D\,(t - b) + o(1)`, so the brute-force
+    :math:`D^t = \operatorname{Var} U(t)/t = D\,(1 - b/t) + o(1/t)` (paper section 5.2), for paths from rest
+    (V(0) = 0, as ``bruteforce_diffusivity`` starts them) or, with ``stationary``, from the stationary law
+    (a long burn-in):
+
+    .. math::
+        b_\text{rest} = \tau_0\,\frac{27 + 345 r^2 + 333 r^4 + 31 r^6}{(1 - r^2)^2\,(5 + 22 r^2 + 5 r^4)},\qquad
+        b_\text{stat} = \tau_0\,\frac{2\,(1 + r^2)(7 + 66 r^2 + 7 r^4)}{(1 - r^2)^2\,(5 + 22 r^2 + 5 r^4)},
+
+    :math:`r = \bar\gamma/\Delta`, :math:`\tau_0 = \Gamma/\Delta^2`: 27/5 and 14/5 :math:`\tau_0` at r = 0.  In
+    correlation times :math:`\tau_c = \tau_0/(1 - |r|)^2` (``api.correlation_time``) :math:`b_\text{rest}` is
+    5.4 at r = 0, 4.83 at |r| = 0.1 and rises to 23/4 as :math:`|r| \to 1`; :math:`b_\text{stat}` is at most 14/5.
+
+    Derivation (nondimensional, generator :math:`L = (r - \mathrm{sgn}\,v)\,\partial_v + \partial_v^2`, stationary
+    law :math:`\pi`, :math:`m = \pi(v)`, :math:`\tilde v = v - m`): the Poisson equations
+    :math:`-L\psi = \tilde v`, :math:`-L\psi_2 = \psi`, :math:`-L\chi = \tilde v\psi - D/2`, each solution
+    centred under :math:`\pi`, have polynomial solutions on each half line, C^1 at 0 (at r = 0:
+    :math:`\psi = v + v|v|/2`, :math:`\psi_2 = 2v + v|v| + v^3/6`, :math:`\chi = 5v^2/2 + 5|v|^3/6 + v^4/8 - 13`).
+    Writing :math:`U(t) - mt = \int_0^t \tilde v`,
+    :math:`\operatorname{Var}_0 U(t) = Dt + 2\chi(0) - 2\pi(\tilde v\psi_2) - \psi(0)^2 + o(1)` and
+    :math:`\operatorname{Var}_\pi U(t) = Dt - 2\pi(\tilde v\psi_2) + o(1)`, with :math:`D = 2\pi(\tilde v\psi)`
+    (the closed form :func:`D_constant_bias`) and :math:`\pi(\tilde v\psi_2) = \int_0^\infty s\,C(s)\,ds`
+    (14 at r = 0).  The o(1) decays with the velocity's memory (:math:`e^{-t/(4\tau_0)}` times a power of t at
+    r = 0).  Checked against a finite-volume solution of the equations of the moments of U
+    (``tests/test_horizon_bias.py``); colored noise and damping change b (measured ~1.3 :math:`\tau_c` at Fig. 3's
+    point)."""
+    a, r2, (minus, plus) = _horizon_args(Gamma, Delta, gamma_bar)
+    if stationary:
+        num = 2.0 * (1.0 + r2) * (7.0 + 66.0 * r2 + 7.0 * r2 * r2)
+    else:
+        num = 27.0 + 345.0 * r2 + 333.0 * r2 * r2 + 31.0 * r2**3
+    return _product("b", a, [(a["Gamma"], 1), (a["Delta"], 2), (num / (5.0 + 22.0 * r2 + 5.0 * r2 * r2), 1),
+                             (minus, -2), (plus, -2)])
+
+
+def m0_lag(Gamma, Delta, gamma_bar) -> float:
+    r"""Brute force's lag L (s) from rest, exact for white noise, :math:`\tau_L = \infty`, :math:`b = \bar\gamma`,
+    :math:`|\bar\gamma| < \Delta`: :math:`E[U(t)] = M_0\,(t - L) + o(1)` for paths from V(0) = 0, so
+    :math:`M_0^t = M_0(1 - L/t) + o(1/t)`:
+
+    .. math::
+        L = \tau_0\,\frac{3 + r^2}{(1 - r^2)^2},
+
+    :math:`r = \bar\gamma/\Delta`: 3 :math:`\tau_0` as r -> 0 (where :math:`M_0 = 0`, and there is no lag) and
+    :math:`(3 + r^2)/(1 + |r|)^2` correlation times (:func:`horizon_bias`), from 3 down to 1.  From
+    :math:`E_0[U(t)] - M_0 t \to \psi(0) = -2r(3 + r^2)/(1 - r^2)^3` (nondimensional, :func:`horizon_bias`'s
+    :math:`\psi`).  Colored noise and damping change it (measured 2.9 :math:`\tau_c` at
+    :math:`\tau' = \tau_L' = 3`, :math:`\bar\gamma' = -0.7`; white noise at that :math:`\bar\gamma'` gives 1.2)."""
+    a, r2, (minus, plus) = _horizon_args(Gamma, Delta, gamma_bar)
+    return _product("L", a, [(a["Gamma"], 1), (a["Delta"], 2), (3.0 + r2, 1), (minus, -2), (plus, -2)])
+
+
 def _check_bias(Delta, gamma_bar):
     if not abs(gamma_bar) < Delta:
         raise ValueError(f"gamma_bar must satisfy |gamma_bar| < Delta (got {gamma_bar}, Delta = {Delta})")
