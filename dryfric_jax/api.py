@@ -29,6 +29,7 @@ from .limits import MAX_WORK, refuse_known_work
 from .outfiles import dumps
 from .params import Params, check_positive, real_or_none, require_x64, rounded_bound
 from .pdmp import make_pdmp_model, simulate_pdmp_bruteforce
+from . import theory
 from .plan import (  # noqa: F401  (default_h, h_max, check_h, METHODS are part of the API)
     DTYPES, MAX_COUNT, METHODS, Plan, check_count, check_h, check_layout, check_max_time, check_max_work,
     check_method, check_rtol, choose, default_h, h_max, plan_estimate, scalar, shown,
@@ -53,17 +54,20 @@ def correlation_time(params: Params) -> float:
 
     (the noise's memory, or the friction's and the damping's relaxation, whichever is longer;
     :math:`\tau_0/(1 - |\bar\gamma'|)^2` is the excursions' time scale against the bias, infinite
-    for :math:`|\bar\gamma'| \ge 1`, where only the damping bounds it).  White noise, tau_L = inf:
-    the measured bias coefficient b/D grew from 5.4 tau0 at gamma_bar' = 0 to ~11-17 at 0.5 and
-    ~300-500 at 0.9 (a brute-force audit), as :math:`(1 - |\bar\gamma'|)^{-2}`."""
+    for :math:`|\bar\gamma'| \ge 1`, where only the damping bounds it).  White noise, tau_L = inf: the bias
+    coefficient b (:math:`D^t = D(1 - b/t)`) is 27/5 tau0 at gamma_bar' = 0, 22.1 at 0.5 and 575 at 0.9
+    (:func:`~dryfric_jax.theory.horizon_bias`, exact), 4.8 to 5.75 of these :math:`\tau_c`."""
     g = abs(params.gamma_bar_nd)
     relax = params.tau0 / (1.0 - g) ** 2 if g < 1.0 else math.inf
     return max(min(relax, params.tau_L), params.tau)
 
 
-#: brute force's D_t: its O(1/t) bias b/t, b in correlation times, from rest and after a burn-in of
-#: D_BURN_IN_TAU_C tau_c (white noise, tau_L = inf, where tau_c = tau0: :func:`short_horizon_note`)
-D_BIAS_TAU_C, D_BIAS_BURNT_TAU_C, D_BURN_IN_TAU_C = 5.4, 2.8, 20.0
+#: brute force's D_t: its O(1/t) bias b/t, b in correlation times, from rest and after a burn-in of D_BURN_IN_TAU_C
+#: tau_c: the largest exact white-noise, tau_L = inf values over gamma_bar' (theory.horizon_bias: 23/4 tau_c as
+#: |gamma_bar'| -> 1, 27/5 at 0; 14/5 at 0), an upper estimate (measured ~1.3 tau_c with damping at Fig. 3's point)
+D_BIAS_TAU_C, D_BIAS_BURNT_TAU_C, D_BURN_IN_TAU_C = 5.75, 2.8, 20.0
+#: the exact white-noise coefficients at gamma_bar = 0, in tau0 (:func:`short_horizon_note` quotes them)
+_BIAS_REST_0, _BIAS_STAT_0 = theory.horizon_bias(1.0, 1.0), theory.horizon_bias(1.0, 1.0, stationary=True)
 #: brute force's bias notes (:func:`d_bias_note`, :func:`m0_lag_note`) are said where the bias they estimate
 #: exceeds this share of the CI half-width (a Gaussian 95% interval then covers ~0.93)
 BIAS_SHARE_OF_CI = 0.2
@@ -72,18 +76,19 @@ BIAS_SHARE_OF_CI = 0.2
 def short_horizon_note(params: Params, t: float) -> str | None:
     r"""The warning for a brute-force horizon :math:`t < 100\,\tau_c` (:func:`correlation_time`),
     None for a longer one.  :math:`\hat D^t` estimates :math:`D^t = D - b/t + o(1/t)`, b > 0: with
-    white noise and :math:`\tau_L = \infty` an audit measured :math:`D^t \approx D(1 - 5.4\,\tau_0/t)`
-    from rest (-91% at t = 2 tau0, -27% at 20, -3.4% at 200, -1.5% at 1000, where the CIs covered
-    the exact D in 0%, 6%, 84% and 92% of runs), about half of it from the start at V = 0, which a
-    burn-in of ~20 tau0 removes; at :math:`\bar\gamma' = 0.9`, -97%, -53% and -3% at t = 100, 1000
-    and 10^4 tau0 (:math:`\tau_c = 100\,\tau_0`)."""
+    white noise and :math:`\tau_L = \infty`, :math:`D^t = D(1 - 5.4\,\tau_0/t)` from rest exactly at
+    :math:`\bar\gamma = 0` (:func:`~dryfric_jax.theory.horizon_bias`; an audit measured -91% at t = 2 tau0,
+    -27% at 20, -3.4% at 200, -1.5% at 1000, where the CIs covered the exact D in 0%, 6%, 84% and 92% of
+    runs), about half of it from the start at V = 0, which a burn-in of ~20 tau0 removes (14/5 tau0 left); at
+    :math:`\bar\gamma' = 0.9`, -97%, -53% and -3% measured at t = 100, 1000 and 10^4 tau0
+    (:math:`\tau_c = 100\,\tau_0`, b = 575 tau0)."""
     tc = correlation_time(params)
     if t >= MIN_HORIZON * tc:
         return None
     return (f"t = {t:.4g} s is {t / tc:.3g} < {MIN_HORIZON} correlation times tau_c = max(min(tau0/(1 - "
             f"|gamma_bar'|)^2, tau_L), tau) = {tc:.3g} s: D_t is biased low by O(tau_c/t), which its CI does not "
-            f"include (white noise, tau_L = inf: D_t = D (1 - {D_BIAS_TAU_C:g} tau0/t) from rest at gamma_bar = 0, "
-            f"D (1 - {D_BIAS_BURNT_TAU_C:g} tau0/t) after a burn_in of {D_BURN_IN_TAU_C:g} tau0; -53% at t = 10 tau_c, "
+            f"include (white noise, tau_L = inf: D_t = D (1 - {_BIAS_REST_0:g} tau0/t) from rest at gamma_bar = 0, "
+            f"D (1 - {_BIAS_STAT_0:g} tau0/t) after a burn_in of {D_BURN_IN_TAU_C:g} tau0; -53% at t = 10 tau_c, "
             "gamma_bar' = 0.9); raise t, add burn_in, or use estimate_diffusivity, which has no horizon bias")
 
 
@@ -92,12 +97,13 @@ def d_bias_note(params: Params, t: float, burn_in: float, d_t: float, d_ci: floa
     otherwise; for horizons past :data:`MIN_HORIZON` :math:`\tau_c`, shorter ones having :func:`short_horizon_note`
     (the caller asks this one only where that one was not said: it checks the horizon asked for, this the one
     simulated, whole steps of h, which may fall just under: t = 100 at h = 0.03 ran 99.99, and neither was said).
-    :math:`D^t \approx D(1 - b/t)` with :math:`b \approx` :data:`D_BIAS_TAU_C` :math:`\tau_c` from rest
-    (:data:`D_BIAS_BURNT_TAU_C` after a burn-in of :data:`D_BURN_IN_TAU_C` :math:`\tau_c`), measured with white
-    noise and :math:`\tau_L = \infty`; less with damping (~1.3 :math:`\tau_c` at Fig. 3's point), so it is an upper
-    estimate.  The bias does not shrink with N' and the half-width does not depend on t: an audit (2026-12-07) found
-    10^4 paths at t = 100 :math:`\tau_0` (white noise, :math:`\tau_L = \infty`) covering the exact D in 28% of
-    runs (D_t = 9.36 +- 0.37 against 10), silently.  Never where the CI is 0 (its own note)."""
+    :math:`D^t \approx D(1 - b/t)` with :math:`b \le` :data:`D_BIAS_TAU_C` :math:`\tau_c` from rest
+    (:data:`D_BIAS_BURNT_TAU_C` after a burn-in of :data:`D_BURN_IN_TAU_C` :math:`\tau_c`), the largest exact
+    values with white noise and :math:`\tau_L = \infty` (:func:`~dryfric_jax.theory.horizon_bias`); less
+    with damping (~1.3 :math:`\tau_c` measured at Fig. 3's point), so it is an upper estimate.  The bias does
+    not shrink with N' and the half-width does not depend on t: an audit (2026-12-07) found 10^4 paths at
+    t = 100 :math:`\tau_0` (white noise, :math:`\tau_L = \infty`) covering the exact D in 28% of runs (D_t
+    = 9.36 +- 0.37 against 10), silently.  Never where the CI is 0 (its own note)."""
     tc = correlation_time(params)
     coef = D_BIAS_BURNT_TAU_C if burn_in >= D_BURN_IN_TAU_C * tc else D_BIAS_TAU_C
     bias = coef * tc / t * abs(d_t)
@@ -105,14 +111,16 @@ def d_bias_note(params: Params, t: float, burn_in: float, d_t: float, d_ci: floa
         return None
     return (f"D_t is biased low by O(tau_c/t) also at t = {t / tc:.3g} tau_c: by up to ~{coef:g} tau_c/t D_t ~ "
             f"{bias:.2g} m^2/s here (tau_c = {tc:.3g} s; "
-            f"measured with white noise, tau_L = inf; less with damping), against its CI half-width {d_ci:.2g}, which "
-            "does not include it (it shrinks with more paths, the bias does not); "
+            "the largest value with white noise and tau_L = inf, where b is known exactly; measured less with "
+            f"damping), against its CI half-width {d_ci:.2g}, which does not include it (it shrinks with more "
+            "paths, the bias does not); "
             f"t >= {bias / (BIAS_SHARE_OF_CI * d_ci) * t:.3g} s brings it under a fifth of the half-width, or use "
             "estimate_diffusivity, which has no horizon bias")
 
 
 #: brute force's M0_t from rest: the lag of E[U(t)] behind M0 t, in correlation times (an audit, 2026-12-07: 2.9
-#: tau_c at tau' = tau_L' = 3, gamma_bar' = -0.7), and the burn-in (in tau_c) after which it was gone
+#: tau_c at tau' = tau_L' = 3, gamma_bar' = -0.7; with white noise and tau_L = inf exactly (3 + gamma_bar'^2)/(1 +
+#: |gamma_bar'|)^2 <= 3, theory.m0_lag), and the burn-in (in tau_c) after which it was gone
 M0_LAG_TAU_C, M0_BURN_IN_TAU_C = 3.0, 20.0
 
 
@@ -123,7 +131,9 @@ def m0_lag_note(params: Params, t: float, burn_in: float, m0_t: float, m0_ci: fl
     :math:`\sqrt{D/(t N')}`, does not include, and which more paths make larger against it.  An audit (2026-12-07)
     measured :math:`L \approx 2.9\,\tau_c` (:math:`\tau' = \tau_L' = 3, \bar\gamma' = -0.7`, 4000 paths at t
     = 100 :math:`\tau_c`: M0_t 2.5-3.3% toward 0, 4.8-6.3 SE, at 3 seeds; -2.6 to -4.2 SE at white-noise points),
-    gone after a burn-in of 20 :math:`\tau_c` (+0.2 SE).  Said where ``burn_in`` < :data:`M0_BURN_IN_TAU_C`
+    gone after a burn-in of 20 :math:`\tau_c` (+0.2 SE); with white noise and :math:`\tau_L = \infty` exactly
+    :math:`L = (3 + \bar\gamma'^2)/(1 + |\bar\gamma'|)^2\,\tau_c \le 3\,\tau_c`
+    (:func:`~dryfric_jax.theory.m0_lag`).  Said where ``burn_in`` < :data:`M0_BURN_IN_TAU_C`
     :math:`\tau_c` and :data:`M0_LAG_TAU_C` :math:`\tau_c |M_0|/t` exceeds a fifth of the CI half-width (an order
     of magnitude: L is not known in advance), with :math:`|M_0|` taken as :math:`|\hat M_0^t|` and the lag as at
     most :math:`|M_0|` (t under 3 tau_c); never at :math:`\bar\gamma = 0`, where :math:`M_0 = 0` by symmetry and
@@ -758,7 +768,8 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
     needs more than ``max_work`` steps (events) is refused before it starts.
 
     A horizon under 100 correlation times (:func:`correlation_time`) is warned about
-    (:func:`short_horizon_note`: D_t = D (1 - 5.4 tau0/t) from rest with white noise and tau_L = inf), so is a
+    (:func:`short_horizon_note`: D_t = D (1 - 5.4 tau0/t) from rest with white noise, tau_L = inf and
+    gamma_bar = 0), so is a
     longer one where that bias may exceed a fifth of D_t's CI (:func:`d_bias_note`: many paths), so is
     an M0_t whose start from rest may lag it toward 0 by more than a fifth of its CI (:func:`m0_lag_note`: at any
     horizon, without a burn-in of 20 tau_c), and so is a D_t CI of 0 (paths too short for the noise to spread

@@ -267,8 +267,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="exit 0 even when excursions hit the work bound (the result is biased low; exit 3 otherwise)")
     b = sub.add_parser("bruteforce", parents=[model, sim], help="fixed-horizon (brute force) D^t")
     b.add_argument("--t", type=_number("t"), required=True,
-                   help="horizon, s; D_t is biased low by O(1/t) (white noise, tau_L = inf: D (1 - 5.4 tau0/t)), "
-                        "warned about below 100 correlation times "
+                   help="horizon, s; D_t is biased low by O(1/t) (white noise, tau_L = inf, gamma_bar = 0: "
+                        "D (1 - 5.4 tau0/t)), warned about below 100 correlation times "
                         "max(min(tau0/(1 - |gamma_bar'|)^2, tau_L), tau)")
     b.add_argument("--n-paths", type=_int_at_least("n-paths", MIN_PATHS, 2**62, "2^62"), required=True,
                    help=f"independent paths (>= {MIN_PATHS}; the CI under-covers below {MIN_RELIABLE_PATHS})")

@@ -142,10 +142,10 @@ def test_the_bias_the_warning_quotes_is_there(burn_in):
     D_t is :math:`D (1 - c\,\tau_0/t)` within its 95% half-width with the note's c.  After a burn-in of
     20 tau0 the start is nearly stationary, where :math:`D_t = \int_0^t (1 - s/t) C(s)\,ds` gives
     :math:`c = \int_0^\infty s C / \int_0^\infty C` = 14/5 = 2.8 over Touchette's C (computed here, and the
-    note's 2.8 checked against it).  From rest, 5.4 is the coefficient an audit measured; a test audit (2026-12-07)
-    derived 27/5 = 5.4 by hand (the Poisson corrector G' = |v| + 1 of -v: 2.8 + 26/10), not checked symbolically
-    here; 10^6 paths at h = 0.01 tau0 (seed 5) measured 5.29 +- 0.08 at t = 20 tau0 and 5.48 +- 0.17 at 40.  This
-    test bounds it only to its CI, about +-1 in c."""
+    note's 2.8 checked against it).  From rest c = 27/5 = 5.4 (theory.horizon_bias, checked against the moment
+    equations in test_horizon_bias.py, where Var U(20 tau0) gives c_t = 5.36 at t = 20 tau0); 10^6 paths at
+    h = 0.01 tau0 (seed 5) measured 5.29 +- 0.08 at t = 20 tau0 and 5.48 +- 0.17 at 40.  This test bounds it only
+    to its CI, about +-1 in c."""
     if burn_in:
         C = lambda s: float(theory.correlation(s))
         coefficient = (integrate.quad(lambda s: s * C(s), 0, math.inf, limit=200)[0]
@@ -153,7 +153,7 @@ def test_the_bias_the_warning_quotes_is_there(burn_in):
         assert coefficient == pytest.approx(2.8, rel=1e-6)
         quoted = f"D (1 - {coefficient:.2g} tau0/t) after a burn_in of 20 tau0"
     else:
-        coefficient = 5.4
+        coefficient = theory.horizon_bias(1.0, 1.0)
         quoted = "D_t = D (1 - 5.4 tau0/t) from rest"
     assert quoted in short_horizon_note(WHITE, 20.0)
     D = white_chain_law(WHITE, H).D
@@ -170,31 +170,32 @@ def test_a_d_t_bias_beyond_its_ci_past_100_correlation_times_is_said():
     """An audit (2026-12-07): past 100 tau_c no warning came, yet the O(1/t) bias stays while the CI shrinks with the
     paths: at t = 100 tau0 (white noise, tau_L = inf) 10^4 paths covered the exact D in 28% of runs, and seed 3 gave
     D_t = 9.36 +- 0.37 against 10, silently.  Now api.d_bias_note says so, with the horizon that would bring the
-    quoted bias (5.4 tau_c/t D_t from rest, 2.8 after a burn-in) under a fifth of the half-width; not where it is
+    quoted bias (5.75 tau_c/t D_t from rest, 2.8 after a burn-in) under a fifth of the half-width; not where it is
     under it, nor below 100 tau_c (short_horizon_note's), nor with a CI of 0 (its own note)."""
     import re
 
-    from dryfric_jax.api import d_bias_note
+    from dryfric_jax.api import D_BIAS_TAU_C, d_bias_note
 
     D = white_chain_law(WHITE, H).D
     with warnings.catch_warnings(record=True) as rec:
         warnings.simplefilter("always")
         r = dj.bruteforce_diffusivity(WHITE, 3, t=100.0, n_paths=10_000, h=H)
-    said = _notes(rec, "D_t is biased low by O(tau_c/t) also at t = 100 tau_c: by up to ~5.4 tau_c/t D_t")
+    said = _notes(rec, "D_t is biased low by O(tau_c/t) also at t = 100 tau_c: by up to ~5.75 tau_c/t D_t")
     assert said and said == [w for w in r.warnings if w.startswith("D_t is biased low")]
     assert r.D_t + r.D_t_ci < D, (r.D_t, r.D_t_ci, D)  # the bias the note is about, at this seed
     t_fix = float(re.search(r"t >= ([0-9.e+]+) s brings", said[0]).group(1))
-    assert t_fix == pytest.approx(5.4 * r.D_t / (0.2 * r.D_t_ci), rel=1e-2)  # tau_c = 1 s
+    assert t_fix == pytest.approx(D_BIAS_TAU_C * r.D_t / (0.2 * r.D_t_ci), rel=1e-2)  # tau_c = 1 s
     assert "~2.8 tau_c/t D_t ~ 0.28 m^2/s" in d_bias_note(WHITE, 100.0, 20.0, 10.0, 0.37)  # burnt in
-    assert d_bias_note(WHITE, 100.0, 0.0, 10.0, 2.8) is None  # 0.54 m^2/s under a fifth of 2.8
-    assert d_bias_note(WHITE, 1000.0, 0.0, 10.0, 0.37) is None  # 0.054 under 0.074
+    assert d_bias_note(WHITE, 100.0, 0.0, 10.0, 2.8) is not None  # 0.575 m^2/s over a fifth of 2.8
+    assert d_bias_note(WHITE, 100.0, 0.0, 10.0, 2.9) is None  # under a fifth of 2.9
+    assert d_bias_note(WHITE, 1000.0, 0.0, 10.0, 0.37) is None  # 0.0575 under 0.074
     assert d_bias_note(WHITE, 100.0, 0.0, 0.0, 0.0) is None
     # the horizon asked for, t = 100, ran 99.99 at h = 0.03: no short-horizon note (t asked >= 100 tau_c), and this
     # one, when it took the simulated t, was not said either (a review); below 100 tau_c asked, only the short one
     for t, h, short in ((100.0, 0.03, False), (99.9, H, True)):
         with warnings.catch_warnings(record=True) as rec:
             warnings.simplefilter("always")
-            dj.bruteforce_diffusivity(WHITE, 3, t=t, n_paths=4000, h=h)  # quoted bias ~5.4%, a fifth of the CI ~1.2%
+            dj.bruteforce_diffusivity(WHITE, 3, t=t, n_paths=4000, h=h)  # quoted bias ~5.75%, a fifth of the CI ~1.2%
         assert bool(_notes(rec, "correlation times")) is short
         assert bool(_notes(rec, "D_t is biased low by O(tau_c/t) also at")) is not short, (t, h)
 
