@@ -473,8 +473,8 @@ def _horizon_args(Gamma, Delta, gamma_bar):
 def horizon_bias(Gamma, Delta, gamma_bar=0.0, *, stationary: bool = False) -> float:
     r"""Brute force's horizon bias b (s), exact for white noise with the constant drift :math:`b(v) = \bar\gamma`
     (:math:`\tau_L = \infty`, :math:`|\bar\gamma| < \Delta`): :math:`\operatorname{Var} U(t) = D\,(t - b) + o(1)`, so
-    the brute-force :math:`D^t = \operatorname{Var} U(t)/t = D\,(1 - b/t) + o(1/t)` (paper section 5.2), for paths from rest
-    (V(0) = 0, as ``bruteforce_diffusivity`` starts them) or, with ``stationary``, from the stationary law
+    the brute-force :math:`D^t = \operatorname{Var} U(t)/t = D\,(1 - b/t) + o(1/t)` (paper section 5.2), for paths
+    from rest (V(0) = 0, as ``bruteforce_diffusivity`` starts them) or, with ``stationary``, from the stationary law
     (a long burn-in):
 
     .. math::
