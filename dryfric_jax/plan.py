@@ -299,7 +299,8 @@ def plan_estimate(params: Params, *, method: str = "di", h: float | None = None,
     The arguments of :func:`~dryfric_jax.api.estimate_diffusivity` that fix the run (not ``key``,
     ``rtol``, ``max_time``, ``progress``).  Raises ``ValueError`` (naming
     the parameter and its range) for anything it would refuse, including a run predicted to need
-    more than ``max_work`` lane-steps (events).
+    more than ``max_work`` lane-steps (events), counting an excursion per lane at least (every lane finishes
+    the one it is in).
     """
     n_excursions = check_count("n_excursions", n_excursions, hi=MAX_COUNT)  # the engine's counters are int64
     max_work = check_max_work(max_work)
@@ -309,8 +310,22 @@ def plan_estimate(params: Params, *, method: str = "di", h: float | None = None,
     plan = choose(params, method, h, delta, dtype, excursions=True)
     nd = (params.tau_nd, params.tau_L_nd, params.gamma_bar_nd)
     plan.min_duration = predicted_duration_floor(params, plan)
-    plan.predicted_work = check_work(*nd, plan.per_tau0, n_excursions, max_work, plan.unit, plan.min_duration)
     plan.lanes = int(lanes or lanes_for(n_excursions, chunk_lanes))
+    # every lane runs its round's budget and finishes the excursion it is in, so the run closes about one or more per
+    # lane (4096 lanes asked for 200 closed 3205; 2^18 asked for 2000 ran 201,925, and 2^22 at the default point
+    # needed some 5e10 lane-steps against a predicted 1.2e8: an audit)
+    count = max(n_excursions, plan.lanes)
+    try:
+        plan.predicted_work = check_work(*nd, plan.per_tau0, count, max_work, plan.unit, plan.min_duration)
+    except ValueError as e:
+        if count == n_excursions:
+            raise
+        raise ValueError(f"{e} (here ~{count} excursions, about one per lane, not n_excursions = {n_excursions}: "
+                         "every lane finishes the excursion it is in; fewer lanes)") from None
+    if count > n_excursions:
+        plan.notes.append(f"lanes = {count} > n_excursions = {n_excursions}: every lane finishes the excursion it "
+                          f"is in, so the run closes about one or more per lane (~{count / n_excursions:.3g}x the "
+                          "excursions asked for, and their work); fewer lanes keep to n_excursions")
     plan.block = int(default_block(plan.method, plan.lanes) if block is None else block1)
     check_layout(plan.lanes, plan.block)
     plan.max_work = max_work

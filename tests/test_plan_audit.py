@@ -109,8 +109,30 @@ def test_predicted_work_and_the_excursion_bound_at_fig3(method):
     assert plan.max_steps == pytest.approx(1e4 * T * per_tau0, rel=1e-8, abs=1)  # ceil
     capped = plan_estimate(FIG3, method=method, n_excursions=1000, max_work=1e9)
     assert capped.max_steps == math.ceil(1e9 / capped.lanes) or capped.max_steps == int(1e9 / capped.lanes)
-    floored = plan_estimate(FIG3, method=method, n_excursions=2, lanes=2**20, block=64, max_work=1e6)
-    assert floored.max_steps == 64  # max_work / lanes < 1
+    if method == "di":  # max_work / lanes = 45 < 64 where the work itself is allowed: ~40 steps per excursion
+        floored = plan_estimate(dj.Params.from_nondim(0.1, 1.0, 0.0), h=0.1, n_excursions=2, lanes=2**20, block=64,
+                                max_work=45 * 2**20)
+        assert floored.max_steps == 64
+
+
+@pytest.mark.filterwarnings("ignore::dryfric_jax.SmallSampleWarning")
+def test_more_lanes_than_excursions_count_an_excursion_per_lane_in_the_work():
+    """Every lane finishes the excursion it is in, so a run closes about one per lane whatever n_excursions: an
+    audit's 2^18 lanes asked for 2000 ran 201,925 (predicted 1.2e6 lane-steps), and 2^22 at the default point
+    needed ~5e10 against a predicted 1.2e8, unrefused and unsaid.  Now the work counts max(N, lanes) excursions,
+    the refusal says why, and the plan notes it (a run here closes > 10x the N asked for)."""
+    per_excursion = plan_estimate(FIG3, n_excursions=2**18).predicted_work / 2**18
+    plan = plan_estimate(FIG3, n_excursions=2000, lanes=2**18)
+    assert plan.predicted_work == pytest.approx(2**18 * per_excursion, rel=1e-12)
+    assert [n for n in plan.notes if n.startswith("lanes = 262144 > n_excursions = 2000: every lane finishes")]
+    assert not plan_estimate(FIG3, n_excursions=2**18, lanes=2**18).notes
+    with pytest.raises(ValueError, match=r"^max_work must be >= .*\(here ~4194304 excursions, about one per lane, not "
+                                         r"n_excursions = 2000: every lane finishes the excursion it is in; fewer "
+                                         r"lanes\)$"):
+        plan_estimate(FIG3, n_excursions=2000, lanes=2**22, max_work=1e9)
+    with pytest.warns(dj.DryfricWarning, match="^lanes = 4096 > n_excursions = 200"):
+        r = dj.estimate_diffusivity(dj.Params.from_nondim(1.0, 1.0, 0.0), 0, n_excursions=200, lanes=4096)
+    assert r.n_excursions > 10 * 200, r.n_excursions
 
 
 @pytest.mark.parametrize("g,tau,tl", [(1.0, 0.01, 10.0), (-1.2, 0.01, 10.0), (1.2, 0.01, 10.0), (3.0, 1.0, 4.0)])
