@@ -109,6 +109,12 @@ FLOAT32_MIN_TAU_ND = 1e-30
 #: tau_L' and its 1/tau_L' overflows float32 below 2.9e-39 (measured: NaN at tau_L' = 3e-40, D 155x
 #: too small at 1e-36; float32 and float64 agree to 1e-8 at 1e-30, same seed)
 FLOAT32_MIN_TAU_L_ND = 1e-25
+#: in a runaway (|gamma_bar'| > 1) the velocity settles near tau_L'(|gamma_bar'| - 1) (:func:`runaway_velocity`), in
+#: one binade, where float32 rounds each step's friction h' onto V's grid alike, step after step (an audit: h' = 0.01
+#: at V' ~ 5000 is 20.48 ulps, taken as 20: M0_t 0.23% high, 8 of its CIs; the PDMP's velocity noise rounded away,
+#: M0_t 1.1% low): float32 only where h' (the PDMP's mean time between events) is >= this share of that velocity,
+#: ~840 ulps, the friction rounded by <= 0.06%
+FLOAT32_MIN_STEP_PER_VELOCITY = 1e-4
 #: no simulation below this tau_L': D ~ tau_L'^2 and the excursion sums behind the CI (U^4 ~
 #: tau_L'^4) underflow float64 (measured, PDMP: CI 0 at tau_L' = 1e-80, D = 0 +- 0 at 1e-300; D/tau_L'^2
 #: unchanged to 1e-14 from 1e-30 to 1e-70, same seed)
@@ -387,21 +393,37 @@ def check_simulable(tau_L: float, tau_L_s: float, tau0: float) -> None:
             "(U^4 ~ (tau_L/tau0)^4) underflow float64, collapsing the CI to 0")
 
 
-def pdmp_float32_unsafe_reason(tau_L: float, rate: float | None = None) -> str | None:
+def runaway_velocity(tau_L: float, gamma_bar: float) -> float:
+    r""":math:`\tau_L'(|\bar\gamma'| - 1)`, the speed (in :math:`v_0`) near which a runaway settles, inf with
+    :math:`\tau_L = \infty` (it keeps accelerating); 0 where :math:`|\bar\gamma'| \le 1`."""
+    g = abs(gamma_bar)
+    return tau_L * (g - 1.0) if g > 1.0 else 0.0
+
+
+def _runaway_reason(step: float, what: str, v_run: float) -> str | None:
+    if step < FLOAT32_MIN_STEP_PER_VELOCITY * v_run:
+        return (f"{what} = {step:.3g} tau0 < {FLOAT32_MIN_STEP_PER_VELOCITY:g} x the runaway speed "
+                f"tau_L'(|gamma_bar'| - 1) = {v_run:.3g} v0: float32 rounds each velocity increment onto V's grid "
+                "alike (M0_t 0.23% high at 2e-6)")
+    return None
+
+
+def pdmp_float32_unsafe_reason(tau_L: float, rate: float | None = None, v_run: float = 0.0) -> str | None:
     r"""Why float32 is not safe for the PDMP at this :math:`\tau_L'` and jump rate
     :math:`\Lambda' = 2/(\tau'\delta')^2` (None if it is).  The mean time between events,
     :math:`1/\Lambda'`, is held to the DI's bound on :math:`h'` (:data:`FLOAT32_MIN_H_ND`): a shorter one
     makes the velocity increments of order :math:`1/\Lambda'` round away.  Measured (a PDMP audit, float32
     against float64 arithmetic on the same float32 uniforms, :math:`\tau' = 1, \tau_L' = 10,
     \bar\gamma' = 3`, 4 paths of 10 :math:`\tau_0`): U off by 1.0% (every path low) at
-    :math:`1/\Lambda' = 5\cdot10^{-7}`, 4e-5 at 1e-5, 2.7e-6 at 1e-4."""
+    :math:`1/\Lambda' = 5\cdot10^{-7}`, 4e-5 at 1e-5, 2.7e-6 at 1e-4.  In a runaway (``v_run``,
+    :func:`runaway_velocity`) :math:`1/\Lambda'` must also be :data:`FLOAT32_MIN_STEP_PER_VELOCITY` of it."""
     if tau_L < FLOAT32_MIN_TAU_L_ND:
         return (f"tau_L/tau0 = {tau_L:.3g} < {FLOAT32_MIN_TAU_L_ND:g}: the velocities, of order tau_L/tau0, "
                 "near float32's smallest numbers")
     if rate is not None and 1.0 / rate < FLOAT32_MIN_H_ND:
         return (f"mean time between events (tau delta)^2/2 = {1.0 / rate:.3g} tau0 < {FLOAT32_MIN_H_ND:g} tau0: "
                 "velocity increments near float32 resolution (U 1% low at 5e-7 tau0)")
-    return None
+    return None if rate is None else _runaway_reason(1.0 / rate, "mean time between events (tau delta)^2/2", v_run)
 
 
 def _percent(x: float) -> str:
@@ -411,9 +433,10 @@ def _percent(x: float) -> str:
     return f"{p:.2g}%" if p < 100 else f"{p:.0f}%"
 
 
-def float32_unsafe_reason(h_over_tau: float, h_nd: float, tau_nd: float = 1.0) -> str | None:
+def float32_unsafe_reason(h_over_tau: float, h_nd: float, tau_nd: float = 1.0, v_run: float = 0.0) -> str | None:
     r"""Why float32 is not safe for the DI at this step and :math:`\tau'` (None if it is); module
-    docstring."""
+    docstring.  In a runaway (``v_run``, :func:`runaway_velocity`) h' must also be
+    :data:`FLOAT32_MIN_STEP_PER_VELOCITY` of it."""
     if h_over_tau < FLOAT32_MIN_H_OVER_TAU:
         return (f"h/tau = {h_over_tau:.3g} < {FLOAT32_MIN_H_OVER_TAU:g}: float32 rounds the OU decay "
                 f"1 - exp(-h/tau) by up to {_percent(3e-8 / h_over_tau)}")
@@ -422,4 +445,4 @@ def float32_unsafe_reason(h_over_tau: float, h_nd: float, tau_nd: float = 1.0) -
     if tau_nd < FLOAT32_MIN_TAU_ND:
         return (f"tau/tau0 = {tau_nd:.3g} < {FLOAT32_MIN_TAU_ND:g}: the noise's stationary SD "
                 f"{1 / math.sqrt(tau_nd):.3g} nears float32's range")
-    return None
+    return _runaway_reason(h_nd, "h", v_run)

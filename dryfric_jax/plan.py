@@ -34,7 +34,7 @@ from .cost import choose_method, default_delta, default_delta_note
 from .excursions import MAX_LAYOUT, default_block, lanes_for
 from .limits import (
     MAX_WORK, check_duration_in_range, check_recurrent, check_simulable, check_work, di_cycle_floor,
-    float32_unsafe_reason, max_steps_per_excursion, pdmp_cycle_floor, pdmp_float32_unsafe_reason,
+    float32_unsafe_reason, max_steps_per_excursion, pdmp_cycle_floor, pdmp_float32_unsafe_reason, runaway_velocity,
 )
 from .params import Params, check_params, real_or_none, refuse_traced, rounded_bound, shown
 from .pdmp import pdmp_grid_info
@@ -261,14 +261,15 @@ def choose(params: Params, method: str, h, delta, dtype, *, excursions: bool = F
         else:
             method, reason = choose_method(params, h_c, d_c)
             h, delta = (h_c, None) if method == "di" else (None, d_c)
+    v_run = runaway_velocity(params.tau_L_nd, params.gamma_bar_nd)
     if method == "di":
         h = check_h(params, h)
-        unsafe = float32_unsafe_reason(h / params.tau, h / params.tau0, params.tau_nd)
+        unsafe = float32_unsafe_reason(h / params.tau, h / params.tau0, params.tau_nd, v_run)
         plan = Plan("di", h, None, None, dtype, reason, "steps", params.tau0 / h)
     else:
         delta = default_delta(params) if defaulted else delta
         grid = pdmp_grid_info(params, delta)
-        unsafe = pdmp_float32_unsafe_reason(params.tau_L_nd, grid["rate_nd"])
+        unsafe = pdmp_float32_unsafe_reason(params.tau_L_nd, grid["rate_nd"], v_run)
         # every noise jump is an event: the jump rate Lambda' is a lower estimate of the events per tau0
         plan = Plan("pdmp", None, grid["delta"], grid, dtype, reason, "events", grid["rate_nd"])
         if defaulted and (note := default_delta_note(params)):

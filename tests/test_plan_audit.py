@@ -158,6 +158,28 @@ def test_float32_thresholds_just_inside_and_outside():
     assert "tau_L/tau0" in limits.pdmp_float32_unsafe_reason(1e-25 * BELOW)
 
 
+def test_float32_falls_back_in_a_runaway_whose_speed_dwarfs_the_step():
+    """A float32 audit: at tau_L' = 500, gamma_bar' = 11 the velocity sits near 5000 v0, where h' = 0.01 is 20.48 of
+    float32's ulps, taken as 20 every step: brute force's M0_t came out 5011.6 +- 1.5 against the exact 5000 (float64
+    4999.4 +- 1.5), and the PDMP's (tau_L' = 2000, gamma_bar' = 29) 1.1% low, float32 kept and unsaid.  Now h' (the
+    PDMP's mean time between events) must be >= 1e-4 of tau_L'(|gamma_bar'| - 1) (the bound included); below
+    |gamma_bar'| = 1 nothing changes; with tau_L = inf a runaway never settles and float32 is never taken."""
+    f, fp = limits.float32_unsafe_reason, limits.pdmp_float32_unsafe_reason
+    v = limits.runaway_velocity(500.0, -11.0)
+    assert v == 5000.0 and limits.runaway_velocity(500.0, 1.0) == 0.0 and limits.runaway_velocity(math.inf, 0.9) == 0
+    assert limits.runaway_velocity(math.inf, 1.5) == math.inf
+    assert f(1.0, 0.5, 1.0, v) is None and fp(500.0, 1 / 0.5, v) is None
+    assert "< 0.0001 x the runaway speed tau_L'(|gamma_bar'| - 1) = 5e+03 v0" in f(1.0, 0.5 * BELOW, 1.0, v)
+    assert fp(500.0, 1 / (0.5 * BELOW), v).startswith("mean time between events (tau delta)^2/2 = 0.5 tau0 < 0.0001 x")
+    from dryfric_jax.plan import choose
+    assert choose(dj.Params.from_nondim(1e-3, 500.0, 11.0), "di", 0.01, None, "float32").dtype == "float64"  # audit
+    runaway = dj.Params.from_nondim(1e-3, 500.0, 2.5)  # 750 v0: h' >= 0.075 keeps float32
+    for method, h, dt in (("di", 0.07, "float64"), ("di", 0.1, "float32"), ("pdmp", None, "float64")):
+        plan = choose(runaway, method, h, None, "float32")
+        assert plan.dtype == dt and bool(plan.notes) == (dt == "float64"), (method, h, plan.notes)
+    assert choose(dj.Params.from_nondim(1e-3, 500.0, 0.9), "di", 1e-3, None, "float32").dtype == "float32"
+
+
 @pytest.mark.parametrize("G,tau,h,why", [
     (1e6, 1e-26, None, "tau/tau0 = 1e-32"),  # tau' = 1e-32 although tau = 1e-26 s: the nondimensional tau
     (1.0, 1e3, 1e-8, "h/tau = 1e-11"),  # h' = 1e-8: both fail, h/tau named first
@@ -297,7 +319,7 @@ def test_pdmp_float32_falls_back_where_events_are_too_short():
     f = limits.pdmp_float32_unsafe_reason
     assert f(1.0, 1e5) is None and f(1.0) is None
     assert f(1.0, 1e5 / BELOW).startswith("mean time between events (tau delta)^2/2 = 1e-05 tau0 < 1e-05 tau0")
-    p = dj.Params.from_nondim(1.0, 10.0, 3.0)
+    p = dj.Params.from_nondim(1.0, 10.0, 0.5)  # the audit's gamma_bar' = 3 is a runaway, whose own bound binds first
     for delta, dtype in ((1e-3, "float64"), (0.0045, "float32"), (0.05, "float32")):
         plan = plan_estimate(p, method="pdmp", delta=delta, dtype="float32", n_excursions=100, max_work=1e300)
         assert plan.dtype == dtype, delta
