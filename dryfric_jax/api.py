@@ -20,10 +20,10 @@ from ._version import __version__
 from .bruteforce import simulate_bruteforce
 from .di import make_di_model
 from .estimators import (
-    MIN_PATHS, MIN_RELIABLE_N, MIN_RELIABLE_PATHS, WEAK_DAMPING_TAU_L, bruteforce_estimates, long_excursion_estimates,
-    near_runaway_note, rounding_note,
+    MAX_PATHS, MIN_PATHS, MIN_RELIABLE_N, MIN_RELIABLE_PATHS, WEAK_DAMPING_TAU_L, bruteforce_estimates,
+    long_excursion_estimates, near_runaway_note, rounding_note,
 )
-from .excursions import BLOCK
+from .excursions import BLOCK, MAX_LAYOUT
 from .rounds import FINAL_DEADLINE, INTERRUPT_GRACE_S, simulate_long_excursions, work_per_excursion
 from .limits import MAX_WORK, refuse_known_work
 from .outfiles import dumps
@@ -779,10 +779,15 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
     """
     require_x64()
     check_method(method, h, delta, auto=False)  # 'auto' refused, and 5 not told a list with 'auto' in it
-    n_paths = check_count("n_paths", n_paths, MIN_PATHS, hi=MAX_COUNT, why=" (with 2 paths the D_t CI is 0)")
+    n_paths = check_count("n_paths", n_paths, MIN_PATHS, hi=MAX_PATHS,
+                          why=" (with 2 paths the D_t CI is 0; every path's U is kept, ~50 bytes each in memory)")
     max_work = check_max_work(max_work)
     block = check_layout(None, block)[1]
     chunk_lanes = check_count("chunk_lanes", chunk_lanes, 1)
+    if min(chunk_lanes, n_paths) * block > MAX_LAYOUT:  # 2^24 paths at once passed 8 GB and were killed (an audit)
+        raise ValueError(f"min(chunk_lanes, n_paths) * block must be <= 2^28 (the paths run at once draw a block's "
+                         f"normals at once, as the engine's lanes * block) (got chunk_lanes = {chunk_lanes}, n_paths = "
+                         f"{n_paths}, block = {block})")
     if max_events is not None:
         max_events = check_count("max_events", max_events, 1, hi=MAX_COUNT)  # int64 counters
         if method == "di":  # it was taken and ignored

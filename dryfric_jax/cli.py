@@ -33,7 +33,7 @@ from .api import MAX_FIGURE_SEED
 from .bench import MAX_REPEAT
 from .durations import MAX_COUNT_LANES, NoCountError
 from .durations import MAX_STEPS as DUR_MAX_STEPS
-from .estimators import MIN_PATHS, MIN_RELIABLE_PATHS
+from .estimators import MAX_PATHS, MIN_PATHS, MIN_RELIABLE_PATHS
 from .outfiles import check_writable, check_writable_dir, dumps, loads, write_atomic
 from .params import FIG3, Params
 from .plan import MAX_BLOCK, MAX_LANES, MAX_STEPS
@@ -270,7 +270,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="horizon, s; D_t is biased low by O(1/t) (white noise, tau_L = inf, gamma_bar = 0: "
                         "D (1 - 5.4 tau0/t)), warned about below 100 correlation times "
                         "max(min(tau0/(1 - |gamma_bar'|)^2, tau_L), tau)")
-    b.add_argument("--n-paths", type=_int_at_least("n-paths", MIN_PATHS, 2**62, "2^62"), required=True,
+    b.add_argument("--n-paths", type=_int_at_least("n-paths", MIN_PATHS, MAX_PATHS, "2^26"), required=True,
                    help=f"independent paths (>= {MIN_PATHS}; the CI under-covers below {MIN_RELIABLE_PATHS})")
     b.add_argument("--burn-in", type=_number("burn-in"), default=0.0,
                    help="uncounted warm-up, s (20 tau0 removes about half of the horizon bias, the start's)")

@@ -98,6 +98,9 @@ def near_runaway_note(tau_L: float, gamma_bar: float) -> str | None:
 MIN_RELIABLE_PATHS = 500
 #: the fewest paths brute force takes (API, CLI, :func:`bruteforce_estimates`): 2 give a CI of 0
 MIN_PATHS = 3
+#: the most paths brute force takes: it keeps every path's U(t) and computes its CI from them, ~50 bytes a path in
+#: memory at the peak (3.6 GB here); 1e9 paths passed the work bound and grew towards ~50 GB (an audit)
+MAX_PATHS = 2**26
 
 
 def psi_D(x):

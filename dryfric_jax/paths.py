@@ -66,6 +66,18 @@ MAX_RECORD_TIMES = 32
 MAX_RECORDS = 2**32 - 2
 
 
+#: the most values one recorded array holds (n_paths x records): 2 GiB in float64; the paper's largest, Fig. 5's
+#: histogram, is 4096 x 40,000 = 1.6e8.  Past it a MemoryError came from numpy after RSS passed 8 GB (an audit)
+MAX_RECORDED = 2**28
+
+
+def _check_recorded(n_paths: int, n_records: int) -> None:
+    if n_paths * n_records > MAX_RECORDED:
+        raise ValueError(f"n_paths x records must be at most 2^28 = {MAX_RECORDED} values per recorded array (each "
+                         f"value 8 bytes: 2 GiB; got {n_paths} x {n_records} = {n_paths * n_records:.3g}): record "
+                         "fewer paths or times, or run several seeds")
+
+
 def _check_path_work(n_paths: int, steps: int, max_work) -> None:
     """Refuse (``ValueError``) ``n_paths`` paths of ``steps`` steps each beyond ``max_work`` lane-steps (default
     :data:`~dryfric_jax.limits.MAX_WORK`, the estimator's): 10^12 paths ran on and on (an audit).  The paper's
@@ -135,6 +147,7 @@ def di_transient(model: DIModel, key, n_paths: int, record_steps, v0: float = 1.
     key = _key(key)[0]
     n_paths, chunk = check_count("n_paths", n_paths, 1), check_count("chunk", chunk, 1)
     steps = _record_steps(record_steps)
+    _check_recorded(n_paths, len(steps))
     _check_path_work(n_paths, steps[-1], max_work)
     check_finite("v0", v0)
     v0 = float(v0)
@@ -186,6 +199,7 @@ def di_stationary(model: DIModel, key, n_paths: int, n_records: int, every: int 
     n_records = check_count("n_records", n_records, 1, MAX_RECORDS, " (records are folded into the keys in 32 bits)")
     every = check_count("every", every, 1, MAX_SEGMENT, SEGMENT_WHY)
     burn_steps = check_count("burn_steps", burn_steps, 0, MAX_SEGMENT, SEGMENT_WHY)
+    _check_recorded(n_paths, n_records)
     _check_path_work(n_paths, burn_steps + n_records * every, max_work)
     V, U = over_lanes(_stationary, (model, jax.random.split(key, n_paths)), (False, True),
                       n_records=n_records, every=every, burn=burn_steps)
@@ -264,8 +278,9 @@ def autocorrelation(V: np.ndarray, max_lag: int, center: bool = True) -> tuple[n
     return r, resid.std(0, ddof=1) / (np.sqrt(V.shape[0]) * b)
 
 
-#: largest ``max_steps`` of :func:`di_long_excursion` (three buffers of max_steps + 1 states)
-MAX_EXCURSION_STEPS = 2**31 - 1
+#: largest ``max_steps`` of :func:`di_long_excursion`: its three buffers of max_steps + 1 states are allocated
+#: whole, 1.6 GB at this bound (2^31 - 1 passed 6 GB in 5 s and was killed: an audit)
+MAX_EXCURSION_STEPS = 2**26
 
 
 @partial(jax.jit, static_argnames=("max_steps",))
@@ -362,7 +377,7 @@ def di_long_excursion(model: DIModel, key, max_steps: int = 200_000, max_seek: i
     Returns nondimensional numpy arrays ``t, x, v, U`` (``t`` = index x h), ``i_half``, ``duration`` and
     ``complete`` (False if ``max_steps`` recorded steps stopped it, or if no start was found within ``max_seek``
     steps: the arrays are then empty and ``i_half`` is -1).  ``key`` is a ``jax.random`` key or an integer seed in
-    [0, 2^62]; ``max_steps`` an integer in [1, 2^31 - 1] (its buffers hold max_steps + 1 states); ``max_seek`` an
+    [0, 2^62]; ``max_steps`` an integer in [1, 2^26] (its buffers hold max_steps + 1 states); ``max_seek`` an
     integer >= 1 with ``max_seek + max_steps`` < 2^32 (the steps are folded into the key in 32 bits), default
     :data:`SEEK_FACTOR` x ``max_steps`` (as far as that bound allows).  ``ValueError`` naming the argument.
     """
@@ -439,6 +454,7 @@ def pdmp_stationary(model, key, n_paths: int, n_records: int, dt_rec: float, bur
                          f"(got {type(model).__name__})")
     key = _key(key)[0]
     n_paths, n_records = check_count("n_paths", n_paths, 1), check_count("n_records", n_records, 1)
+    _check_recorded(n_paths, n_records)
     check_positive("dt_rec", dt_rec)
     check_finite("burn", burn)
     if not burn >= 0:

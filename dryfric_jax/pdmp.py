@@ -377,16 +377,31 @@ def _skeleton(model: PDMPModel, key, *, max_events: int):
     return i, phase, i_half, b
 
 
+#: the most events :func:`excursion_skeleton` records
+MAX_SKELETON_EVENTS = 2**26
+
+
 def excursion_skeleton(model: PDMPModel, key, max_events: int = 200_000) -> dict:
     """One long excursion from s_+ (through s_-, back to s_+) as its event skeleton.
 
     Returns nondimensional numpy arrays ``t, x, y, v, U`` at the event times (index 0 is s_+),
     ``i_half`` (index of s_-) and ``complete`` (False if ``max_events`` stopped it first).
     Between events v follows :func:`flow` and X is constant.  ``RuntimeError`` with JAX's 64-bit mode off
-    (:func:`~dryfric_jax.params.require_x64`; it returned float32 times and int32 levels: a review).
+    (:func:`~dryfric_jax.params.require_x64`; it returned float32 times and int32 levels: a review).  ``key`` is a
+    ``jax.random`` key or an integer seed in [0, 2^62], as elsewhere; ``max_events`` an integer in [1, 2^26] (its
+    buffers, of max_events + 1 events, are allocated whole: 2^31 passed 6 GB, 1e10 ran out of memory, -5 was a
+    TypeError from JAX and 2.5 was taken as 2: an audit).  ``ValueError`` naming the argument.
     """
+    from .api import _key  # the API imports this module
+    from .plan import check_count
+
     require_x64()
-    n, phase, i_half, b = jax.device_get(_skeleton(model, key, max_events=int(max_events)))
+    if not isinstance(model, PDMPModel):
+        raise ValueError(f"model must be a PDMPModel, from dryfric_jax.make_pdmp_model(params, delta) "
+                         f"(got {type(model).__name__})")
+    key = _key(key)[0]
+    max_events = check_count("max_events", max_events, 1, MAX_SKELETON_EVENTS, " (its buffers are allocated whole)")
+    n, phase, i_half, b = jax.device_get(_skeleton(model, key, max_events=max_events))
     n = int(n)
     out = {k: np.asarray(v)[: n + 1] for k, v in b.items()}
     out["x"] = out.pop("k") * float(model.delta)
