@@ -591,7 +591,7 @@ def failures(path: str) -> list[dict]:
     return [r for r in read_results(path) if status(r) != "ok"]
 
 
-ROW_KEYS = ("D", "D_ci", "M0", "M0_ci", "mean_duration", "n_excursions", "n_truncated", "method")
+ROW_KEYS = ("D", "D_ci", "M0", "M0_ci", "mean_duration", "n_excursions", "n_truncated", "method", "dtype")
 #: the row keys of a point's long-excursion count (``run_sweep(durations=N)``) and the fields they come from
 LE_ROW_KEYS = {"le_duration": "mean", "le_duration_ci": "ci", "le_n_excursions": "n_excursions",
                "le_n_truncated": "n_truncated", "le_h": "h"}

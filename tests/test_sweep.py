@@ -6,6 +6,7 @@ import signal
 import subprocess
 import sys
 import time
+import warnings
 
 import pytest
 
@@ -53,6 +54,14 @@ def test_every_setting_is_part_of_a_points_identity(tmp_path):
     assert sweep.run_sweep(sweep.grid(Gamma=[2.0]), out, dtype="float32", **kw)["computed"] == 1
     assert sweep.run_sweep(sweep.grid(Gamma=[2.0]), out, dtype="float32", **kw)["computed"] == 0
     assert sorted(r["settings"]["dtype"] for r in _lines(out)) == ["float32", "float64"]
+    # a float32 point that ran in float64 (tau' < 1e-30) says so in its row, not only in its record's warnings
+    # (a float32 audit: rows() had no dtype, and the terminal said nothing)
+    fb = str(tmp_path / "fallback.jsonl")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        sweep.run_sweep(sweep.grid(Gamma=[2.0], tau=[1e-32]), fb, dtype="float32", **kw)
+    (row,), (rec,) = sweep.rows(fb), _lines(fb)
+    assert row["dtype"] == "float64" and rec["settings"]["dtype"] == "float32" and row["status"] == "ok"
 
 
 def test_a_record_of_another_version_is_rerun_in_place(tmp_path):
@@ -262,6 +271,7 @@ def test_refused_and_failed_points_are_recorded_and_the_sweep_goes_on(tmp_path, 
     assert [(r["Gamma"], r["status"]) for r in table] == [(0.5, "refused"), (20.0, "ok"), (1e6, "failed")]
     assert table[1]["D"] == recs[1]["result"]["D"] and math.isnan(table[2]["D"]) and table[2]["reason"]
     assert sweep.rows(out, seed=1) == [] and sweep.rows(out, n_excursions=51) == []
+    assert table[1]["dtype"] == "float64" and math.isnan(table[2]["dtype"])
     with pytest.raises(ValueError, match=r"^settings must be among .* \(got \['n_excursion'\]\)"):
         sweep.rows(out, n_excursion=50)
     with pytest.raises(ValueError, match="sweep record of a failed point"):
