@@ -197,8 +197,13 @@ def test_fig8_panels_plot_the_runs_the_exact_d_the_exponents_and_the_reference_l
     for k in range(2):  # the two cases, left and right; fig.axes is row by row
         top, bottom = axes[k], axes[2 + k]
         assert top["scales"] == ("log", "log") and bottom["scales"][0] == "log"
-        assert len(top["lines"]) == 1 and np.array_equal(top["lines"][0][0], G)
+        assert len(top["lines"]) == 2 - k and np.array_equal(top["lines"][0][0], G)
         assert top["lines"][0][1] == pytest.approx(7 * G, rel=1e-15)
+        if k == 0:  # b = 0: the exact white-noise D^t at t = 10 s, D (1 - 27/5 tau0/t), where t >= 20 tau0
+            keep = 10.0 >= 20 * G / 3.84**2  # all of the quick grid's Gamma <= 4 (t/tau0 = 36.9 at 4)
+            assert keep.all() and np.array_equal(top["lines"][1][0], G[keep])
+            assert top["lines"][1][1] == pytest.approx(10 * G**3 / 3.84**4 * (1 - 5.4 * G / 3.84**2 / 10.0), rel=1e-14)
+            assert f["cases"]["b = 0"]["exact_bf"] == pytest.approx(list(top["lines"][1][1]), rel=1e-15)
         # 3 is the white-noise exponent of b = 0 only: the viscous panel (k = 1) has the experiment's two
         three = [pytest.approx([3.0, 3.0])] if k == 0 else []
         assert [y for _, y in bottom["lines"]] == three + [pytest.approx([1.61, 1.61]), pytest.approx([1.74, 1.74])]

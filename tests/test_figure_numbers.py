@@ -450,6 +450,10 @@ def test_fig8_numbers_from_known_runs(tmp_path, monkeypatch):
     for name, (tl, gb) in (("b = 0", (math.inf, 0.0)), ("b = -v/tau_L + gamma_bar", (0.067, 0.342))):
         c = f["cases"][name]
         assert c["exact"] == [(g, diffusivity.DELTA, 1e-9, tl, gb) for g in G]  # theory.exact_D's parameters
+        if tl == math.inf:  # what its brute force estimates, D (1 - 27/5 tau0/t) (all quick points: t >= 20 tau0)
+            assert c["exact_bf"] == pytest.approx([10 * g**3 / 3.84**4 * (1 - 5.4 * g / 3.84**2 / 10) for g in G])
+        else:
+            assert "exact_bf" not in c
         for tau in f["tau"]:
             ps = [Params(g, diffusivity.DELTA, tau, tl, gb) for g in G]
             for kind in ("estimate", "bruteforce"):

@@ -53,8 +53,9 @@ def save(fig, out_dir: str, name: str, numbers: dict, t0: float, *, quick: bool,
 #: unchanged): a JSON of an older layout is not taken as finished.  2: Fig. 3's DI durations by counting releases
 #: (``le_dur``), Fig. 6's velocity atom at 0 (``p_zero``); both came in 0.2.7.  Figs. 1-2: 2 since the DI row is one
 #: of the paper's long excursions (it was a regeneration cycle) and the JSON holds the plotted arrays; Fig. 5: 2 since
-#: its JSON holds the plotted U(t) paths (both 2026-12-07, 0.3.0)
-SCENE_LAYOUT = {"fig1_2": 2, "fig3": 2, "fig5": 2, "fig6": 2}
+#: its JSON holds the plotted U(t) paths (both 2026-12-07, 0.3.0); Fig. 8: 2 since its b = 0 case holds the exact
+#: white-noise D^t its brute force estimates (``exact_bf``, 2026-12-07)
+SCENE_LAYOUT = {"fig1_2": 2, "fig3": 2, "fig5": 2, "fig6": 2, "fig8": 2}
 
 
 def _meta(quick: bool, seed: int, name: str) -> dict:
