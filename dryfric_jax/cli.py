@@ -188,7 +188,7 @@ _seed = _int_at_least("seed", 0, MAX_FIGURE_SEED, "2^62 - 2^20")
 
 
 def _count_option(name):
-    """An excursion (path) count: in [2, 2^62], the engine's counters are int64."""
+    """An excursion count: in [2, 2^62], the engine's counters are int64."""
     return _int_at_least(name, 2, 2**62, "2^62")
 
 

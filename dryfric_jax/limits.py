@@ -109,12 +109,14 @@ FLOAT32_MIN_TAU_ND = 1e-30
 #: tau_L' and its 1/tau_L' overflows float32 below 2.9e-39 (measured: NaN at tau_L' = 3e-40, D 155x
 #: too small at 1e-36; float32 and float64 agree to 1e-8 at 1e-30, same seed)
 FLOAT32_MIN_TAU_L_ND = 1e-25
-#: in a runaway (|gamma_bar'| > 1) the velocity settles near tau_L'(|gamma_bar'| - 1) (:func:`runaway_velocity`), in
-#: one binade, where float32 rounds each step's friction h' onto V's grid alike, step after step (an audit: h' = 0.01
-#: at V' ~ 5000 is 20.48 ulps, taken as 20: M0_t 0.23% high, 8 of its CIs; the PDMP's velocity noise rounded away,
-#: M0_t 1.1% low): float32 only where h' (the PDMP's mean time between events) is >= this share of that velocity,
-#: ~840 ulps, the friction rounded by <= 0.06%
-FLOAT32_MIN_STEP_PER_VELOCITY = 1e-4
+#: where the speeds sit in a few binades far from 1 (:func:`speed_scale`'s V_s > 2: a runaway, |gamma_bar'| > 1, near
+#: tau_L'(|gamma_bar'| - 1), or |gamma_bar'| near 1 with a large tau_L'), float32 rounds each step's friction h' onto
+#: V's grid alike, step after step, by up to ~2^-24 V_s/h' of it, against the net force F: float32 only where that
+#: share, 2^-24 V_s/(h' F), is at most this (the PDMP: h' its mean time between events).  Audits (2026-12-07): M0_t
+#: +0.23% (8 CIs) at tau_L' = 500, gamma_bar' = 11, h' = 0.01 (20.48 ulps of V ~ 5000 taken as 20); +0.27% at
+#: tau_L' = 1000, 1.1, h' = 0.0109; +0.96% at 1e4, 0.999, 0.0109; the PDMP 1.1% low at 2000, 29 (its velocity noise
+#: rounded away).  Where the speeds spread over binades near 1 (V_s <= 2) the roundings average out: h' >= 1e-5 there
+FLOAT32_MAX_DRIFT_ROUNDING = 1e-3
 #: no simulation below this tau_L': D ~ tau_L'^2 and the excursion sums behind the CI (U^4 ~
 #: tau_L'^4) underflow float64 (measured, PDMP: CI 0 at tau_L' = 1e-80, D = 0 +- 0 at 1e-300; D/tau_L'^2
 #: unchanged to 1e-14 from 1e-30 to 1e-70, same seed)
@@ -295,22 +297,26 @@ def max_steps_per_excursion(tau: float, tau_L: float, gamma_bar: float, steps_pe
 
 
 def check_work(tau: float, tau_L: float, gamma_bar: float, steps_per_tau0: float, n_excursions: int,
-               max_work: float = MAX_WORK, unit: str = "steps", min_duration: float = 0.0) -> float:
+               max_work: float = MAX_WORK, unit: str = "steps", min_duration: float = 0.0, lanes: int = 0) -> float:
     r"""Refuse (``ValueError``) a run whose predicted work exceeds ``max_work``; return the prediction.
 
     Predicted work = N x predicted duration (:func:`log_predicted_duration`: :func:`log_duration_scale`, or
-    ``min_duration`` where that is longer) x ``steps_per_tau0``.  Parameters whose excursions outlast float range are
+    ``min_duration`` where that is longer) x ``steps_per_tau0``, N = max(``n_excursions``, ``lanes``): every lane
+    finishes the excursion it is in, so a run closes about one per lane at least (the refusal then says to use fewer
+    lanes).  Parameters whose excursions outlast float range are
     refused first, as :func:`check_duration_in_range` refuses them (the planner has done so already, before h or
     delta; this keeps the function safe on its own).
     """
     check_duration_in_range(tau, tau_L, gamma_bar)
     log_t = log_predicted_duration(tau, tau_L, gamma_bar, min_duration)
-    log_w = math.log(n_excursions) + log_t + math.log(steps_per_tau0)
+    by_lanes = lanes > n_excursions
+    count = max(n_excursions, lanes)
+    log_w = math.log(count) + log_t + math.log(steps_per_tau0)
     if log_w > math.log(max_work):
         # the reason: the largest of the three factors of the predicted work
-        factors = {"n": math.log(n_excursions), "t": log_t, "steps": math.log(steps_per_tau0)}
+        factors = {"n": math.log(count), "t": log_t, "steps": math.log(steps_per_tau0)}
         key = max(factors, key=factors.get)
-        why = {"n": "many excursions (lower N)",
+        why = {"n": "many lanes (fewer lanes)" if by_lanes else "many excursions (lower N)",
                "steps": "each excursion needs many small steps (h or delta small against the excursion)",
                "t": _long_duration_reason(tau, tau_L, gamma_bar)}[key]
         # beyond float range no max_work (a finite number) allows the run: do not suggest raising it
@@ -318,9 +324,12 @@ def check_work(tau: float, tau_L: float, gamma_bar: float, steps_per_tau0: float
         head = f"max_work must be >= {_exp10(log_w)} {unit} for these parameters" + (
             ", beyond float range (no max_work allows them)" if beyond else f" (got {max_work:.3g})")
         fix = (("Coarsen" if beyond else "Raise max_work (--max-work), coarsen")
-               + " h or delta, lower N, or use the white-noise theory when tau << tau0")
+               + f" h or delta, {'use fewer lanes' if by_lanes else 'lower N'}, or use the white-noise theory when "
+               "tau << tau0")
+        many = (f"~{count} excursions (about one per lane: every lane finishes the excursion it is in, whatever "
+                f"n_excursions = {n_excursions})" if by_lanes else f"{count} excursions")
         raise ValueError(
-            f"{head}: {n_excursions} excursions of predicted mean duration >= {_exp10(log_t)} tau0 at "
+            f"{head}: {many} of predicted mean duration >= {_exp10(log_t)} tau0 at "
             f"{steps_per_tau0:.3g} {unit} per tau0 (tau' = {brief(tau, 3)}, tau_L' = {brief(tau_L, 3)}, "
             f"gamma_bar' = {brief(gamma_bar, 3)}); {why}.  {fix}")
     # accepted: log_w <= log(max_work) <= log(largest float), up to rounding, so exp cannot overflow
@@ -393,37 +402,48 @@ def check_simulable(tau_L: float, tau_L_s: float, tau0: float) -> None:
             "(U^4 ~ (tau_L/tau0)^4) underflow float64, collapsing the CI to 0")
 
 
-def runaway_velocity(tau_L: float, gamma_bar: float) -> float:
-    r""":math:`\tau_L'(|\bar\gamma'| - 1)`, the speed (in :math:`v_0`) near which a runaway settles, inf with
-    :math:`\tau_L = \infty` (it keeps accelerating); 0 where :math:`|\bar\gamma'| \le 1`."""
+def speed_scale(tau_L: float, gamma_bar: float) -> tuple[float, float]:
+    r"""``(V_s, F)``: the speeds' scale (in :math:`v_0`) and the net force against them (in :math:`\Delta`):
+    :math:`V_s = \tau_L'(|\bar\gamma'| - 1)` in a runaway (:math:`|\bar\gamma'| > 1`, where the speed settles),
+    else :math:`\min(1/(1 - |\bar\gamma'|), \sqrt{\tau_L'})` (the stationary law's width, inf at
+    :math:`|\bar\gamma'| = 1` with :math:`\tau_L = \infty`); :math:`F = \min(1, \max(||\bar\gamma'| - 1|,
+    1/\sqrt{\tau_L'}))`."""
     g = abs(gamma_bar)
-    return tau_L * (g - 1.0) if g > 1.0 else 0.0
+    if g > 1.0:
+        vs = tau_L * (g - 1.0)
+    else:
+        vs = min(1.0 / (1.0 - g) if g < 1.0 else math.inf, math.sqrt(tau_L))
+    return vs, min(1.0, max(abs(g - 1.0), 1.0 / math.sqrt(tau_L)))
 
 
-def _runaway_reason(step: float, what: str, v_run: float) -> str | None:
-    if step < FLOAT32_MIN_STEP_PER_VELOCITY * v_run:
-        return (f"{what} = {step:.3g} tau0 < {FLOAT32_MIN_STEP_PER_VELOCITY:g} x the runaway speed "
-                f"tau_L'(|gamma_bar'| - 1) = {v_run:.3g} v0: float32 rounds each velocity increment onto V's grid "
-                "alike (M0_t 0.23% high at 2e-6)")
+def _drift_rounding_reason(step: float, what: str, tau_L: float, gamma_bar: float) -> str | None:
+    vs, f = speed_scale(tau_L, gamma_bar)
+    share = 2.0**-24 * vs / (step * f) if f > 0 else math.inf
+    if vs > 2.0 and share > FLOAT32_MAX_DRIFT_ROUNDING:
+        return (f"{what} = {step:.3g} tau0 against speeds ~{vs:.3g} v0 and a net force {f:.3g} Delta "
+                f"(tau_L' = {tau_L:.3g}, gamma_bar' = {gamma_bar:.3g}): float32 rounds each step's friction onto "
+                f"V's grid alike, by ~{share:.2g} of that force > {FLOAT32_MAX_DRIFT_ROUNDING:g} (M0_t 0.23-0.96% "
+                "off where audited)")
     return None
 
 
-def pdmp_float32_unsafe_reason(tau_L: float, rate: float | None = None, v_run: float = 0.0) -> str | None:
+def pdmp_float32_unsafe_reason(tau_L: float, rate: float | None = None, gamma_bar: float = 0.0) -> str | None:
     r"""Why float32 is not safe for the PDMP at this :math:`\tau_L'` and jump rate
     :math:`\Lambda' = 2/(\tau'\delta')^2` (None if it is).  The mean time between events,
     :math:`1/\Lambda'`, is held to the DI's bound on :math:`h'` (:data:`FLOAT32_MIN_H_ND`): a shorter one
     makes the velocity increments of order :math:`1/\Lambda'` round away.  Measured (a PDMP audit, float32
     against float64 arithmetic on the same float32 uniforms, :math:`\tau' = 1, \tau_L' = 10,
     \bar\gamma' = 3`, 4 paths of 10 :math:`\tau_0`): U off by 1.0% (every path low) at
-    :math:`1/\Lambda' = 5\cdot10^{-7}`, 4e-5 at 1e-5, 2.7e-6 at 1e-4.  In a runaway (``v_run``,
-    :func:`runaway_velocity`) :math:`1/\Lambda'` must also be :data:`FLOAT32_MIN_STEP_PER_VELOCITY` of it."""
+    :math:`1/\Lambda' = 5\cdot10^{-7}`, 4e-5 at 1e-5, 2.7e-6 at 1e-4.  Where the speeds sit far from 1 it must also
+    keep the friction's rounding under :data:`FLOAT32_MAX_DRIFT_ROUNDING` of the net force (:func:`speed_scale`)."""
     if tau_L < FLOAT32_MIN_TAU_L_ND:
         return (f"tau_L/tau0 = {tau_L:.3g} < {FLOAT32_MIN_TAU_L_ND:g}: the velocities, of order tau_L/tau0, "
                 "near float32's smallest numbers")
     if rate is not None and 1.0 / rate < FLOAT32_MIN_H_ND:
         return (f"mean time between events (tau delta)^2/2 = {1.0 / rate:.3g} tau0 < {FLOAT32_MIN_H_ND:g} tau0: "
                 "velocity increments near float32 resolution (U 1% low at 5e-7 tau0)")
-    return None if rate is None else _runaway_reason(1.0 / rate, "mean time between events (tau delta)^2/2", v_run)
+    return None if rate is None else _drift_rounding_reason(1.0 / rate, "mean time between events (tau delta)^2/2",
+                                                             tau_L, gamma_bar)
 
 
 def _percent(x: float) -> str:
@@ -433,10 +453,11 @@ def _percent(x: float) -> str:
     return f"{p:.2g}%" if p < 100 else f"{p:.0f}%"
 
 
-def float32_unsafe_reason(h_over_tau: float, h_nd: float, tau_nd: float = 1.0, v_run: float = 0.0) -> str | None:
+def float32_unsafe_reason(h_over_tau: float, h_nd: float, tau_nd: float = 1.0, tau_L: float = math.inf,
+                          gamma_bar: float = 0.0) -> str | None:
     r"""Why float32 is not safe for the DI at this step and :math:`\tau'` (None if it is); module
-    docstring.  In a runaway (``v_run``, :func:`runaway_velocity`) h' must also be
-    :data:`FLOAT32_MIN_STEP_PER_VELOCITY` of it."""
+    docstring.  Where the speeds sit far from 1, h' must also keep the friction's rounding under
+    :data:`FLOAT32_MAX_DRIFT_ROUNDING` of the net force (:func:`speed_scale`)."""
     if h_over_tau < FLOAT32_MIN_H_OVER_TAU:
         return (f"h/tau = {h_over_tau:.3g} < {FLOAT32_MIN_H_OVER_TAU:g}: float32 rounds the OU decay "
                 f"1 - exp(-h/tau) by up to {_percent(3e-8 / h_over_tau)}")
@@ -445,4 +466,4 @@ def float32_unsafe_reason(h_over_tau: float, h_nd: float, tau_nd: float = 1.0, v
     if tau_nd < FLOAT32_MIN_TAU_ND:
         return (f"tau/tau0 = {tau_nd:.3g} < {FLOAT32_MIN_TAU_ND:g}: the noise's stationary SD "
                 f"{1 / math.sqrt(tau_nd):.3g} nears float32's range")
-    return _runaway_reason(h_nd, "h", v_run)
+    return _drift_rounding_reason(h_nd, "h", tau_L, gamma_bar)

@@ -147,8 +147,8 @@ def di_transient(model: DIModel, key, n_paths: int, record_steps, v0: float = 1.
     key = _key(key)[0]
     n_paths, chunk = check_count("n_paths", n_paths, 1), check_count("chunk", chunk, 1)
     steps = _record_steps(record_steps)
-    _check_recorded(n_paths, len(steps))
     _check_path_work(n_paths, steps[-1], max_work)
+    _check_recorded(n_paths, len(steps))
     check_finite("v0", v0)
     v0 = float(v0)
     segments = tuple(np.diff([0] + steps).tolist())
@@ -199,8 +199,8 @@ def di_stationary(model: DIModel, key, n_paths: int, n_records: int, every: int 
     n_records = check_count("n_records", n_records, 1, MAX_RECORDS, " (records are folded into the keys in 32 bits)")
     every = check_count("every", every, 1, MAX_SEGMENT, SEGMENT_WHY)
     burn_steps = check_count("burn_steps", burn_steps, 0, MAX_SEGMENT, SEGMENT_WHY)
-    _check_recorded(n_paths, n_records)
     _check_path_work(n_paths, burn_steps + n_records * every, max_work)
+    _check_recorded(n_paths, n_records)
     V, U = over_lanes(_stationary, (model, jax.random.split(key, n_paths)), (False, True),
                       n_records=n_records, every=every, burn=burn_steps)
     return np.asarray(V), np.asarray(U)

@@ -34,7 +34,7 @@ from .cost import choose_method, default_delta, default_delta_note
 from .excursions import MAX_LAYOUT, default_block, lanes_for
 from .limits import (
     MAX_WORK, check_duration_in_range, check_recurrent, check_simulable, check_work, di_cycle_floor,
-    float32_unsafe_reason, max_steps_per_excursion, pdmp_cycle_floor, pdmp_float32_unsafe_reason, runaway_velocity,
+    float32_unsafe_reason, max_steps_per_excursion, pdmp_cycle_floor, pdmp_float32_unsafe_reason,
 )
 from .params import Params, check_params, real_or_none, refuse_traced, rounded_bound, shown
 from .pdmp import pdmp_grid_info
@@ -261,15 +261,15 @@ def choose(params: Params, method: str, h, delta, dtype, *, excursions: bool = F
         else:
             method, reason = choose_method(params, h_c, d_c)
             h, delta = (h_c, None) if method == "di" else (None, d_c)
-    v_run = runaway_velocity(params.tau_L_nd, params.gamma_bar_nd)
     if method == "di":
         h = check_h(params, h)
-        unsafe = float32_unsafe_reason(h / params.tau, h / params.tau0, params.tau_nd, v_run)
+        unsafe = float32_unsafe_reason(h / params.tau, h / params.tau0, params.tau_nd, params.tau_L_nd,
+                                       params.gamma_bar_nd)
         plan = Plan("di", h, None, None, dtype, reason, "steps", params.tau0 / h)
     else:
         delta = default_delta(params) if defaulted else delta
         grid = pdmp_grid_info(params, delta)
-        unsafe = pdmp_float32_unsafe_reason(params.tau_L_nd, grid["rate_nd"], v_run)
+        unsafe = pdmp_float32_unsafe_reason(params.tau_L_nd, grid["rate_nd"], params.gamma_bar_nd)
         # every noise jump is an event: the jump rate Lambda' is a lower estimate of the events per tau0
         plan = Plan("pdmp", None, grid["delta"], grid, dtype, reason, "events", grid["rate_nd"])
         if defaulted and (note := default_delta_note(params)):
@@ -315,18 +315,12 @@ def plan_estimate(params: Params, *, method: str = "di", h: float | None = None,
     # every lane runs its round's budget and finishes the excursion it is in, so the run closes about one or more per
     # lane (4096 lanes asked for 200 closed 3205; 2^18 asked for 2000 ran 201,925, and 2^22 at the default point
     # needed some 5e10 lane-steps against a predicted 1.2e8: an audit)
-    count = max(n_excursions, plan.lanes)
-    try:
-        plan.predicted_work = check_work(*nd, plan.per_tau0, count, max_work, plan.unit, plan.min_duration)
-    except ValueError as e:
-        if count == n_excursions:
-            raise
-        raise ValueError(f"{e} (here ~{count} excursions, about one per lane, not n_excursions = {n_excursions}: "
-                         "every lane finishes the excursion it is in; fewer lanes)") from None
-    if count > n_excursions:
-        plan.notes.append(f"lanes = {count} > n_excursions = {n_excursions}: every lane finishes the excursion it "
-                          f"is in, so the run closes about one or more per lane (~{count / n_excursions:.3g}x the "
-                          "excursions asked for, and their work); fewer lanes keep to n_excursions")
+    plan.predicted_work = check_work(*nd, plan.per_tau0, n_excursions, max_work, plan.unit, plan.min_duration,
+                                     lanes=plan.lanes)
+    if plan.lanes >= 2 * n_excursions:  # said where it at least doubles the run (4096 lanes for 4095 said "~1x")
+        plan.notes.append(f"lanes = {plan.lanes} > n_excursions = {n_excursions}: every lane finishes the excursion "
+                          f"it is in, so the run closes about one or more per lane (~{plan.lanes / n_excursions:.3g}x "
+                          "the excursions asked for, and their work); fewer lanes keep to n_excursions")
     plan.block = int(default_block(plan.method, plan.lanes) if block is None else block1)
     check_layout(plan.lanes, plan.block)
     plan.max_work = max_work
