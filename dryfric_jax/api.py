@@ -101,7 +101,9 @@ def d_bias_note(params: Params, t: float, burn_in: float, d_t: float, d_ci: floa
     :math:`D^t \approx D(1 - b/t)` with :math:`b \le` :data:`D_BIAS_TAU_C` :math:`\tau_c` from rest
     (:data:`D_BIAS_BURNT_TAU_C` after a burn-in of :data:`D_BURN_IN_TAU_C` :math:`\tau_c`), the largest exact
     values with white noise and :math:`\tau_L = \infty` (:func:`~dryfric_jax.theory.horizon_bias`); less
-    with damping (~1.3 :math:`\tau_c` measured at Fig. 3's point), so it is an upper estimate.  The bias does
+    with damping (0-4 :math:`\tau_c` measured at colored, damped points, ~1.3 at Fig. 3's), so it is an upper
+    estimate where this note is said: not with colored noise started at the threshold (:func:`colored_start_note`,
+    said instead; an audit measured 7.1 :math:`\tau_c` at tau' = 1 and 3 without damping).  The bias does
     not shrink with N' and the half-width does not depend on t: an audit (2026-12-07) found 10^4 paths at
     t = 100 :math:`\tau_0` (white noise, :math:`\tau_L = \infty`) covering the exact D in 28% of runs (D_t
     = 9.36 +- 0.37 against 10), silently.  Never where the CI is 0 (its own note)."""
@@ -117,6 +119,36 @@ def d_bias_note(params: Params, t: float, burn_in: float, d_t: float, d_ci: floa
             "paths, the bias does not); "
             f"t >= {bias / (BIAS_SHARE_OF_CI * d_ci) * t:.3g} s brings it under a fifth of the half-width, or use "
             "estimate_diffusivity, which has no horizon bias")
+
+
+#: brute force's paths start as the paper's Algorithm 2 does, at rest with the noise at its up-threshold x+ =
+#: (Delta - gamma_bar)/sqrt(Gamma); from this tau' on that start is said to bias D_t and M0_t
+#: (:func:`colored_start_note`)
+COLORED_START_TAU_ND = 0.5
+
+
+def colored_start_note(params: Params, burn_in: float) -> str | None:
+    r"""The warning for brute force's start with colored noise, None where :math:`\tau' <`
+    :data:`COLORED_START_TAU_ND` or ``burn_in`` >= :data:`D_BURN_IN_TAU_C` :math:`\tau_c`.  The paths start at
+    V = 0 with X at the up-threshold :math:`x_+` (the paper's Algorithm 2, section 5.2), :math:`(1 - \bar\gamma')
+    \sqrt{\tau'}` of X's stationary SDs out: with white noise X forgets it at once, with colored noise it pushes
+    every path alike for ~tau, which biases D_t and M0_t by O(1/t) of either sign, beyond what
+    :func:`d_bias_note` and :func:`m0_lag_note` (white-noise coefficients; not said with this one) quote.  An
+    audit (2026-12-07, tau_L = inf unless said, no burn-in): D_t 67% high at t = 100 tau_c (+6 SE; tau' = 10,
+    gamma_bar' = 0), b = 7.1 tau_c > 5.75 at tau' = 1 and 3 (gamma_bar' = 0 and -0.5); M0_t off 0 by 6-29 SE at
+    100 tau_c where gamma_bar' = 0 (tau' = 1-10, also with tau_L' = 1), a lag of 4.2-4.5 tau_c > 3 at gamma_bar' =
+    -0.5 and one of -3.3 tau_c (M0_t high) at +0.5, tau' = 10; nothing beyond the white-noise coefficients at
+    tau' = 0.01 and 0.3.  A burn-in of 20 tau_c removed it at every point audited."""
+    tc = correlation_time(params)
+    if params.tau_nd < COLORED_START_TAU_ND or burn_in >= D_BURN_IN_TAU_C * tc:
+        return None
+    sds = (1.0 - params.gamma_bar_nd) * math.sqrt(params.tau_nd)
+    return (f"the paths start at rest with the noise at its threshold x+ = (Delta - gamma_bar)/sqrt(Gamma) (the "
+            f"paper's Algorithm 2), {sds:.2g} of its stationary SDs out: with colored noise (tau/tau0 = "
+            f"{params.tau_nd:.3g}) that start biases D_t and M0_t by O(tau_c/t) of either sign, which their CIs do not "
+            "include (an audit: D_t 67% high at t = 100 tau_c, tau/tau0 = 10; M0_t 6-29 SE off 0 where gamma_bar = 0); "
+            f"add burn_in >= {D_BURN_IN_TAU_C:g} tau_c = {D_BURN_IN_TAU_C * tc:.3g} s, which removed it wherever "
+            "audited, or use estimate_diffusivity, which has no such bias")
 
 
 #: brute force's M0_t from rest: the lag of E[U(t)] behind M0 t, in correlation times (an audit, 2026-12-07: 2.9
@@ -816,9 +848,8 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
     if n_paths < MIN_RELIABLE_PATHS:
         notes = [*notes, f"n_paths = {n_paths} < {MIN_RELIABLE_PATHS}: the delta-method CI of D_t under-covers at "
                          "this size (0.74 at 10 paths, 0.92 at 100 for Gaussian U(t))"]
-    short = short_horizon_note(params, t)
-    if short:
-        notes = [*notes, short]
+    short, start = short_horizon_note(params, t), colored_start_note(params, burn_in)
+    notes = [*notes, *(x for x in (short, start) if x)]
     if h is not None:  # the DI runs whole steps; a horizon they miss by more than HORIZON_RTOL is said
         n_steps = round(t / h)
         if abs(n_steps * h - t) > HORIZON_RTOL * t:
@@ -854,9 +885,11 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
         warnings.warn(zero, DryfricWarning, stacklevel=2)
         notes = [*notes, zero]
     t_s = t_nd * params.tau0
-    for note in (None if short else d_bias_note(params, t_s, burn_in, float(e["D_t"] * params.D0),
-                                                float(e["D_t_ci"] * params.D0)),
-                 m0_lag_note(params, t_s, burn_in, float(e["M0_t"] * params.v0), float(e["M0_t_ci"] * params.v0))):
+    # the white-noise notes, not where the colored start's note said they do not hold
+    for note in (None if short or start else d_bias_note(params, t_s, burn_in, float(e["D_t"] * params.D0),
+                                                         float(e["D_t_ci"] * params.D0)),
+                 None if start else m0_lag_note(params, t_s, burn_in, float(e["M0_t"] * params.v0),
+                                                float(e["M0_t_ci"] * params.v0))):
         if note:  # issued after the run, as the zero CI's: they need the estimates and their CIs
             warnings.warn(note, DryfricWarning, stacklevel=2)
             notes = [*notes, note]

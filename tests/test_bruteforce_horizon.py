@@ -215,7 +215,10 @@ def test_a_zero_width_interval_is_warned_about():
 def test_m0_t_from_rest_lags_and_is_said_and_a_burn_in_removes_it():
     """An audit (2026-12-07): at t = 100 tau_c, where no warning came, M0_t from rest was 2.5-3.3% toward 0, 4.8-6.3
     SE off the long excursions' M0 at 3 seeds (tau' = tau_L' = 3, gamma_bar' = -0.7, 4000 paths); a burn-in of 20
-    tau_c removed it.  Now the run says so (api.m0_lag_note), and not after the burn-in, whose M0_t agrees."""
+    tau_c removed it.  Now the run says so, and not after the burn-in, whose M0_t agrees: with this colored noise
+    (tau' = 3) by api.colored_start_note (the start at the threshold x+ also lags M0_t, by more than m0_lag_note's 3
+    tau_c: 4.2-4.5 tau_c measured at gamma_bar' = -0.5), which then stands for m0_lag_note."""
+    said_by = ("M0_t is biased toward 0 by O(tau_c/t)", "the paths start at rest with the noise at its threshold")
     p = dj.Params(1.0, 1.0, 3.0, 3.0, -0.7)
     tc = dj.api.correlation_time(p)
     assert tc == 3.0
@@ -226,8 +229,9 @@ def test_m0_t_from_rest_lags_and_is_said_and_a_burn_in_removes_it():
         with warnings.catch_warnings(record=True) as w:
             warnings.simplefilter("always")
             r = dj.bruteforce_diffusivity(p, 2, t=100 * tc, n_paths=4000, burn_in=burn_in)
-        lag = [str(x.message) for x in w if str(x.message).startswith("M0_t is biased toward 0 by O(tau_c/t)")]
-        assert bool(lag) is said and any(n.startswith("M0_t is biased") for n in r.warnings) is said
+        lag = [str(x.message) for x in w if str(x.message).startswith(said_by)]
+        assert [n[:20] for n in lag] == ([said_by[1][:20]] if said else [])
+        assert any(n.startswith(said_by) for n in r.warnings) is said
         z = (abs(le.M0) - abs(r.M0_t)) / math.hypot(le.M0_ci, r.M0_t_ci) * 1.96  # > 0: M0_t smaller in size
         assert (z > 3) if said else (abs(z) < 3), (burn_in, z)
 
@@ -253,3 +257,30 @@ def test_the_m0_lag_note_is_not_said_where_m0_is_0_and_never_quotes_more_than_m0
     note = m0_lag_note(p, 100 * tc, 0.0, 0.8, 0.01)  # 3 tau_c/t = 0.03: 0.024 m/s > 0.2 x 0.01
     assert float(re.search(r"\|M0\| ~ ([0-9.e+-]+) m/s", note).group(1)) == 0.024
     assert m0_lag_note(p, 100 * tc, 20 * tc, 0.8, 0.01) is None  # burnt in
+
+
+def test_the_start_at_the_threshold_with_colored_noise_is_said_and_a_burn_in_removes_it():
+    """The paths start as the paper's Algorithm 2 does, at V = 0 with X at the up-threshold x+, which colored noise
+    remembers for ~tau: an audit (2026-12-07) found D_t 67% *high* at t = 100 tau_c (tau' = 10) and M0_t 6-29 SE off
+    its exact 0 (gamma_bar = 0), while the notes said 'biased low by up to 5.75 tau_c/t' or nothing.  Here (tau' =
+    3, tau_L = inf, gamma_bar = 0, t = 10 tau_c, 4096 paths, seed 0) M0_t is > 5 SE off 0 (measured 11) and
+    api.colored_start_note says so, instead of the white-noise notes; after a burn-in of 20 tau_c it is within
+    2.81 SE of 0 (measured 1.0) and unsaid.  Below tau' = 0.5 (and with white noise) nothing is said."""
+    from dryfric_jax.api import COLORED_START_TAU_ND, colored_start_note
+
+    p = dj.Params.from_nondim(3.0, math.inf, 0.0)  # tau_c = 3 s
+    first = None
+    for burn_in, said in ((0.0, True), (60.0, False)):
+        with warnings.catch_warnings(record=True) as rec:
+            warnings.simplefilter("always")
+            r = dj.bruteforce_diffusivity(p, 0, t=30.0, n_paths=4096, burn_in=burn_in)
+        z = r.M0_t / (r.M0_t_ci / 1.96)
+        assert (z > 5) if said else (abs(z) <= 2.81), (burn_in, z)
+        start = _notes(rec, "the paths start at rest with the noise at its threshold x+")
+        assert bool(start) is said and not _notes(rec, "D_t is biased low by O(tau_c/t) also at")
+        assert not _notes(rec, "M0_t is biased toward 0")
+        first = first or start[0]
+    assert "1.7 of its stationary SDs out" in first and "add burn_in >= 20 tau_c = 60 s" in first
+    assert colored_start_note(dj.Params.from_nondim(COLORED_START_TAU_ND, 1.0, 0.5), 0.0) is not None
+    assert colored_start_note(dj.Params.from_nondim(0.3, math.inf, 0.5), 0.0) is None
+    assert colored_start_note(WHITE, 0.0) is None

@@ -912,10 +912,10 @@ def test_text_output_is_the_results_summary(capsys):
     assert "n_excursions = " in cli.err and str(r) == text + "\nwarning: " + r.warnings[0] and len(r.warnings) == 1
     assert repr(r).startswith("EstimateResult(D=")
     bf = dj.bruteforce_diffusivity(Params(**FIG3), 5, t=0.5, n_paths=16)
-    # 16 < 500 paths, t = 0.5 s < 100 tau_c = 50 s, and M0_t from rest at t = 1 tau_c
+    # 16 < 500 paths, t = 0.5 s < 100 tau_c = 50 s, and the start at the threshold with colored noise (tau' = 1.47)
     assert bf.summary().startswith(f"D_t  = {bf.D_t:.6g}") and len(bf.warnings) == 3
     assert bf.warnings[0].startswith("n_paths = 16") and bf.warnings[1].startswith("t = 0.5 s is 1 < 100")
-    assert bf.warnings[2].startswith("M0_t is biased toward 0")
+    assert bf.warnings[2].startswith("the paths start at rest with the noise at its threshold")
     assert str(bf) == bf.summary() + "".join("\nwarning: " + w for w in bf.warnings)
 
 
