@@ -87,8 +87,9 @@ def short_horizon_note(params: Params, t: float) -> str | None:
     if t >= MIN_HORIZON * tc:
         return None
     return (f"t = {t:.4g} s is {t / tc:.3g} < {MIN_HORIZON} correlation times tau_c = max(min(tau0/(1 - "
-            f"|gamma_bar'|)^2, tau_L), tau) = {tc:.3g} s: D_t is biased low by O(tau_c/t), which its CI does not "
-            f"include (white noise, tau_L = inf: D_t = D (1 - {_BIAS_REST_0:g} tau0/t) from rest at gamma_bar = 0, "
+            f"|gamma_bar'|)^2, tau_L), tau) = {tc:.3g} s: D_t is biased by O(tau_c/t), which its CI does not "
+            f"include (low from a white-noise start, tau_L = inf: D_t = D (1 - {_BIAS_REST_0:g} tau0/t) from rest at "
+            "gamma_bar = 0, "
             f"D (1 - {_BIAS_STAT_0:g} tau0/t) after a burn_in of {D_BURN_IN_TAU_C:g} tau0; -53% at t = 10 tau_c, "
             "gamma_bar' = 0.9); raise t, add burn_in, or use estimate_diffusivity, which has no horizon bias")
 
@@ -123,14 +124,17 @@ def d_bias_note(params: Params, t: float, burn_in: float, d_t: float, d_ci: floa
 
 #: brute force's paths start as the paper's Algorithm 2 does, at rest with the noise at its up-threshold x+ =
 #: (Delta - gamma_bar)/sqrt(Gamma); from this tau' on that start is said to bias D_t and M0_t
-#: (:func:`colored_start_note`)
-COLORED_START_TAU_ND = 0.5
+#: (:func:`colored_start_note`), by up to START_D_TAU_C tau_c/t |D_t| and START_U_OFFSET u0/t in M0_t (the largest
+#: an audit measured: b = -67 +- 12 tau_c at tau' = 10, an offset of E[U] of 0.6 u0 at tau' = 3, both gamma_bar = 0)
+COLORED_START_TAU_ND, START_D_TAU_C, START_U_OFFSET = 0.5, 70.0, 1.0
 
 
-def colored_start_note(params: Params, burn_in: float) -> str | None:
-    r"""The warning for brute force's start with colored noise, None where :math:`\tau' <`
-    :data:`COLORED_START_TAU_ND` or ``burn_in`` >= :data:`D_BURN_IN_TAU_C` :math:`\tau_c`.  The paths start at
-    V = 0 with X at the up-threshold :math:`x_+` (the paper's Algorithm 2, section 5.2), :math:`(1 - \bar\gamma')
+def colored_start_note(params: Params, t: float, burn_in: float, d_t: float, d_ci: float, m0_ci: float) -> str | None:
+    r"""The warning for brute force's start with colored noise (``t``, ``burn_in`` s, ``d_t``, ``d_ci`` m^2/s and
+    ``m0_ci`` m/s: the run's), None where :math:`\tau' <` :data:`COLORED_START_TAU_ND`, ``burn_in`` >=
+    :data:`D_BURN_IN_TAU_C` :math:`\tau_c`, or the bias it may give is under a fifth of both CIs
+    (:data:`START_D_TAU_C` :math:`\tau_c/t\,|D_t|` and :data:`START_U_OFFSET` :math:`u_0/t`).  The paths start at
+    V = 0 with X at the up-threshold :math:`x_+` (the paper's Algorithm 2, section 5.2), :math:`|1 - \bar\gamma'|
     \sqrt{\tau'}` of X's stationary SDs out: with white noise X forgets it at once, with colored noise it pushes
     every path alike for ~tau, which biases D_t and M0_t by O(1/t) of either sign, beyond what
     :func:`d_bias_note` and :func:`m0_lag_note` (white-noise coefficients; not said with this one) quote.  An
@@ -142,11 +146,16 @@ def colored_start_note(params: Params, burn_in: float) -> str | None:
     tc = correlation_time(params)
     if params.tau_nd < COLORED_START_TAU_ND or burn_in >= D_BURN_IN_TAU_C * tc:
         return None
-    sds = (1.0 - params.gamma_bar_nd) * math.sqrt(params.tau_nd)
+    d_bias, m0_bias = START_D_TAU_C * tc / t * abs(d_t), START_U_OFFSET * params.u0 / t
+    if not (d_bias > BIAS_SHARE_OF_CI * d_ci or m0_bias > BIAS_SHARE_OF_CI * m0_ci):
+        return None
+    sds = abs(1.0 - params.gamma_bar_nd) * math.sqrt(params.tau_nd)
     return (f"the paths start at rest with the noise at its threshold x+ = (Delta - gamma_bar)/sqrt(Gamma) (the "
             f"paper's Algorithm 2), {sds:.2g} of its stationary SDs out: with colored noise (tau/tau0 = "
-            f"{params.tau_nd:.3g}) that start biases D_t and M0_t by O(tau_c/t) of either sign, which their CIs do not "
-            "include (an audit: D_t 67% high at t = 100 tau_c, tau/tau0 = 10; M0_t 6-29 SE off 0 where gamma_bar = 0); "
+            f"{params.tau_nd:.3g}) that start biases D_t and M0_t by O(tau_c/t) of either sign, here by up to "
+            f"~{d_bias:.2g} m^2/s and ~{m0_bias:.2g} m/s (the largest measured: {START_D_TAU_C:g} tau_c/t |D_t|, "
+            f"{START_U_OFFSET:g} u0/t), against CI half-widths {d_ci:.2g} and {m0_ci:.2g}, which do not include it "
+            "(an audit: D_t 67% high at t = 100 tau_c, tau/tau0 = 10; M0_t 6-29 SE off 0 where gamma_bar = 0); "
             f"add burn_in >= {D_BURN_IN_TAU_C:g} tau_c = {D_BURN_IN_TAU_C * tc:.3g} s, which removed it wherever "
             "audited, or use estimate_diffusivity, which has no such bias")
 
@@ -805,7 +814,9 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
     gamma_bar = 0), so is a
     longer one where that bias may exceed a fifth of D_t's CI (:func:`d_bias_note`: many paths), so is
     an M0_t whose start from rest may lag it toward 0 by more than a fifth of its CI (:func:`m0_lag_note`: at any
-    horizon, without a burn-in of 20 tau_c), and so is a D_t CI of 0 (paths too short for the noise to spread
+    horizon, without a burn-in of 20 tau_c); with colored noise (tau' >= 0.5) and no such burn-in the start at the
+    threshold x+ is said instead of these two where it may bias D_t or M0_t beyond a fifth of a CI
+    (:func:`colored_start_note`), and so is a D_t CI of 0 (paths too short for the noise to spread
     them).  With the seed, ``block`` (steps whose numbers are drawn at once) fixes the numbers and is
     recorded; ``chunk_lanes`` (paths compiled and run at once) does not change the random numbers, and the
     results only to rounding (each chunk shape is compiled to its own code: 2.6e-16 relative in a path's U, measured).
@@ -848,8 +859,9 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
     if n_paths < MIN_RELIABLE_PATHS:
         notes = [*notes, f"n_paths = {n_paths} < {MIN_RELIABLE_PATHS}: the delta-method CI of D_t under-covers at "
                          "this size (0.74 at 10 paths, 0.92 at 100 for Gaussian U(t))"]
-    short, start = short_horizon_note(params, t), colored_start_note(params, burn_in)
-    notes = [*notes, *(x for x in (short, start) if x)]
+    short = short_horizon_note(params, t)
+    if short:
+        notes = [*notes, short]
     if h is not None:  # the DI runs whole steps; a horizon they miss by more than HORIZON_RTOL is said
         n_steps = round(t / h)
         if abs(n_steps * h - t) > HORIZON_RTOL * t:
@@ -885,11 +897,12 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
         warnings.warn(zero, DryfricWarning, stacklevel=2)
         notes = [*notes, zero]
     t_s = t_nd * params.tau0
+    d_t, d_ci = float(e["D_t"] * params.D0), float(e["D_t_ci"] * params.D0)
+    m0_t, m0_ci = float(e["M0_t"] * params.v0), float(e["M0_t_ci"] * params.v0)
+    start = colored_start_note(params, t_s, burn_in, d_t, d_ci, m0_ci)
     # the white-noise notes, not where the colored start's note said they do not hold
-    for note in (None if short or start else d_bias_note(params, t_s, burn_in, float(e["D_t"] * params.D0),
-                                                         float(e["D_t_ci"] * params.D0)),
-                 None if start else m0_lag_note(params, t_s, burn_in, float(e["M0_t"] * params.v0),
-                                                float(e["M0_t_ci"] * params.v0))):
+    for note in (start, None if short or start else d_bias_note(params, t_s, burn_in, d_t, d_ci),
+                 None if start else m0_lag_note(params, t_s, burn_in, m0_t, m0_ci)):
         if note:  # issued after the run, as the zero CI's: they need the estimates and their CIs
             warnings.warn(note, DryfricWarning, stacklevel=2)
             notes = [*notes, note]

@@ -323,9 +323,11 @@ def check_work(tau: float, tau_L: float, gamma_bar: float, steps_per_tau0: float
         beyond = log_w > math.log(sys.float_info.max)
         head = f"max_work must be >= {_exp10(log_w)} {unit} for these parameters" + (
             ", beyond float range (no max_work allows them)" if beyond else f" (got {max_work:.3g})")
+        # fewer lanes alone may not do: N excursions by themselves may be over max_work too (a review)
+        n_alone = math.log(n_excursions) + log_t + math.log(steps_per_tau0) > math.log(max_work)
+        less = ("use fewer lanes" + (" and lower N" if n_alone else "")) if by_lanes else "lower N"
         fix = (("Coarsen" if beyond else "Raise max_work (--max-work), coarsen")
-               + f" h or delta, {'use fewer lanes' if by_lanes else 'lower N'}, or use the white-noise theory when "
-               "tau << tau0")
+               + f" h or delta, {less}, or use the white-noise theory when tau << tau0")
         many = (f"~{count} excursions (about one per lane: every lane finishes the excursion it is in, whatever "
                 f"n_excursions = {n_excursions})" if by_lanes else f"{count} excursions")
         raise ValueError(
@@ -404,13 +406,14 @@ def check_simulable(tau_L: float, tau_L_s: float, tau0: float) -> None:
 
 def speed_scale(tau_L: float, gamma_bar: float) -> tuple[float, float]:
     r"""``(V_s, F)``: the speeds' scale (in :math:`v_0`) and the net force against them (in :math:`\Delta`):
-    :math:`V_s = \tau_L'(|\bar\gamma'| - 1)` in a runaway (:math:`|\bar\gamma'| > 1`, where the speed settles),
+    :math:`V_s = \max(\tau_L'(|\bar\gamma'| - 1), \sqrt{\tau_L'})` in a runaway (:math:`|\bar\gamma'| > 1`,
+    where the speed settles),
     else :math:`\min(1/(1 - |\bar\gamma'|), \sqrt{\tau_L'})` (the stationary law's width, inf at
     :math:`|\bar\gamma'| = 1` with :math:`\tau_L = \infty`); :math:`F = \min(1, \max(||\bar\gamma'| - 1|,
     1/\sqrt{\tau_L'}))`."""
     g = abs(gamma_bar)
-    if g > 1.0:
-        vs = tau_L * (g - 1.0)
+    if g > 1.0:  # at least the width sqrt(tau_L') just above 1 (a review: 1 + 1e-4 kept float32 at +0.5%)
+        vs = max(tau_L * (g - 1.0), math.sqrt(tau_L))
     else:
         vs = min(1.0 / (1.0 - g) if g < 1.0 else math.inf, math.sqrt(tau_L))
     return vs, min(1.0, max(abs(g - 1.0), 1.0 / math.sqrt(tau_L)))

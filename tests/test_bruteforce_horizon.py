@@ -281,6 +281,15 @@ def test_the_start_at_the_threshold_with_colored_noise_is_said_and_a_burn_in_rem
         assert not _notes(rec, "M0_t is biased toward 0")
         first = first or start[0]
     assert "1.7 of its stationary SDs out" in first and "add burn_in >= 20 tau_c = 60 s" in first
-    assert colored_start_note(dj.Params.from_nondim(COLORED_START_TAU_ND, 1.0, 0.5), 0.0) is not None
-    assert colored_start_note(dj.Params.from_nondim(0.3, math.inf, 0.5), 0.0) is None
-    assert colored_start_note(WHITE, 0.0) is None
+    edge = dj.Params.from_nondim(COLORED_START_TAU_ND, 1.0, 0.5)  # tau_c = 1 s, u0 = 1 m
+    assert colored_start_note(edge, 10.0, 0.0, 1.0, 1.0, 1.0) is not None  # up to 70/10 = 7 m^2/s > 0.2
+    assert colored_start_note(edge, 10.0, 20.0, 1.0, 1.0, 1.0) is None  # burnt in
+    # the bias it may give under a fifth of both CIs (a review: it was said at any horizon, 1000 tau_c with 500
+    # paths too): 70/1000 = 0.07 m^2/s < 0.2 x 0.4 and 1/1000 m/s < 0.2 x 0.01; not with either CI smaller
+    assert colored_start_note(edge, 1000.0, 0.0, 1.0, 0.4, 0.01) is None
+    assert colored_start_note(edge, 1000.0, 0.0, 1.0, 0.3, 0.01) is not None
+    assert colored_start_note(edge, 1000.0, 0.0, 1.0, 0.4, 0.004) is not None
+    assert colored_start_note(dj.Params.from_nondim(0.3, math.inf, 0.5), 10.0, 0.0, 1.0, 1.0, 1.0) is None
+    assert colored_start_note(WHITE, 10.0, 0.0, 1.0, 1.0, 1.0) is None
+    assert "1 of its stationary SDs out" in colored_start_note(dj.Params.from_nondim(1.0, 10.0, 2.0), 10.0, 0.0,
+                                                                1.0, 1.0, 1.0)  # |1 - gamma_bar'|: it said -1
