@@ -899,10 +899,12 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
     t_s = t_nd * params.tau0
     d_t, d_ci = float(e["D_t"] * params.D0), float(e["D_t_ci"] * params.D0)
     m0_t, m0_ci = float(e["M0_t"] * params.v0), float(e["M0_t_ci"] * params.v0)
-    start = colored_start_note(params, t_s, burn_in, d_t, d_ci, m0_ci)
+    # the burn-in asked for: the notes' advice "burn_in >= 20 tau_c = 10 s" followed (10 s, simulated as 9.99975 s in
+    # whole steps) kept them said, with the same advice (a review)
+    start = colored_start_note(params, t_s, b, d_t, d_ci, m0_ci)
     # the white-noise notes, not where the colored start's note said they do not hold
-    for note in (start, None if short or start else d_bias_note(params, t_s, burn_in, d_t, d_ci),
-                 None if start else m0_lag_note(params, t_s, burn_in, m0_t, m0_ci)):
+    for note in (start, None if short or start else d_bias_note(params, t_s, b, d_t, d_ci),
+                 None if start else m0_lag_note(params, t_s, b, m0_t, m0_ci)):
         if note:  # issued after the run, as the zero CI's: they need the estimates and their CIs
             warnings.warn(note, DryfricWarning, stacklevel=2)
             notes = [*notes, note]
