@@ -28,7 +28,7 @@ from .params import check_finite, check_positive, rounded_bound, shown
 from .limits import MAX_WORK, refuse_known_work
 from .plan import MAX_COUNT, check_count, check_max_work
 from .durations import released
-from .pdmp import PDMPModel, flow
+from .pdmp import check_pdmp_model, flow
 from .sharding import over_lanes
 
 
@@ -449,9 +449,7 @@ def pdmp_stationary(model, key, n_paths: int, n_records: int, dt_rec: float, bur
     """
     # checked as the DI's path functions check theirs (an int seed was a TypeError, a DIModel an
     # AttributeError, dt_rec < 0 repeated values, n_paths = 0 an empty array)
-    if not isinstance(model, PDMPModel):
-        raise ValueError(f"model must be a PDMPModel, from dryfric_jax.make_pdmp_model(params, delta) "
-                         f"(got {type(model).__name__})")
+    check_pdmp_model(model)
     key = _key(key)[0]
     n_paths, n_records = check_count("n_paths", n_paths, 1), check_count("n_records", n_records, 1)
     _check_recorded(n_paths, n_records)

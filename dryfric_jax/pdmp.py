@@ -381,6 +381,14 @@ def _skeleton(model: PDMPModel, key, *, max_events: int):
 MAX_SKELETON_EVENTS = 2**26
 
 
+def check_pdmp_model(model) -> None:
+    """``ValueError`` unless ``model`` is a :class:`PDMPModel` (the path functions' check: a DIModel was an
+    AttributeError deep inside)."""
+    if not isinstance(model, PDMPModel):
+        raise ValueError(f"model must be a PDMPModel, from dryfric_jax.make_pdmp_model(params, delta) "
+                         f"(got {type(model).__name__})")
+
+
 def excursion_skeleton(model: PDMPModel, key, max_events: int = 200_000) -> dict:
     """One long excursion from s_+ (through s_-, back to s_+) as its event skeleton.
 
@@ -396,9 +404,7 @@ def excursion_skeleton(model: PDMPModel, key, max_events: int = 200_000) -> dict
     from .plan import check_count
 
     require_x64()
-    if not isinstance(model, PDMPModel):
-        raise ValueError(f"model must be a PDMPModel, from dryfric_jax.make_pdmp_model(params, delta) "
-                         f"(got {type(model).__name__})")
+    check_pdmp_model(model)
     key = _key(key)[0]
     max_events = check_count("max_events", max_events, 1, MAX_SKELETON_EVENTS, " (its buffers are allocated whole)")
     n, phase, i_half, b = jax.device_get(_skeleton(model, key, max_events=max_events))
