@@ -89,9 +89,9 @@ def short_horizon_note(params: Params, t: float) -> str | None:
     return (f"t = {t:.4g} s is {t / tc:.3g} < {MIN_HORIZON} correlation times tau_c = max(min(tau0/(1 - "
             f"|gamma_bar'|)^2, tau_L), tau) = {tc:.3g} s: D_t is biased by O(tau_c/t), which its CI does not "
             f"include (low from a white-noise start, tau_L = inf: D_t = D (1 - {_BIAS_REST_0:g} tau0/t) from rest at "
-            "gamma_bar = 0, "
-            f"D (1 - {_BIAS_STAT_0:g} tau0/t) after a burn_in of {D_BURN_IN_TAU_C:g} tau0; -53% at t = 10 tau_c, "
-            "gamma_bar' = 0.9); raise t, add burn_in, or use estimate_diffusivity, which has no horizon bias")
+            f"gamma_bar = 0, D (1 - {_BIAS_STAT_0:g} tau0/t) after a burn_in of {D_BURN_IN_TAU_C:g} tau0; -53% at "
+            "t = 10 tau_c, gamma_bar' = 0.9); raise t, add burn_in, or use estimate_diffusivity, which has no horizon "
+            "bias")
 
 
 def d_bias_note(params: Params, t: float, burn_in: float, d_t: float, d_ci: float) -> str | None:
@@ -843,7 +843,7 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
     t, b = float(t), real_or_none(burn_in)
     if b is None or not (math.isfinite(b) and b >= 0):
         raise ValueError(f"burn_in must be a finite number >= 0 (got {burn_in!r})")
-    burn_in = b
+    burn_in = burn_asked = b  # burn_in becomes the one simulated, whole steps of h; the notes take the one asked for
     if h is not None and t < h:
         raise ValueError(f"t must be >= h = {rounded_bound(h, lower=True)} s (got {t!r})")
     # the work is known in advance: (t + burn_in) / h steps per path, or the expected events
@@ -901,10 +901,10 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
     m0_t, m0_ci = float(e["M0_t"] * params.v0), float(e["M0_t_ci"] * params.v0)
     # the burn-in asked for: the notes' advice "burn_in >= 20 tau_c = 10 s" followed (10 s, simulated as 9.99975 s in
     # whole steps) kept them said, with the same advice (a review)
-    start = colored_start_note(params, t_s, b, d_t, d_ci, m0_ci)
+    start = colored_start_note(params, t_s, burn_asked, d_t, d_ci, m0_ci)
     # the white-noise notes, not where the colored start's note said they do not hold
-    for note in (start, None if short or start else d_bias_note(params, t_s, b, d_t, d_ci),
-                 None if start else m0_lag_note(params, t_s, b, m0_t, m0_ci)):
+    for note in (start, None if short or start else d_bias_note(params, t_s, burn_asked, d_t, d_ci),
+                 None if start else m0_lag_note(params, t_s, burn_asked, m0_t, m0_ci)):
         if note:  # issued after the run, as the zero CI's: they need the estimates and their CIs
             warnings.warn(note, DryfricWarning, stacklevel=2)
             notes = [*notes, note]

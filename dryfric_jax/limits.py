@@ -407,9 +407,8 @@ def check_simulable(tau_L: float, tau_L_s: float, tau0: float) -> None:
 def speed_scale(tau_L: float, gamma_bar: float) -> tuple[float, float]:
     r"""``(V_s, F)``: the speeds' scale (in :math:`v_0`) and the net force against them (in :math:`\Delta`):
     :math:`V_s = \max(\tau_L'(|\bar\gamma'| - 1), \sqrt{\tau_L'})` in a runaway (:math:`|\bar\gamma'| > 1`,
-    where the speed settles),
-    else :math:`\min(1/(1 - |\bar\gamma'|), \sqrt{\tau_L'})` (the stationary law's width, inf at
-    :math:`|\bar\gamma'| = 1` with :math:`\tau_L = \infty`); :math:`F = \min(1, \max(||\bar\gamma'| - 1|,
+    where the speed settles), else :math:`\min(1/(1 - |\bar\gamma'|), \sqrt{\tau_L'})` (the stationary law's
+    width, inf at :math:`|\bar\gamma'| = 1` with :math:`\tau_L = \infty`); :math:`F = \min(1, \max(||\bar\gamma'| - 1|,
     1/\sqrt{\tau_L'}))`."""
     g = abs(gamma_bar)
     if g > 1.0:  # at least the width sqrt(tau_L') just above 1 (a review: 1 + 1e-4 kept float32 at +0.5%)
