@@ -166,7 +166,7 @@ def di_transient(model: DIModel, key, n_paths: int, record_steps, v0: float = 1.
     return np.concatenate(out)
 
 
-def _stationary(model, keys, *, n_records, every, burn):
+def _stationary(model, keys, *, n_records, every, burn, record="VU"):
     dt = model.h.dtype
     x0 = jax.vmap(lambda k: jax.random.normal(jax.random.fold_in(k, n_records + 1), (), dt))(keys)
     c = (x0 * model.ou.stationary_sd(), jnp.zeros(x0.shape, dt), jnp.zeros(x0.shape, jnp.float64))
@@ -174,18 +174,24 @@ def _stationary(model, keys, *, n_records, every, burn):
         c = _segment(model, c, block_keys(keys, n_records), burn)
     c = (c[0], c[1], jnp.zeros(x0.shape, jnp.float64))  # U counted from the end of the burn-in
 
-    def rec(cc, i):
+    def rec(cc, i):  # only the recorded arrays are stacked: Fig. 5's 4096 x 40,000 V alone is 1.3 GB
         cc = _segment(model, cc, block_keys(keys, i), every)
-        return cc, (cc[1], cc[2])
+        return cc, tuple(cc[1 + "VU".index(r)] for r in record)
 
-    _, (V, U) = jax.lax.scan(rec, c, jnp.arange(n_records))
-    return V.T, U.T
+    _, out = jax.lax.scan(rec, c, jnp.arange(n_records))
+    return tuple(o.T for o in out)
+
+
+#: what :func:`di_stationary` records: V and U, V only, or U only
+RECORDS = ("VU", "V", "U")
 
 
 def di_stationary(model: DIModel, key, n_paths: int, n_records: int, every: int = 1, burn_steps: int = 0,
-                  max_work: float = MAX_WORK):
+                  max_work: float = MAX_WORK, record: str = "VU"):
     """V and U (from the end of the burn-in) every ``every`` steps: two ``(n_paths, n_records)``
-    arrays.  The noise starts stationary; ``burn_steps`` lets the velocity relax too.
+    arrays.  The noise starts stationary; ``burn_steps`` lets the velocity relax too.  ``record``
+    ``"V"`` or ``"U"`` returns the other as None and never holds it: the same numbers for half
+    the memory (Fig. 5's histogram needs V only; with both it peaked at 5.5 GB).
 
     Path p has key ``split(key)[p]``; its burn-in uses ``rng.normal(fold_in(path_key,
     n_records), (burn_steps, 2))``, record i the numbers of ``fold_in(path_key, i)``.  ``key`` is a
@@ -200,10 +206,15 @@ def di_stationary(model: DIModel, key, n_paths: int, n_records: int, every: int 
     every = check_count("every", every, 1, MAX_SEGMENT, SEGMENT_WHY)
     burn_steps = check_count("burn_steps", burn_steps, 0, MAX_SEGMENT, SEGMENT_WHY)
     _check_path_work(n_paths, burn_steps + n_records * every, max_work)
+    if not isinstance(record, str) or record not in RECORDS:
+        raise ValueError(f"record must be one of 'VU', 'V' or 'U' (got {shown(record)})")
     _check_recorded(n_paths, n_records)
-    V, U = over_lanes(_stationary, (model, jax.random.split(key, n_paths)), (False, True),
-                      n_records=n_records, every=every, burn=burn_steps)
-    return np.asarray(V), np.asarray(U)
+    out = list(over_lanes(_stationary, (model, jax.random.split(key, n_paths)), (False, True),
+                          n_records=n_records, every=every, burn=burn_steps, record=record))
+    for i in range(len(out)):  # each device array released as soon as it is on the host
+        out[i] = np.asarray(out[i])
+    got = dict(zip(record, out))
+    return got.get("V"), got.get("U")
 
 
 def autocovariance(V: np.ndarray, max_lag: int, center: bool = False) -> tuple[np.ndarray, np.ndarray]:

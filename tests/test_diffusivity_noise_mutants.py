@@ -248,7 +248,7 @@ def test_fig5_histogram_panel_plots_the_bin_probabilities_and_the_exact_density_
     x = 10.5 * bw / 2
     figs = []
 
-    def stationary(model, key, paths, n_records, every=1, burn_steps=0):
+    def stationary(model, key, paths, n_records, every=1, burn_steps=0, record="VU"):
         if paths == 10:  # the U(t) panel
             return None, np.zeros((paths, n_records))
         return np.where(np.arange(16)[:, None] % 2, x, -x) / p.v0 * np.ones((16, 4)), None
@@ -276,7 +276,7 @@ def test_fig5_p_stuck_counts_exact_zeros_only(tmp_path, monkeypatch):
     stuck particle at 0 exactly, MODEL_NOTES erratum 1): a velocity 1e-9 v0 is sliding, not stuck.  Paths at 0,
     1e-9, -1e-9 and 0.5 (nondimensional) give p_stuck = 1/4 by hand.  Kills A35 (|V| < 1e-3 counted as stuck:
     3/4)."""
-    def stationary(model, key, paths, n_records, every=1, burn_steps=0):
+    def stationary(model, key, paths, n_records, every=1, burn_steps=0, record="VU"):
         if paths == 10:
             return None, np.zeros((paths, n_records))
         return np.array([0.0, 1e-9, -1e-9, 0.5])[np.arange(16) % 4, None] * np.ones((16, 3)), None

@@ -182,7 +182,7 @@ def test_fig9_streams_reference_line_and_theory_slopes(tmp_path, monkeypatch):
         stats[:, 0], stats[:, 1] = 1.0, D_true + e[:lanes]
         return type("R", (), dict(stats=stats, lane_steps=np.full(lanes, 100.0)))
 
-    def stationary(model, key, paths, n_records, every=1, burn_steps=0):
+    def stationary(model, key, paths, n_records, every=1, burn_steps=0, record="VU"):
         keys.append(jax.random.key_data(key).tolist())
         return None, Ub[:paths, :n_records]
 
@@ -279,7 +279,7 @@ def test_fig6_and_fig7_panels_times_and_burn_in(tmp_path, monkeypatch):
         assert np.asarray(record_steps) * model[1] == pytest.approx([0.25, 1.0, 2.5], rel=1e-12)
         return np.zeros((n, len(record_steps)))
 
-    def stationary(model, key, paths, n_records, every, burn_steps=0):
+    def stationary(model, key, paths, n_records, every, burn_steps=0, record="VU"):
         keys7.append(jax.random.key_data(key).tolist())
         burns.append(burn_steps * model[1])
         return np.random.default_rng(len(keys7)).normal(size=(paths, n_records)), None

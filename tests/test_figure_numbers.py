@@ -63,7 +63,7 @@ def test_fig7_numbers_from_known_paths(tmp_path, monkeypatch):
     against Touchette's C at those t'; the burn-in is BURN_TAU0 tau0 of steps."""
     made, calls = [], []
 
-    def stationary(model, key, paths, n_records, every, burn_steps=0):
+    def stationary(model, key, paths, n_records, every, burn_steps=0, record="VU"):
         calls.append((model, n_records, every, burn_steps))
         V = 10 * np.random.default_rng(len(calls)).normal(size=(paths, n_records))  # lag 0 deviates most
         return V, None
@@ -98,7 +98,7 @@ def test_fig4_numbers_from_known_paths(tmp_path, monkeypatch):
         calls.append(("pdmp", model, dt_rec, burn))
         return paths_(2 * len(calls), paths, n_rec)
 
-    def di(model, key, paths, n_rec, every, burn_steps=0):
+    def di(model, key, paths, n_rec, every, burn_steps=0, record="VU"):
         calls.append(("di", model, every, burn_steps))
         return paths_(2 * len(calls) + 1, paths, n_rec), None
 
@@ -134,7 +134,7 @@ def test_fig5_numbers_from_known_paths(tmp_path, monkeypatch):
     p = Params(0.16, diffusivity.DELTA, 1e-5, diffusivity.TAU_L, diffusivity.GBAR)
     m = theory.exact_M0(p) / p.v0
 
-    def stationary(model, key, paths, n_records, every=1, burn_steps=0):
+    def stationary(model, key, paths, n_records, every=1, burn_steps=0, record="VU"):
         calls.append((model, n_records, every, burn_steps))
         V = np.array([0.0, 2 * m, -m, 3 * m])[np.arange(paths) % 4, None] * np.ones(n_records)
         return V, np.zeros((paths, n_records))
@@ -481,7 +481,7 @@ def test_fig5_histogram_total_variation_and_u_paths(tmp_path, monkeypatch):
     bw, x = 4.8e-4, 10.5 * 4.8e-4 / 2
     calls, mids, figs = [], [], []
 
-    def stationary(model, key, paths, n_records, every=1, burn_steps=0):
+    def stationary(model, key, paths, n_records, every=1, burn_steps=0, record="VU"):
         calls.append((jax.random.key_data(key).tolist(), paths, n_records, every, burn_steps))
         V = np.where(np.arange(paths)[:, None] % 2, x, -x) / p.v0 * np.ones(n_records)
         V[1], V[0, 0] = 2 * x / p.v0, 10 * x / p.v0
@@ -548,7 +548,7 @@ def test_fig9_numbers_from_known_runs(tmp_path, monkeypatch):
         assert list(T) == list(STAT_NAMES)
         return dict(D=T["U"] / T["n"])
 
-    def stationary(model, key, paths, n_records, every=1, burn_steps=0):
+    def stationary(model, key, paths, n_records, every=1, burn_steps=0, record="VU"):
         recs.append((model, paths, n_records, every))
         return None, Ub[:paths, :n_records]
 

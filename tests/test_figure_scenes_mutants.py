@@ -119,7 +119,7 @@ def _fig4(tmp_path, monkeypatch, quick):
         calls.append(("pdmp", model, _key(key), paths, n_rec, dt_rec, burn))
         return 1.0 + np.random.default_rng(len(calls)).normal(size=(paths, n_rec))
 
-    def di(model, key, paths, n_rec, every, burn_steps=0):
+    def di(model, key, paths, n_rec, every, burn_steps=0, record="VU"):
         calls.append(("di", model, _key(key), paths, n_rec, every, burn_steps))
         return 1.0 + np.random.default_rng(len(calls)).normal(size=(paths, n_rec)), None
 
@@ -260,7 +260,7 @@ def test_fig5_full_length_and_the_u_panel_in_seconds(tmp_path, monkeypatch):
     calls = []
     tau0 = 0.16 / DELTA**2
 
-    def stationary(model, key, paths, n_records, every=1, burn_steps=0):
+    def stationary(model, key, paths, n_records, every=1, burn_steps=0, record="VU"):
         calls.append((paths, n_records, every))
         if paths == 10:  # the U(t) panel
             return None, np.zeros((paths, n_records))

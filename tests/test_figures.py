@@ -579,7 +579,7 @@ def test_fig4_records_the_di_at_the_pdmp_lags(figs, tmp_path, monkeypatch):
         seen.append(("pdmp", dt, n_rec))
         return paths_of(n_paths, n_rec)
 
-    def di(model, key, n_paths, n_rec, every, burn_steps):
+    def di(model, key, n_paths, n_rec, every, burn_steps, record="VU"):
         seen.append(("di", every * float(model.h), n_rec))
         return paths_of(n_paths, n_rec), None
 

@@ -168,6 +168,22 @@ def test_di_recorders_match_the_per_path_definition(dtype):
         close(Us, Ur)
 
 
+@pytest.mark.parametrize("dtype", ["float64", "float32"])
+def test_di_stationary_records_one_array_with_the_same_numbers(dtype):
+    """record="V" or "U" (Fig. 5's histogram and paths, Figs. 4, 7 and 9) holds only that array and gives the
+    numbers of record="VU" bit for bit: the chain does not depend on what is stacked."""
+    from dryfric_jax.di import make_di_model
+
+    m = make_di_model(Params.from_nondim(0.3, 4.0, 0.2), 0.01, dtype)
+    V, U = di_stationary(m, 11, 5, 6, 7, burn_steps=9)
+    V1, none1 = di_stationary(m, 11, 5, 6, 7, burn_steps=9, record="V")
+    none2, U1 = di_stationary(m, 11, 5, 6, 7, burn_steps=9, record="U")
+    assert none1 is None and none2 is None and V.shape == U.shape == (5, 6)
+    np.testing.assert_array_equal(V1, V)
+    np.testing.assert_array_equal(U1, U)
+    assert len(set(V.ravel())) > 20 and np.count_nonzero(U) > 20
+
+
 def test_di_recorders_take_keys_of_another_generator():
     """rbg keys draw a segment at once through jax.random (no row offsets); jax.random's rbg is not
     invariant under vmap, so only repeatability and sane values are checked."""
@@ -241,6 +257,8 @@ _V_NAN = np.where(np.arange(50) == 3, np.nan, _V)
     (lambda m: di_stationary(m, 0, 2, 4, every=-1), r"^every must be an integer in \[1, 2147483647\]"),  # was accepted
     (lambda m: di_stationary(m, 0, 2, 4, every=True), r"^every must be an integer in \[1, 2147483647\]"),
     (lambda m: di_stationary(m, 0, 2, 4, burn_steps=-5), r"^burn_steps must be an integer in \[0, "),  # was accepted
+    (lambda m: di_stationary(m, 0, 2, 4, record="X"), "^record must be one of 'VU', 'V' or 'U'"),
+    (lambda m: di_stationary(m, 0, 2, 4, record=["V"]), "^record must be one of 'VU', 'V' or 'U'"),
     (lambda m: autocorrelation(_V, 60), r"^max_lag must be an integer in \[0, 49\]"),  # was a broadcast error
     (lambda m: autocorrelation(_V, -1), r"^max_lag must be an integer in \[0, 49\]"),  # was an IndexError
     (lambda m: autocorrelation(_V, 2.0), r"^max_lag must be an integer in \[0, 49\]"),

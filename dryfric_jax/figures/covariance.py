@@ -52,7 +52,7 @@ def fig4(out_dir, quick, seed):
         h_nd = DT_REC / every
         report_step(f"DI stationary paths, tau={tau:g} s ({2 * j + 2} of {2 * len(TAUS)})")
         Vd, _ = di_stationary(make_di_model(p, h_nd * p.tau0), jax.random.fold_in(key, 1), paths, n_rec, every,
-                              burn_steps=round(BURN_TAU0 / h_nd))
+                              burn_steps=round(BURN_TAU0 / h_nd), record="V")
         # each curve at the lags it was recorded at (its interval times k), so a DI recorded at another
         # interval than the PDMP's shows in the JSON's rho instead of being plotted at the PDMP's lags
         rec_tau0 = {"pdmp": DT_REC, "di": every * h_nd}

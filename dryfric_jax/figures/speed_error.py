@@ -104,7 +104,7 @@ def _rmse_bf(model, key, quick, h_nd, D_true, unit):
     nondimensional, the RMSEs in units of ``unit`` (D0 in m^2/s: the JSON's), the costs in lane-steps."""
     n_paths, n_records, groups = BF_GRID[bool(quick)]
     every = round(0.5 / h_nd)
-    _, U = di_stationary(model, key, n_paths, n_records, every)
+    _, U = di_stationary(model, key, n_paths, n_records, every, record="U")
     bf, bias, levels = {}, [], {}
     for k in range(int(math.log2(n_records)) + 1):
         j = 2**k - 1

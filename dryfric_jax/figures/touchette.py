@@ -148,7 +148,7 @@ def fig7(out_dir, quick, seed):
     for j, tau in enumerate(TAUS):
         report_step(f"DI stationary paths, tau'={tau:g} ({j + 1} of {len(TAUS)})")
         V, _ = di_stationary(_model(tau, h), jax.random.fold_in(jax.random.key(seed), j), paths,
-                             round(length / dt_rec), every, burn_steps=round(BURN_TAU0 / h))
+                             round(length / dt_rec), every, burn_steps=round(BURN_TAU0 / h), record="V")
         c, se = autocovariance(V, len(lags) - 1)
         ax.errorbar(tl[::10], c[::10], 2 * se[::10], fmt="o", ms=3, label=f"tau' = {tau:g}")
         nums["corr"][f"{tau:g}"], nums["se"][f"{tau:g}"] = c, se
