@@ -136,15 +136,28 @@ def _check_fields(r: EstimateResult, label: str) -> None:
         v = getattr(r, name)
         if not ok(v):
             raise ValueError(f"{label} must have {name} {what} (got {str(v)[:60]})")
-    if not isinstance(r.sums, dict) or set(r.sums) != set(STAT_NAMES):
+    if not has_sums(r.sums):
         return  # no sums: refused below, with the advice to rerun
-    bad = [k for k in STAT_NAMES if not _real(r.sums[k])]
-    bad += [k for k in ("t",) if k not in bad and not r.sums[k] > 0]
-    bad += [k for k in ("n",) if k not in bad and not (r.sums[k] == int(r.sums[k]) and 1 <= r.sums[k] <= MAX_COUNT)]
-    bad += [k for k in _NONNEGATIVE_SUMS if k not in bad and not r.sums[k] >= 0]
+    bad = bad_sums(r.sums)
     if bad:
         raise ValueError(f"{label} must have finite excursion sums, n a whole number in [1, 2^62], t > 0 and the "
                          f"sums of squares >= 0 (got {', '.join(f'{k} = {str(r.sums[k])[:24]}' for k in bad[:4])})")
+
+
+def has_sums(sums) -> bool:
+    """``sums`` is a dict of every excursion sum (:data:`~dryfric_jax.excursions.STAT_NAMES`), whatever its values:
+    a result made before the sums were recorded has none."""
+    return isinstance(sums, dict) and set(sums) == set(STAT_NAMES)
+
+
+def bad_sums(sums: dict) -> list[str]:
+    """The names of the sums in :func:`has_sums`'s ``sums`` that no run can give: not a finite number, t <= 0, n not
+    a whole number in [1, 2^62], a sum of squares < 0 (a hand-edited file; also a sweep record's, which
+    :mod:`dryfric_jax.sweep` refuses on reading)."""
+    bad = [k for k in STAT_NAMES if not _real(sums[k])]
+    bad += [k for k in ("t",) if k not in bad and not sums[k] > 0]
+    bad += [k for k in ("n",) if k not in bad and not (sums[k] == int(sums[k]) and 1 <= sums[k] <= MAX_COUNT)]
+    return bad + [k for k in _NONNEGATIVE_SUMS if k not in bad and not sums[k] >= 0]
 
 
 def combine_estimates(results: Sequence, *, labels: Sequence[str] | None = None,
@@ -197,7 +210,7 @@ def combine_estimates(results: Sequence, *, labels: Sequence[str] | None = None,
         _check_fields(r, label)
     first = rs[0]
     for i, r in enumerate(rs):
-        if not isinstance(r.sums, dict) or set(r.sums) != set(STAT_NAMES):
+        if not has_sums(r.sums):
             raise ValueError(f"{labels[i]} has no excursion sums (sums = {str(r.sums)[:60]}): rerun it with this "
                              "version")
         for name in _SAME:

@@ -70,6 +70,7 @@ import numpy as np
 from ._version import __version__
 from .api import (DryfricWarning, NoEstimateError, ProjectionWarning, check_progress, check_seed, duration_text,
                   estimate_diffusivity, progress_text, status_line, terminal_columns)
+from .combine import bad_sums, has_sums
 from .durations import (TAU_STEPS, NoCountError, check_duration_run, default_duration_h, default_max_steps,
                         di_long_excursion_duration, max_steps_for)
 from .limits import MAX_WORK
@@ -193,6 +194,10 @@ def _check_record(rec: dict) -> None:
     if ok and status(rec) == "ok":
         res = rec.get("result")
         ok = isinstance(res, dict) and all(_is_finite(res.get(k)) for k in ("D", "D_ci", "M0", "M0_ci", "n_truncated"))
+        # the excursion sums that combine pools: a hand-edited t = 0, or none at all, passed as a finished point
+        # that combine then refused and a resumed sweep never reran (an audit); a record of another version, which
+        # is rerun, may predate them
+        ok = ok and (bad_sums(res["sums"]) == [] if has_sums(res.get("sums")) else _outdated(rec))
         if ok and rec["settings"].get(DURATIONS) is not None:  # the count's numbers, or why there are none
             d = rec.get(DURATIONS)
             ok = isinstance(d, dict) and (isinstance(d.get("reason"), str) or all(

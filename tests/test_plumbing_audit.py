@@ -10,6 +10,7 @@ import jax.numpy as jnp
 import pytest
 
 from dryfric_jax import outfiles, sharding, sweep, xla_flags
+from dryfric_jax.excursions import STAT_NAMES
 from dryfric_jax.outfiles import claim, claims_dir
 
 
@@ -114,7 +115,8 @@ def _record(status, **what):
     return rec, sweep._rec_ident(rec)
 
 
-_RESULT = dict(D=1.0, D_ci=0.1, M0=0.5, M0_ci=0.05, n_truncated=0)
+_RESULT = dict(D=1.0, D_ci=0.1, M0=0.5, M0_ci=0.05, n_truncated=0,
+               sums={**{k: 1.0 for k in STAT_NAMES}, "n": 10, "t": 5.0})
 
 
 @pytest.mark.parametrize("case", ["max_time", "version", "refused", "ok"])

@@ -338,9 +338,10 @@ def test_grid_axes_are_lists_of_numbers():
     assert sweep.grid(Gamma=5.0, tau=(0.5, 1.0)) == [dict(Gamma=5.0, tau=0.5), dict(Gamma=5.0, tau=1.0)]
 
 
+_SUMS = {**{k: 1.0 for k in dj.excursions.STAT_NAMES}, "n": 10, "t": 5.0}  # a record of this version has them
 _GOOD = dict(params={"Gamma": 5.0, "Delta": 3.84, "tau": 0.5, "tau_L": 0.067, "gamma_bar": 0.342},
              settings={"method": "di", "n_excursions": 50}, sweep_seed=0, status="ok",
-             result={"D": 1.0, "D_ci": 0.1, "M0": 0.0, "M0_ci": 0.1, "n_truncated": 0})
+             result={"D": 1.0, "D_ci": 0.1, "M0": 0.0, "M0_ci": 0.1, "n_truncated": 0, "sums": _SUMS})
 
 
 @pytest.mark.parametrize("edit", [
@@ -365,6 +366,29 @@ def test_a_malformed_record_refuses_the_file_before_any_work(tmp_path, edit, cap
 def _write(path, rec):
     path.write_text(json.dumps(rec) + "\n")
     return str(path)
+
+
+@pytest.mark.parametrize("sums,reads", [
+    (_SUMS, True), ({**_SUMS, "t": 0.0}, False), ({**_SUMS, "n": "abc"}, False), ({**_SUMS, "U2": -1.0}, False),
+    (None, False), ({}, False),
+])
+def test_a_record_of_this_version_needs_the_sums_combine_pools(tmp_path, sums, reads, capsys):
+    """DEFECT (fixed in sweep._check_record): a record of this version whose excursion sums were hand-edited (t = 0,
+    n a string) or deleted passed as a finished point: a resumed sweep skipped it (rc 0) and only combine refused it,
+    with the advice to rerun, which the sweep never did (an audit).  A record of another version may lack them: it
+    is rerun anyway."""
+    rec = {**_GOOD, "version": dj.__version__, "result": {**_GOOD["result"], "sums": sums}}
+    out = tmp_path / "s.jsonl"
+    if reads:
+        assert sweep.read_results(_write(out, rec))[0]["result"]["sums"]["t"] == 5.0
+        return
+    text = _write(out, rec) and out.read_text()
+    with pytest.raises(ValueError, match="line 1 is not a sweep record"):
+        sweep.read_results(str(out))
+    assert main(["sweep", "--Gamma", "6", "--n-excursions", "50", "--out", str(out)]) == 2
+    assert "--out must be a dryfric sweep file (JSON Lines)" in capsys.readouterr().err and out.read_text() == text
+    if not sums:  # a record of another version without sums is read (and rerun); one with broken sums is not
+        assert sweep.read_results(_write(out, {**rec, "version": "0.2.0"}))[0]["version"] == "0.2.0"
 
 
 def test_a_file_that_is_not_text_or_not_a_file_is_refused(tmp_path):

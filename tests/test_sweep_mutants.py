@@ -14,6 +14,7 @@ import pytest
 import dryfric_jax as dj
 from dryfric_jax import outfiles, sweep
 from dryfric_jax.api import NoEstimateError
+from dryfric_jax.excursions import STAT_NAMES
 from dryfric_jax.cli import main
 from dryfric_jax.params import FIG3
 
@@ -37,7 +38,7 @@ def calls(monkeypatch):
             raise NoEstimateError("fewer than 2 complete excursions within the work bounds (stand-in)")
         res = dict(D=1.0 + seed / 2**31, D_ci=0.1, M0=0.5, M0_ci=0.05, mean_duration=1.0, n_truncated=0,
                    n_excursions=kw["n_excursions"], method=kw["method"], stopped_by="n_excursions",
-                   params={}, seed=seed)
+                   params={}, seed=seed, sums={**{k: 1.0 for k in STAT_NAMES}, "n": 10, "t": 5.0})
         return types.SimpleNamespace(stopped_by="n_excursions", to_dict=lambda: dict(res))
 
     monkeypatch.setattr(sweep, "estimate_diffusivity", estimate)
