@@ -66,6 +66,12 @@ def correlation_time(params: Params) -> float:
 #: tau_c: the largest exact white-noise, tau_L = inf values over gamma_bar' (theory.horizon_bias: 23/4 tau_c as
 #: |gamma_bar'| -> 1, 27/5 at 0; 14/5 at 0), an upper estimate (measured ~1.3 tau_c with damping at Fig. 3's point)
 D_BIAS_TAU_C, D_BIAS_BURNT_TAU_C, D_BURN_IN_TAU_C = 5.75, 2.8, 20.0
+#: what colored noise adds to those coefficients, per unit of min(tau', 1): an audit (2026-12-07, DI, gamma_bar = 0,
+#: tau_L = inf, 16384 paths x 12-40 seeds, paired against white noise) measured b = 5.70-5.86 tau_c at tau' = 0.1-0.2,
+#: 5.93 +- 0.09 at 0.3 (above 5.75), 6.29 at 0.5, 6.94 at 1 from rest, and after the burn-in 2.7-2.9 tau_c up to
+#: tau' = 0.5, 3.17 +- 0.18 at 0.7 and 3.18 +- 0.19 at 1 (above 2.8); from tau' = 0.5 without the burn-in
+#: :func:`colored_start_note` quotes its own, larger bound
+D_BIAS_COLORED, D_BIAS_BURNT_COLORED = 2.0, 1.0
 #: the exact white-noise coefficients at gamma_bar = 0, in tau0 (:func:`short_horizon_note` quotes them)
 _BIAS_REST_0, _BIAS_STAT_0 = theory.horizon_bias(1.0, 1.0), theory.horizon_bias(1.0, 1.0, stationary=True)
 #: brute force's bias notes (:func:`d_bias_note`, :func:`m0_lag_note`) are said where the bias they estimate
@@ -101,63 +107,91 @@ def d_bias_note(params: Params, t: float, burn_in: float, d_t: float, d_ci: floa
     simulated, whole steps of h, which may fall just under: t = 100 at h = 0.03 ran 99.99, and neither was said).
     :math:`D^t \approx D(1 - b/t)` with :math:`b \le` :data:`D_BIAS_TAU_C` :math:`\tau_c` from rest
     (:data:`D_BIAS_BURNT_TAU_C` after a burn-in of :data:`D_BURN_IN_TAU_C` :math:`\tau_c`), the largest exact
-    values with white noise and :math:`\tau_L = \infty` (:func:`~dryfric_jax.theory.horizon_bias`); less
+    values with white noise and :math:`\tau_L = \infty` (:func:`~dryfric_jax.theory.horizon_bias`), plus
+    :data:`D_BIAS_COLORED` (:data:`D_BIAS_BURNT_COLORED`) :math:`\min(\tau', 1)\,\tau_c`, what colored noise added in
+    an audit, quoted as a share of D (:math:`D_t/(1 - b/t)`: 6% more at 100 :math:`\tau_c`); less
     with damping (0-4 :math:`\tau_c` measured at colored, damped points, ~1.3 at Fig. 3's), so it is an upper
-    estimate where this note is said: not with colored noise started at the threshold (:func:`colored_start_note`,
-    said instead; an audit measured 7.1 :math:`\tau_c` at tau' = 1 and 3 without damping).  The bias does
+    estimate where this note is said: not with colored noise (tau' >= 0.5) started at the threshold
+    (:func:`colored_start_note`, said instead; an audit measured 7.1 :math:`\tau_c` at tau' = 1 and 3 without damping).  The bias does
     not shrink with N' and the half-width does not depend on t: an audit (2026-12-07) found 10^4 paths at
     t = 100 :math:`\tau_0` (white noise, :math:`\tau_L = \infty`) covering the exact D in 28% of runs (D_t
     = 9.36 +- 0.37 against 10), silently.  Never where the CI is 0 (its own note)."""
     tc = correlation_time(params)
-    coef = D_BIAS_BURNT_TAU_C if burn_in >= D_BURN_IN_TAU_C * tc else D_BIAS_TAU_C
-    bias = coef * tc / t * abs(d_t)
+    burnt = burn_in >= D_BURN_IN_TAU_C * tc
+    coef = (D_BIAS_BURNT_TAU_C if burnt else D_BIAS_TAU_C) + (
+        D_BIAS_BURNT_COLORED if burnt else D_BIAS_COLORED) * min(params.tau_nd, 1.0)
+    # b/t of D, not of D_t = D (1 - b/t): 6% more at t = 100 tau_c (an audit)
+    bias = coef * tc / t * abs(d_t) / (1.0 - min(coef * tc / t, 0.5))
     if not d_ci > 0 or not bias > BIAS_SHARE_OF_CI * d_ci:
         return None
-    return (f"D_t is biased low by O(tau_c/t) also at t = {t / tc:.3g} tau_c: by up to ~{coef:g} tau_c/t D_t ~ "
+    return (f"D_t is biased low by O(tau_c/t) also at t = {t / tc:.3g} tau_c: by up to ~{coef:.3g} tau_c/t D ~ "
             f"{bias:.2g} m^2/s here (tau_c = {tc:.3g} s; "
-            "the largest value with white noise and tau_L = inf, where b is known exactly; measured less with "
-            f"damping), against its CI half-width {d_ci:.2g}, which does not include it (it shrinks with more "
-            "paths, the bias does not); "
+            "the largest value with white noise and tau_L = inf, where b is known exactly, plus what colored noise "
+            f"added in an audit; measured less with damping), against its CI half-width {d_ci:.2g}, which does not "
+            "include it (it shrinks with more paths, the bias does not); "
             f"t >= {bias / (BIAS_SHARE_OF_CI * d_ci) * t:.3g} s brings it under a fifth of the half-width, or use "
             "estimate_diffusivity, which has no horizon bias")
 
 
 #: brute force's paths start as the paper's Algorithm 2 does, at rest with the noise at its up-threshold x+ =
-#: (Delta - gamma_bar)/sqrt(Gamma); from this tau' on that start is said to bias D_t and M0_t
-#: (:func:`colored_start_note`), by up to START_D_TAU_C tau_c/t |D_t| and START_U_OFFSET u0/t in M0_t (the largest
-#: an audit measured: b = -67 +- 12 tau_c at tau' = 10, an offset of E[U] of 0.6 u0 at tau' = 3, both gamma_bar = 0)
-COLORED_START_TAU_ND, START_D_TAU_C, START_U_OFFSET = 0.5, 70.0, 1.0
+#: (Delta - gamma_bar)/sqrt(Gamma) (the PDMP's one grid level above it, sliding); from this tau' on that start is
+#: said to bias D_t (:func:`colored_start_note`), by up to START_D_TAU_C tau_c/t |D_t| (the largest an audit
+#: measured: b = -67 +- 12 tau_c at tau' = 10, gamma_bar = 0)
+COLORED_START_TAU_ND, START_D_TAU_C = 0.5, 70.0
+#: the offset c u0 that start gives E[U(t)] (:func:`m0_lag_note`), at every tau': c <= min(tau', 1) (|1 - gamma_bar'|
+#: + START_GRID_LEVELS delta') (delta' the PDMP's grid step, 0 for the DI).  Measured (2026-12-07, gamma_bar = 0,
+#: tau_L = inf, 2^18-2^20 paths at t = 20 tau_c): the DI 0.013 +- 0.012 at tau' = 0.03, 0.065 +- 0.011 at 0.1, 0.14 at
+#: 0.2, 0.18-0.21 at 0.3, 0.31 at 0.5, 0.48-0.51 at 1, 0.68 at 3, 0.34 at 10 (less with damping: 0.03-0.09 at
+#: tau_L' = 0.5); the PDMP 0.16 +- 0.02 at tau' = 0.1, delta' = 0.5, 0.35-0.41 at tau' = 0.45, delta' = 0.33
+START_GRID_LEVELS = 3.0
 
 
-def colored_start_note(params: Params, t: float, burn_in: float, d_t: float, d_ci: float, m0_ci: float) -> str | None:
-    r"""The warning for brute force's start with colored noise (``t``, ``burn_in`` s, ``d_t``, ``d_ci`` m^2/s and
-    ``m0_ci`` m/s: the run's), None where :math:`\tau' <` :data:`COLORED_START_TAU_ND`, ``burn_in`` >=
-    :data:`D_BURN_IN_TAU_C` :math:`\tau_c`, or the bias it may give is under a fifth of both CIs
-    (:data:`START_D_TAU_C` :math:`\tau_c/t\,|D_t|` and :data:`START_U_OFFSET` :math:`u_0/t`).  The paths start at
-    V = 0 with X at the up-threshold :math:`x_+` (the paper's Algorithm 2, section 5.2), :math:`|1 - \bar\gamma'|
-    \sqrt{\tau'}` of X's stationary SDs out: with white noise X forgets it at once, with colored noise it pushes
-    every path alike for ~tau, which biases D_t and M0_t by O(1/t) of either sign, beyond what
-    :func:`d_bias_note` and :func:`m0_lag_note` (white-noise coefficients; not said with this one) quote.  An
-    audit (2026-12-07, tau_L = inf unless said, no burn-in): D_t 67% high at t = 100 tau_c (+6 SE; tau' = 10,
-    gamma_bar' = 0), b = 7.1 tau_c > 5.75 at tau' = 1 and 3 (gamma_bar' = 0 and -0.5); M0_t off 0 by 6-29 SE at
-    100 tau_c where gamma_bar' = 0 (tau' = 1-10, also with tau_L' = 1), a lag of 4.2-4.5 tau_c > 3 at gamma_bar' =
-    -0.5 and one of -3.3 tau_c (M0_t high) at +0.5, tau' = 10; nothing beyond the white-noise coefficients at
-    tau' = 0.01 and 0.3.  A burn-in of 20 tau_c removed it at every point audited."""
+def _start_nd(params: Params, delta_nd: float | None) -> float:
+    """Where brute force's paths start the noise, nondimensional (x+' = 1 - gamma_bar'; the PDMP at x_{k+ + 1} =
+    (k+ + 1) delta', its grid level above x+)."""
+    if delta_nd is None:
+        return 1.0 - params.gamma_bar_nd
+    from .pdmp import grid_offsets
+
+    return (grid_offsets(delta_nd, params.gamma_bar_nd)[0] + 1) * delta_nd
+
+
+def start_offset(params: Params, delta_nd: float | None = None) -> float:
+    r"""The bound :math:`c` on the offset :math:`c\,u_0` of brute force's :math:`E[U(t)]` from its start at rest
+    with the noise at its threshold, in :math:`u_0`: :math:`\min(\tau', 1)(|1 - \bar\gamma'| + 3\delta')`
+    (:data:`START_GRID_LEVELS`; ``delta_nd`` the PDMP's grid step :math:`\delta'`, None for the DI).  The start
+    pushes every path alike for ~tau (an impulse ~ x+ tau); an upper estimate from measurements, ~1.5x the DI's at
+    tau' <= 0.3 (0.65 tau' measured)."""
+    return min(params.tau_nd, 1.0) * (abs(1.0 - params.gamma_bar_nd) + START_GRID_LEVELS * (delta_nd or 0.0))
+
+
+def colored_start_note(params: Params, t: float, burn_in: float, d_t: float, d_ci: float, *,
+                       delta_nd: float | None = None) -> str | None:
+    r"""The warning for brute force's :math:`\hat D^t` where its start with colored noise may bias it beyond a fifth
+    of its CI (``t``, ``burn_in`` s, ``d_t``, ``d_ci`` m^2/s: the run's; ``delta_nd`` the PDMP's grid step
+    :math:`\delta'`, None for the DI), None where :math:`\tau' <` :data:`COLORED_START_TAU_ND`, ``burn_in`` >=
+    :data:`D_BURN_IN_TAU_C` :math:`\tau_c`, or :data:`START_D_TAU_C` :math:`\tau_c/t\,|D_t|` is under a fifth of the
+    CI.  The paths start at V = 0 with X at the up-threshold :math:`x_+` (the paper's Algorithm 2, section 5.2; the
+    PDMP at :math:`x_{k_++1}`, sliding), :math:`|x_+'| \sqrt{\tau'}` of X's stationary SDs out: with white noise X
+    forgets it at once, with colored noise it pushes every path alike for ~tau, which biases D_t by O(1/t) of either
+    sign, beyond what :func:`d_bias_note` (not said with this one) quotes.  An audit (2026-12-07, tau_L = inf unless
+    said, no burn-in): D_t 67% high at t = 100 tau_c (+6 SE; tau' = 10, gamma_bar' = 0), b = 7.1 tau_c > 5.75 at tau'
+    = 1 and 3 (gamma_bar' = 0 and -0.5).  A burn-in of 20 tau_c removed it at every point audited.  Its offset of
+    M0_t is :func:`m0_lag_note`'s, at every tau'."""
     tc = correlation_time(params)
     if params.tau_nd < COLORED_START_TAU_ND or burn_in >= D_BURN_IN_TAU_C * tc:
         return None
-    d_bias, m0_bias = START_D_TAU_C * tc / t * abs(d_t), START_U_OFFSET * params.u0 / t
-    if not (d_bias > BIAS_SHARE_OF_CI * d_ci or m0_bias > BIAS_SHARE_OF_CI * m0_ci):
+    d_bias = START_D_TAU_C * tc / t * abs(d_t)
+    if not d_bias > BIAS_SHARE_OF_CI * d_ci:
         return None
-    sds = abs(1.0 - params.gamma_bar_nd) * math.sqrt(params.tau_nd)
-    return (f"the paths start at rest with the noise at its threshold x+ = (Delta - gamma_bar)/sqrt(Gamma) (the "
-            f"paper's Algorithm 2), {sds:.2g} of its stationary SDs out: with colored noise (tau/tau0 = "
-            f"{params.tau_nd:.3g}) that start biases D_t and M0_t by O(tau_c/t) of either sign, here by up to "
-            f"~{d_bias:.2g} m^2/s and ~{m0_bias:.2g} m/s (the largest measured: {START_D_TAU_C:g} tau_c/t |D_t|, "
-            f"{START_U_OFFSET:g} u0/t), against CI half-widths {d_ci:.2g} and {m0_ci:.2g}, which do not include it "
-            "(an audit: D_t 67% high at t = 100 tau_c, tau/tau0 = 10; M0_t 6-29 SE off 0 where gamma_bar = 0); "
-            f"add burn_in >= {D_BURN_IN_TAU_C:g} tau_c = {D_BURN_IN_TAU_C * tc:.3g} s, which removed it wherever "
-            "audited, or use estimate_diffusivity, which has no such bias")
+    sds = abs(_start_nd(params, delta_nd)) * math.sqrt(params.tau_nd)
+    where = "x+ = (Delta - gamma_bar)/sqrt(Gamma)" + ("" if delta_nd is None else ", the PDMP one grid level above it")
+    return (f"the paths start at rest with the noise at its threshold {where} (the paper's Algorithm 2), {sds:.2g} of "
+            f"its stationary SDs out: with colored noise (tau/tau0 = {params.tau_nd:.3g}) that start biases D_t by "
+            f"O(tau_c/t) of either sign, here by up to ~{d_bias:.2g} m^2/s (the largest measured: {START_D_TAU_C:g} "
+            f"tau_c/t |D_t|), against its CI half-width {d_ci:.2g}, which does not include it (an audit: D_t 67% high "
+            f"at t = 100 tau_c, tau/tau0 = 10); add burn_in >= {D_BURN_IN_TAU_C:g} tau_c = {D_BURN_IN_TAU_C * tc:.3g} "
+            "s, which removed it wherever audited, or use estimate_diffusivity, which has no such bias")
 
 
 #: brute force's M0_t from rest: the lag of E[U(t)] behind M0 t, in correlation times (an audit, 2026-12-07: 2.9
@@ -166,30 +200,43 @@ def colored_start_note(params: Params, t: float, burn_in: float, d_t: float, d_c
 M0_LAG_TAU_C, M0_BURN_IN_TAU_C = 3.0, 20.0
 
 
-def m0_lag_note(params: Params, t: float, burn_in: float, m0_t: float, m0_ci: float) -> str | None:
-    r"""The warning for brute force's :math:`\hat M_0^t` where its start from rest may bias it against its CI, None
-    otherwise.  The velocity starts at 0, so :math:`E[U(t)] \approx M_0 (t - L)` with a lag L of a few correlation
-    times (:func:`correlation_time`), and :math:`M_0^t` is low in size by :math:`M_0 L/t`, which its CI, of order
-    :math:`\sqrt{D/(t N')}`, does not include, and which more paths make larger against it.  An audit (2026-12-07)
-    measured :math:`L \approx 2.9\,\tau_c` (:math:`\tau' = \tau_L' = 3, \bar\gamma' = -0.7`, 4000 paths at t
-    = 100 :math:`\tau_c`: M0_t 2.5-3.3% toward 0, 4.8-6.3 SE, at 3 seeds; -2.6 to -4.2 SE at white-noise points),
-    gone after a burn-in of 20 :math:`\tau_c` (+0.2 SE); with white noise and :math:`\tau_L = \infty` exactly
-    :math:`L = (3 + \bar\gamma'^2)/(1 + |\bar\gamma'|)^2\,\tau_c \le 3\,\tau_c`
-    (:func:`~dryfric_jax.theory.m0_lag`).  Said where ``burn_in`` < :data:`M0_BURN_IN_TAU_C`
-    :math:`\tau_c` and :data:`M0_LAG_TAU_C` :math:`\tau_c |M_0|/t` exceeds a fifth of the CI half-width (an order
-    of magnitude: L is not known in advance), with :math:`|M_0|` taken as :math:`|\hat M_0^t|` and the lag as at
-    most :math:`|M_0|` (t under 3 tau_c); never at :math:`\bar\gamma = 0`, where :math:`M_0 = 0` by symmetry and
-    there is no lag.  The note fired there on noise, and quoted lags larger than M0 itself at short t (a
-    hard-cases audit)."""
+def m0_lag_note(params: Params, t: float, burn_in: float, m0_t: float, m0_ci: float, *,
+                delta_nd: float | None = None) -> str | None:
+    r"""The warning for brute force's :math:`\hat M_0^t` where its start at rest with the noise at its threshold
+    may bias it beyond a fifth of its CI half-width, None otherwise (``delta_nd``: the PDMP's grid step, None for
+    the DI).  :math:`E[U(t)] \approx M_0 (t - L) + c\,u_0`, so :math:`M_0^t` is off by :math:`(c\,u_0 - M_0 L)/t`,
+    which its CI, of order :math:`\sqrt{D/(t N')}`, does not include, and which more paths make larger against it:
+
+    * the lag L, a few correlation times (:func:`correlation_time`), from V = 0: an audit (2026-12-07) measured
+      :math:`L \approx 2.9\,\tau_c` (:math:`\tau' = \tau_L' = 3, \bar\gamma' = -0.7`, 4000 paths at t = 100
+      :math:`\tau_c`: M0_t 2.5-3.3% toward 0, 4.8-6.3 SE, at 3 seeds; -2.6 to -4.2 SE at white-noise points); with
+      white noise and :math:`\tau_L = \infty` exactly :math:`L = (3 + \bar\gamma'^2)/(1 + |\bar\gamma'|)^2\,\tau_c
+      \le 3\,\tau_c` (:func:`~dryfric_jax.theory.m0_lag`).  Quoted as :data:`M0_LAG_TAU_C` :math:`\tau_c |M_0|/t`,
+      with :math:`|M_0|` taken as :math:`|\hat M_0^t|` and at most that (t under 3 tau_c); not at
+      :math:`\bar\gamma = 0`, where :math:`M_0 = 0` by symmetry (it fired there on noise: a hard-cases audit);
+    * the offset :math:`c\,u_0` of X's start at the threshold, which colored noise remembers (:func:`start_offset`:
+      :math:`c \le \min(\tau', 1)(|1 - \bar\gamma'| + 3\delta')`), quoted as :math:`c\,u_0/\max(t, \tau_c)`.  Audits
+      (2026-12-07) found M0_t 3.9 CI from its exact 0 at tau' = 0.3, 262144 paths, t = 30 tau_c, unsaid (this note
+      skipped gamma_bar = 0, and the colored start's note tau' < 0.5), and at tau' = 0.5, gamma_bar' = -0.5 a bias
+      10x what the colored start's note, said instead of this one, quoted.
+
+    Said where ``burn_in`` < :data:`M0_BURN_IN_TAU_C` :math:`\tau_c` (which removed both wherever audited) and their
+    sum exceeds a fifth of the CI half-width."""
     tc = correlation_time(params)
-    lag = min(M0_LAG_TAU_C * tc / t, 1.0) * abs(m0_t)
-    if params.gamma_bar == 0 or burn_in >= M0_BURN_IN_TAU_C * tc or not lag > BIAS_SHARE_OF_CI * m0_ci:
+    if burn_in >= M0_BURN_IN_TAU_C * tc:
         return None
-    return (f"M0_t is biased toward 0 by O(tau_c/t): the paths start at rest, so E[U(t)]/t lags M0 by "
-            f"~min({M0_LAG_TAU_C:g} tau_c/t, 1) |M0| ~ {lag:.2g} m/s here (tau_c = {tc:.3g} s), against its CI "
-            f"half-width {m0_ci:.2g}, which does not include it (measured: 2.5-3.3% low at t = 100 tau_c); add "
-            f"burn_in >= {M0_BURN_IN_TAU_C:g} tau_c = {M0_BURN_IN_TAU_C * tc:.3g} s, or use estimate_diffusivity, "
-            "which has no such bias")
+    lag = 0.0 if params.gamma_bar == 0 else min(M0_LAG_TAU_C * tc / t, 1.0) * abs(m0_t)
+    c = start_offset(params, delta_nd)
+    offset = c * params.u0 / max(t, tc)
+    if not lag + offset > BIAS_SHARE_OF_CI * m0_ci:
+        return None
+    return (f"M0_t is biased by O(tau_c/t): the paths start at rest with the noise at its threshold, so E[U(t)] ~ "
+            f"M0 (t - L) + c u0, by up to ~{lag + offset:.2g} m/s here (tau_c = {tc:.3g} s): the lag "
+            f"~min({M0_LAG_TAU_C:g} tau_c/t, 1) |M0| ~ {lag:.2g} m/s (measured: 2.5-3.3% low at t = 100 tau_c) "
+            f"and the offset c u0/t ~ {offset:.2g} m/s (c <= {c:.2g}: min(tau/tau0, 1) (|1 - gamma_bar'| + 3 delta'), measured up to 0.68), "
+            f"against its CI half-width {m0_ci:.2g}, which does not include them; add burn_in >= "
+            f"{M0_BURN_IN_TAU_C:g} tau_c = {M0_BURN_IN_TAU_C * tc:.3g} s, or use estimate_diffusivity, which has no "
+            "such bias")
 
 
 #: the notes of an estimate whose excursions were truncated, by cause (the CLI names the option
@@ -813,10 +860,10 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
     (:func:`short_horizon_note`: D_t = D (1 - 5.4 tau0/t) from rest with white noise, tau_L = inf and
     gamma_bar = 0), so is a
     longer one where that bias may exceed a fifth of D_t's CI (:func:`d_bias_note`: many paths), so is
-    an M0_t whose start from rest may lag it toward 0 by more than a fifth of its CI (:func:`m0_lag_note`: at any
-    horizon, without a burn-in of 20 tau_c); with colored noise (tau' >= 0.5) and no such burn-in the start at the
-    threshold x+ is said instead of these two where it may bias D_t or M0_t beyond a fifth of a CI
-    (:func:`colored_start_note`), and so is a D_t CI of 0 (paths too short for the noise to spread
+    an M0_t whose start (at rest, the noise at its threshold) may bias it by more than a fifth of its CI
+    (:func:`m0_lag_note`: at any horizon and tau', without a burn-in of 20 tau_c); with colored noise (tau' >= 0.5)
+    and no such burn-in the start's bias of D_t is said instead of the white-noise one where it may exceed a fifth
+    of the CI (:func:`colored_start_note`), and so is a D_t CI of 0 (paths too short for the noise to spread
     them).  With the seed, ``block`` (steps whose numbers are drawn at once) fixes the numbers and is
     recorded; ``chunk_lanes`` (paths compiled and run at once) does not change the random numbers, and the
     results only to rounding (each chunk shape is compiled to its own code: 2.6e-16 relative in a path's U, measured).
@@ -901,10 +948,11 @@ def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, met
     m0_t, m0_ci = float(e["M0_t"] * params.v0), float(e["M0_t_ci"] * params.v0)
     # the burn-in asked for: the notes' advice "burn_in >= 20 tau_c = 10 s" followed (10 s, simulated as 9.99975 s in
     # whole steps) kept them said, with the same advice (a review)
-    start = colored_start_note(params, t_s, burn_asked, d_t, d_ci, m0_ci)
-    # the white-noise notes, not where the colored start's note said they do not hold
+    dnd = grid and grid["delta_nd"]
+    start = colored_start_note(params, t_s, burn_asked, d_t, d_ci, delta_nd=dnd)
+    # the white-noise note on D_t, not where the colored start's note said it does not hold
     for note in (start, None if short or start else d_bias_note(params, t_s, burn_asked, d_t, d_ci),
-                 None if start else m0_lag_note(params, t_s, burn_asked, m0_t, m0_ci)):
+                 m0_lag_note(params, t_s, burn_asked, m0_t, m0_ci, delta_nd=dnd)):
         if note:  # issued after the run, as the zero CI's: they need the estimates and their CIs
             warnings.warn(note, DryfricWarning, stacklevel=2)
             notes = [*notes, note]

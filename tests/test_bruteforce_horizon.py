@@ -180,15 +180,20 @@ def test_a_d_t_bias_beyond_its_ci_past_100_correlation_times_is_said():
     with warnings.catch_warnings(record=True) as rec:
         warnings.simplefilter("always")
         r = dj.bruteforce_diffusivity(WHITE, 3, t=100.0, n_paths=10_000, h=H)
-    said = _notes(rec, "D_t is biased low by O(tau_c/t) also at t = 100 tau_c: by up to ~5.75 tau_c/t D_t")
+    said = _notes(rec, "D_t is biased low by O(tau_c/t) also at t = 100 tau_c: by up to ~5.75 tau_c/t D ~")
     assert said and said == [w for w in r.warnings if w.startswith("D_t is biased low")]
     assert r.D_t + r.D_t_ci < D, (r.D_t, r.D_t_ci, D)  # the bias the note is about, at this seed
     t_fix = float(re.search(r"t >= ([0-9.e+]+) s brings", said[0]).group(1))
-    assert t_fix == pytest.approx(D_BIAS_TAU_C * r.D_t / (0.2 * r.D_t_ci), rel=1e-2)  # tau_c = 1 s
-    assert "~2.8 tau_c/t D_t ~ 0.28 m^2/s" in d_bias_note(WHITE, 100.0, 20.0, 10.0, 0.37)  # burnt in
-    assert d_bias_note(WHITE, 100.0, 0.0, 10.0, 2.8) is not None  # 0.575 m^2/s over a fifth of 2.8
-    assert d_bias_note(WHITE, 100.0, 0.0, 10.0, 2.9) is None  # under a fifth of 2.9
-    assert d_bias_note(WHITE, 1000.0, 0.0, 10.0, 0.37) is None  # 0.0575 under 0.074
+    # tau_c = 1 s; the bias b/t of D = D_t/(1 - b/t), not of D_t (6% more here: an audit)
+    assert t_fix == pytest.approx(D_BIAS_TAU_C * r.D_t / (1 - D_BIAS_TAU_C / 100) / (0.2 * r.D_t_ci), rel=1e-2)
+    assert "~2.8 tau_c/t D ~ 0.29 m^2/s" in d_bias_note(WHITE, 100.0, 20.0, 10.0, 0.37)  # burnt in: 0.28/0.972
+    assert d_bias_note(WHITE, 100.0, 0.0, 10.0, 3.0) is not None  # 0.575/0.9425 = 0.610 m^2/s over a fifth of 3.0
+    assert d_bias_note(WHITE, 100.0, 0.0, 10.0, 3.1) is None  # under a fifth of 3.1
+    assert d_bias_note(WHITE, 1000.0, 0.0, 10.0, 0.37) is None  # 0.058 under 0.074
+    # colored noise adds to b (an audit: 5.93 +- 0.09 tau_c at tau' = 0.3 from rest, 3.18 +- 0.19 after the burn-in
+    # at tau' = 1): 5.75 + 2 x 0.3 and 2.8 + 1 x min(tau', 1)
+    assert "~6.35 tau_c/t D" in d_bias_note(dj.Params.from_nondim(0.3), 100.0, 0.0, 10.0, 0.37)
+    assert "~3.8 tau_c/t D" in d_bias_note(dj.Params.from_nondim(3.0), 300.0, 60.0, 10.0, 0.37)
     assert d_bias_note(WHITE, 100.0, 0.0, 0.0, 0.0) is None
     # the horizon asked for, t = 100, ran 99.99 at h = 0.03: no short-horizon note (t asked >= 100 tau_c), and this
     # one, when it took the simulated t, was not said either (a review); below 100 tau_c asked, only the short one
@@ -217,8 +222,10 @@ def test_m0_t_from_rest_lags_and_is_said_and_a_burn_in_removes_it():
     SE off the long excursions' M0 at 3 seeds (tau' = tau_L' = 3, gamma_bar' = -0.7, 4000 paths); a burn-in of 20
     tau_c removed it.  Now the run says so, and not after the burn-in, whose M0_t agrees: with this colored noise
     (tau' = 3) by api.colored_start_note (the start at the threshold x+ also lags M0_t, by more than m0_lag_note's 3
-    tau_c: 4.2-4.5 tau_c measured at gamma_bar' = -0.5), which then stands for m0_lag_note."""
-    said_by = ("M0_t is biased toward 0 by O(tau_c/t)", "the paths start at rest with the noise at its threshold")
+    tau_c: 4.2-4.5 tau_c measured at gamma_bar' = -0.5), which stood for m0_lag_note, quoting only the start's offset
+    of E[U] (an audit found the bias 10x what it quoted, at tau' = 0.5, gamma_bar' = -0.5): m0_lag_note is now said
+    at every tau', with the lag and the offset, and colored_start_note is about D_t only."""
+    said_by = ("M0_t is biased by O(tau_c/t)", "the paths start at rest with the noise at its threshold")
     p = dj.Params(1.0, 1.0, 3.0, 3.0, -0.7)
     tc = dj.api.correlation_time(p)
     assert tc == 3.0
@@ -230,7 +237,7 @@ def test_m0_t_from_rest_lags_and_is_said_and_a_burn_in_removes_it():
             warnings.simplefilter("always")
             r = dj.bruteforce_diffusivity(p, 2, t=100 * tc, n_paths=4000, burn_in=burn_in)
         lag = [str(x.message) for x in w if str(x.message).startswith(said_by)]
-        assert [n[:20] for n in lag] == ([said_by[1][:20]] if said else [])
+        assert [n[:20] for n in lag] == ([said_by[1][:20], said_by[0][:20]] if said else [])
         assert any(n.startswith(said_by) for n in r.warnings) is said
         z = (abs(le.M0) - abs(r.M0_t)) / math.hypot(le.M0_ci, r.M0_t_ci) * 1.96  # > 0: M0_t smaller in size
         assert (z > 3) if said else (abs(z) < 3), (burn_in, z)
@@ -278,21 +285,50 @@ def test_the_start_at_the_threshold_with_colored_noise_is_said_and_a_burn_in_rem
         assert (z > 5) if said else (abs(z) <= 2.81), (burn_in, z)
         start = _notes(rec, "the paths start at rest with the noise at its threshold x+")
         assert bool(start) is said and not _notes(rec, "D_t is biased low by O(tau_c/t) also at")
-        assert not _notes(rec, "M0_t is biased toward 0")
+        assert bool(_notes(rec, "M0_t is biased by O(tau_c/t)")) is said  # the start's offset of E[U]
         first = first or start[0]
     assert "1.7 of its stationary SDs out" in first and "add burn_in >= 20 tau_c = 60 s" in first
     edge = dj.Params.from_nondim(COLORED_START_TAU_ND, 1.0, 0.5)  # tau_c = 1 s, u0 = 1 m
-    assert colored_start_note(edge, 10.0, 0.0, 1.0, 1.0, 1.0) is not None  # up to 70/10 = 7 m^2/s > 0.2
-    assert colored_start_note(edge, 10.0, 20.0, 1.0, 1.0, 1.0) is None  # burnt in
-    # the bias it may give under a fifth of both CIs (a review: it was said at any horizon, 1000 tau_c with 500
-    # paths too): 70/1000 = 0.07 m^2/s < 0.2 x 0.4 and 1/1000 m/s < 0.2 x 0.01; not with either CI smaller
-    assert colored_start_note(edge, 1000.0, 0.0, 1.0, 0.4, 0.01) is None
-    assert colored_start_note(edge, 1000.0, 0.0, 1.0, 0.3, 0.01) is not None
-    assert colored_start_note(edge, 1000.0, 0.0, 1.0, 0.4, 0.004) is not None
-    assert colored_start_note(dj.Params.from_nondim(0.3, math.inf, 0.5), 10.0, 0.0, 1.0, 1.0, 1.0) is None
-    assert colored_start_note(WHITE, 10.0, 0.0, 1.0, 1.0, 1.0) is None
+    assert colored_start_note(edge, 10.0, 0.0, 1.0, 1.0) is not None  # up to 70/10 = 7 m^2/s > 0.2
+    assert colored_start_note(edge, 10.0, 20.0, 1.0, 1.0) is None  # burnt in
+    # the bias it may give under a fifth of the CI (a review: it was said at any horizon, 1000 tau_c with 500
+    # paths too): 70/1000 = 0.07 m^2/s < 0.2 x 0.4; not with a CI smaller
+    assert colored_start_note(edge, 1000.0, 0.0, 1.0, 0.4) is None
+    assert colored_start_note(edge, 1000.0, 0.0, 1.0, 0.3) is not None
+    assert colored_start_note(dj.Params.from_nondim(0.3, math.inf, 0.5), 10.0, 0.0, 1.0, 1.0) is None
+    assert colored_start_note(WHITE, 10.0, 0.0, 1.0, 1.0) is None
     assert "1 of its stationary SDs out" in colored_start_note(dj.Params.from_nondim(1.0, 10.0, 2.0), 10.0, 0.0,
-                                                                1.0, 1.0, 1.0)  # |1 - gamma_bar'|: it said -1
+                                                                1.0, 1.0)  # |1 - gamma_bar'|: it said -1
+    # the PDMP starts at x_{k+ + 1}, a grid level above x+ (an audit: 1.32 at delta' = 0.33, 0.89 SD at tau' =
+    # 0.45, where the note's x+ said 0.67): k+ = 3 at delta' = 0.33, so 4 x 0.33 = 1.32 and 1.32 x sqrt(0.5) = 0.93
+    pd = colored_start_note(dj.Params.from_nondim(0.5), 10.0, 0.0, 1.0, 1.0, delta_nd=0.33)
+    assert "the PDMP one grid level above it" in pd and "0.93 of its stationary SDs out" in pd
+
+
+def test_m0_t_is_offset_by_the_start_below_tau_0_5_too_and_it_is_said():
+    """Audits (2026-12-07): the start at the threshold offsets E[U(t)] by c u0 at every tau' (c = 0.065 at tau' = 0.1,
+    0.18-0.21 at 0.3, measured), yet below tau' = 0.5 nothing was said at gamma_bar = 0: M0_t was 3.9 CIs off its
+    exact 0 at tau' = 0.3, 262144 paths, t = 30 tau_c.  Here (tau' = 0.3, tau_L = inf, t = 30 tau0, 2^18 paths, seed
+    1) M0_t is > 4 SE off 0 (expected ~7), its offset t M0_t / u0 under start_offset's bound min(tau', 1) = 0.3, and
+    m0_lag_note says so; after a burn-in of 20 tau_c it is within 2.81 SE of 0 and unsaid."""
+    from dryfric_jax.api import m0_lag_note, start_offset
+
+    p = dj.Params.from_nondim(0.3)  # tau_c = tau0 = u0 = 1
+    assert start_offset(p) == pytest.approx(0.3)
+    assert start_offset(dj.Params.from_nondim(3.0, math.inf, -0.5)) == pytest.approx(1.5)  # min(tau', 1) |1 - g'|
+    assert start_offset(p, 0.1) == pytest.approx(0.3 * 1.3)  # the PDMP: a grid level above x+, sliding
+    for burn_in, said in ((0.0, True), (20.0, False)):
+        with warnings.catch_warnings(record=True) as rec:
+            warnings.simplefilter("always")
+            r = dj.bruteforce_diffusivity(p, 1, t=30.0, n_paths=2**18, burn_in=burn_in)
+        z = r.M0_t / (r.M0_t_ci / 1.96)
+        assert (z > 4 and r.M0_t * 30.0 < start_offset(p)) if said else abs(z) <= 2.81, (burn_in, z)
+        assert bool(_notes(rec, "M0_t is biased by O(tau_c/t)")) is said
+    assert "the offset c u0/t ~ 0.01 m/s (c <= 0.3" in m0_lag_note(p, 30.0, 0.0, 0.0, 0.002)
+    assert m0_lag_note(p, 30.0, 0.0, 0.0, 0.06) is None  # 0.01 under a fifth of 0.06
+    assert m0_lag_note(p, 30.0, 0.0, 0.0, 0.04) is not None
+    assert m0_lag_note(p, 0.1, 0.0, 0.0, 0.2) is not None  # at t < tau_c the offset is taken as built over tau_c:
+    assert m0_lag_note(p, 0.1, 0.0, 0.0, 2.0) is None  # 0.3 m/s, not 3
 
 
 def test_the_burn_in_the_notes_ask_for_counts_as_given_not_as_rounded_to_whole_steps():
@@ -303,5 +339,6 @@ def test_the_burn_in_the_notes_ask_for_counts_as_given_not_as_rounded_to_whole_s
         warnings.simplefilter("always")
         r = dj.bruteforce_diffusivity(dj.Params(**dj.FIG3), 0, t=50.0, n_paths=4000, burn_in=10.0)
     assert r.burn_in == pytest.approx(9.99975, rel=1e-12)
-    assert not _notes(rec, "M0_t is biased toward 0") and not _notes(rec, "the paths start at rest")
-    assert all("~2.8 tau_c/t" in n for n in _notes(rec, "D_t is biased low by O(tau_c/t) also at"))
+    assert not _notes(rec, "M0_t is biased by") and not _notes(rec, "the paths start at rest")
+    # 2.8 + 1 x min(tau', 1) after the burn-in (tau' = 1.47 here)
+    assert all("~3.8 tau_c/t" in n for n in _notes(rec, "D_t is biased low by O(tau_c/t) also at"))

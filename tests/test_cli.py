@@ -912,10 +912,12 @@ def test_text_output_is_the_results_summary(capsys):
     assert "n_excursions = " in cli.err and str(r) == text + "\nwarning: " + r.warnings[0] and len(r.warnings) == 1
     assert repr(r).startswith("EstimateResult(D=")
     bf = dj.bruteforce_diffusivity(Params(**FIG3), 5, t=0.5, n_paths=16)
-    # 16 < 500 paths, t = 0.5 s < 100 tau_c = 50 s, and the start at the threshold with colored noise (tau' = 1.47)
-    assert bf.summary().startswith(f"D_t  = {bf.D_t:.6g}") and len(bf.warnings) == 3
+    # 16 < 500 paths, t = 0.5 s < 100 tau_c = 50 s, and the start at the threshold with colored noise (tau' = 1.47),
+    # of D_t and of M0_t
+    assert bf.summary().startswith(f"D_t  = {bf.D_t:.6g}") and len(bf.warnings) == 4
     assert bf.warnings[0].startswith("n_paths = 16") and bf.warnings[1].startswith("t = 0.5 s is 1 < 100")
     assert bf.warnings[2].startswith("the paths start at rest with the noise at its threshold")
+    assert bf.warnings[3].startswith("M0_t is biased by O(tau_c/t)")
     assert str(bf) == bf.summary() + "".join("\nwarning: " + w for w in bf.warnings)
 
 

@@ -48,7 +48,7 @@ def test_bruteforce_warns_below_the_reliable_number_of_paths():
     """Below MIN_RELIABLE_PATHS the D_t CI under-covers (test_estimators measures it): a
     :class:`SmallSampleWarning`, also kept in the result; none from 500 paths on (the horizon of
     0.01 s, under 100 correlation times, has its own warnings, test_bruteforce_horizon: D_t's, and the start at the
-    threshold with colored noise, tau' = 1.47 here, which stands for M0_t's lag from rest)."""
+    threshold with colored noise, tau' = 1.47 here, of D_t and of M0_t)."""
     import warnings
 
     p = dj.Params(**dj.FIG3)
@@ -59,7 +59,7 @@ def test_bruteforce_warns_below_the_reliable_number_of_paths():
         warnings.simplefilter("ignore", dj.DryfricWarning)
         warnings.simplefilter("error", dj.SmallSampleWarning)
         r = dj.bruteforce_diffusivity(p, 3, t=0.01, n_paths=dj.MIN_RELIABLE_PATHS)
-    assert [w[:10] for w in r.warnings] == ["t = 0.01 s", "the paths "]
+    assert [w[:10] for w in r.warnings] == ["t = 0.01 s", "the paths ", "M0_t is bi"]
 
 
 def test_bruteforce_counts_exactly_the_requested_steps(key):
