@@ -112,10 +112,10 @@ def d_bias_note(params: Params, t: float, burn_in: float, d_t: float, d_ci: floa
     an audit, quoted as a share of D (:math:`D_t/(1 - b/t)`: 6% more at 100 :math:`\tau_c`); less
     with damping (0-4 :math:`\tau_c` measured at colored, damped points, ~1.3 at Fig. 3's), so it is an upper
     estimate where this note is said: not with colored noise (tau' >= 0.5) started at the threshold
-    (:func:`colored_start_note`, said instead; an audit measured 7.1 :math:`\tau_c` at tau' = 1 and 3 without damping).  The bias does
-    not shrink with N' and the half-width does not depend on t: an audit (2026-12-07) found 10^4 paths at
-    t = 100 :math:`\tau_0` (white noise, :math:`\tau_L = \infty`) covering the exact D in 28% of runs (D_t
-    = 9.36 +- 0.37 against 10), silently.  Never where the CI is 0 (its own note)."""
+    (:func:`colored_start_note`, said instead; an audit measured 7.1 :math:`\tau_c` at tau' = 1 and 3 without
+    damping).  The bias does not shrink with N' and the half-width does not depend on t: an audit (2026-12-07)
+    found 10^4 paths at t = 100 :math:`\tau_0` (white noise, :math:`\tau_L = \infty`) covering the exact D in 28%
+    of runs (D_t = 9.36 +- 0.37 against 10), silently.  Never where the CI is 0 (its own note)."""
     tc = correlation_time(params)
     burnt = burn_in >= D_BURN_IN_TAU_C * tc
     coef = (D_BIAS_BURNT_TAU_C if burnt else D_BIAS_TAU_C) + (
@@ -233,8 +233,8 @@ def m0_lag_note(params: Params, t: float, burn_in: float, m0_t: float, m0_ci: fl
     return (f"M0_t is biased by O(tau_c/t): the paths start at rest with the noise at its threshold, so E[U(t)] ~ "
             f"M0 (t - L) + c u0, by up to ~{lag + offset:.2g} m/s here (tau_c = {tc:.3g} s): the lag "
             f"~min({M0_LAG_TAU_C:g} tau_c/t, 1) |M0| ~ {lag:.2g} m/s (measured: 2.5-3.3% low at t = 100 tau_c) "
-            f"and the offset c u0/t ~ {offset:.2g} m/s (c <= {c:.2g}: min(tau/tau0, 1) (|1 - gamma_bar'| + 3 delta'), measured up to 0.68), "
-            f"against its CI half-width {m0_ci:.2g}, which does not include them; add burn_in >= "
+            f"and the offset c u0/t ~ {offset:.2g} m/s (c <= {c:.2g}: min(tau/tau0, 1) (|1 - gamma_bar'| + 3 delta'), "
+            f"measured up to 0.68), against its CI half-width {m0_ci:.2g}, which does not include them; add burn_in >= "
             f"{M0_BURN_IN_TAU_C:g} tau_c = {M0_BURN_IN_TAU_C * tc:.3g} s, or use estimate_diffusivity, which has no "
             "such bias")
 
