@@ -411,11 +411,11 @@ def di_long_excursion(model: DIModel, key, max_steps: int = 200_000, max_seek: i
                 duration=(n - 1) * h if complete else float("nan"), complete=complete)
 
 
-@partial(jax.jit, static_argnames=("n_records",))
 def _pdmp_sampled(model, keys, t_burn, dt_rec, max_events, *, n_records: int):
     """A ``lax.scan`` over the grid times; for each, a bounded ``while_loop`` runs the events up
     to it.  Only the current segment is carried (state at its start, its drift, its end), so
-    the record is the scan's output and no buffer is copied per event."""
+    the record is the scan's output and no buffer is copied per event.  Run by :func:`over_lanes`, the paths split
+    over the devices (it ran on one core of two: an audit)."""
     vdt = model.delta.dtype
 
     def path(key):
@@ -480,9 +480,9 @@ def pdmp_stationary(model, key, n_paths: int, n_records: int, dt_rec: float, bur
                          f"between its events (1/rate = {1 / float(model.rate):.3g} tau0)")
     if max_events is None:  # 10x the expected jumps, < 2^62 by the bound on t_end above (< 4.6e13 jumps)
         max_events = int(10 * float(model.rate) * t_end + 10_000)
-    V, ok = _pdmp_sampled(model, jax.random.split(key, n_paths), jnp.asarray(burn, jnp.float64),
-                          jnp.asarray(dt_rec, jnp.float64), jnp.asarray(max_events, jnp.int64),
-                          n_records=int(n_records))
+    V, ok = over_lanes(_pdmp_sampled, (model, jax.random.split(key, n_paths), jnp.asarray(burn, jnp.float64),
+                                       jnp.asarray(dt_rec, jnp.float64), jnp.asarray(max_events, jnp.int64)),
+                       (False, True, False, False, False), n_records=int(n_records))
     if not bool(np.all(ok)):
         raise RuntimeError(f"{int((~np.asarray(ok)).sum())} PDMP paths hit max_events = {max_events}")
     return np.asarray(V, np.float64)

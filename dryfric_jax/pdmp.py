@@ -57,6 +57,7 @@ from . import rng
 from .excursions import BLOCK
 from .noise import check_delta, grid_size
 from .params import Params, check_params, require_x64
+from .sharding import over_lanes
 
 ON_GRID_TOL = 1e-9
 
@@ -283,8 +284,9 @@ def make_pdmp_model(params: Params, delta: float, dtype=jnp.float64) -> PDMPMode
 # ---------------------------------------------------------------------------------------------
 # brute force on [0, t] (Algorithm 2, corrected: U adds the displacement, and Y = 1 at s_+)
 # ---------------------------------------------------------------------------------------------
-@partial(jax.jit, static_argnames=("block",))
 def _bruteforce_paths(model: PDMPModel, keys, t_start, t_end, max_events, *, block: int):
+    """The paths of ``keys`` (run by :func:`~dryfric_jax.sharding.over_lanes`, split over the devices): each its own
+    ``while_loop`` to ``t_end`` or ``max_events``."""
     def lane(key):
         def cond(c):
             b, state, T, U, n = c
@@ -336,9 +338,12 @@ def simulate_pdmp_bruteforce(model: PDMPModel, key, n_paths: int, t: float, *, b
     for c in range(-(-n_paths // lanes)):
         # the last chunk runs only its paths; path k's key does not depend on the chunking (as the DI's brute force)
         keys = path_keys(key, c * lanes, min((c + 1) * lanes, n_paths))
-        U, n, fin = _bruteforce_paths(model, keys, jnp.asarray(burn_in, jnp.float64),
-                                      jnp.asarray(burn_in + t, jnp.float64), jnp.asarray(max_events, jnp.int64),
-                                      block=block)
+        # split over the devices (it ran on one core of two: an audit); a path's numbers do not depend on the device
+        # count, up to the last bits (sharding module docstring)
+        U, n, fin = over_lanes(_bruteforce_paths, (model, keys, jnp.asarray(burn_in, jnp.float64),
+                                                   jnp.asarray(burn_in + t, jnp.float64),
+                                                   jnp.asarray(max_events, jnp.int64)),
+                               (False, True, False, False, False), block=block)
         Us.append(np.asarray(U))
         ev += int(np.asarray(n).sum())
         unf += int((~np.asarray(fin)).sum())

@@ -1,12 +1,12 @@
 """Independent paths over all local devices: the lane axis of a jitted function split evenly.
 
-Brute force and the path scenes (:mod:`dryfric_jax.bruteforce`, :mod:`dryfric_jax.paths`) run
-many independent paths; a plain ``jax.jit`` would run them all on the first device (one CPU
-core of the forced host devices, one GPU).  :func:`over_lanes` runs each device's share of the
+Brute force and the path scenes (:mod:`dryfric_jax.bruteforce`, :mod:`dryfric_jax.paths`, the PDMP's in
+:mod:`dryfric_jax.pdmp`) run many independent paths; a plain ``jax.jit`` would run them all on the first device
+(one CPU core of the forced host devices, one GPU).  :func:`over_lanes` runs each device's share of the
 lanes in its own copy of the function (``shard_map``, no communication), so a path's numbers
 do not depend on the device count, up to the last bits: XLA:CPU compiles each shard's shape to
 its own code (of 6 brute-force paths on 1 and 3 devices, one differed by 1 unit in the 16th
-digit; the lane engine's estimates agree bit for bit, tested).  (The lane engine shards its rounds itself:
+digit; the lane engine's DI estimates agree bit for bit, tested, its PDMP's to the last bits: README).  (The lane engine shards its rounds itself:
 :func:`dryfric_jax.excursions._sharded_round`.)
 """
 from __future__ import annotations

@@ -65,7 +65,8 @@ SAME = textwrap.dedent("""
 
 def test_three_devices_give_the_one_device_estimate_bit_for_bit():
     """A device count that does not divide the lanes (512 DI lanes and 100 PDMP lanes on 3 devices)
-    pads them with copies that are dropped: every number of the estimate is the one-device number.
+    pads them with copies that are dropped: every number of the estimate is the one-device number (the PDMP's at
+    this point and seed: its "branch" layout rounds to other last bits at some others, README).
     So do 2 lanes on 3 devices: each device runs at least 2 lanes (a one-lane shard compiled to
     other arithmetic, changing the last bits of M0 and the CIs).
     Before, 512 lanes became 513 live ones on 3 devices: another sample, so a 6- or 12-core

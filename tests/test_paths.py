@@ -64,11 +64,12 @@ def test_pdmp_recorder_raises_when_some_paths_hit_the_event_bound(monkeypatch):
         pdmp_stationary(m, 3, 8, 20, 0.05, 10.0, max_events=500)
     seen = []
 
-    def sampled(model, keys, t_burn, dt_rec, max_events, *, n_records):
+    def sampled(fn, args, lane_args, *, n_records):  # over_lanes(_pdmp_sampled, ...), the paths split over devices
+        model, keys, t_burn, dt_rec, max_events = args
         seen.append((float(t_burn), float(dt_rec), int(max_events), n_records))
         return jnp.zeros((len(keys), n_records)), jnp.ones(len(keys), bool)
 
-    monkeypatch.setattr(paths, "_pdmp_sampled", sampled)
+    monkeypatch.setattr(paths, "over_lanes", sampled)
     assert pdmp_stationary(m, 3, 8, 20, 0.05, 10.0).shape == (8, 20)
     assert seen == [(10.0, 0.05, int(10 * float(m.rate) * 11.0 + 10_000), 20)]
 
