@@ -6,8 +6,8 @@ Brute force and the path scenes (:mod:`dryfric_jax.bruteforce`, :mod:`dryfric_ja
 lanes in its own copy of the function (``shard_map``, no communication), so a path's numbers
 do not depend on the device count, up to the last bits: XLA:CPU compiles each shard's shape to
 its own code (of 6 brute-force paths on 1 and 3 devices, one differed by 1 unit in the 16th
-digit; the lane engine's DI estimates agree bit for bit, tested, its PDMP's to the last bits: README).  (The lane engine shards its rounds itself:
-:func:`dryfric_jax.excursions._sharded_round`.)
+digit; the lane engine's DI estimates agree bit for bit, tested, its PDMP's to the last bits: README).  (The
+lane engine shards its rounds itself: :func:`dryfric_jax.excursions._sharded_round`.)
 """
 from __future__ import annotations
 
