@@ -204,6 +204,10 @@ def _check_record(rec: dict) -> None:
                 _is_finite(d.get(k)) for k in ("mean", "ci", "n_excursions", "n_truncated")))
     elif ok:
         ok = isinstance(rec.get("reason"), str)
+    if ok and "seed" in rec and not _outdated(rec):
+        # the seed this version derives from the record's identity: a hand-edited Gamma served the old point's
+        # result as the new point's (an audit)
+        ok = rec["seed"] == point_seed(rec["sweep_seed"], rec["params"], rec["settings"])
     if not ok:
         raise TypeError("not a sweep record")
 
@@ -359,7 +363,8 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
         long-excursion count left some out; c counts the ``"ok"`` points whose count (``durations``) ended
         without a mean within its loop's bound (not stopped by ``max_time``: those are in m).  A point another sweep
         finished while this one ran is counted in s.  A Ctrl-C stops after the points already
-        written; the point in progress is not written.
+        written; the point in progress is not written, except a D it finished before its count (``durations``),
+        written as its record without the count, which a resumed sweep takes up.
     """
     check_writable(out)
     points = _check_points(points)
@@ -494,13 +499,14 @@ def _within(point_progress, where: dict, stage: str, d: dict) -> None:
 
 def _compute(out: str, pt: dict, seed: int, settings: dict, max_time, within=None) -> dict | None:
     """Run one point and return its record (``"ok"`` or ``"failed"``), for the caller to write; None if Ctrl-C
-    stopped it.  ``within(stage,
+    stopped it (its finished D, if the count stopped, written here as its record without durations).  ``within(stage,
     dict)``, if given, is called with the D estimate's (``"D"``) and the count's (``"durations"``) progress."""
     method, h, delta, dtype, n_excursions, rtol, max_work = (settings[k] for k in SETTING_KEYS)
     s = point_seed(seed, pt, settings)
     # with durations: the D of this point's record without them, if this version finished it (the same seed)
     base = (_finished_elsewhere(out, _ident(seed, pt, _without_durations(settings)), max_time)
             if settings.get(DURATIONS) is not None else None)
+    res = None
     try:
         with warnings.catch_warnings():  # the warnings are kept in the record ...
             warnings.simplefilter("ignore", DryfricWarning)
@@ -524,6 +530,12 @@ def _compute(out: str, pt: dict, seed: int, settings: dict, max_time, within=Non
                     DURATIONS: _durations(pt, seed, settings, res.get("mean_duration"), max_time,
                                           within and functools.partial(within, DURATIONS))}
     except KeyboardInterrupt:
+        if res is not None and base is None and settings.get(DURATIONS) is not None:
+            # stopped in the count: the finished D is kept as the point's record without durations, which the
+            # resumed sweep takes up (``base``) instead of estimating it again (it was lost: an audit)
+            d_only = _without_durations(settings)
+            put_record(out, _record(seed, pt, d_only, "ok", max_time, result=res),
+                       lambda old: _rec_ident(old) == _ident(seed, pt, d_only), read_results)
         return None
     except NoEstimateError as e:  # deterministic (unless max_time stopped it): recorded, not rerun on resume
         rec = _record(seed, pt, settings, "failed", max_time, reason=str(e), stopped_by=e.stopped_by)

@@ -292,6 +292,7 @@ def test_refused_and_failed_points_are_recorded_and_the_sweep_goes_on(tmp_path, 
     # a refused record of a point the planner now accepts (e.g. a newer version) is dropped and the point run
     stale = dict(recs[1], params=dict(recs[1]["params"], Gamma=25.0), status="refused", reason="stale")
     stale.pop("result")
+    stale["seed"] = sweep.point_seed(stale["sweep_seed"], stale["params"], stale["settings"])  # as written for it
     with open(out, "a") as f:
         f.write(json.dumps(stale) + "\n")
     r3 = sweep.run_sweep(sweep.grid(Gamma=[25.0]), out, **kw)
@@ -389,6 +390,27 @@ def test_a_record_of_this_version_needs_the_sums_combine_pools(tmp_path, sums, r
     assert "--out must be a dryfric sweep file (JSON Lines)" in capsys.readouterr().err and out.read_text() == text
     if not sums:  # a record of another version without sums is read (and rerun); one with broken sums is not
         assert sweep.read_results(_write(out, {**rec, "version": "0.2.0"}))[0]["version"] == "0.2.0"
+
+
+def test_a_record_whose_identity_was_edited_is_refused(tmp_path, capsys):
+    """An audit (2026-12-07): a record's Gamma changed by hand from 10 to 15 was taken as the point Gamma = 15 (its
+    result served for it, "skipped": 1), though its stored seed was Gamma = 10's.  A record of this version must
+    carry the seed its sweep seed, parameters and settings give (one of another version is rerun anyway)."""
+    from dryfric_jax.params import FIG3
+    from dryfric_jax.plan import check_settings
+
+    rec = sweep._record(0, {**FIG3, "Gamma": 10.0}, check_settings(n_excursions=50), "ok", result=_GOOD["result"])
+    out = tmp_path / "s.jsonl"
+    assert sweep.read_results(_write(out, rec))[0]["params"]["Gamma"] == 10.0  # as written, it reads
+    for edit in (dict(params={**rec["params"], "Gamma": 15.0}), dict(sweep_seed=1),
+                 dict(settings={**rec["settings"], "n_excursions": 60})):
+        text = _write(out, {**rec, **edit}) and out.read_text()
+        with pytest.raises(ValueError, match="line 1 is not a sweep record"):
+            sweep.read_results(str(out))
+        assert main(["sweep", "--Gamma", "15", "--n-excursions", "50", "--out", str(out)]) == 2
+        assert "--out must be a dryfric sweep file" in capsys.readouterr().err and out.read_text() == text
+    old = {**rec, "params": {**rec["params"], "Gamma": 15.0}, "version": "0.2.0"}
+    assert sweep.read_results(_write(out, old))[0]["version"] == "0.2.0"  # another version's: read, then rerun
 
 
 def test_a_file_that_is_not_text_or_not_a_file_is_refused(tmp_path):

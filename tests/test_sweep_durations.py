@@ -222,3 +222,30 @@ def test_max_time_bounds_the_count_and_a_count_it_stopped_is_rerun_with_more_tim
     assert sweep.run_sweep(pts, out, max_time=600, **kw)["computed"] == 0
     assert sweep.run_sweep(pts, out, max_time=1200, **kw)["computed"] == 1 and seen == [600.0, 1200.0]
     assert len(_lines(out)) == 1 and _lines(out)[0]["max_time"] == 1200
+
+
+def test_a_point_interrupted_in_its_count_keeps_its_d_for_the_resumed_sweep(tmp_path, monkeypatch):
+    """An audit (2026-12-07): a Ctrl-C during a point's count lost its finished D estimate (no record written), and
+    the resumed sweep estimated it again.  Now the D is written as the point's record without durations (the one a
+    sweep without them writes, to the bit), which the resumed sweep takes up: the estimator runs once."""
+    pts = sweep.grid(Gamma=[5.0], tau=[0.125])
+    out, plain = str(tmp_path / "s.jsonl"), str(tmp_path / "plain.jsonl")
+    calls, estimate, count = [], sweep.estimate_diffusivity, sweep._durations
+    monkeypatch.setattr(sweep, "estimate_diffusivity", lambda *a, **k: calls.append(a[1]) or estimate(*a, **k))
+
+    def ctrl_c(*a, **k):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(sweep, "_durations", ctrl_c)
+    r = sweep.run_sweep(pts, out, durations=64, n_excursions=200, seed=3)
+    assert r["interrupted"] and r["computed"] == 0 and len(calls) == 1
+    (kept,) = _lines(out)
+    sweep.run_sweep(pts, plain, n_excursions=200, seed=3)
+    (ref,) = _lines(plain)
+    assert "durations" not in kept["settings"] and kept["status"] == "ok" and kept["seed"] == ref["seed"]
+    assert kept["result"]["sums"] == ref["result"]["sums"] and kept["settings"] == ref["settings"]
+    monkeypatch.setattr(sweep, "_durations", count)
+    r = sweep.run_sweep(pts, out, durations=64, n_excursions=200, seed=3)
+    assert r["computed"] == 1 and not r["interrupted"] and len(calls) == 2  # the plain sweep's; none here
+    d_only, full = _lines(out)
+    assert d_only == kept and full["settings"]["durations"] == 64 and full["result"]["sums"] == kept["result"]["sums"]

@@ -177,7 +177,7 @@ def test_rows_fill_reason_and_stopped_by_with_empty_text(tmp_path):
     without the asked setting."""
     ok = _rec("ok", 5.0)
     refused = _rec("refused", 6.0, reason="max_work must be >= 1e12: stand-in")
-    bare = dict(_rec("ok", 7.0), settings={"method": "di"})
+    bare = dict(_rec("ok", 7.0), settings={"method": "di"}, version="0.1.0")
     out = _file(tmp_path, ok, refused, bare)
     got = [(x["Gamma"], x["status"], x["reason"], x["stopped_by"]) for x in sweep.rows(out)]
     assert got == [(5.0, "ok", "", ""), (6.0, "refused", refused["reason"], ""), (7.0, "ok", "", "")]
