@@ -335,7 +335,7 @@ def gather_hosts(result: EstimateResult) -> EstimateResult:
 
     r = _as_result(result, "result")
     _check_fields(r, "result")
-    if not isinstance(r.sums, dict) or set(r.sums) != set(STAT_NAMES):  # None was a TypeError
+    if not has_sums(r.sums):  # None was a TypeError
         raise ValueError("result has no excursion sums: rerun it with this version")
 
     def gather(x):

@@ -204,10 +204,11 @@ def _check_record(rec: dict) -> None:
                 _is_finite(d.get(k)) for k in ("mean", "ci", "n_excursions", "n_truncated")))
     elif ok:
         ok = isinstance(rec.get("reason"), str)
-    if ok and "seed" in rec and not _outdated(rec):
+    if ok and not _outdated(rec):
         # the seed this version derives from the record's identity: a hand-edited Gamma served the old point's
-        # result as the new point's (an audit)
-        ok = rec["seed"] == point_seed(rec["sweep_seed"], rec["params"], rec["settings"])
+        # result as the new point's (an audit); a record of this version always has it
+        s = rec.get("seed")
+        ok = type(s) is int and s == point_seed(rec["sweep_seed"], rec["params"], rec["settings"])
     if not ok:
         raise TypeError("not a sweep record")
 
@@ -523,25 +524,39 @@ def _compute(out: str, pt: dict, seed: int, settings: dict, max_time, within=Non
                                              max_time=max_time, progress=within and functools.partial(within, "D"))
                     if r.stopped_by == "interrupted":  # Ctrl-C inside the point: not a finished point
                         return None
-                    res = r.to_dict()
+                    d = r.to_dict()
                     for k in ("params", "seed"):
-                        res.pop(k)
+                        d.pop(k)
+                    res = d  # only once complete: a Ctrl-C keeps it (below)
                 extra = {} if settings.get(DURATIONS) is None else {
                     DURATIONS: _durations(pt, seed, settings, res.get("mean_duration"), max_time,
                                           within and functools.partial(within, DURATIONS))}
     except KeyboardInterrupt:
         if res is not None and base is None and settings.get(DURATIONS) is not None:
-            # stopped in the count: the finished D is kept as the point's record without durations, which the
-            # resumed sweep takes up (``base``) instead of estimating it again (it was lost: an audit)
-            d_only = _without_durations(settings)
-            put_record(out, _record(seed, pt, d_only, "ok", max_time, result=res),
-                       lambda old: _rec_ident(old) == _ident(seed, pt, d_only), read_results)
+            _keep_d(out, pt, seed, settings, max_time, res)
         return None
     except NoEstimateError as e:  # deterministic (unless max_time stopped it): recorded, not rerun on resume
         rec = _record(seed, pt, settings, "failed", max_time, reason=str(e), stopped_by=e.stopped_by)
     else:
         rec = _record(seed, pt, settings, "ok", max_time, result=res, **extra)
     return rec
+
+
+def _keep_d(out: str, pt: dict, seed: int, settings: dict, max_time, res: dict) -> None:
+    """A point stopped by a Ctrl-C in its count (``durations``): its finished D is written as its record without
+    durations, which the resumed sweep takes up (:func:`_compute`'s ``base``) instead of estimating it again (it was
+    lost: an audit) -- unless the file holds one that this sweep would keep (another sweep's, finished meanwhile).
+    Called while the Ctrl-C is handled: a failure to write (a full disk, a file another process spoiled) is said and
+    the D lost as before, so the Ctrl-C still ends the sweep as one."""
+    d_only = _without_durations(settings)
+    ident = _ident(seed, pt, d_only)
+    try:
+        if _finished_elsewhere(out, ident, max_time) is None:
+            put_record(out, _record(seed, pt, d_only, "ok", max_time, result=res),
+                       lambda old: _rec_ident(old) == ident, read_results)
+    except (OSError, ValueError) as e:
+        warnings.warn(f"the point's finished D could not be kept ({e}): a resumed sweep estimates it again",
+                      DryfricWarning, stacklevel=2)
 
 
 def _durations(pt: dict, seed: int, settings: dict, cycle_s, max_time=None, progress=None) -> dict:
@@ -621,7 +636,8 @@ def rows(path: str, seed: int | None = None, **settings) -> list[dict]:
     ``reason`` and ``stopped_by`` (``"max_time"`` for a point its time limit stopped; "" if
     unknown).  ``seed`` (the sweep seed) and keyword settings keep only the matching records (e.g.
     ``n_excursions=500``, ``durations=2048``; ``durations=None`` keeps the records without a count: a point given
-    ``durations`` after its D was recorded holds two records, its D's and its count's, and ``rows`` lists both)."""
+    ``durations`` after its D was recorded, or whose count a Ctrl-C stopped, holds two records, its D's and its
+    count's, and ``rows`` lists both)."""
     known = SETTING_KEYS + (DURATIONS,)
     unknown = sorted(set(settings) - set(known))
     if unknown:

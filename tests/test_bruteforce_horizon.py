@@ -170,8 +170,9 @@ def test_a_d_t_bias_beyond_its_ci_past_100_correlation_times_is_said():
     """An audit (2026-12-07): past 100 tau_c no warning came, yet the O(1/t) bias stays while the CI shrinks with the
     paths: at t = 100 tau0 (white noise, tau_L = inf) 10^4 paths covered the exact D in 28% of runs, and seed 3 gave
     D_t = 9.36 +- 0.37 against 10, silently.  Now api.d_bias_note says so, with the horizon that would bring the
-    quoted bias (5.75 tau_c/t D_t from rest, 2.8 after a burn-in) under a fifth of the half-width; not where it is
-    under it, nor below 100 tau_c (short_horizon_note's), nor with a CI of 0 (its own note)."""
+    quoted bias (5.75 tau_c/t D from rest, 2.8 after a burn-in; D = D_t/(1 - b/t)) under a fifth of the
+    half-width; not where it is under it, nor below 100 tau_c (short_horizon_note's), nor with a CI of 0 (its own
+    note)."""
     import re
 
     from dryfric_jax.api import D_BIAS_TAU_C, d_bias_note
@@ -324,11 +325,12 @@ def test_m0_t_is_offset_by_the_start_below_tau_0_5_too_and_it_is_said():
         z = r.M0_t / (r.M0_t_ci / 1.96)
         assert (z > 4 and r.M0_t * 30.0 < start_offset(p)) if said else abs(z) <= 2.81, (burn_in, z)
         assert bool(_notes(rec, "M0_t is biased by O(tau_c/t)")) is said
-    assert "the offset c u0/t ~ 0.01 m/s (c <= 0.3" in m0_lag_note(p, 30.0, 0.0, 0.0, 0.002)
+    assert "the offset c u0/max(t, tau_c) ~ 0.01 m/s (c <= 0.3" in m0_lag_note(p, 30.0, 0.0, 0.0, 0.002)
     assert m0_lag_note(p, 30.0, 0.0, 0.0, 0.06) is None  # 0.01 under a fifth of 0.06
     assert m0_lag_note(p, 30.0, 0.0, 0.0, 0.04) is not None
-    assert m0_lag_note(p, 0.1, 0.0, 0.0, 0.2) is not None  # at t < tau_c the offset is taken as built over tau_c:
-    assert m0_lag_note(p, 0.1, 0.0, 0.0, 2.0) is None  # 0.3 m/s, not 3
+    # at t < tau_c the offset is taken as built over tau_c: 0.3 m/s, not 3, and the note says which (a review)
+    assert "the offset c u0/max(t, tau_c) ~ 0.3 m/s" in m0_lag_note(p, 0.1, 0.0, 0.0, 0.2)
+    assert m0_lag_note(p, 0.1, 0.0, 0.0, 2.0) is None
 
 
 def test_the_burn_in_the_notes_ask_for_counts_as_given_not_as_rounded_to_whole_steps():

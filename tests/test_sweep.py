@@ -378,7 +378,8 @@ def test_a_record_of_this_version_needs_the_sums_combine_pools(tmp_path, sums, r
     n a string) or deleted passed as a finished point: a resumed sweep skipped it (rc 0) and only combine refused it,
     with the advice to rerun, which the sweep never did (an audit).  A record of another version may lack them: it
     is rerun anyway."""
-    rec = {**_GOOD, "version": dj.__version__, "result": {**_GOOD["result"], "sums": sums}}
+    rec = {**_GOOD, "version": dj.__version__, "result": {**_GOOD["result"], "sums": sums},
+           "seed": sweep.point_seed(0, _GOOD["params"], _GOOD["settings"])}
     out = tmp_path / "s.jsonl"
     if reads:
         assert sweep.read_results(_write(out, rec))[0]["result"]["sums"]["t"] == 5.0
@@ -402,9 +403,12 @@ def test_a_record_whose_identity_was_edited_is_refused(tmp_path, capsys):
     rec = sweep._record(0, {**FIG3, "Gamma": 10.0}, check_settings(n_excursions=50), "ok", result=_GOOD["result"])
     out = tmp_path / "s.jsonl"
     assert sweep.read_results(_write(out, rec))[0]["params"]["Gamma"] == 10.0  # as written, it reads
-    for edit in (dict(params={**rec["params"], "Gamma": 15.0}), dict(sweep_seed=1),
-                 dict(settings={**rec["settings"], "n_excursions": 60})):
-        text = _write(out, {**rec, **edit}) and out.read_text()
+    no_seed = {k: v for k, v in rec.items() if k != "seed"}
+    for edited in ({**rec, "params": {**rec["params"], "Gamma": 15.0}}, {**rec, "sweep_seed": 1},
+                   {**rec, "settings": {**rec["settings"], "n_excursions": 60}},
+                   {**no_seed, "params": {**rec["params"], "Gamma": 15.0}},  # the seed deleted too (a review)
+                   {**rec, "seed": float(rec["seed"])}):
+        text = _write(out, edited) and out.read_text()
         with pytest.raises(ValueError, match="line 1 is not a sweep record"):
             sweep.read_results(str(out))
         assert main(["sweep", "--Gamma", "15", "--n-excursions", "50", "--out", str(out)]) == 2

@@ -249,3 +249,39 @@ def test_a_point_interrupted_in_its_count_keeps_its_d_for_the_resumed_sweep(tmp_
     assert r["computed"] == 1 and not r["interrupted"] and len(calls) == 2  # the plain sweep's; none here
     d_only, full = _lines(out)
     assert d_only == kept and full["settings"]["durations"] == 64 and full["result"]["sums"] == kept["result"]["sums"]
+
+
+def test_a_count_stopped_by_ctrl_c_neither_overwrites_a_kept_d_nor_fails_on_a_write(tmp_path, monkeypatch, capsys):
+    """A review: the D kept at a Ctrl-C in the count replaced whatever record of the point's D the file held, also
+    one another sweep had finished meanwhile (and the kept one could be cut short by max_time); and an error of that
+    write, inside the Ctrl-C's handling, replaced the Ctrl-C (a traceback, not "interrupted").  Now another sweep's
+    finished record stays, and a failed write is said and the sweep ends as interrupted."""
+    pts = sweep.grid(Gamma=[5.0], tau=[0.125])
+    out = str(tmp_path / "s.jsonl")
+    kw = dict(n_excursions=200, seed=3)
+
+    def other_sweep_then_ctrl_c(pt, seed, settings, *a, **k):
+        d_only = {s: v for s, v in settings.items() if s != "durations"}
+        rec = sweep._record(seed, pt, d_only, "ok", result={**_lines(plain)[0]["result"]}, marker="other sweep")
+        dj.outfiles.put_record(out, rec, lambda old: False, sweep.read_results)
+        raise KeyboardInterrupt
+
+    plain = str(tmp_path / "plain.jsonl")
+    sweep.run_sweep(pts, plain, **kw)
+    monkeypatch.setattr(sweep, "_durations", other_sweep_then_ctrl_c)
+    assert sweep.run_sweep(pts, out, durations=64, **kw)["interrupted"]
+    (rec,) = _lines(out)
+    assert rec["marker"] == "other sweep"
+
+    def ctrl_c(*a, **k):
+        raise KeyboardInterrupt
+
+    def full_disk(*a, **k):
+        raise OSError(28, "No space left on device")
+
+    out2 = str(tmp_path / "s2.jsonl")
+    monkeypatch.setattr(sweep, "_durations", ctrl_c)
+    monkeypatch.setattr(sweep, "put_record", full_disk)
+    with pytest.warns(dj.DryfricWarning, match="finished D could not be kept .*No space left on device"):
+        r = sweep.run_sweep(pts, out2, durations=64, **kw)
+    assert r["interrupted"] and (not os.path.exists(out2) or _lines(out2) == [])

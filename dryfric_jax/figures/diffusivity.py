@@ -231,8 +231,9 @@ def fig5(out_dir, quick, seed):
     h_nd = h / p.tau0
     every = max(1, round(0.05 / h_nd))
     report_step("DI stationary paths for the histogram (1 of 2)")
-    # V only, in m/s, and no array of its size made from it but np.quantile's copy: at full settings it is 4096 x
-    # 40,000 (1.3 GB), and the scene peaked at 5.6 GB when it kept U, V * v0 and V^2 beside it (3.0 GB now)
+    # V only, in m/s (the scaled copy made once, briefly beside the unscaled one), then no array of its size but
+    # np.quantile's copy: at full settings V is 4096 x 40,000 (1.3 GB), and the scene peaked at 5.6 GB when it kept
+    # U, V * v0 and V^2 beside it (3.0 GB now)
     V = di_stationary(m, jax.random.key(seed), paths, round(length / (every * h_nd)), every,
                       burn_steps=round(40 / h_nd), record="V")[0] * p.v0
     v = V.ravel()
