@@ -234,10 +234,9 @@ def m0_lag_note(params: Params, t: float, burn_in: float, m0_t: float, m0_ci: fl
             f"M0 (t - L) + c u0, by up to ~{lag + offset:.2g} m/s here (tau_c = {tc:.3g} s): the lag "
             f"~min({M0_LAG_TAU_C:g} tau_c/t, 1) |M0| ~ {lag:.2g} m/s (measured: 2.5-3.3% low at t = 100 tau_c) "
             f"and the offset c u0/max(t, tau_c) ~ {offset:.2g} m/s (c <= {c:.2g}: min(tau/tau0, 1) (|1 - gamma_bar'| + "
-            "3 delta'), "
-            f"measured up to 0.68), against its CI half-width {m0_ci:.2g}, which does not include them; add burn_in >= "
-            f"{M0_BURN_IN_TAU_C:g} tau_c = {M0_BURN_IN_TAU_C * tc:.3g} s, or use estimate_diffusivity, which has no "
-            "such bias")
+            f"3 delta'), measured up to 0.68), against its CI half-width {m0_ci:.2g}, which does not include them; add "
+            f"burn_in >= {M0_BURN_IN_TAU_C:g} tau_c = {M0_BURN_IN_TAU_C * tc:.3g} s, or use estimate_diffusivity, "
+            "which has no such bias")
 
 
 #: the notes of an estimate whose excursions were truncated, by cause (the CLI names the option
