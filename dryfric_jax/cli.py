@@ -929,7 +929,8 @@ def _sweep(a) -> int:
         print(f"{_points(out['computed'])} computed, {out['skipped']} already in {a.out}, {out['total']} in the grid"
               + twice + extra)
     if out["interrupted"]:
-        print(f"dryfric: interrupted: {_points(out['computed'])} newly written to {a.out}; run the same command "
+        kept = (" and the finished D of the point in progress (not its duration count)" if out["kept_d"] else "")
+        print(f"dryfric: interrupted: {_points(out['computed'])}{kept} newly written to {a.out}; run the same command "
               "again to resume", file=sys.stderr)
         return 130
     if out["time_limited"]:

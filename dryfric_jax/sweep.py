@@ -356,7 +356,7 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
 
     Returns:
         ``dict(computed=k, skipped=s, total=n, duplicates=d, interrupted=bool, refused=r, failed=f,
-        truncated=t, time_limited=m, no_count=c)``: n distinct points (d more entries repeat one of them: a point
+        truncated=t, time_limited=m, no_count=c, kept_d=e)``: n distinct points (d more entries repeat one of them: a point
         listed twice runs once; -0.0 is 0.0), k run now (``"ok"`` or ``"failed"``), s found in the
         file (``"ok"`` or ``"failed"``, not rerun); r, f, t and m count the grid's points now recorded as
         refused, failed, ``"ok"`` with truncated excursions (a result biased low), or stopped by
@@ -365,7 +365,7 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
         without a mean within its loop's bound (not stopped by ``max_time``: those are in m).  A point another sweep
         finished while this one ran is counted in s.  A Ctrl-C stops after the points already
         written; the point in progress is not written, except a D it finished before its count (``durations``),
-        written as its record without the count, which a resumed sweep takes up.
+        written as its record without the count, which a resumed sweep takes up (e = 1 then, else 0; not in k).
     """
     check_writable(out)
     points = _check_points(points)
@@ -435,7 +435,7 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
     skipped = done - sum(i in have and status(have[i]) == "refused" for i in distinct)
     if progress:
         progress(done, total, None)
-    interrupted, later, tally = False, [], []  # tally: the points computed and written
+    interrupted, later, tally, kept_d = False, [], [], []  # tally: the points computed and written
     # a point another sweep is computing (claimed) is left for later and waited for after the others:
     # it is usually finished by then, and is not computed twice
     for wait, queue in ((False, todo), (True, later)):
@@ -451,7 +451,7 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
                     else:
                         within = None if point_progress is None else functools.partial(
                             _within, point_progress, dict(params=pt, done=done, total=total))
-                        rec = _compute(out, pt, seed, settings, max_time, within)
+                        rec = _compute(out, pt, seed, settings, max_time, within, kept_d)
                         if rec is None:  # Ctrl-C: the point in progress is not written
                             interrupted = True
                             break
@@ -479,7 +479,8 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
                                            or (r.get(DURATIONS) or {}).get("n_truncated", 0) > 0) for r in mine)
     return dict(computed=len(tally), skipped=skipped, total=total, duplicates=len(full) - total,
                 interrupted=interrupted, refused=count["refused"], failed=count["failed"], truncated=truncated,
-                time_limited=sum(map(_time_limited, mine)), no_count=sum(map(_count_failed, mine)))
+                time_limited=sum(map(_time_limited, mine)), no_count=sum(map(_count_failed, mine)),
+                kept_d=len(kept_d))
 
 
 def _finished_elsewhere(out: str, ident: str, max_time) -> dict | None:
@@ -498,9 +499,10 @@ def _within(point_progress, where: dict, stage: str, d: dict) -> None:
     point_progress({**d, "stage": stage, **where})
 
 
-def _compute(out: str, pt: dict, seed: int, settings: dict, max_time, within=None) -> dict | None:
+def _compute(out: str, pt: dict, seed: int, settings: dict, max_time, within=None, kept_d=None) -> dict | None:
     """Run one point and return its record (``"ok"`` or ``"failed"``), for the caller to write; None if Ctrl-C
-    stopped it (its finished D, if the count stopped, written here as its record without durations).  ``within(stage,
+    stopped it (its finished D, if the count stopped, written here as its record without durations, and the point
+    appended to the list ``kept_d``).  ``within(stage,
     dict)``, if given, is called with the D estimate's (``"D"``) and the count's (``"durations"``) progress."""
     method, h, delta, dtype, n_excursions, rtol, max_work = (settings[k] for k in SETTING_KEYS)
     s = point_seed(seed, pt, settings)
@@ -533,7 +535,8 @@ def _compute(out: str, pt: dict, seed: int, settings: dict, max_time, within=Non
                                           within and functools.partial(within, DURATIONS))}
     except KeyboardInterrupt:
         if res is not None and base is None and settings.get(DURATIONS) is not None:
-            _keep_d(out, pt, seed, settings, max_time, res)
+            if _keep_d(out, pt, seed, settings, max_time, res) and kept_d is not None:
+                kept_d.append(pt)
         return None
     except NoEstimateError as e:  # deterministic (unless max_time stopped it): recorded, not rerun on resume
         rec = _record(seed, pt, settings, "failed", max_time, reason=str(e), stopped_by=e.stopped_by)
@@ -542,21 +545,23 @@ def _compute(out: str, pt: dict, seed: int, settings: dict, max_time, within=Non
     return rec
 
 
-def _keep_d(out: str, pt: dict, seed: int, settings: dict, max_time, res: dict) -> None:
+def _keep_d(out: str, pt: dict, seed: int, settings: dict, max_time, res: dict) -> bool:
     """A point stopped by a Ctrl-C in its count (``durations``): its finished D is written as its record without
     durations, which the resumed sweep takes up (:func:`_compute`'s ``base``) instead of estimating it again (it was
     lost: an audit) -- unless the file holds one that this sweep would keep (another sweep's, finished meanwhile).
     Called while the Ctrl-C is handled: a failure to write (a full disk, a file another process spoiled) is said and
-    the D lost as before, so the Ctrl-C still ends the sweep as one."""
+    the D lost as before, so the Ctrl-C still ends the sweep as one.  True if it wrote the record."""
     d_only = _without_durations(settings)
     ident = _ident(seed, pt, d_only)
     try:
         if _finished_elsewhere(out, ident, max_time) is None:
             put_record(out, _record(seed, pt, d_only, "ok", max_time, result=res),
                        lambda old: _rec_ident(old) == ident, read_results)
+            return True
     except (OSError, ValueError) as e:
         warnings.warn(f"the point's finished D could not be kept ({e}): a resumed sweep estimates it again",
                       DryfricWarning, stacklevel=2)
+    return False
 
 
 def _durations(pt: dict, seed: int, settings: dict, cycle_s, max_time=None, progress=None) -> dict:

@@ -189,6 +189,11 @@ def test_sweep_counts_notes_and_exit_codes(calls, tmp_path, capsys):
     assert main(["sweep", "--out", out]) == 130
     assert (f"dryfric: interrupted: 2 points newly written to {out}; run the same command again to resume"
             in capsys.readouterr().err)
+    # a Ctrl-C in a point's duration count keeps its D (run_sweep's kept_d): said, not "0 points" alone
+    calls.summary.update(computed=0, kept_d=1)
+    assert main(["sweep", "--out", out, "--durations", "100"]) == 130
+    assert (f"dryfric: interrupted: 0 points and the finished D of the point in progress (not its duration count) "
+            f"newly written to {out}; run the same command again" in capsys.readouterr().err)
 
 
 @pytest.mark.parametrize("cmd", ["sweep", "figures"])

@@ -57,7 +57,7 @@ def calls(monkeypatch):
     monkeypatch.setattr(bench, "format_layouts", lambda b: "layouts table")
     monkeypatch.setattr(bench, "format_table", lambda b: "bench table")
     summary = dict(computed=0, skipped=0, total=0, duplicates=0, interrupted=False, refused=0, failed=0,
-                   truncated=0, time_limited=0, no_count=0)
+                   truncated=0, time_limited=0, no_count=0, kept_d=0)
     monkeypatch.setattr(sweep, "run_sweep", lambda pts, out, **kw: (got.append(("sweep", (pts, out), kw)),
                                                                      dict(summary))[1])
     ns = types.SimpleNamespace(list=got, result=got_result, summary=summary, rec=rec)

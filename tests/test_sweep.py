@@ -25,7 +25,7 @@ def test_resume_skips_finished_points_and_adds_new_ones(tmp_path):
     kw = dict(n_excursions=200, seed=3)
     r1 = sweep.run_sweep(sweep.grid(Gamma=[2.0, 5.0]), out, **kw)
     assert r1 == dict(computed=2, skipped=0, total=2, duplicates=0, interrupted=False, refused=0, failed=0,
-                      truncated=0, time_limited=0, no_count=0)
+                      truncated=0, time_limited=0, no_count=0, kept_d=0)
     first = _lines(out)
     r2 = sweep.run_sweep(sweep.grid(Gamma=[5.0, 2.0, 8.0, 8.0]), out, **kw)  # reordered, one new, one twice
     assert (r2["computed"], r2["skipped"], r2["total"], r2["duplicates"]) == (1, 2, 3, 1)
@@ -258,7 +258,7 @@ def test_refused_and_failed_points_are_recorded_and_the_sweep_goes_on(tmp_path, 
         r1 = sweep.run_sweep(pts, out, progress=lambda d, t, rec: (seen.append(rec), sweep.progress_bar(d, t, rec)),
                              **kw)
     assert r1 == dict(computed=2, skipped=0, total=3, duplicates=0, interrupted=False, refused=1, failed=1,
-                      truncated=0, time_limited=0, no_count=0)
+                      truncated=0, time_limited=0, no_count=0, kept_d=0)
     recs = _lines(out)
     assert [(r["params"]["Gamma"], r["status"]) for r in recs] == [(0.5, "refused"), (20.0, "ok"), (1e6, "failed")]
     assert recs[0]["reason"].startswith("max_work must be >= ") and "result" not in recs[0]
@@ -279,7 +279,7 @@ def test_refused_and_failed_points_are_recorded_and_the_sweep_goes_on(tmp_path, 
 
     # resumed: nothing rerun, the file unchanged; the CLI says why it exits 1
     assert sweep.run_sweep(pts, out, **kw) == dict(computed=0, skipped=2, total=3, duplicates=0, interrupted=False,
-                                                   refused=1, failed=1, truncated=0, time_limited=0, no_count=0)
+                                                   refused=1, failed=1, truncated=0, time_limited=0, no_count=0, kept_d=0)
     assert _lines(out) == recs
     argv = ["sweep", "--Gamma", "0.5,20,1e6", "--n-excursions", "50", "--max-work", "1.2e7", "--out", out]
     assert main(argv + ["--skip-refused"]) == 1
@@ -442,7 +442,7 @@ def test_max_time_bounds_each_point_and_a_resumed_sweep_with_more_time_reruns_it
     # round's compacted tail, inside the deadline 4 (at max_time 1 it cuts the final round, truncating)
     r1 = sweep.run_sweep(pts, out, max_time=2.0, n_excursions=3000)
     assert r1 == dict(computed=2, skipped=0, total=2, duplicates=0, interrupted=False, refused=0, failed=0,
-                      truncated=0, time_limited=2, no_count=0)
+                      truncated=0, time_limited=2, no_count=0, kept_d=0)
     first = _lines(out)
     assert [(r["status"], sweep.stopped_by(r), r["max_time"]) for r in first] == [("ok", "max_time", 2.0)] * 2
     assert all(0 < r["result"]["n_excursions"] < 3000 for r in first)

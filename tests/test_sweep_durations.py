@@ -238,7 +238,7 @@ def test_a_point_interrupted_in_its_count_keeps_its_d_for_the_resumed_sweep(tmp_
 
     monkeypatch.setattr(sweep, "_durations", ctrl_c)
     r = sweep.run_sweep(pts, out, durations=64, n_excursions=200, seed=3)
-    assert r["interrupted"] and r["computed"] == 0 and len(calls) == 1
+    assert r["interrupted"] and (r["computed"], r["kept_d"]) == (0, 1) and len(calls) == 1
     (kept,) = _lines(out)
     sweep.run_sweep(pts, plain, n_excursions=200, seed=3)
     (ref,) = _lines(plain)
@@ -246,7 +246,7 @@ def test_a_point_interrupted_in_its_count_keeps_its_d_for_the_resumed_sweep(tmp_
     assert kept["result"]["sums"] == ref["result"]["sums"] and kept["settings"] == ref["settings"]
     monkeypatch.setattr(sweep, "_durations", count)
     r = sweep.run_sweep(pts, out, durations=64, n_excursions=200, seed=3)
-    assert r["computed"] == 1 and not r["interrupted"] and len(calls) == 2  # the plain sweep's; none here
+    assert (r["computed"], r["kept_d"]) == (1, 0) and not r["interrupted"] and len(calls) == 2  # the plain sweep's
     d_only, full = _lines(out)
     assert d_only == kept and full["settings"]["durations"] == 64 and full["result"]["sums"] == kept["result"]["sums"]
 
@@ -269,7 +269,8 @@ def test_a_count_stopped_by_ctrl_c_neither_overwrites_a_kept_d_nor_fails_on_a_wr
     plain = str(tmp_path / "plain.jsonl")
     sweep.run_sweep(pts, plain, **kw)
     monkeypatch.setattr(sweep, "_durations", other_sweep_then_ctrl_c)
-    assert sweep.run_sweep(pts, out, durations=64, **kw)["interrupted"]
+    r = sweep.run_sweep(pts, out, durations=64, **kw)
+    assert r["interrupted"] and r["kept_d"] == 0
     (rec,) = _lines(out)
     assert rec["marker"] == "other sweep"
 
@@ -284,4 +285,4 @@ def test_a_count_stopped_by_ctrl_c_neither_overwrites_a_kept_d_nor_fails_on_a_wr
     monkeypatch.setattr(sweep, "put_record", full_disk)
     with pytest.warns(dj.DryfricWarning, match="finished D could not be kept .*No space left on device"):
         r = sweep.run_sweep(pts, out2, durations=64, **kw)
-    assert r["interrupted"] and (not os.path.exists(out2) or _lines(out2) == [])
+    assert r["interrupted"] and r["kept_d"] == 0 and (not os.path.exists(out2) or _lines(out2) == [])
