@@ -10,8 +10,8 @@ import jax.numpy as jnp
 import pytest
 
 from dryfric_jax import outfiles, sharding, sweep, xla_flags
-from dryfric_jax.excursions import STAT_NAMES
 from dryfric_jax.outfiles import claim, claims_dir
+from test_sweep_mutants import stand_in_result
 
 
 def _held_now(path, key):
@@ -115,8 +115,7 @@ def _record(status, **what):
     return rec, sweep._rec_ident(rec)
 
 
-_RESULT = dict(D=1.0, D_ci=0.1, M0=0.5, M0_ci=0.05, n_truncated=0,
-               sums={**{k: 1.0 for k in STAT_NAMES}, "n": 10, "t": 5.0})
+_RESULT = stand_in_result()  # at Fig. 3's point, as _record's
 
 
 @pytest.mark.parametrize("case", ["max_time", "version", "refused", "ok"])
@@ -268,7 +267,8 @@ def test_a_ctrl_c_while_waiting_for_another_sweeps_point_stops_the_sweep(tmp_pat
             yield c
 
     def fake(p, seed, **kw):
-        return types.SimpleNamespace(stopped_by="rtol", to_dict=lambda: dict(_RESULT, params={}, seed=seed))
+        return types.SimpleNamespace(stopped_by="rtol", to_dict=lambda: dict(stand_in_result(p.as_dict()), params={},
+                                                                              seed=seed))
 
     monkeypatch.setattr(sweep, "claim", ctrl_c_in_wait)
     monkeypatch.setattr(sweep, "estimate_diffusivity", fake)
@@ -297,7 +297,8 @@ def _fake_estimate(p, seed, **kw):
     import types
 
     _fake_estimate.calls.append(p.Gamma)
-    return types.SimpleNamespace(stopped_by="rtol", to_dict=lambda: dict(_RESULT, params={}, seed=seed))
+    return types.SimpleNamespace(stopped_by="rtol", to_dict=lambda: dict(stand_in_result(p.as_dict()), params={},
+                                                                          seed=seed))
 
 
 def test_a_point_claimed_elsewhere_is_computed_after_the_others_once_released(tmp_path, monkeypatch):

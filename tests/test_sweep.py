@@ -13,6 +13,7 @@ import pytest
 import dryfric_jax as dj
 from dryfric_jax import ProjectionWarning, sweep
 from dryfric_jax.cli import main
+from test_sweep_mutants import stand_in_result
 
 
 def _lines(path):
@@ -339,10 +340,10 @@ def test_grid_axes_are_lists_of_numbers():
     assert sweep.grid(Gamma=5.0, tau=(0.5, 1.0)) == [dict(Gamma=5.0, tau=0.5), dict(Gamma=5.0, tau=1.0)]
 
 
-_SUMS = {**{k: 1.0 for k in dj.excursions.STAT_NAMES}, "n": 10, "t": 5.0}  # a record of this version has them
-_GOOD = dict(params={"Gamma": 5.0, "Delta": 3.84, "tau": 0.5, "tau_L": 0.067, "gamma_bar": 0.342},
-             settings={"method": "di", "n_excursions": 50}, sweep_seed=0, status="ok",
-             result={"D": 1.0, "D_ci": 0.1, "M0": 0.0, "M0_ci": 0.1, "n_truncated": 0, "sums": _SUMS})
+_PARAMS = {"Gamma": 5.0, "Delta": 3.84, "tau": 0.5, "tau_L": 0.067, "gamma_bar": 0.342}
+_GOOD = dict(params=_PARAMS, settings={"method": "di", "n_excursions": 50}, sweep_seed=0, status="ok",
+             result=stand_in_result(_PARAMS))
+_SUMS = _GOOD["result"]["sums"]  # a record of this version has them
 
 
 @pytest.mark.parametrize("edit", [
@@ -354,7 +355,7 @@ _GOOD = dict(params={"Gamma": 5.0, "Delta": 3.84, "tau": 0.5, "tau_L": 0.067, "g
 ])
 def test_a_malformed_record_refuses_the_file_before_any_work(tmp_path, edit, capsys):
     out = tmp_path / "s.jsonl"
-    assert sweep.read_results(_write(out, _GOOD))[0]["result"]["D"] == 1.0  # the well-formed one reads
+    assert sweep.read_results(_write(out, _GOOD))[0]["result"]["D"] == _GOOD["result"]["D"]  # the well-formed one
     text = json.dumps({**_GOOD, **edit}) + "\n"
     out.write_text(text)
     assert main(["sweep", "--Gamma", "6", "--n-excursions", "50", "--out", str(out)]) == 2
@@ -362,6 +363,25 @@ def test_a_malformed_record_refuses_the_file_before_any_work(tmp_path, edit, cap
     assert out.read_text() == text
     with pytest.raises(ValueError, match="line 1 is not a sweep record"):
         sweep.rows(str(out))
+
+
+@pytest.mark.parametrize("edit,reads", [
+    ({}, True), ({"D": -5.0}, False), ({"M0": 0.0}, False), ({"n_excursions": 11}, False),
+    ({"n_excursions": 10.0}, False), ({"D_ci": 0.2, "M0_ci": 0.01}, True),
+])
+def test_a_record_of_this_version_needs_the_numbers_of_its_sums(tmp_path, edit, reads):
+    """DEFECT (fixed in sweep._agrees_with_sums): a record of this version whose D, M0 or n_excursions was
+    hand-edited away from its sums (D = -5) read as the point's result in rows(), while combine pooled the sums.
+    The stand-in's D is 0.128 D0 and M0 0.2 v0 (sums U = U2 = Ut = t2 = 1, t = 5); a CI is not checked."""
+    res = {**_GOOD["result"], **edit}
+    assert math.isclose(_GOOD["result"]["D"], 0.128 * 5**3 / 3.84**4) and math.isclose(_GOOD["result"]["M0"], 0.2 * 5 / 3.84)
+    rec = {**_GOOD, "version": dj.__version__, "result": res, "seed": sweep.point_seed(0, _PARAMS, _GOOD["settings"])}
+    out = tmp_path / "s.jsonl"
+    if reads:
+        assert sweep.rows(_write(out, rec))[0]["D"] == _GOOD["result"]["D"]
+    else:
+        with pytest.raises(ValueError, match="line 1 is not a sweep record"):
+            sweep.rows(_write(out, rec))
 
 
 def _write(path, rec):
@@ -400,7 +420,8 @@ def test_a_record_whose_identity_was_edited_is_refused(tmp_path, capsys):
     from dryfric_jax.params import FIG3
     from dryfric_jax.plan import check_settings
 
-    rec = sweep._record(0, {**FIG3, "Gamma": 10.0}, check_settings(n_excursions=50), "ok", result=_GOOD["result"])
+    rec = sweep._record(0, {**FIG3, "Gamma": 10.0}, check_settings(n_excursions=50), "ok",
+                        result=stand_in_result({"Gamma": 10.0}))
     out = tmp_path / "s.jsonl"
     assert sweep.read_results(_write(out, rec))[0]["params"]["Gamma"] == 10.0  # as written, it reads
     no_seed = {k: v for k, v in rec.items() if k != "seed"}
@@ -678,7 +699,8 @@ def test_a_point_another_sweep_is_computing_is_not_computed_twice(tmp_path, monk
 
     def fake(p, seed, **kw):
         calls.append(p.Gamma)
-        return types.SimpleNamespace(stopped_by="rtol", to_dict=lambda: dict(_GOOD["result"], params={}, seed=seed))
+        return types.SimpleNamespace(stopped_by="rtol", to_dict=lambda: dict(stand_in_result(p.as_dict()), params={},
+                                                                              seed=seed))
 
     monkeypatch.setattr(sweep, "estimate_diffusivity", fake)
     kw = dict(n_excursions=50, seed=4)
@@ -767,7 +789,8 @@ def test_a_signal_while_a_finished_point_is_written_keeps_it(tmp_path, monkeypat
 
     def good(*a, **k):
         calls.append(1)
-        return types.SimpleNamespace(stopped_by="n_excursions", to_dict=lambda: dict(_GOOD["result"], params={}, seed=0))
+        return types.SimpleNamespace(stopped_by="n_excursions",
+                                     to_dict=lambda: dict(stand_in_result(a[0].as_dict()), params={}, seed=0))
 
     def signalled(*a, **k):
         signal.raise_signal(getattr(signal, signum))  # in the middle of the write, the lock held

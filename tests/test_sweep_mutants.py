@@ -9,16 +9,28 @@ import math
 import os
 import types
 
+import numpy as np
 import pytest
 
 import dryfric_jax as dj
 from dryfric_jax import outfiles, sweep
 from dryfric_jax.api import NoEstimateError
+from dryfric_jax.estimators import psi_D, psi_M
 from dryfric_jax.excursions import STAT_NAMES
 from dryfric_jax.cli import main
-from dryfric_jax.params import FIG3
+from dryfric_jax.params import FIG3, Params
 
 KW = dict(n_excursions=50)
+
+
+def stand_in_result(point=None, seed=0, n=10, **extra):
+    """A stand-in result at the parameters ``point`` (Fig. 3's by default) whose D, M0 and n_excursions are those of its sums, as
+    a record of this version must have (sweep._agrees_with_sums); the sums' U^2 moves with ``seed``, and D with it."""
+    sums = {**{k: 1.0 for k in STAT_NAMES}, "n": n, "t": 5.0, "U2": 1.0 + seed / 2**31}
+    p = Params(**{**FIG3, **(point or {})})
+    x = np.array([sums[k] for k in ("U", "U2", "t", "Ut", "t2")]) / sums["n"]
+    return {**dict(D=float(psi_D(x)) * p.D0, D_ci=0.1, M0=float(psi_M(x)) * p.v0, M0_ci=0.05, n_truncated=0,
+                   n_excursions=n, sums=sums), **extra}
 
 
 def _lines(path):
@@ -36,9 +48,8 @@ def calls(monkeypatch):
         got.append((p.as_dict(), seed))
         if p.Gamma == 3.0:
             raise NoEstimateError("fewer than 2 complete excursions within the work bounds (stand-in)")
-        res = dict(D=1.0 + seed / 2**31, D_ci=0.1, M0=0.5, M0_ci=0.05, mean_duration=1.0, n_truncated=0,
-                   n_excursions=kw["n_excursions"], method=kw["method"], stopped_by="n_excursions",
-                   params={}, seed=seed, sums={**{k: 1.0 for k in STAT_NAMES}, "n": 10, "t": 5.0})
+        res = {**stand_in_result(p.as_dict(), seed, kw["n_excursions"]), **dict(mean_duration=1.0, method=kw["method"], params={},
+                                                             stopped_by="n_excursions", seed=seed)}
         return types.SimpleNamespace(stopped_by="n_excursions", to_dict=lambda: dict(res))
 
     monkeypatch.setattr(sweep, "estimate_diffusivity", estimate)
