@@ -24,6 +24,7 @@ Decisions, in order:
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass, field
 
 import jax
@@ -150,6 +151,49 @@ def check_layout(lanes, block):
         raise ValueError(f"lanes * block must be <= 2^28 (a block's normals are drawn at once) "
                          f"(got lanes = {lanes}, block = {block})")
     return None if lanes is None else int(lanes), int(block)
+
+
+#: the engine's peak memory per layout on a CPU, a lower fit (bytes): ``LAYOUT_PEAK_PER_NUMBER`` times a block's random
+#: numbers (2 per lane-step, of the dtype's size), plus ``LAYOUT_PEAK_PER_LANE`` a lane, plus ``LAYOUT_PEAK_BASE``
+#: (Python, JAX and the compiled code: 0.26 GB after importing them).  Measured peak RSS of
+#: ``dryfric estimate --lanes L --block K`` (2026-12-07, stop 91): float64 2.57 GB at L = 2^20, K = 64; 6.50 GB at
+#: 2^20, 256; 5.90 GB at 2^18, 1024; 8.96 GB at 2^22, 64 (the fit 1.22 x the numbers + 780 B a lane + 0.44 GB, within
+#: 1%); float32 4.39 GB at 2^20, 256 (the fit 3.9 GB: float32 is over it too)
+LAYOUT_PEAK_PER_NUMBER, LAYOUT_PEAK_PER_LANE, LAYOUT_PEAK_BASE = 1.2, 768, 0.4e9
+
+
+def host_memory() -> int | None:
+    """This machine's memory in bytes (the smaller of the physical memory and a cgroup v2 limit), None where
+    unknown (no ``sysconf``: Windows)."""
+    try:
+        mem = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (AttributeError, ValueError, OSError):
+        return None
+    try:
+        with open("/sys/fs/cgroup/memory.max") as f:
+            limit = f.read().strip()
+        if limit.isdigit():
+            mem = min(mem, int(limit))
+    except OSError:
+        pass
+    return mem if mem > 0 else None
+
+
+def check_layout_memory(lanes: int, block: int, dtype: str, name: str = "lanes") -> None:
+    """``ValueError`` naming ``name`` when the engine's layout needs more memory than this machine has, by the lower
+    fit :data:`LAYOUT_PEAK_PER_NUMBER`, on a CPU (host memory; not checked on other devices, where it was not
+    measured).  2^22 lanes at K = 64 (float64), which :func:`check_layout` allows, peaked at 9 GB: on an 8 GB
+    machine it was killed, its results with it."""
+    mem = host_memory()
+    if mem is None or jax.default_backend() != "cpu":
+        return
+    per_lane = LAYOUT_PEAK_PER_NUMBER * 2 * block * np.dtype(dtype).itemsize + LAYOUT_PEAK_PER_LANE
+    need = lanes * per_lane + LAYOUT_PEAK_BASE
+    if need > mem:
+        most = max(int((mem - LAYOUT_PEAK_BASE) // per_lane), 0)
+        raise ValueError(f"{name} = {lanes} at block = {block} ({dtype}) needs at least {need / 2**30:.3g} GiB of memory "
+                         f"(a block's 2 random numbers per lane-step, the lanes' state and JAX), more than this "
+                         f"machine's {mem / 2**30:.3g} GiB: use at most {most} lanes at this block, or a smaller block")
 
 
 def check_max_work(max_work) -> float:
@@ -323,6 +367,7 @@ def plan_estimate(params: Params, *, method: str = "di", h: float | None = None,
                           "the excursions asked for, and their work); fewer lanes keep to n_excursions")
     plan.block = int(default_block(plan.method, plan.lanes) if block is None else block1)
     check_layout(plan.lanes, plan.block)
+    check_layout_memory(plan.lanes, plan.block, plan.dtype)
     plan.max_work = max_work
     if max_steps is None:
         plan.max_steps = max_steps_per_excursion(*nd, plan.per_tau0, cap=max(max_work / plan.lanes, 64),

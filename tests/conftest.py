@@ -79,3 +79,12 @@ def solve_rounding():
     one CPU (LAPACK's kernels differ by CPU, the old 1e-12 bound failed there by 20%); a drift from
     an asymmetric grid or kernel would be orders of magnitude larger."""
     return lambda law: 100 * law.n_nodes * np.finfo(float).eps * math.sqrt(law.mean_v2)
+
+
+@pytest.fixture(autouse=True)
+def a_machine_of_64_gib(monkeypatch):
+    """The plan refuses a layout beyond this machine's memory (plan.check_layout_memory): the tests plan large
+    layouts (2^22 lanes, 8.2 GiB by that check) on any machine, so in this process they see 64 GiB
+    (tests/test_memory_bounds.py sets its own)."""
+    from dryfric_jax import plan
+    monkeypatch.setattr(plan, "host_memory", lambda: 64 * 2**30)

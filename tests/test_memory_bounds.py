@@ -11,6 +11,7 @@ import dryfric_jax as dj
 from dryfric_jax.estimators import MAX_PATHS
 from dryfric_jax.paths import MAX_EXCURSION_STEPS, MAX_RECORDED, di_long_excursion, di_stationary, di_transient
 from dryfric_jax.pdmp import MAX_SKELETON_EVENTS, excursion_skeleton, make_pdmp_model
+from dryfric_jax.plan import host_memory as real_host_memory
 
 P = dj.Params(1.0, 1.0, 1.0, 1.0, 0.0)
 
@@ -61,3 +62,28 @@ def test_the_package_runs_as_a_module():
     out = subprocess.run([sys.executable, "-m", "dryfric_jax", "bruteforce", "--t", "1", "--n-paths", "1000000000"],
                          capture_output=True, text=True)
     assert out.returncode == 2 and "--n-paths must be an integer in [3, 2^26]" in out.stderr, out.stderr
+
+
+def test_a_layout_beyond_this_machines_memory_is_refused_by_name(monkeypatch, capsys):
+    """An audit item (stop 91): --lanes 4194304 --block 64, which check_layout allows (lanes x K = 2^28), peaked at
+    9.0 GB RSS here (float64): on an 8 GiB machine it would be killed, its results with it.  Now the plan refuses a
+    layout whose lower memory fit exceeds the machine's memory.  Worked by hand at 8 GiB: float64 2^22 x (1.2 x 2 x 64
+    x 8 + 768) + 0.4e9 = 8.775e9 B = 8.17 GiB > 8 GiB, refused, at most (8 GiB - 0.4e9) / 1996.8 = 4101529 lanes;
+    float32 2^22 x (1.2 x 2 x 64 x 4 + 768) + 0.4e9 = 4.8e9 B, run; 2^21 lanes in float64, 4.3e9 B, run."""
+    from dryfric_jax import plan
+    from dryfric_jax.cli import main
+
+    assert real_host_memory() > 2**30  # this (Linux) machine's is known (conftest pins 64 GiB for the other tests)
+    monkeypatch.setattr(plan, "host_memory", lambda: 8 * 2**30)
+    p = dj.Params(5.0, 3.84, 0.5, 0.067, 0.342)
+    kw = dict(n_excursions=10**7, max_work=1e15, block=64)
+    with pytest.raises(ValueError, match=r"^lanes = 4194304 at block = 64 \(float64\) needs at least 8\.17 GiB of "
+                                         r"memory .* more than this machine's 8 GiB: use at most 4101529 lanes"):
+        plan.plan_estimate(p, lanes=2**22, **kw)
+    assert plan.plan_estimate(p, lanes=2**22, dtype="float32", **kw).lanes == 2**22
+    assert plan.plan_estimate(p, lanes=2**21, **kw).lanes == 2**21
+    assert main(["estimate", "--lanes", "4194304", "--block", "64", "--n-excursions", "10000000", "--max-work",
+                 "1e15"]) == 2
+    assert "lanes = 4194304 at block = 64 (float64) needs at least 8.17 GiB" in capsys.readouterr().err
+    monkeypatch.setattr(plan, "host_memory", lambda: None)  # unknown (Windows): not checked
+    assert plan.plan_estimate(p, lanes=2**22, **kw).lanes == 2**22
