@@ -103,7 +103,7 @@ from .excursions import BLOCK, MAX_LAYOUT, block_keys
 from .estimators import t_quantile
 from .limits import MAX_WORK, check_work, le_floor, log_predicted_duration
 from .params import Params
-from .plan import check_count, check_max_time, check_max_work, choose, default_h
+from .plan import check_count, check_layout_memory, check_max_time, check_max_work, choose, default_h
 from .rounds import _ABANDON, INTERRUPT_GRACE_S
 from .sharding import over_lanes
 
@@ -467,6 +467,8 @@ def check_duration_run(params, h=None, n_excursions: int = 2048, dtype: str = "f
                          "('dryfric duration --h'), which it then warns is coarse against tau") from None
     n_excursions = check_count(name, n_excursions, 2, 2**40, " (long excursions)")
     lanes = default_lanes(n_excursions) if n_lanes is None else check_lanes(n_lanes)
+    # as the estimator's layout (2^20 lanes peaked at 4.8 GB here, above that fit's 3.8 GB: stop 91)
+    check_layout_memory(lanes, BLOCK, plan.dtype, name="n_lanes", other="")
     max_work = check_max_work(max_work)
     try:
         check_work(params.tau_nd, params.tau_L_nd, params.gamma_bar_nd, params.tau0 / plan.h,

@@ -179,11 +179,12 @@ def host_memory() -> int | None:
     return mem if mem > 0 else None
 
 
-def check_layout_memory(lanes: int, block: int, dtype: str, name: str = "lanes") -> None:
+def check_layout_memory(lanes: int, block: int, dtype: str, name: str = "lanes",
+                        other: str = " at this block, or a smaller block") -> None:
     """``ValueError`` naming ``name`` when the engine's layout needs more memory than this machine has, by the lower
     fit :data:`LAYOUT_PEAK_PER_NUMBER`, on a CPU (host memory; not checked on other devices, where it was not
-    measured).  2^22 lanes at K = 64 (float64), which :func:`check_layout` allows, peaked at 9 GB: on an 8 GB
-    machine it was killed, its results with it."""
+    measured); ``other`` ends the advice.  2^22 lanes at K = 64 (float64), which :func:`check_layout` allows,
+    peaked at 9 GB: an 8 GB machine would run out of memory, its results with it."""
     mem = host_memory()
     if mem is None or jax.default_backend() != "cpu":
         return
@@ -191,9 +192,9 @@ def check_layout_memory(lanes: int, block: int, dtype: str, name: str = "lanes")
     need = lanes * per_lane + LAYOUT_PEAK_BASE
     if need > mem:
         most = max(int((mem - LAYOUT_PEAK_BASE) // per_lane), 0)
-        raise ValueError(f"{name} = {lanes} at block = {block} ({dtype}) needs at least {need / 2**30:.3g} GiB of memory "
-                         f"(a block's 2 random numbers per lane-step, the lanes' state and JAX), more than this "
-                         f"machine's {mem / 2**30:.3g} GiB: use at most {most} lanes at this block, or a smaller block")
+        raise ValueError(f"{name} = {lanes} at block = {block} ({dtype}) needs at least {need / 2**30:.3g} GiB of "
+                         f"memory (a block's 2 random numbers per lane-step, the lanes' state and JAX), more than this "
+                         f"machine's {mem / 2**30:.3g} GiB: use at most {most} lanes{other}")
 
 
 def check_max_work(max_work) -> float:

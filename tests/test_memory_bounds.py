@@ -78,12 +78,19 @@ def test_a_layout_beyond_this_machines_memory_is_refused_by_name(monkeypatch, ca
     p = dj.Params(5.0, 3.84, 0.5, 0.067, 0.342)
     kw = dict(n_excursions=10**7, max_work=1e15, block=64)
     with pytest.raises(ValueError, match=r"^lanes = 4194304 at block = 64 \(float64\) needs at least 8\.17 GiB of "
-                                         r"memory .* more than this machine's 8 GiB: use at most 4101529 lanes"):
+                                         r"memory .* more than this machine's 8 GiB: use at most 4101529 lanes "
+                                         r"at this block, or a smaller block$"):
         plan.plan_estimate(p, lanes=2**22, **kw)
     assert plan.plan_estimate(p, lanes=2**22, dtype="float32", **kw).lanes == 2**22
     assert plan.plan_estimate(p, lanes=2**21, **kw).lanes == 2**21
     assert main(["estimate", "--lanes", "4194304", "--block", "64", "--n-excursions", "10000000", "--max-work",
                  "1e15"]) == 2
     assert "lanes = 4194304 at block = 64 (float64) needs at least 8.17 GiB" in capsys.readouterr().err
+    # the long-excursion count's lanes too (K = 128: 2^21 x (1.2 x 2 x 128 x 8 + 768) + 0.4e9 = 6.67 GiB > 4 GiB)
+    monkeypatch.setattr(plan, "host_memory", lambda: 4 * 2**30)
+    with pytest.raises(ValueError, match=r"^n_lanes = 2097152 at block = 128 \(float64\) needs at least 6\.67 GiB"):
+        dj.durations.check_duration_run(p, n_excursions=10**6, n_lanes=2**21, max_work=1e15)
+    with pytest.raises(ValueError, match=r"use at most 1207517 lanes$"):  # (4 GiB - 0.4e9) / 3225.6; its K is fixed
+        dj.durations.check_duration_run(p, n_excursions=10**6, n_lanes=2**21, max_work=1e15)
     monkeypatch.setattr(plan, "host_memory", lambda: None)  # unknown (Windows): not checked
     assert plan.plan_estimate(p, lanes=2**22, **kw).lanes == 2**22
