@@ -220,8 +220,8 @@ def _agrees_with_sums(res: dict, params: dict) -> bool:
     r"""A result's ``n_excursions``, D and M0 are those of its excursion sums: n, and
     :math:`M_0 = v_0 \sum U/\sum t`, :math:`D = D_0(\sum U^2 - 2m\sum Ut + m^2\sum t^2)/\sum t` (the point
     estimates :func:`~dryfric_jax.estimators.psi_M` and :func:`~dryfric_jax.estimators.psi_D` of the means, in
-    plain floats: ~14 us a record, 0.14 s per reading of 10^4 records), each within 1e-9 of its terms' size (rounding; the run
-    computes them in XLA) plus 1e-6 of its CI."""
+    plain floats: ~14 us a record, 0.14 s per reading of 10^4 records), each within 1e-9 of its terms' size
+    (rounding; the run computes them in XLA) plus 1e-6 of its CI."""
     T = res["sums"]
     if type(res.get("n_excursions")) is not int or res["n_excursions"] != T["n"]:
         return False
@@ -378,8 +378,8 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
 
     Returns:
         ``dict(computed=k, skipped=s, total=n, duplicates=d, interrupted=bool, refused=r, failed=f,
-        truncated=t, time_limited=m, no_count=c, kept_d=e)``: n distinct points (d more entries repeat one of them: a point
-        listed twice runs once; -0.0 is 0.0), k run now (``"ok"`` or ``"failed"``), s found in the
+        truncated=t, time_limited=m, no_count=c, kept_d=e)``: n distinct points (d more entries repeat one of them:
+        a point listed twice runs once; -0.0 is 0.0), k run now (``"ok"`` or ``"failed"``), s found in the
         file (``"ok"`` or ``"failed"``, not rerun); r, f, t and m count the grid's points now recorded as
         refused, failed, ``"ok"`` with truncated excursions (a result biased low), or stopped by
         ``max_time`` (``"ok"`` short of N or rtol, or ``"failed"``); ``truncated`` also counts a point whose

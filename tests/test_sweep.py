@@ -280,7 +280,8 @@ def test_refused_and_failed_points_are_recorded_and_the_sweep_goes_on(tmp_path, 
 
     # resumed: nothing rerun, the file unchanged; the CLI says why it exits 1
     assert sweep.run_sweep(pts, out, **kw) == dict(computed=0, skipped=2, total=3, duplicates=0, interrupted=False,
-                                                   refused=1, failed=1, truncated=0, time_limited=0, no_count=0, kept_d=0)
+                                                   refused=1, failed=1, truncated=0, time_limited=0, no_count=0,
+                                                   kept_d=0)
     assert _lines(out) == recs
     argv = ["sweep", "--Gamma", "0.5,20,1e6", "--n-excursions", "50", "--max-work", "1.2e7", "--out", out]
     assert main(argv + ["--skip-refused"]) == 1
@@ -374,7 +375,8 @@ def test_a_record_of_this_version_needs_the_numbers_of_its_sums(tmp_path, edit, 
     hand-edited away from its sums (D = -5) read as the point's result in rows(), while combine pooled the sums.
     The stand-in's D is 0.128 D0 and M0 0.2 v0 (sums U = U2 = Ut = t2 = 1, t = 5); a CI is not checked."""
     res = {**_GOOD["result"], **edit}
-    assert math.isclose(_GOOD["result"]["D"], 0.128 * 5**3 / 3.84**4) and math.isclose(_GOOD["result"]["M0"], 0.2 * 5 / 3.84)
+    assert math.isclose(_GOOD["result"]["D"], 0.128 * 5**3 / 3.84**4)
+    assert math.isclose(_GOOD["result"]["M0"], 0.2 * 5 / 3.84)
     rec = {**_GOOD, "version": dj.__version__, "result": res, "seed": sweep.point_seed(0, _PARAMS, _GOOD["settings"])}
     out = tmp_path / "s.jsonl"
     if reads:

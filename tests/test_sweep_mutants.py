@@ -24,8 +24,9 @@ KW = dict(n_excursions=50)
 
 
 def stand_in_result(point=None, seed=0, n=10, **extra):
-    """A stand-in result at the parameters ``point`` (Fig. 3's by default) whose D, M0 and n_excursions are those of its sums, as
-    a record of this version must have (sweep._agrees_with_sums); the sums' U^2 moves with ``seed``, and D with it."""
+    """A stand-in result at the parameters ``point`` (Fig. 3's by default) whose D, M0 and n_excursions are those
+    of its sums, as a record of this version must have (sweep._agrees_with_sums); the sums' U^2 moves with
+    ``seed``, and D with it."""
     sums = {**{k: 1.0 for k in STAT_NAMES}, "n": n, "t": 5.0, "U2": 1.0 + seed / 2**31}
     p = Params(**{**FIG3, **(point or {})})
     x = np.array([sums[k] for k in ("U", "U2", "t", "Ut", "t2")]) / sums["n"]
@@ -48,8 +49,8 @@ def calls(monkeypatch):
         got.append((p.as_dict(), seed))
         if p.Gamma == 3.0:
             raise NoEstimateError("fewer than 2 complete excursions within the work bounds (stand-in)")
-        res = {**stand_in_result(p.as_dict(), seed, kw["n_excursions"]), **dict(mean_duration=1.0, method=kw["method"], params={},
-                                                             stopped_by="n_excursions", seed=seed)}
+        res = {**stand_in_result(p.as_dict(), seed, kw["n_excursions"]),
+               **dict(mean_duration=1.0, method=kw["method"], params={}, stopped_by="n_excursions", seed=seed)}
         return types.SimpleNamespace(stopped_by="n_excursions", to_dict=lambda: dict(res))
 
     monkeypatch.setattr(sweep, "estimate_diffusivity", estimate)

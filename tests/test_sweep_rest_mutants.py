@@ -25,7 +25,8 @@ from dryfric_jax import outfiles, sweep
 from dryfric_jax.api import DryfricWarning, ProjectionWarning
 from dryfric_jax.params import FIG3
 from dryfric_jax.plan import check_settings
-from test_sweep_mutants import KW, _lines, calls, stand_in_result  # noqa: F401, F811  (calls: the stand-in estimator, a fixture)
+from test_sweep_mutants import KW, _lines, stand_in_result
+from test_sweep_mutants import calls  # noqa: F401, F811  (the stand-in estimator, a fixture)
 
 SETTINGS = check_settings(**KW)
 RESULT = stand_in_result()  # Fig. 3's point, as _rec's records of Gamma = 5
