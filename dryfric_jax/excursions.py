@@ -66,6 +66,10 @@ UNROLL = 4
 # decisions, the paths: at 1024 lanes, float32, 2 CPU devices, unroll 1, 4 and 16 gave D =
 # 2.7099e-3, 2.7080e-3 and 2.7085e-3 (CI +-1.5e-4): the law, not the bits, is kept
 QUIET_UNROLL = 1
+#: on a CPU the float64 DI's quiet loop carries (X, V) and (U, at) stacked as one (2, lanes) complex128 array, two
+#: steps an iteration (:func:`_quiet_steps`; not timed on a GPU, which keeps the two-array loop); False: the
+#: two-array loop, which gives the same numbers to the bit (tested)
+STACKED_QUIET = True
 
 
 class _Lane(eqx.Module):
@@ -287,6 +291,22 @@ def _quiet_steps(chain, budget, max_steps, finish, block, lane: _Lane, rs, fused
 
         state, U, at = quiet_steps(chain, block, lane.state, U0, at, first, watch, counted, rs)
         t, at = lane.t, at.astype(jnp.int32)
+    elif (STACKED_QUIET and pair and chain.fixed_dt is not None and U0.dtype == lane.state[0].dtype == jnp.float64
+          and block % 2 == 0 and QUIET_UNROLL == 1 and jax.default_backend() == "cpu"):
+        # the float64 DI: XLA:CPU gave the two-array loop 7 kernels a step (one per array the step writes, each
+        # computing the whole step, two copies of the carry, the counter, its copy, the test).  With (X, V) and
+        # (U, at) stacked as one (2, lanes) array a step is one kernel (each row still computes the step) and the
+        # carry is not copied; two steps an iteration halve the counter's kernels, and the barrier between them
+        # keeps XLA from fusing them into other roundings (D moved in its last digits without it).  The same
+        # numbers to the bit; DI float64 lane-steps/s x1.07 (an audit, stop 91: PERFORMANCE.md).  float32 ran
+        # slower so (x0.92)
+        def step(i, c):
+            state, Ua, _ = body(i, (c[0], c[1], None))
+            return jnp.stack([state, Ua])
+
+        c = jax.lax.fori_loop(0, block // 2, lambda j, c: step(2 * j + 1, jax.lax.optimization_barrier(step(2 * j, c))),
+                              jnp.stack([pack(lane.state), jax.lax.complex(U0, at)]))
+        state, U, at, t = unpack(c[0]), jnp.real(c[1]), jnp.imag(c[1]).astype(jnp.int32), lane.t
     else:
         state, Ua, t = jax.lax.fori_loop(0, block, body, (pack(lane.state), jax.lax.complex(U0, at), lane.t),
                                          unroll=QUIET_UNROLL)

@@ -136,6 +136,35 @@ def test_fused_kernel_is_the_wait_loop_bit_for_bit(dtype):
     assert [tile_for(n) for n in (1 << 18, 48, 96, 7)] == [256, 16, 32, 1]
 
 
+@pytest.mark.parametrize("block", [32, 33])
+def test_the_stacked_float64_quiet_loop_is_the_two_array_loop_bit_for_bit(monkeypatch, block):
+    """The float64 DI's quiet loop carries (X, V) and (U, at) stacked, two steps an iteration (excursions.STACKED_QUIET,
+    x1.07 lane-steps/s): the same sums, steps and slots, bit for bit, as the two-array loop, in a final round with
+    refills, coins, budget stops and truncations; it is the loop traced at an even K (its barrier seen), and an odd
+    K keeps the two-array loop.  Mutant: the barrier dropped (XLA fuses the two steps; D moved in its last digits)."""
+    from dryfric_jax import excursions
+
+    barriers, real = [], jax.lax.optimization_barrier
+    monkeypatch.setattr(jax.lax, "optimization_barrier", lambda x: barriers.append(1) or real(x))
+    m = make_di_model(dj.Params.from_nondim(0.5, 1.0, 0.2), 0.02, "float64")
+    runs = {}
+    try:
+        for stacked in (True, False):
+            monkeypatch.setattr(excursions, "STACKED_QUIET", stacked)
+            jax.clear_caches()  # the flag is read when the loop is traced
+            runs[stacked] = run_round(m, jax.random.key(5), 96, 1500, block=block, max_steps=1200, events="wait")
+            if stacked:
+                assert bool(barriers) == (block % 2 == 0)
+                barriers.clear()
+    finally:
+        monkeypatch.undo()
+        jax.clear_caches()  # no later test runs a loop traced with the flag off
+    a, b = runs[True], runs[False]
+    assert a.n_excursions > 50 and a.n_truncated > 0 and not barriers
+    assert np.array_equal(a.stats, b.stats) and np.array_equal(a.lane_steps, b.lane_steps)
+    assert (a.n_truncated, a.useful_steps, a.slot_steps) == (b.n_truncated, b.useful_steps, b.slot_steps)
+
+
 def test_fused_layout_is_only_for_the_di():
     p = dj.Params.from_nondim(0.5, 1.0, 0.2)
     with pytest.raises(ValueError, match="events 'fused' is only for the DI"):
