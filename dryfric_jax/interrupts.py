@@ -63,16 +63,21 @@ def keep_ctrl_c() -> None:
 STARTING_LINE = b"dryfric: interrupted while starting (nothing was run)\n"
 
 
+#: the modules ``python -m`` runs as the ``dryfric`` command
+CLI_MODULES = ("dryfric_jax.cli", "dryfric_jax")
+
+
 def launched_as_cli() -> bool:
     """Whether this process is the ``dryfric`` command: its console script (``sys.argv[0]`` is
-    .../dryfric) or ``python -m dryfric_jax.cli``, whose ``sys.argv[0]`` is "-m" while the module is
-    located (which imports the package)."""
+    .../dryfric), ``python -m dryfric_jax.cli`` or ``python -m dryfric_jax`` (its ``__main__``; it had Python's
+    traceback for a Ctrl-C while starting and for a too-old JAX, exit 1 not 2: a README audit), whose
+    ``sys.argv[0]`` is "-m" while the module is located (which imports the package)."""
     argv0 = sys.argv[0] if sys.argv else ""
     if os.path.basename(argv0).removesuffix(".exe") in ("dryfric", "dryfric-script.py"):
         return True
     orig = list(getattr(sys, "orig_argv", ()))
-    return argv0 == "-m" and ("-mdryfric_jax.cli" in orig or any(
-        a == "-m" and b == "dryfric_jax.cli" for a, b in zip(orig, orig[1:])))
+    return argv0 == "-m" and any(a in ("-mdryfric_jax.cli", "-mdryfric_jax") or (a == "-m" and b in CLI_MODULES)
+                                 for a, b in zip(orig, orig[1:] + [""]))
 
 
 def _stop_while_starting(signum, frame):

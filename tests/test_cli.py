@@ -404,11 +404,13 @@ def test_only_the_command_exits_quietly_on_ctrl_c_while_importing(monkeypatch):
     assert not launched_as_cli()  # pytest
     for argv0, orig in (("/venv/bin/dryfric", ["/venv/bin/python", "/venv/bin/dryfric"]),
                         ("-m", ["python", "-m", "dryfric_jax.cli", "theory"]),
-                        ("-m", ["python", "-X", "dev", "-mdryfric_jax.cli"])):
+                        ("-m", ["python", "-X", "dev", "-mdryfric_jax.cli"]),
+                        ("-m", ["python", "-m", "dryfric_jax", "theory"]), ("-m", ["python", "-mdryfric_jax"])):
         monkeypatch.setattr(sys, "argv", [argv0, "theory"])
         monkeypatch.setattr(sys, "orig_argv", orig)
         assert launched_as_cli(), orig
     for argv0, orig in (("app.py", ["python", "app.py"]), ("-m", ["python", "-m", "mypkg", "dryfric_jax.cli"]),
+                        ("-m", ["python", "-m", "dryfric_jax_extra"]), ("-m", ["python", "-mdryfric_jax.paths"]),
                         ("-c", ["python", "-c", "import dryfric_jax"]), ("/x/dryfric.py", ["python", "dryfric.py"])):
         monkeypatch.setattr(sys, "argv", [argv0])
         monkeypatch.setattr(sys, "orig_argv", orig)

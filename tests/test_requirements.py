@@ -111,6 +111,15 @@ def test_the_dryfric_command_names_an_old_jax_in_one_line_and_exits_2():
     assert "installed: jax 0.5.3, jaxlib 0.5.3" in lines[0]
 
 
+def test_python_m_dryfric_jax_is_the_command_too():
+    """``python -m dryfric_jax`` (its __main__) runs the command: it got Python's ImportError traceback and exit 1 for
+    an old JAX where ``dryfric`` says one line and exits 2 (a README audit, stop 91)."""
+    r = _child("-m", "sys.orig_argv = [sys.executable, '-m', 'dryfric_jax', 'estimate']\nimport runpy\n"
+                     "runpy.run_module('dryfric_jax', run_name='__main__', alter_sys=True)")
+    assert r.returncode == 2 and "Traceback" not in r.stderr, (r.returncode, r.stderr)
+    assert r.stderr.startswith("dryfric: error: dryfric_jax needs jax >= 0.6.2"), r.stderr
+
+
 def test_python_gets_an_import_error_naming_the_old_jax():
     r = _child("script.py", "try:\n    import dryfric_jax\nexcept ImportError as e:\n    print(e)\n"
                             "    print('jax' in sys.modules)")
