@@ -65,6 +65,31 @@ def _as_result(r, label: str) -> EstimateResult:
                      f"{type(r).__name__})")
 
 
+def _without_count_twins(results: list, labels: list) -> tuple[list, list, int]:
+    """``results`` and ``labels`` without the sweep records that repeat another's D estimate, and how many were left
+    out.  A sweep given a long-excursion count (``durations``) after its D writes each point's record again, with the
+    count and the same D (README "Sweeps and notebooks"): records of one point (sweep seed, parameters, settings but
+    the count, seed and version) whose counts differ and whose sums are equal are one run.  They were refused as one
+    seed used twice, so a sweep file that had been given a count could not be combined at all (a README audit);
+    records equal in the count too (a file given twice) are still refused."""
+    keep, kept_labels, seen = [], [], {}
+    for r, label in zip(results, labels):
+        res = r.get("result") if isinstance(r, dict) else None
+        if isinstance(res, dict) and isinstance(r.get("settings"), dict) and "params" in r:
+            settings = {k: v for k, v in r["settings"].items() if k != "durations"}
+            run = repr((r.get("sweep_seed"), sorted(r["params"].items()), sorted(settings.items()), r.get("seed"),
+                        r.get("version")))
+            count, sums = r["settings"].get("durations"), res.get("sums")
+            counts = seen.setdefault(run, {"sums": sums, "counts": set()})
+            if counts["counts"] and count not in counts["counts"] and sums == counts["sums"]:
+                counts["counts"].add(count)
+                continue
+            counts["counts"].add(count)
+        keep.append(r)
+        kept_labels.append(label)
+    return keep, kept_labels, len(results) - len(keep)
+
+
 def _real(x) -> bool:
     try:
         return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
@@ -205,6 +230,7 @@ def combine_estimates(results: Sequence, *, labels: Sequence[str] | None = None,
         if not (ok and len(labels) == len(results) and all(isinstance(x, str) for x in labels)):
             raise ValueError(f"labels must be a list of {len(results)} strings, one per result "
                              f"(got {str(labels)[:60]})")
+    results, labels, twins = _without_count_twins(results, labels)
     rs = [_as_result(r, label) for r, label in zip(results, labels)]
     for r, label in zip(rs, labels):
         _check_fields(r, label)
@@ -243,6 +269,9 @@ def combine_estimates(results: Sequence, *, labels: Sequence[str] | None = None,
                              "twice")
     # said twice: warned now, and kept in the pool's ``warnings`` (which ``dryfric combine`` prints and writes)
     said = []
+    if twins:
+        said.append(f"{twins} sweep record(s) repeating a point's D with another long-excursion count (durations) "
+                    "pooled once")
     if None in seeds:
         said.append("some results were made from a jax.random key that they do not record (written before keys were "
                     "recorded): their streams are assumed independent")

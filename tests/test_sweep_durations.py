@@ -286,3 +286,26 @@ def test_a_count_stopped_by_ctrl_c_neither_overwrites_a_kept_d_nor_fails_on_a_wr
     with pytest.warns(dj.DryfricWarning, match="finished D could not be kept .*No space left on device"):
         r = sweep.run_sweep(pts, out2, durations=64, **kw)
     assert r["interrupted"] and r["kept_d"] == 0 and (not os.path.exists(out2) or _lines(out2) == [])
+
+
+def test_a_sweep_given_a_count_later_still_combines(tmp_path, capsys):
+    """A README audit (stop 91): after a sweep was given --durations, each point's record is in its file twice, with
+    and without the count, the same D (seed and sums); `dryfric combine` refused such a file, alone or with another
+    seed's, as one seed used twice.  Now the twin is pooled once, and said; a file given twice is still refused."""
+    pts = sweep.grid(Gamma=[5.0], tau=[0.125])
+    files = [str(tmp_path / f"s{seed}.jsonl") for seed in (0, 1)]
+    for seed, out in zip((0, 1), files):
+        sweep.run_sweep(pts, out, n_excursions=200, seed=seed)
+        sweep.run_sweep(pts, out, n_excursions=200, seed=seed, durations=64)
+        assert len(_lines(out)) == 2 and _lines(out)[0]["result"]["sums"] == _lines(out)[1]["result"]["sums"]
+    d_only = [_lines(out)[0] for out in files]
+    with pytest.warns(dj.DryfricWarning, match="1 sweep record"):
+        alone = dj.combine_estimates(_lines(files[0]))
+    assert (alone.D, alone.n_excursions) == (d_only[0]["result"]["D"], d_only[0]["result"]["n_excursions"])
+    want = dj.combine_estimates(d_only)
+    assert main(["combine", *files, "--json"]) == 0
+    got = json.loads(capsys.readouterr().out)
+    assert (got["D"], got["D_ci"], got["n_excursions"]) == (want.D, want.D_ci, want.n_excursions)
+    assert any("2 sweep record(s) repeating a point's D" in w for w in got["warnings"])
+    assert main(["combine", files[0], files[0]]) == 2
+    assert "used more than once" in capsys.readouterr().err
