@@ -298,7 +298,7 @@ def _quiet_steps(chain, budget, max_steps, finish, block, lane: _Lane, rs, fused
         # (U, at) stacked as one (2, lanes) array a step is one kernel (each row still computes the step) and the
         # carry is not copied; two steps an iteration halve the counter's kernels, and the barrier between them
         # keeps XLA from fusing them into other roundings (D moved in its last digits without it).  The same
-        # numbers to the bit; DI float64 lane-steps/s x1.07 (an audit, stop 91: PERFORMANCE.md).  float32 ran
+        # numbers to the bit; whole float64 runs x1.04 (idle) to x1.07 (loaded) (stop 91: PERFORMANCE.md).  float32 ran
         # slower so (x0.92)
         def step(i, c):
             state, Ua, _ = body(i, (c[0], c[1], None))

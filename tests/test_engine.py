@@ -139,7 +139,7 @@ def test_fused_kernel_is_the_wait_loop_bit_for_bit(dtype):
 @pytest.mark.parametrize("block", [32, 33])
 def test_the_stacked_float64_quiet_loop_is_the_two_array_loop_bit_for_bit(monkeypatch, block):
     """The float64 DI's quiet loop carries (X, V) and (U, at) stacked, two steps an iteration (excursions.STACKED_QUIET,
-    x1.07 lane-steps/s): the same sums, steps and slots, bit for bit, as the two-array loop, in a final round with
+    x1.04-1.07 on whole runs): the same sums, steps and slots, bit for bit, as the two-array loop, in a final round with
     refills, coins, budget stops and truncations; it is the loop traced at an even K (its barrier seen), and an odd
     K keeps the two-array loop.  Mutant: the barrier dropped (XLA fuses the two steps; D moved in its last digits)."""
     from dryfric_jax import excursions
