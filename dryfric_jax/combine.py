@@ -75,11 +75,14 @@ def _without_count_twins(results: list, labels: list) -> tuple[list, list, int]:
     keep, kept_labels, seen = [], [], {}
     for r, label in zip(results, labels):
         res = r.get("result") if isinstance(r, dict) else None
-        if isinstance(res, dict) and isinstance(r.get("settings"), dict) and "params" in r:
-            settings = {k: v for k, v in r["settings"].items() if k != "durations"}
+        settings = r.get("settings") if isinstance(res, dict) else None
+        count = settings.get("durations") if isinstance(settings, dict) else ""
+        # a record of another shape (params null, a count that is not a number) is left for _as_result to refuse
+        if isinstance(settings, dict) and isinstance(r.get("params"), dict) and (count is None or type(count) is int):
+            settings = {k: v for k, v in settings.items() if k != "durations"}
             run = repr((r.get("sweep_seed"), sorted(r["params"].items()), sorted(settings.items()), r.get("seed"),
                         r.get("version")))
-            count, sums = r["settings"].get("durations"), res.get("sums")
+            sums = res.get("sums")
             counts = seen.setdefault(run, {"sums": sums, "counts": set()})
             if counts["counts"] and count not in counts["counts"] and sums == counts["sums"]:
                 counts["counts"].add(count)

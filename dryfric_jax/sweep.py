@@ -75,7 +75,7 @@ from .durations import (TAU_STEPS, NoCountError, check_duration_run, default_dur
                         di_long_excursion_duration, max_steps_for)
 from .limits import MAX_WORK
 from .outfiles import check_writable, claim, drop_claims_dir, dumps, locked, put_record, read_records, write_records
-from .params import FIG3, Params, brief, check_flag, check_positive, plain_number, real_or_none, shown
+from .params import FIG3, Params, _tau0, brief, check_flag, check_positive, plain_number, real_or_none, shown
 from .plan import check_count, check_max_time, check_settings, plan_estimate
 from .rounds import abandon_on_interrupt
 
@@ -221,12 +221,18 @@ def _agrees_with_sums(res: dict, params: dict) -> bool:
     :math:`M_0 = v_0 \sum U/\sum t`, :math:`D = D_0(\sum U^2 - 2m\sum Ut + m^2\sum t^2)/\sum t` (the point
     estimates :func:`~dryfric_jax.estimators.psi_M` and :func:`~dryfric_jax.estimators.psi_D` of the means, in
     plain floats: ~14 us a record, 0.14 s per reading of 10^4 records), each within 1e-9 of its terms' size
-    (rounding; the run computes them in XLA) plus 1e-6 of its CI."""
+    (rounding; the run computes them in XLA) plus 1e-6 of its CI.  The units as :class:`~dryfric_jax.params.Params`
+    computes them (``G**3 / De**4`` overflowed, or lost digits, at extreme units Params takes: a review); an
+    arithmetic error (a hand-edited Delta = 0) is a disagreement."""
     T = res["sums"]
     if type(res.get("n_excursions")) is not int or res["n_excursions"] != T["n"]:
         return False
-    G, De = float(params["Gamma"]), float(params["Delta"])
-    v0, D0 = G / De, G**3 / De**4
+    try:
+        G, De = float(params["Gamma"]), float(params["Delta"])
+        v0 = G / De
+        D0 = _tau0(G, De) * v0 * v0  # Params.D0: u0 v0, u0 = tau0 v0
+    except ArithmeticError:
+        return False
     m = T["U"] / T["t"]
     terms = (T["U2"], 2 * m * T["Ut"], m * m * T["t2"])
     D = (terms[0] - terms[1] + terms[2]) / T["t"] * D0

@@ -136,6 +136,7 @@ def test_fused_kernel_is_the_wait_loop_bit_for_bit(dtype):
     assert [tile_for(n) for n in (1 << 18, 48, 96, 7)] == [256, 16, 32, 1]
 
 
+@pytest.mark.skipif(jax.default_backend() != "cpu", reason="the stacked loop is a CPU layout")
 @pytest.mark.parametrize("block", [32, 33])
 def test_the_stacked_float64_quiet_loop_is_the_two_array_loop_bit_for_bit(monkeypatch, block):
     """The float64 DI's quiet loop carries (X, V) and (U, at) stacked, two steps an iteration (excursions.STACKED_QUIET,

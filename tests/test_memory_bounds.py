@@ -64,6 +64,7 @@ def test_the_package_runs_as_a_module():
     assert out.returncode == 2 and "--n-paths must be an integer in [3, 2^26]" in out.stderr, out.stderr
 
 
+@pytest.mark.skipif(jax.default_backend() != "cpu", reason="checked against host memory on a CPU only")
 def test_a_layout_beyond_this_machines_memory_is_refused_by_name(monkeypatch, capsys):
     """An audit item (stop 91): --lanes 4194304 --block 64, which check_layout allows (lanes x K = 2^28), peaked at
     9.0 GB RSS here (float64): on an 8 GiB machine it would be killed, its results with it.  Now the plan refuses a
@@ -73,7 +74,8 @@ def test_a_layout_beyond_this_machines_memory_is_refused_by_name(monkeypatch, ca
     from dryfric_jax import plan
     from dryfric_jax.cli import main
 
-    assert real_host_memory() > 2**30  # this (Linux) machine's is known (conftest pins 64 GiB for the other tests)
+    if sys.platform.startswith("linux"):  # known here (conftest pins 64 GiB for the other tests)
+        assert real_host_memory() > 0
     monkeypatch.setattr(plan, "host_memory", lambda: 8 * 2**30)
     p = dj.Params(5.0, 3.84, 0.5, 0.067, 0.342)
     kw = dict(n_excursions=10**7, max_work=1e15, block=64)

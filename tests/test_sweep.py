@@ -386,6 +386,21 @@ def test_a_record_of_this_version_needs_the_numbers_of_its_sums(tmp_path, edit, 
             sweep.rows(_write(out, rec))
 
 
+@pytest.mark.parametrize("point", [dict(Gamma=1e120, Delta=1e100, tau=1e-80, tau_L=1e-80, gamma_bar=0.0),
+                                   dict(Gamma=1e-8, Delta=1e-80, tau=1e-140, tau_L=1e-140, gamma_bar=0.0)])
+def test_the_sums_check_takes_the_units_params_takes(tmp_path, point):
+    """A review: the check computed D0 as Gamma^3/Delta^4, which overflowed (an OverflowError traceback on reading the
+    sweep's own file) at Gamma = 1e120, Delta = 1e100, and lost digits (the record refused) at Gamma = 1e-8, Delta =
+    1e-80, units Params takes (D0 = 1e-40 and 1e296); now as Params computes it.  A hand-edited Delta = 0 is refused
+    as the file's line, not a ZeroDivisionError."""
+    settings = {"method": "di", "n_excursions": 50}
+    rec = {"params": point, "settings": settings, "sweep_seed": 0, "status": "ok", "version": dj.__version__,
+           "result": stand_in_result(point), "seed": sweep.point_seed(0, point, settings)}
+    assert sweep.read_results(_write(tmp_path / "s.jsonl", rec))[0]["params"] == point
+    with pytest.raises(ValueError, match="line 1 is not a sweep record"):
+        sweep.read_results(_write(tmp_path / "s.jsonl", {**rec, "params": {**point, "Delta": 0}}))
+
+
 def _write(path, rec):
     path.write_text(json.dumps(rec) + "\n")
     return str(path)
