@@ -76,8 +76,8 @@ def launched_as_cli() -> bool:
     if os.path.basename(argv0).removesuffix(".exe") in ("dryfric", "dryfric-script.py"):
         return True
     orig = list(getattr(sys, "orig_argv", ()))
-    return argv0 == "-m" and any(a in ("-mdryfric_jax.cli", "-mdryfric_jax") or (a == "-m" and b in CLI_MODULES)
-                                 for a, b in zip(orig, orig[1:] + [""]))
+    joined = [f"-m{m}" for m in CLI_MODULES]  # "-mdryfric_jax.cli", one argument
+    return argv0 == "-m" and any(a in joined or (a == "-m" and b in CLI_MODULES) for a, b in zip(orig, orig[1:] + [""]))
 
 
 def _stop_while_starting(signum, frame):
