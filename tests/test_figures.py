@@ -293,7 +293,7 @@ def test_a_kept_run_of_this_version_without_its_result_is_refused_by_name(tmp_pa
 
 
 def test_a_ctrl_c_while_a_run_is_written_keeps_it(tmp_path, monkeypatch):
-    """A Ctrl-C during a finished run's write (the points file read and rewritten under its lock) acts after
+    """A Ctrl-C during a finished run's write (the points file read and appended to under its lock) acts after
     it: the run is kept and reused (a sweep's point was lost so: an audit)."""
     import signal
 
@@ -301,13 +301,13 @@ def test_a_ctrl_c_while_a_run_is_written_keeps_it(tmp_path, monkeypatch):
     from dryfric_jax.figures import points
     from dryfric_jax.params import FIG3, Params
 
-    real = outfiles.write_records
+    real = outfiles.append_line
 
     def signalled(*a, **k):
         signal.raise_signal(signal.SIGINT)  # in the middle of the write, the lock held
         real(*a, **k)
 
-    monkeypatch.setattr(outfiles, "write_records", signalled)
+    monkeypatch.setattr(outfiles, "append_line", signalled)
     with pytest.raises(KeyboardInterrupt):
         points.Points(str(tmp_path), "s").estimate(Params(**FIG3), 3, n_excursions=64)
     again = points.Points(str(tmp_path), "s")

@@ -796,13 +796,13 @@ def test_a_signal_while_a_finished_point_is_written_keeps_it(tmp_path, monkeypat
     """A Ctrl-C or SIGTERM that came while a finished point's record was written (the file read, checked and
     rewritten under its lock: ~1 s with 6000 records) threw the point away, its write's temporary file deleted
     (an audit).  Now the write completes, the point is counted, and the signal then ends the sweep: exit 130 or
-    143, the next point not started."""
+    143, the next point not started.  (A new point's record is appended: append_line.)"""
     import signal
     import types
 
     from dryfric_jax import outfiles
 
-    calls, real = [], outfiles.write_records
+    calls, real = [], outfiles.append_line
 
     def good(*a, **k):
         calls.append(1)
@@ -814,7 +814,7 @@ def test_a_signal_while_a_finished_point_is_written_keeps_it(tmp_path, monkeypat
         real(*a, **k)
 
     monkeypatch.setattr(sweep, "estimate_diffusivity", good)
-    monkeypatch.setattr(outfiles, "write_records", signalled)
+    monkeypatch.setattr(outfiles, "append_line", signalled)
     out = tmp_path / "s.jsonl"
     rc = main(["sweep", "--Gamma", "2,3", "--n-excursions", "50", "--out", str(out)])
     assert rc == (130 if signum == "SIGINT" else 143) and len(calls) == 1

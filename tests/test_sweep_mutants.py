@@ -103,6 +103,41 @@ def test_a_record_of_another_patch_version_or_of_no_version_is_rerun_in_place(tm
     assert [x["seed"] for x in again] == [x["seed"] for x in first]  # the same points, the same seeds
 
 
+def test_a_sweep_checks_each_record_of_its_file_once_and_appends_new_points(tmp_path, calls, monkeypatch):
+    """A sweep reads its file before and after each point (another sweep may share it); it used to parse, check and
+    rewrite every record each time, ~1 s a point at 10^4 records.  Now each record is checked once per sweep, a new
+    point is appended (the file is not replaced), and a rerun point's record is still replaced in place.  Records of
+    the same parameters with other settings, or of another sweep seed, are not taken for the point (sweep._of_point
+    compares the parameters before the identity)."""
+    out = tmp_path / "s.jsonl"
+    sweep.run_sweep(sweep.grid(Gamma=[2.0, 4.0, 5.0, 6.0]), str(out), **KW)
+    sweep.run_sweep(sweep.grid(Gamma=[4.0]), str(out), **{**KW, "n_excursions": KW["n_excursions"] + 1})
+    sweep.run_sweep(sweep.grid(Gamma=[4.0]), str(out), seed=1, **KW)
+    old = _lines(out)
+    major, minor, patch = dj.__version__.split(".")[:3]
+    old[0]["version"] = f"{major}.{minor}.{int(patch) + 1}"  # Gamma = 2: rerun and replaced
+    outfiles.write_records(str(out), old)
+    checked, real = [], sweep._check_record
+    monkeypatch.setattr(sweep, "_check_record", lambda rec: (checked.append(rec["params"]["Gamma"]), real(rec)))
+    inos = []  # the file's, after the sweep's first rewrite (before any point) and after each point
+    calls.clear()
+    new = sweep.grid(Gamma=[7.0, 8.0, 9.0])
+    r = sweep.run_sweep(sweep.grid(Gamma=[4.0]) + new, str(out), progress=lambda *a: inos.append(os.stat(out).st_ino),
+                        **KW)
+    assert (r["computed"], r["skipped"], len(calls)) == (3, 1, 3)
+    assert len(inos) == 4 and len(set(inos)) == 1
+    assert sorted(checked) == sorted([x["params"]["Gamma"] for x in old] + [7.0, 8.0])  # 9.0 written last, not read
+    assert _lines(out) == old + _lines(out)[len(old):] and [x["params"]["Gamma"] for x in _lines(out)[len(old):]] == \
+        [7.0, 8.0, 9.0]
+    checked.clear()
+    r = sweep.run_sweep(sweep.grid(Gamma=[2.0]) + new, str(out), **KW)
+    assert (r["computed"], r["skipped"]) == (1, 3) and os.stat(out).st_ino != inos[0]
+    got = _lines(out)
+    assert len(got) == len(old) + 3 and (got[0]["params"]["Gamma"], got[0]["version"]) == (2.0, dj.__version__)
+    assert [(x["params"]["Gamma"], x["sweep_seed"], x["settings"]["n_excursions"]) for x in got[1:len(old)]] == \
+        [(x["params"]["Gamma"], x["sweep_seed"], x["settings"]["n_excursions"]) for x in old[1:]]
+
+
 def test_a_record_without_a_status_is_a_finished_point(tmp_path, calls):
     """Records written before statuses existed are "ok" (module docstring): read, tabled as "ok", not
     listed by failures() and not rerun.  Mutant: status() defaulting to "failed" (the file was then

@@ -5,9 +5,10 @@ call :func:`~dryfric_jax.api.estimate_diffusivity` and
 :func:`~dryfric_jax.api.bruteforce_diffusivity` through :class:`Points`, and Fig. 3 its long-excursion counts
 (:func:`~dryfric_jax.di_long_excursion_duration`) too.  Each finished run is
 appended to ``<out_dir>/<scene>.points.jsonl`` (one JSON line per run: what was asked, the
-package version, the result), the whole file re-read under a lock and rewritten atomically
-(:func:`~dryfric_jax.outfiles.put_record`), so a kill at any moment leaves a valid file and two
-runs of a scene into one directory keep each other's runs.  Each run is claimed while computed
+package version, the result), the file re-read under a lock first
+(:func:`~dryfric_jax.outfiles.put_record`), so a kill at any moment loses no finished run (it may cut short the
+line being written, which is skipped and removed) and two runs of a scene into one directory keep each other's
+runs.  Each run is claimed while computed
 (:func:`~dryfric_jax.outfiles.claim`): a second run of the scene waits for it and reuses it, so
 the two share the scene's runs instead of computing each twice.
 Running the same scene again into the same directory reuses every run already there (same
@@ -109,8 +110,8 @@ def _read(path: str) -> list[dict]:
 
 
 def _stamp(path: str):
-    """What identifies a version of the file: every write replaces it (a new inode), so another
-    process's write changes this (None while there is no file)."""
+    """What identifies a version of the file: every write appends to it (a new size) or replaces it (a new
+    inode), so another process's write changes this (None while there is no file)."""
     try:
         st = os.stat(path)
     except OSError:
