@@ -17,7 +17,7 @@ the mean first-passage time from :math:`a` down to :math:`b < a` is exact,
 is a lower bound on the mean duration of the continuous-time excursion.  For
 :math:`\tau' (1+|\bar\gamma'|)^2 \gg 1` it grows like :math:`e^{\tau'(1+|\bar\gamma'|)^2/2}`: slow,
 weak noise rarely reaches the far threshold.  Measured over Fig. 3's 40 points
-(:math:`\tau' = 0.18`-7.4, N = 1e5), the PDMP's mean excursion lasts 1.01-1.6 times this sum and the
+(:math:`\tau' = 0.18`-14.7, N = 1e5), the PDMP's mean excursion lasts 1.01-1.6 times this sum and the
 DI's (splitting regeneration) 2.2-6.4 times.  For fast noise the sum vanishes like
 :math:`\tau'` while the velocity still needs its own time to stick and turn: the bound is floored at
 :math:`\min(1, \tau_L')` (measured: the PDMP's excursions last 0.50-0.70 :math:`\tau_0` at

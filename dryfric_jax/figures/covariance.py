@@ -2,7 +2,7 @@ r"""Fig. 4 (paper section 7.1): normalised stationary velocity covariance :math:
 :math:`h(\rho) = \mathrm{Cov}(V(t), V(t+\rho))`, for tau = 0.25, 0.5, 1 s at the Fig. 3 point
 (Gamma = 5, tau_L = 0.067, gamma_bar = 0.342): PDMP (delta = 0.125) solid, DI dotted.
 
-Long stationary runs: each path starts at s_+ (PDMP) or (x_Delta-ish stationary X, V = 0) (DI)
+Long stationary runs: each path starts at s_+ (PDMP) or (stationary X, V = 0) (DI)
 and is discarded for a burn-in of ``BURN_TAU0`` = 50 tau0 (17-68 times the noise's correlation time
 tau' = 0.74-2.95 of the scene, whose relaxation sets the law of (X, V); not several excursion durations: at
 tau = 1 s the PDMP's mean excursion, 16 s, is about the burn-in's 17 s), then
