@@ -166,7 +166,7 @@ def held_interrupts():
     """Within: SIGINT and SIGTERM are held, not acted on, so that a finished result's write completes; on exit the
     previous handlers are restored and a signal held is delivered to them (``signal.raise_signal``: a
     ``KeyboardInterrupt`` as the block ends, or the default action).  A sweep's point finished but caught by a
-    signal while its record was written (the file read, checked and rewritten under its lock, ~1 s with 6000
+    signal while its record was written (then the file read, checked and rewritten under its lock, ~1 s with 6000
     records) was lost: the write's temporary file deleted, the point not counted (an audit).  Only in the main
     thread (elsewhere it holds nothing), and only signals whose handler Python can restore (not one installed
     outside Python, nor an ignored one)."""

@@ -93,18 +93,22 @@ def _can_create(p: str) -> str | None:
     """Why a new file ``p`` cannot be created under its own name (None if it can: it is made and
     removed).  The name's length and characters are the file system's to judge (a name over 255
     bytes, a trailing '/', passed the check of the directory and failed after the run)."""
-    try:
-        fd = os.open(p, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
-    except OSError as e:
-        return e.strerror
-    try:  # removed only while it is still the probe: another process (a sweep on the same new file) may have
-        mine = os.fstat(fd).st_ino  # renamed its first record over it since (an audit's harness saw it deleted)
-        if os.stat(p).st_ino == mine:
-            os.unlink(p)
-    except OSError:
-        pass
-    finally:
-        os.close(fd)
+    with locked(p):  # every writer of a results file holds it: none appends to the probe before it is removed
+        try:
+            fd = os.open(p, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+        except OSError as e:
+            return e.strerror
+        try:  # removed only while it is still the empty probe: another process (a sweep on the same new file) may
+            # have renamed its first record over it since (an audit's harness saw it deleted), or appended it (a review:
+            # where there is no lock)
+            mine = os.fstat(fd).st_ino
+            st = os.stat(p)
+            if st.st_ino == mine and st.st_size == 0:
+                os.unlink(p)
+        except OSError:
+            pass
+        finally:
+            os.close(fd)
     return None
 
 
@@ -223,8 +227,9 @@ def _opening(keys: tuple) -> bytes:
 
 
 def _cut_short(frag: bytes, keys: tuple) -> bool:
-    """Whether an unterminated last line ``frag`` is a record whose write was cut short (a SIGKILL between two
-    pages of the write, a power cut): it is not JSON, and it begins as a record does (or is the start of that)."""
+    """Whether an unterminated last line ``frag`` after a file's records is a record whose write was cut short (a
+    SIGKILL between two pages of the write, a power cut): it is not JSON, and it begins as a record does (or is the
+    start of that).  (Without a record before it, a file is not taken for a results file on so little: a review.)"""
     head = _opening(keys)
     n = min(len(frag), len(head))
     if frag[:n] != head[:n]:
@@ -254,7 +259,7 @@ def read_records(path: str, keys: tuple, refusal: str, check=None, cache: ReadCa
     line, or a file that is not UTF-8 text, raises ``ValueError(refusal.format(path=path,
     line=i))``, so a foreign file is refused rather than overwritten or half-read.
 
-    An unterminated last line that is not JSON but begins as a record does is a write cut short
+    An unterminated last line after a record that is not JSON but begins as a record does is a write cut short
     (:func:`_cut_short`): it is skipped, with a ``DryfricWarning`` (its record was never written; the next
     :func:`put_record` removes it).  With ``cache`` (:class:`ReadCache`, kept by the caller between reads of
     one file) only what was appended since the last read is parsed; the list is new, its records are the
@@ -270,14 +275,14 @@ def read_records(path: str, keys: tuple, refusal: str, check=None, cache: ReadCa
         start, out, lines = len(cache.raw), list(cache.records), cache.lines
     else:
         start, out, lines = 0, [], 0
-    end = max(data.rfind(b"\n") + 1, start)  # through the last complete line
+    end = max(data.rfind(b"\n"), data.rfind(b"\r"), start - 1) + 1  # through the last line end (CR-only too)
     numbered = _text_lines(data[start:end], lines + 1, refusal, path)
     out += _records(numbered, keys, refusal, check, path)
     lines += len(numbered)
     if cache is not None:
         cache.raw, cache.records, cache.lines = data[:end], list(out), lines
     frag = data[end:]
-    if frag.strip() and _cut_short(frag, keys):
+    if frag.strip() and out and _cut_short(frag, keys):
         from .api import DryfricWarning  # (api imports this module)
         warnings.warn(f"{path} line {lines + 1} is a record whose write was cut short (a kill or a full disk): "
                       "skipped; its run or point is not recorded", DryfricWarning, stacklevel=2)
@@ -424,12 +429,14 @@ def put_record(path: str, rec: dict, same, read, done=None) -> None:
 
 
 def _last_line_start(f, size: int) -> int:
-    """Where the unterminated last line of the file ``f`` (``size`` bytes, unbuffered) begins."""
+    """Where the unterminated last line of the file ``f`` (``size`` bytes, unbuffered) begins: after the last line
+    end (CR-only too, as :func:`read_records` reads them)."""
     pos = size
     while pos > 0:
         lo = max(0, pos - 65536)
         f.seek(lo)
-        k = f.read(pos - lo).rfind(b"\n")
+        chunk = f.read(pos - lo)
+        k = max(chunk.rfind(b"\n"), chunk.rfind(b"\r"))
         if k >= 0:
             return lo + k + 1
         pos = lo
@@ -446,7 +453,7 @@ def append_line(path: str, line: str) -> None:
         size = f.seek(0, os.SEEK_END)
         data = line.encode()
         f.seek(max(size - 1, 0))
-        if size and f.read(1) != b"\n":
+        if size and f.read(1) not in (b"\n", b"\r"):
             start = _last_line_start(f, size)
             f.seek(start)
             try:

@@ -593,3 +593,16 @@ def test_fig4_records_the_di_at_the_pdmp_lags(figs, tmp_path, monkeypatch):
         c = nums["curves"][f"{tau:g}"]
         assert dt_p == cov.DT_REC and dt_d == pytest.approx(cov.DT_REC, rel=1e-12) and n_p == n_d
         assert np.allclose(c["di"]["rho"], c["pdmp"]["rho"], rtol=1e-12, atol=0)
+
+
+def test_a_read_only_points_file_is_refused_before_any_run(tmp_path):
+    """A scene's finished runs are appended to its points file: a read-only one (which the rename of the whole file
+    used to replace) is refused up front, not after a run was computed and could not be kept (a review)."""
+    from dryfric_jax.figures import points
+
+    path = tmp_path / "fig3.points.jsonl"
+    path.write_text("")
+    points.check_points_file(str(tmp_path), "fig3")
+    path.chmod(0o444)
+    with pytest.raises(ValueError, match=r"fig3\.points\.jsonl' is read-only"):
+        points.check_points_file(str(tmp_path), "fig3")

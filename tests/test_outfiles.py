@@ -176,10 +176,12 @@ def test_a_last_line_without_its_newline_is_kept_and_ended_before_the_next_recor
 
 
 @pytest.mark.parametrize("text,line", [("hello", 1), ('{"j": 1}', 1), ('{"k": 1}\nnot json', 2), ('{"k": 1}\n{"k"', 0),
-                                       ('{"k": 1}\n{"j": 2', 2)])
+                                       ('{"k": 1}\n{"j": 2', 2), ("{", 1), ('{"k": 1, "x": 2,}', 1),
+                                       ('{"k": {\'a\': 1}}', 1), ('{"k": 1}{"k": 2}', 1)])
 def test_only_the_start_of_a_record_is_taken_for_a_write_cut_short(tmp_path, text, line):
-    """An unterminated last line is skipped only where it is a record's beginning that is not JSON; any other
-    (a foreign file's text, a line without the keys) is refused as before, naming its line, and the file is left."""
+    """An unterminated last line is skipped only where it follows a record and is a record's beginning that is not
+    JSON; any other (a foreign file's text, a line without the keys, a lone line that is not JSON however it begins:
+    a review) is refused as before, naming its line, and the file is left."""
     path = tmp_path / "r.jsonl"
     path.write_text(text)
     if line:
@@ -246,3 +248,36 @@ def test_a_cached_read_is_the_plain_one_whatever_became_of_the_file(tmp_path):
         f.write("\n" + lines[4][:10])
     with pytest.warns(UserWarning, match="line 5 is a record whose write was cut short"):
         assert both(1) == [_rec(i) for i in range(4)]
+
+
+def test_lines_ended_by_a_carriage_return_alone_are_lines(tmp_path):
+    """A file whose lines end in a bare CR (or mixes them) is read line by line, as text mode reads it, and the next
+    record is appended after its last line: its records were taken for one record cut short, skipped and then
+    removed by the next write (a review)."""
+    path = tmp_path / "r.jsonl"
+    path.write_bytes("".join(dumps(_rec(i)) + "\r" for i in range(3)).encode())
+    assert _read(path) == [_rec(0), _rec(1), _rec(2)]
+    _put(path, _rec(3))
+    assert _read(path) == [_rec(i) for i in range(4)]
+    path.write_bytes((dumps(_rec(0)) + "\n" + dumps(_rec(1)) + "\r" + dumps(_rec(2))).encode())
+    assert _read(path) == [_rec(0), _rec(1), _rec(2)]
+    _put(path, _rec(3))
+    assert _read(path) == [_rec(i) for i in range(4)]
+
+
+def test_the_writability_probe_never_removes_a_record_written_meanwhile(tmp_path, monkeypatch):
+    """check_writable makes and removes a probe file under a new results file's own name.  A sweep that appended its
+    first record to it meanwhile lost that record when the probe was removed (a review: the probe's inode was
+    checked, but an append keeps it).  The probe is made under the file's lock, and removed only while empty."""
+    path = str(tmp_path / "r.jsonl")
+    real = os.fstat
+
+    def fstat_with_a_write(fd):  # another writer's first record, as between the probe's making and removal
+        with open(path, "ab") as f:
+            f.write((dumps(_rec(1)) + "\n").encode())
+        return real(fd)
+
+    monkeypatch.setattr(outfiles.os, "fstat", fstat_with_a_write)
+    outfiles.check_writable(path)
+    monkeypatch.undo()
+    assert _read(path) == [_rec(1)]

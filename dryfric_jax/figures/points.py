@@ -124,9 +124,13 @@ def points_path(out_dir: str, scene: str) -> str:
 
 
 def check_points_file(out_dir: str, scene: str) -> None:
-    """Refuse (``ValueError``, as :class:`Points` does) a ``<scene>.points.jsonl`` in ``out_dir`` that is not one;
-    no file is fine."""
-    _read(points_path(out_dir, scene))
+    """Refuse (``ValueError``, as :class:`Points` does) a ``<scene>.points.jsonl`` in ``out_dir`` that is not one,
+    or that is read-only (a run is appended to it once computed: a review); no file is fine."""
+    path = points_path(out_dir, scene)
+    _read(path)
+    if os.path.isfile(path) and not os.stat(path).st_mode & 0o222:
+        raise ValueError(f"out must be a directory of dryfric figure outputs where each scene's points file can be "
+                         f"written ({path!r} is read-only)")
 
 
 def other_versions(out_dir: str, scene: str) -> dict:
