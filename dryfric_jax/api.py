@@ -350,6 +350,14 @@ def _build(params: Params, plan: Plan):
     return make_pdmp_model(params, plan.delta, DTYPES[plan.dtype])
 
 
+def _seeds_text(seeds: list, shown: int = 6) -> str:
+    """A pool's seeds for its summary: all of a few, else the first ``shown`` and how many (3000 pooled sweep records
+    printed one line of 34,515 characters: an audit; the JSON keeps them all)."""
+    if len(seeds) <= shown:
+        return f"seeds {seeds}"
+    return f"seeds [{', '.join(map(str, seeds[:shown]))}, ...] ({len(seeds)} runs)"
+
+
 def _fmt(x, ci):
     """``x ± ci  (relative %)``."""
     return f"{x:.6g} ± {ci:.2g}  ({100 * ci / abs(x):.1f}%)" if x else f"{x:.6g} ± {ci:.2g}"
@@ -589,7 +597,7 @@ class EstimateResult(_Record):
                 + ("\n" if self.method == "pdmp" else
                    " (DI: regeneration cycles, each >= 1 of the paper's excursions)\n")
                 + f"N = {self.n_excursions} excursions, {self.n_truncated} truncated, {_resolution(self)}, "
-                f"{self.dtype}, " + (f"seeds {self.combined_from}" if self.combined_from
+                f"{self.dtype}, " + (_seeds_text(self.combined_from) if self.combined_from
                                     else f"seed {self.seed}" if self.key is None else f"key {self.key}")
                 + f"\nwall {self.wall_s:.1f} s, {self.lane_steps_per_s:.3g} "
                 f"{'lane-steps' if self.delta is None else 'events'}/s, stopped by: {self.stopped_by}")

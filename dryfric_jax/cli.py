@@ -34,7 +34,7 @@ from .bench import MAX_REPEAT
 from .durations import MAX_COUNT_LANES, NoCountError
 from .durations import MAX_STEPS as DUR_MAX_STEPS
 from .estimators import MAX_PATHS, MIN_PATHS, MIN_RELIABLE_PATHS
-from .outfiles import check_writable, check_writable_dir, dumps, loads, write_atomic
+from .outfiles import check_writable, check_writable_dir, dumps, loads, read_records, write_atomic
 from .params import FIG3, Params
 from .plan import MAX_BLOCK, MAX_LANES, MAX_STEPS
 from .xla_flags import use_all_cpu_cores
@@ -588,16 +588,19 @@ def _read_results(paths):
             try:
                 found = [(path, loads(text))]
             except ValueError:  # JSON Lines?
-                lines = [(i, x) for i, x in enumerate(text.splitlines(), 1) if x.strip()]
-                if len(lines) < 2:
+                numbers = [i for i, x in enumerate(text.replace("\r\n", "\n").replace("\r", "\n").split("\n"), 1)
+                           if x.strip()]
+                if len(numbers) < 2:
                     raise
-                found = []
-                for i, x in lines:
-                    try:
-                        found.append((f"{path}:{i}", loads(x)))
-                    except ValueError as e:
-                        raise _UserError(f"files: cannot read an estimate result from {path!r} line {i} ({e})") \
-                            from None
+                # as a sweep reads its file: a last line a kill cut short is skipped, with a warning (it was refused,
+                # so a file another host was writing could not be combined: an audit); it is the last line, so the
+                # records are the first lines'
+                try:
+                    recs = read_records(path, (), "files: cannot read an estimate result from {path!r} line {line} "
+                                        "(not a JSON object)")
+                except ValueError as e:
+                    raise _UserError(str(e)) from None
+                found = [(f"{path}:{i}", rec) for i, rec in zip(numbers, recs)]
         except (OSError, ValueError) as e:  # ValueError: not JSON, or not UTF-8
             raise _UserError(f"files: cannot read an estimate result from {path!r} ({e})") from None
         for label, r in found:

@@ -53,6 +53,17 @@ def _as_result(r, label: str) -> EstimateResult:
         raise ValueError(f"results must be estimate results: {label} is a sweep record of a {r['status']} point, "
                          f"which has none ({str(r.get('reason', ''))[:200]})")
     if isinstance(r, dict) and isinstance(r.get("result"), dict) and "params" in r:  # a sweep's record
+        from .sweep import _check_record  # (sweep imports this module)
+
+        # as the sweep's reader checks it: a hand-edited tau, D or h was pooled as it stood (an audit).  A record
+        # without the sweep's identity (its seed, settings) has none to check
+        try:
+            if "sweep_seed" in r or "settings" in r:
+                _check_record(r)
+        except (KeyError, TypeError, AttributeError, ValueError):
+            raise ValueError(f"results must be estimate results: {label} is not a sweep record as a sweep writes "
+                             "it (its seed is not its point's, or its D, M0 or n are not its sums': a hand-edited "
+                             "record?)") from None
         r = {**r["result"], "params": r["params"], "seed": r.get("seed")}
     if isinstance(r, dict):  # EstimateResult.to_dict() (the JSON of 'dryfric estimate --out')
         missing = missing_fields(EstimateResult, r)
@@ -65,14 +76,15 @@ def _as_result(r, label: str) -> EstimateResult:
                      f"{type(r).__name__})")
 
 
-def _without_count_twins(results: list, labels: list) -> tuple[list, list, int]:
-    """``results`` and ``labels`` without the sweep records that repeat another's D estimate, and how many were left
-    out.  A sweep given a long-excursion count (``durations``) after its D writes each point's record again, with the
-    count and the same D (README "Sweeps and notebooks"): records of one point (sweep seed, parameters, settings but
-    the count, seed and version) whose counts differ and whose sums are equal are one run.  They were refused as one
-    seed used twice, so a sweep file that had been given a count could not be combined at all (a README audit);
-    records equal in the count too (a file given twice) are still refused."""
-    keep, kept_labels, seen = [], [], {}
+def _without_count_twins(results: list, labels: list) -> tuple[list, list, int, tuple | None]:
+    """``results`` and ``labels`` without the sweep records that repeat another's D estimate, how many were left
+    out, and the labels of the first such pair (None if none). A sweep given a long-excursion count (``durations``)
+    after its D writes each point's record again, with the count and the same D (README "Sweeps and notebooks"):
+    records of one point (sweep seed, parameters, settings but the count, seed and version) whose counts differ and
+    whose sums are equal are one run. They were refused as one seed used twice, so a sweep file that had been given
+    a count could not be combined at all (a README audit); records equal in the count too (a file given twice) are
+    still refused."""
+    keep, kept_labels, seen, first_twin = [], [], {}, None
     for r, label in zip(results, labels):
         res = r.get("result") if isinstance(r, dict) else None
         settings = r.get("settings") if isinstance(res, dict) else None
@@ -83,14 +95,15 @@ def _without_count_twins(results: list, labels: list) -> tuple[list, list, int]:
             run = repr((r.get("sweep_seed"), sorted(r["params"].items()), sorted(settings.items()), r.get("seed"),
                         r.get("version")))
             sums = res.get("sums")
-            counts = seen.setdefault(run, {"sums": sums, "counts": set()})
+            counts = seen.setdefault(run, {"sums": sums, "counts": set(), "label": label})
             if counts["counts"] and count not in counts["counts"] and sums == counts["sums"]:
                 counts["counts"].add(count)
+                first_twin = first_twin or (counts["label"], label)
                 continue
             counts["counts"].add(count)
         keep.append(r)
         kept_labels.append(label)
-    return keep, kept_labels, len(results) - len(keep)
+    return keep, kept_labels, len(results) - len(keep), first_twin
 
 
 def _real(x) -> bool:
@@ -233,7 +246,7 @@ def combine_estimates(results: Sequence, *, labels: Sequence[str] | None = None,
         if not (ok and len(labels) == len(results) and all(isinstance(x, str) for x in labels)):
             raise ValueError(f"labels must be a list of {len(results)} strings, one per result "
                              f"(got {str(labels)[:60]})")
-    results, labels, twins = _without_count_twins(results, labels)
+    results, labels, twins, twin = _without_count_twins(results, labels)
     rs = [_as_result(r, label) for r, label in zip(results, labels)]
     for r, label in zip(rs, labels):
         _check_fields(r, label)
@@ -247,22 +260,28 @@ def combine_estimates(results: Sequence, *, labels: Sequence[str] | None = None,
             if not _same(a, b):
                 raise ValueError(f"results must share {name}: {labels[0]} has {a!r}, {labels[i]} has {b!r}")
     # what made each run: its seed, or the key of a key-made one (None: a key-made run written before keys were recorded)
-    seeds = [s for r in rs for s in (r.combined_from or [r.seed if r.seed is not None else r.key])]
-    known = [s for s in seeds if isinstance(s, int)]
-    if len(set(known)) < len(known):
-        dup = sorted({s for s in known if known.count(s) > 1})
-        raise ValueError(f"seeds must differ between the runs combined (seed(s) {dup} used more than once): "
-                         "the same seed gives the same excursions")
+    owned = [(s, i) for i, r in enumerate(rs) for s in (r.combined_from or [r.seed if r.seed is not None else r.key])]
+    seeds = [s for s, _ in owned]
+    first_of: dict = {}  # each seed's first run: a repeated one is named with both runs (an audit)
+    for s, i in owned:
+        if isinstance(s, int) and first_of.setdefault(s, i) != i:
+            raise ValueError(f"seeds must differ between the runs combined (seed {s} used by {labels[first_of[s]]} "
+                             f"and by {labels[i]}): the same seed gives the same excursions")
     # a key-made run against a seed (key(5) is seed 5's key) or against a pool it is part of: its
-    # stream counted twice, and pooled with only the "assumed independent" note (a sweep audit)
-    streams = [_stream(s) for s in seeds]
-    for i, a in enumerate(streams):
-        j = next((j for j in range(i) if a is not None and streams[j] == a), None)
-        if j is not None:
-            what = lambda s: f"seed {s}" if isinstance(s, int) else f"key {s}"
-            raise ValueError(f"results must draw different random streams: {what(seeds[j])} and {what(seeds[i])} "
-                             "are the same stream (a seed s runs on jax.random.key(s)), so pooling would count its "
-                             "excursions twice")
+    # stream counted twice, and pooled with only the "assumed independent" note (a sweep audit).  A dict of the
+    # streams seen (a scan of the earlier ones for each took 3 s at 10^4 runs: an audit)
+    what = lambda s: f"seed {s}" if isinstance(s, int) else f"key {s}"
+    by_stream: dict = {}
+    for s, i in owned:
+        a = _stream(s)
+        if a is None:
+            continue
+        if a in by_stream:
+            t, j = by_stream[a]
+            raise ValueError(f"results must draw different random streams: {what(t)} ({labels[j]}) and {what(s)} "
+                             f"({labels[i]}) are the same stream (a seed s runs on jax.random.key(s)), so pooling "
+                             "would count its excursions twice")
+        by_stream[a] = (s, i)
     seen = {}
     for i, r in enumerate(rs):  # the same run twice (a key-made run has no seed to compare)
         j = seen.setdefault(tuple(r.sums[k] for k in STAT_NAMES), i)
@@ -274,7 +293,8 @@ def combine_estimates(results: Sequence, *, labels: Sequence[str] | None = None,
     said = []
     if twins:
         said.append(f"{twins} sweep record(s) repeating a point's D with another long-excursion count (durations) "
-                    "pooled once")
+                    f"pooled once (the first: {twin[1]} repeats {twin[0]}; records of two sweeps with the same seed "
+                    "are one D: a second host needs another --seed)")
     if None in seeds:
         said.append("some results were made from a jax.random key that they do not record (written before keys were "
                     "recorded): their streams are assumed independent")

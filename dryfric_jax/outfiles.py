@@ -222,8 +222,8 @@ class ReadCache:
 
 def _opening(keys: tuple) -> bytes:
     """How every record of a results file begins (:func:`dumps` keeps the writer's order; the first of ``keys``
-    comes first in each)."""
-    return b'{"' + keys[0].encode() + b'": '
+    comes first in each; without keys, any object's beginning)."""
+    return b'{"' + (keys[0].encode() + b'": ' if keys else b"")
 
 
 def _cut_short(frag: bytes, keys: tuple) -> bool:

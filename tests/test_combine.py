@@ -72,8 +72,8 @@ def test_a_stream_pooled_twice_is_refused_whatever_made_it(runs):
     assert k5.sums == dj.estimate_diffusivity(p, 5, n_excursions=600).sums  # the same stream, to the bit
     s5 = dj.estimate_diffusivity(p, 5, n_excursions=1200)  # more excursions: other sums, the same stream
     assert s5.key is None and "key " not in s5.summary() and "key key<fry>" in k5.summary()
-    with pytest.raises(ValueError, match=r"^results must draw different random streams: seed 5 and key "
-                                         r"key<fry>:00000000:00000005 are the same stream"):
+    with pytest.raises(ValueError, match=r"^results must draw different random streams: seed 5 \(results\[0\]\) and key "
+                                         r"key<fry>:00000000:00000005 \(results\[1\]\) are the same stream"):
         combine_estimates([s5, k5])
     # a raw PRNGKey is the same key
     raw = dj.estimate_diffusivity(p, jax.random.PRNGKey(7), n_excursions=600)
@@ -273,7 +273,7 @@ def test_the_cli_pools_a_sweep_file_line_by_line(tmp_path, runs, capsys):
     # a line that is not JSON is named by its number (the message said line 1 of the file)
     out.write_text("".join(x + "\n" for x in out.read_text().splitlines()[:2]) + "garbage{\n")
     assert main(["combine", str(out)]) == 2
-    assert f"from {str(out)!r} line 3 (Expecting value" in capsys.readouterr().err
+    assert f"from {str(out)!r} line 3 (not a JSON object)" in capsys.readouterr().err
 
 
 def test_a_file_saved_with_a_byte_order_mark_is_read(tmp_path, runs, capsys):

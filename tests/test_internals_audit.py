@@ -349,7 +349,7 @@ def test_combine_pools_every_field_by_its_own_rule():
     # a pool pools further under its runs' seeds, which still may not repeat
     d = _synthetic(3, U1[:50], t1[:50])
     assert combine_estimates([c, d]).combined_from == [1, 2, 3]
-    with pytest.raises(ValueError, match=r"seed\(s\) \[2\] used more than once"):
+    with pytest.raises(ValueError, match=r"seed 2 used by results\[0\] and by results\[1\]"):
         combine_estimates([c, dataclasses.replace(d, seed=2)])
 
 

@@ -4,6 +4,7 @@ The estimator is replaced by a cheap deterministic stand-in that records each ca
 parameters and the seed it was given): the tests check which points a sweep runs, with which seed,
 and what its file and tables then hold, not the numbers.  The mutants named in each docstring are
 single edits of the package that the test fails on (and that the other sweep tests let through)."""
+import dataclasses
 import json
 import math
 import os
@@ -253,3 +254,65 @@ def test_an_identity_tells_minus_inf_from_inf():
     ident = lambda tau_L: sweep._ident(0, {**FIG3, "tau_L": tau_L}, {})  # noqa: E731
     assert ident(-math.inf) != ident(math.inf)
     assert json.loads(ident(math.inf))[1]["tau_L"] == "inf"
+
+
+@pytest.fixture
+def whole(calls, monkeypatch):
+    """The stand-in estimator (``calls``) with the fields combine needs of a result too."""
+    part = sweep.estimate_diffusivity
+
+    def estimate(p, seed, **kw):
+        r = part(p, seed, **kw)
+        d = dict(r.to_dict(), h=0.00067, dtype="float64", wall_s=1.0, lane_steps_per_s=1e6)
+        return types.SimpleNamespace(stopped_by=r.stopped_by, to_dict=lambda: dict(d))
+
+    monkeypatch.setattr(sweep, "estimate_diffusivity", estimate)
+    return calls
+
+
+def test_combine_checks_sweep_records_as_the_sweep_reads_them(tmp_path, whole, capsys):
+    """combine pooled a hand-edited sweep record as it stood (tau moved to another point's, D tripled), which the
+    sweep's own reader refuses; and refused a whole file whose last line a kill had cut short, which the sweep
+    reads without it (an audit).  Now a record is checked as the sweep checks it (exit 2 naming its line), and a
+    line cut short is skipped with a warning."""
+    out = tmp_path / "s.jsonl"
+    sweep.run_sweep(sweep.grid(tau=[0.5, 0.4]), str(out), **KW)
+    sweep.run_sweep(sweep.grid(tau=[0.5]), str(out), seed=1, **KW)
+    recs = _lines(out)
+    good = dj.combine_estimates([recs[0], recs[2]])
+    for edit in (lambda r: r["params"].update(tau=0.5), lambda r: r["result"].update(D=3 * r["result"]["D"])):
+        bad = json.loads(json.dumps(recs[1]))
+        edit(bad)
+        with pytest.raises(ValueError, match=r"results\[1\] is not a sweep record as a sweep writes it"):
+            dj.combine_estimates([recs[0], bad])
+        edited = tmp_path / "e.jsonl"
+        edited.write_text(json.dumps(recs[2]) + "\n" + json.dumps(bad) + "\n")
+        assert main(["combine", str(edited)]) == 2
+        assert f"{edited}:2 is not a sweep record" in capsys.readouterr().err
+    cut = tmp_path / "cut.jsonl"
+    text = out.read_text().splitlines()
+    cut.write_text(text[0] + "\n" + text[2] + "\n" + text[1][:300])
+    assert main(["combine", str(cut), "--json"]) == 0
+    got = json.loads(capsys.readouterr().out)
+    assert (got["D"], got["n_excursions"]) == (good.D, good.n_excursions)
+
+
+def test_combine_names_the_runs_that_share_a_seed_and_shortens_a_long_list_of_seeds(tmp_path, whole, capsys):
+    """A seed used twice was refused without saying which runs, a derived sweep seed the user never typed (an
+    audit); a pool of 3000 records printed all their seeds on one line.  Sweeps with the same seed on two hosts, one
+    given a count (durations), are one D: the note names both records."""
+    a, b = tmp_path / "a.jsonl", tmp_path / "b.jsonl"
+    sweep.run_sweep(sweep.grid(Gamma=[2.0]), str(a), **KW)
+    sweep.run_sweep(sweep.grid(Gamma=[2.0]), str(b), **KW)
+    assert main(["combine", str(a), str(b)]) == 2
+    err = capsys.readouterr().err
+    assert f"used by {a} and by {b})" in err, err  # a one-line file is one result, named by the file
+    rec = dict(_lines(a)[0], settings={**_lines(a)[0]["settings"], "durations": 64},
+               durations=dict(reason="stand-in: no count"))
+    rec["seed"] = sweep.point_seed(0, rec["params"], rec["settings"])
+    b.write_text(json.dumps(rec) + "\n")
+    with pytest.warns(dj.DryfricWarning, match=r"the first: results\[1\] repeats results\[0\].*another --seed"):
+        dj.combine_estimates(_lines(a) + _lines(b))
+    pool = dataclasses.replace(dj.combine_estimates(_lines(a)), combined_from=list(range(3000)))
+    line = next(ln for ln in pool.summary().splitlines() if "seeds" in ln)
+    assert line.endswith("seeds [0, 1, 2, 3, 4, 5, ...] (3000 runs)") and len(line) < 200
