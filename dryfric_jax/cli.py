@@ -767,7 +767,12 @@ def _run(a) -> int:
             results, labels = _read_results(a.files)
             r = combine_estimates(results, labels=labels, allow_mixed_versions=a.allow_mixed_versions)
         _report(a, r)
-        return _truncation_exit(a, r, "")
+        # which runs hold them (an audit: the pool's count alone did not say which file to rerun)
+        cut = [lab for res, lab in zip(results, labels)
+               if isinstance(res, dict) and ((res.get("result") if isinstance(res.get("result"), dict) else res)
+                                             .get("n_truncated") or 0)]
+        return _truncation_exit(a, r, f"; they come from {', '.join(cut[:3])}" + (" ..." if len(cut) > 3 else "")
+                                if cut else "")
     params = _params(a)
     if a.cmd == "theory":
         return _theory(a, params)

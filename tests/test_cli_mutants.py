@@ -310,9 +310,14 @@ def test_combine_passes_each_result_with_its_file_as_label(calls, tmp_path, caps
     assert results == [dict(seed=1), dict(seed=2)] and kw == dict(labels=files, allow_mixed_versions=False)
     calls.result.update(n_truncated=3)
     assert main(["combine", *files]) == 3
-    assert "3 truncated excursions" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "3 truncated excursions" in err and "they come from" not in err  # the inputs hold none here
     assert main(["combine", *files, "--allow-truncated"]) == 0
     capsys.readouterr()
+    with open(files[1], "w") as f:  # the file that holds them is named (an audit)
+        json.dump(dict(seed=2, n_truncated=3), f)
+    assert main(["combine", *files]) == 3
+    assert f"they come from {files[1]})" in capsys.readouterr().err
 
 
 def test_figures_options_reach_run_figures(calls, tmp_path, capsys, monkeypatch):
