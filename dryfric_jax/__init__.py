@@ -37,7 +37,8 @@ jax.config.update("jax_enable_x64", True)
 
 from . import theory  # noqa: E402
 from .api import (  # noqa: E402
-    BruteForceResult, DryfricWarning, EstimateResult, NoEstimateError, ProjectionWarning, SmallSampleWarning,
+    BruteForceResult, DryfricWarning, EstimateResult, FileWarning, NoEstimateError, ProjectionWarning,
+    SmallSampleWarning,
     bruteforce_diffusivity, default_h, estimate_diffusivity,
 )
 from .chain_law import ChainLaw, white_chain_law  # noqa: E402
@@ -56,7 +57,7 @@ __all__ = [
     "Params", "FIG3", "OUStep", "ou_step", "ou_moments", "DIModel", "make_di_model",
     "PDMPModel", "make_pdmp_model",
     "estimate_diffusivity", "bruteforce_diffusivity", "EstimateResult", "BruteForceResult",
-    "DryfricWarning", "ProjectionWarning", "SmallSampleWarning", "NoEstimateError", "default_h", "Plan",
+    "DryfricWarning", "FileWarning", "ProjectionWarning", "SmallSampleWarning", "NoEstimateError", "default_h", "Plan",
     "plan_estimate",
     "delta_method", "psi_D", "psi_M", "MIN_RELIABLE_N", "MIN_RELIABLE_PATHS",
     "theory", "ChainLaw", "white_chain_law", "LEDuration", "NoCountError", "di_long_excursion_duration",

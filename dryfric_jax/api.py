@@ -268,6 +268,11 @@ class ProjectionWarning(DryfricWarning):
     which says what did happen."""
 
 
+class FileWarning(DryfricWarning):
+    """About a results file as it was read (a last line a kill cut short, skipped): said at once, as it is in no
+    result."""
+
+
 class SmallSampleWarning(DryfricWarning):
     """N (or n_paths) below the size where the delta-method CI is calibrated.  Its own category so that a
     sweep at small N can silence it alone, ``warnings.simplefilter("ignore", dj.SmallSampleWarning)``,

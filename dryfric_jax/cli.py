@@ -34,7 +34,7 @@ from .bench import MAX_REPEAT
 from .durations import MAX_COUNT_LANES, NoCountError
 from .durations import MAX_STEPS as DUR_MAX_STEPS
 from .estimators import MAX_PATHS, MIN_PATHS, MIN_RELIABLE_PATHS
-from .outfiles import check_writable, check_writable_dir, dumps, loads, read_records, write_atomic
+from .outfiles import check_writable, check_writable_dir, dumps, loads, locked, read_records, write_atomic
 from .params import FIG3, Params
 from .plan import MAX_BLOCK, MAX_LANES, MAX_STEPS
 from .xla_flags import use_all_cpu_cores
@@ -596,8 +596,9 @@ def _read_results(paths):
                 # so a file another host was writing could not be combined: an audit); it is the last line, so the
                 # records are the first lines'
                 try:
-                    recs = read_records(path, (), "files: cannot read an estimate result from {path!r} line {line} "
-                                        "(not a JSON object)")
+                    with locked(path):  # a record being appended is not seen half written
+                        recs = read_records(path, (), "files: cannot read an estimate result from {path!r} line "
+                                            "{line} (not a JSON object)")
                 except ValueError as e:
                     raise _UserError(str(e)) from None
                 found = [(f"{path}:{i}", rec) for i, rec in zip(numbers, recs)]
@@ -615,11 +616,12 @@ def _read_results(paths):
 def _warnings_kept_in_result():
     """Silence the library's DryfricWarnings: each is also in ``result.warnings``, which
     :func:`_report` prints as one line.  A ProjectionWarning, said while the run goes on and
-    not kept in the result, goes to stderr at once (on its own line under a progress line)."""
-    from .api import DryfricWarning, ProjectionWarning
+    not kept in the result, goes to stderr at once (on its own line under a progress line), and so does a
+    FileWarning (a results file's line cut short, skipped: a review found combine dropping one without a word)."""
+    from .api import DryfricWarning, FileWarning, ProjectionWarning
 
     def show(message, category, *args, **kw):
-        if issubclass(category, ProjectionWarning):
+        if issubclass(category, (ProjectionWarning, FileWarning)):
             clear = "\r\x1b[K" if sys.stderr.isatty() else ""  # the progress line's
             print(f"{clear}dryfric: warning: {message}", file=sys.stderr, flush=True)
 

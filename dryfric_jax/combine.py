@@ -264,9 +264,12 @@ def combine_estimates(results: Sequence, *, labels: Sequence[str] | None = None,
     seeds = [s for s, _ in owned]
     first_of: dict = {}  # each seed's first run: a repeated one is named with both runs (an audit)
     for s, i in owned:
-        if isinstance(s, int) and first_of.setdefault(s, i) != i:
-            raise ValueError(f"seeds must differ between the runs combined (seed {s} used by {labels[first_of[s]]} "
-                             f"and by {labels[i]}): the same seed gives the same excursions")
+        if isinstance(s, int) and s in first_of:
+            j = first_of[s]
+            by = f"twice by {labels[i]}" if labels[i] == labels[j] else f"by {labels[j]} and by {labels[i]}"
+            raise ValueError(f"seeds must differ between the runs combined (seed {s} used {by}): the same seed gives "
+                             "the same excursions")
+        first_of[s] = i
     # a key-made run against a seed (key(5) is seed 5's key) or against a pool it is part of: its
     # stream counted twice, and pooled with only the "assumed independent" note (a sweep audit).  A dict of the
     # streams seen (a scan of the earlier ones for each took 3 s at 10^4 runs: an audit)

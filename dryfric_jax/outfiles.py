@@ -1,6 +1,7 @@
 """Output files: checked writable before any work, written atomically (never a torn file), in strict
 JSON (:func:`dumps`, :func:`loads`).  A results file (JSON Lines) grows by one appended line a record
-(:func:`put_record`); a line whose write a kill cut short is skipped by readers and removed by the next writer."""
+(:func:`put_record`); a line whose write a kill cut short is skipped by readers and removed by the next writer
+(where a record precedes it)."""
 from __future__ import annotations
 
 import contextlib
@@ -10,6 +11,7 @@ import math
 import os
 import stat
 import tempfile
+import threading
 import time
 import warnings
 
@@ -260,10 +262,11 @@ def read_records(path: str, keys: tuple, refusal: str, check=None, cache: ReadCa
     line=i))``, so a foreign file is refused rather than overwritten or half-read.
 
     An unterminated last line after a record that is not JSON but begins as a record does is a write cut short
-    (:func:`_cut_short`): it is skipped, with a ``DryfricWarning`` (its record was never written; the next
-    :func:`put_record` removes it).  With ``cache`` (:class:`ReadCache`, kept by the caller between reads of
-    one file) only what was appended since the last read is parsed; the list is new, its records are the
-    cache's (not to be changed)."""
+    (:func:`_cut_short`): it is skipped, with a ``FileWarning`` (its record was never written; the next
+    :func:`put_record` removes it). A file's first record cut short is refused with the rest: delete the file.
+    Appends are made under :func:`locked`: a reader that holds it never sees one half written. With ``cache``
+    (:class:`ReadCache`, kept by the caller between reads of one file) only what was appended since the last read
+    is parsed; the list is new, its records are the cache's (not to be changed)."""
     if not os.path.lexists(path):
         return []
     if not os.path.isfile(path):
@@ -283,9 +286,9 @@ def read_records(path: str, keys: tuple, refusal: str, check=None, cache: ReadCa
         cache.raw, cache.records, cache.lines = data[:end], list(out), lines
     frag = data[end:]
     if frag.strip() and out and _cut_short(frag, keys):
-        from .api import DryfricWarning  # (api imports this module)
+        from .api import FileWarning  # (api imports this module)
         warnings.warn(f"{path} line {lines + 1} is a record whose write was cut short (a kill or a full disk): "
-                      "skipped; its run or point is not recorded", DryfricWarning, stacklevel=2)
+                      "skipped; its run or point is not recorded", FileWarning, stacklevel=2)
     elif frag.strip():  # a last line without its newline (written by hand)
         out += _records(_text_lines(frag + b"\n", lines + 1, refusal, path), keys, refusal, check, path)
     return out
@@ -309,12 +312,26 @@ def _records(numbered: list, keys: tuple, refusal: str, check, path: str) -> lis
     return out
 
 
+_HELD = threading.local()  # the directories this thread holds locked (a count each)
+
+
 @contextlib.contextmanager
 def locked(path: str):
     """Hold an exclusive lock on ``path``'s directory (``flock``) while a results file is read and
     rewritten, so two processes updating one file take turns instead of writing over each
-    other's records.  No lock where ``fcntl`` is missing (Windows) or the directory cannot be
-    opened or locked (some network file systems)."""
+    other's records, and a reader never sees a record half appended.  No lock where ``fcntl`` is missing (Windows)
+    or the directory cannot be opened or locked (some network file systems).  Re-entrant within a thread: a reader
+    that locks (:func:`~dryfric_jax.sweep.read_results`) may be called under a held lock (a second ``flock`` of the
+    directory in one process waits for the first for ever)."""
+    d = os.path.dirname(os.path.realpath(path))
+    held = _HELD.__dict__
+    if held.get(d):
+        held[d] += 1
+        try:
+            yield
+        finally:
+            held[d] -= 1
+        return
     fd = None
     if fcntl is not None:
         try:
@@ -326,9 +343,11 @@ def locked(path: str):
             fd = None
     if fd is not None:  # held: no other writer of this file is at work
         _drop_stale_tmp(path)
+    held[d] = 1
     try:
         yield
     finally:
+        held[d] = 0
         if fd is not None:
             os.close(fd)  # releases the lock
 

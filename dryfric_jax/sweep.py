@@ -4,7 +4,8 @@ r"""Resumable sweeps of D and M0 over a grid of parameters.
 each finished point to a JSON Lines file as one appended line, fsync'd (a record that replaces one is
 written by rewriting the whole file to a temporary file in the same directory and renaming it over the
 old one).  A kill at any moment loses no finished point: at most the line being written is cut short,
-which readers skip (with a warning) and the next write removes.  Each record carries the point's
+which readers skip (with a warning) and the next write removes (a file whose first line was cut short is
+refused: delete it).  Each record carries the point's
 parameters, the settings that determine its result, its seed and the package version.
 
 Resuming: a point whose record (same parameters and settings) is already in the file is not
@@ -246,16 +247,23 @@ def _agrees_with_sums(res: dict, params: dict) -> bool:
 def read_results(path: str) -> list[dict]:
     """The records of a sweep file (empty if it does not exist); refuses a file that is not one,
     naming the first line that is not a sweep record, and a ``path`` that is not a file path (None or a number was
-    a TypeError)."""
-    return _read(path)
+    a TypeError).  Read under the file's lock (:func:`~dryfric_jax.outfiles.locked`), so a record another process
+    is appending is never seen half written."""
+    _check_path(path)
+    with locked(path):
+        return _read(path)
+
+
+def _check_path(path) -> None:
+    if not isinstance(path, (str, os.PathLike)):
+        raise ValueError(f"path must be a sweep file's path (got {shown(path)})")
 
 
 def _read(path: str, cache: ReadCache | None = None) -> list[dict]:
     """:func:`read_results`; with ``cache`` (one :class:`~dryfric_jax.outfiles.ReadCache` per file, kept between
     reads), only the records appended since the last read are parsed and checked (run_sweep reads its file twice a
     point)."""
-    if not isinstance(path, (str, os.PathLike)):
-        raise ValueError(f"path must be a sweep file's path (got {shown(path)})")
+    _check_path(path)
     return read_records(path, ("params", "settings", "sweep_seed"),
                         "out must be a dryfric sweep file (JSON Lines); {path!r} line {line} is not a sweep record",
                         check=_check_record, cache=cache)

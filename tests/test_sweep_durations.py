@@ -308,7 +308,7 @@ def test_a_sweep_given_a_count_later_still_combines(tmp_path, capsys):
     assert (got["D"], got["D_ci"], got["n_excursions"]) == (want.D, want.D_ci, want.n_excursions)
     assert any("2 sweep record(s) repeating a point's D" in w for w in got["warnings"])
     assert main(["combine", files[0], files[0]]) == 2
-    assert f"used by {files[0]}:1 and by {files[0]}:1" in capsys.readouterr().err
+    assert f"used twice by {files[0]}:1" in capsys.readouterr().err
     # records of other shapes are left to combine's own refusal (a review: params null was an AttributeError, a
     # count [64] a TypeError, from the twins' test)
     with pytest.raises(ValueError, match="^results must be estimate results|^results\\[0\\] must have"):

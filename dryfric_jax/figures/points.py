@@ -44,7 +44,7 @@ from ..api import (
     BruteForceResult, DryfricWarning, EstimateResult, bruteforce_diffusivity, estimate_diffusivity, missing_fields,
 )
 from ..durations import LEDuration, di_long_excursion_duration
-from ..outfiles import claim, put_record, read_records
+from ..outfiles import claim, locked, put_record, read_records
 from ..rounds import abandon_on_interrupt
 
 _KINDS = {"estimate": (estimate_diffusivity, EstimateResult), "bruteforce": (bruteforce_diffusivity, BruteForceResult),
@@ -104,9 +104,12 @@ def _check_record(rec: dict) -> None:
 
 
 def _read(path: str) -> list[dict]:
-    return read_records(path, ("ident", "kind", "result"),
-                        "out must be a directory of dryfric figure outputs; {path!r} line {line} is "
-                        "not a finished-run record (move the file away)", check=_check_record)
+    """The points file's records, read under its lock: a run another process is appending is never seen half
+    written (a review: a scene's first run read so refused the file as foreign)."""
+    with locked(path):
+        return read_records(path, ("ident", "kind", "result"),
+                            "out must be a directory of dryfric figure outputs; {path!r} line {line} is "
+                            "not a finished-run record (move the file away)", check=_check_record)
 
 
 def _stamp(path: str):
@@ -128,7 +131,7 @@ def check_points_file(out_dir: str, scene: str) -> None:
     or that is read-only (a run is appended to it once computed: a review); no file is fine."""
     path = points_path(out_dir, scene)
     _read(path)
-    if os.path.isfile(path) and not os.stat(path).st_mode & 0o222:
+    if os.path.isfile(path) and not (os.stat(path).st_mode & 0o222 and os.access(path, os.W_OK)):  # another's too
         raise ValueError(f"out must be a directory of dryfric figure outputs where each scene's points file can be "
                          f"written ({path!r} is read-only)")
 
