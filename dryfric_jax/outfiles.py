@@ -334,17 +334,19 @@ def locked(path: str):
         return
     fd = None
     if fcntl is not None:
-        try:
-            fd = os.open(os.path.dirname(os.path.realpath(path)), os.O_RDONLY)
-            fcntl.flock(fd, fcntl.LOCK_EX)
-        except OSError:
-            if fd is not None:
+        with contextlib.suppress(OSError):
+            fd = os.open(d, os.O_RDONLY)
+    try:  # from the lock on, one try: a Ctrl-C after the flock left it held by a leaked descriptor, and every
+        # reader and writer of the directory then waited for the process to end (a review)
+        if fd is not None:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX)
+            except OSError:
                 os.close(fd)
-            fd = None
-    if fd is not None:  # held: no other writer of this file is at work
-        _drop_stale_tmp(path)
-    held[d] = 1
-    try:
+                fd = None
+        if fd is not None:  # held: no other writer of this file is at work
+            _drop_stale_tmp(path)
+        held[d] = 1
         yield
     finally:
         held[d] = 0

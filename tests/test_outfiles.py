@@ -281,3 +281,30 @@ def test_the_writability_probe_never_removes_a_record_written_meanwhile(tmp_path
     outfiles.check_writable(path)
     monkeypatch.undo()
     assert _read(path) == [_rec(1)]
+
+
+def test_a_ctrl_c_inside_the_lock_releases_it(tmp_path, monkeypatch):
+    """A Ctrl-C that came after the flock but before the locked block began (in the stale-file sweep) left the lock
+    held by a leaked descriptor: every reader and writer of the directory, this process's next one too, then waited
+    for ever (a review).  The lock is released however the block is left, and the thread's count is reset."""
+    import subprocess
+    import sys
+
+    if outfiles.fcntl is None:
+        pytest.skip("no flock here")
+    path = str(tmp_path / "r.jsonl")
+
+    def interrupted(p):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(outfiles, "_drop_stale_tmp", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        with outfiles.locked(path):
+            pytest.fail("the block ran")
+    monkeypatch.undo()
+    code = ("import fcntl, os, sys; fd = os.open(sys.argv[1], os.O_RDONLY); "
+            "fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB); print('free')")
+    got = subprocess.run([sys.executable, "-c", code, str(tmp_path)], capture_output=True, text=True, timeout=60)
+    assert got.stdout.strip() == "free", got.stderr
+    _put(path, _rec(1))  # and this thread locks it again
+    assert _read(path) == [_rec(1)]
