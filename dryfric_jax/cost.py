@@ -13,7 +13,8 @@ changing it changes results.  Both engines have been sped up since, unequally (P
 against PDMP 3.7e7 at 0.2.5; an audit on 2026-12-07, warm: 7.1e7 against 5.2e7), but the time per result
 did not follow the rates: at the Fig. 3 point the PDMP gave N = 3000 in 0.27 s against the DI's 0.50 s.
 Cost per unit of simulated time is the right currency because the CI of D shrinks with the total
-simulated time for both methods.  The PDMP wins when the noise is slow (large :math:`\tau'`), the DI when it is fast: at the Fig. 3 point
+simulated time for both methods.  The PDMP wins when the noise is slow (large :math:`\tau'`), the DI when it
+is fast: at the Fig. 3 point
 (:math:`\tau' = 1.47`, default :math:`\delta' = 0.05`, :math:`h' = 0.002`) the PDMP does ~370
 events per :math:`\tau_0` against 510 DI steps, so ``auto`` picks the PDMP; at
 :math:`\tau = 0.05` s (:math:`\tau' = 0.15`) it needs 3.7e4 events and ``auto`` picks the DI.
