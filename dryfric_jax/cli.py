@@ -34,7 +34,7 @@ from .bench import MAX_REPEAT
 from .durations import MAX_COUNT_LANES, NoCountError
 from .durations import MAX_STEPS as DUR_MAX_STEPS
 from .estimators import MAX_PATHS, MIN_PATHS, MIN_RELIABLE_PATHS
-from .outfiles import check_writable, check_writable_dir, dumps, loads, locked, read_records, write_atomic
+from .outfiles import _text_lines, check_writable, check_writable_dir, dumps, loads, locked, read_records, write_atomic
 from .params import FIG3, Params
 from .plan import MAX_BLOCK, MAX_LANES, MAX_STEPS
 from .xla_flags import use_all_cpu_cores
@@ -588,8 +588,7 @@ def _read_results(paths):
             try:
                 found = [(path, loads(text))]
             except ValueError:  # JSON Lines?
-                numbers = [i for i, x in enumerate(text.replace("\r\n", "\n").replace("\r", "\n").split("\n"), 1)
-                           if x.strip()]
+                numbers = [i for i, x in _text_lines(text.encode() + b"\n", 1, "", path) if x.strip()]
                 if len(numbers) < 2:
                     raise
                 # as a sweep reads its file: a last line a kill cut short is skipped, with a warning (it was refused,

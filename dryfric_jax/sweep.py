@@ -249,21 +249,16 @@ def read_results(path: str) -> list[dict]:
     naming the first line that is not a sweep record, and a ``path`` that is not a file path (None or a number was
     a TypeError).  Read under the file's lock (:func:`~dryfric_jax.outfiles.locked`), so a record another process
     is appending is never seen half written."""
-    _check_path(path)
-    with locked(path):
-        return _read(path)
-
-
-def _check_path(path) -> None:
     if not isinstance(path, (str, os.PathLike)):
         raise ValueError(f"path must be a sweep file's path (got {shown(path)})")
+    with locked(path):
+        return _read(path)
 
 
 def _read(path: str, cache: ReadCache | None = None) -> list[dict]:
     """:func:`read_results`; with ``cache`` (one :class:`~dryfric_jax.outfiles.ReadCache` per file, kept between
     reads), only the records appended since the last read are parsed and checked (run_sweep reads its file twice a
-    point)."""
-    _check_path(path)
+    point; ``path`` is a path: run_sweep's ``out``, checked writable)."""
     return read_records(path, ("params", "settings", "sweep_seed"),
                         "out must be a dryfric sweep file (JSON Lines); {path!r} line {line} is not a sweep record",
                         check=_check_record, cache=cache)
