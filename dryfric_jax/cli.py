@@ -379,7 +379,8 @@ def build_parser() -> argparse.ArgumentParser:
     cb = sub.add_parser("combine", help="pool the excursions of independent estimate runs (JSON files of "
                                         "'estimate --out' or '--json', different seeds, same model)")
     cb.add_argument("files", nargs="+", help="result files (one JSON object each, or JSON Lines: sweep records)")
-    cb.add_argument("--out", default=None, help="also write the pooled JSON result to this file (atomically)")
+    cb.add_argument("--out", default=None, help="also write the pooled JSON result to this file (atomically; it "
+                    "replaces only an earlier pooled result)")
     cb.add_argument("--json", action="store_true", help="print the pooled result as one JSON object")
     cb.add_argument("--allow-truncated", action="store_true",
                     help="exit 0 even when runs had excursions that hit the work bound (the pooled result is biased "
@@ -530,11 +531,13 @@ _RESULT_MARKS = ("D_ci", "D_t_ci", "n_requested")
 _RESULT_MAX_BYTES = 1 << 24
 
 
-def _check_out(path, inputs=()):
+def _check_out(path, inputs=(), pooled_only=False):
     """Refuse, before anything is simulated, an output path that cannot be written, one of ``inputs`` (combine's
     files: the pooled result replaced a run's sums), or an existing file that holds anything but one earlier result
     of estimate, combine, bruteforce or duration (a sweep's records, a figure's numbers, any other file: an audit
-    found them replaced without a word)."""
+    found them replaced without a word).  With ``pooled_only`` (combine) an earlier result is replaced only if it
+    was pooled too: a run's result not among the inputs (a typo, another host's run left out) holds the only copy
+    of its excursion sums."""
     if path is None:
         return
     try:
@@ -559,12 +562,20 @@ def _check_out(path, inputs=()):
             with open(path, encoding="utf-8-sig") as fh:
                 obj = loads(fh.read())
             if isinstance(obj, dict) and any(k in obj for k in _RESULT_MARKS):
-                return
+                if not pooled_only or obj.get("stopped_by") == "combined":
+                    return
+                seed = obj.get("seed")
+                run = "a run's result" + (f" (seed {seed})" if type(seed) is int else "")
+                raise _UserError(f"--out must be a new file, an empty one or one that holds an earlier pooled "
+                                 f"result, which it replaces (got {path!r}, which holds {run} not among the files "
+                                 "combined: pooling would replace its excursion sums); give another path, or list "
+                                 "the file among those combined")
         except (OSError, ValueError, RecursionError):  # UnicodeDecodeError is a ValueError
             pass
-    raise _UserError(f"--out must be a new file, an empty one or one that holds an earlier result of estimate, "
-                     f"combine, bruteforce or duration, which it replaces (got {path!r}, which holds something else: "
-                     "a sweep's records, a figure's numbers, another file); give another path or remove it")
+    kinds = "pooled result" if pooled_only else "result of estimate, combine, bruteforce or duration"
+    raise _UserError(f"--out must be a new file, an empty one or one that holds an earlier {kinds}, which it "
+                     f"replaces (got {path!r}, which holds something else: a sweep's records, a figure's numbers, "
+                     "another file); give another path or remove it")
 
 
 def _write_out(path, obj):
@@ -763,7 +774,7 @@ def _run(a) -> int:
     if a.cmd == "combine":
         from .combine import combine_estimates
 
-        _check_out(a.out, a.files)
+        _check_out(a.out, a.files, pooled_only=True)
         with _warnings_kept_in_result():
             results, labels = _read_results(a.files)
             r = combine_estimates(results, labels=labels, allow_mixed_versions=a.allow_mixed_versions)

@@ -66,6 +66,32 @@ def test_combine_refuses_to_write_over_one_of_its_inputs(tmp_path, capsys):
     assert json.loads((tmp_path / "pooled.json").read_text())["combined_from"] == [0, 1]
 
 
+def test_combine_replaces_an_earlier_pooled_result_but_not_a_run_left_out(tmp_path, capsys):
+    """A run's result not among the files combined (a typo, or another host's run left out of the list) holds the
+    only copy of its sums: combine refuses it (it was replaced, exit 0: a stop-92 note).  An earlier pooled result
+    is replaced, as is the usual rerun with one more host's file."""
+    p = Params(**FIG3)
+    files = []
+    for s in (0, 1, 2):
+        f = tmp_path / f"e{s}.json"
+        f.write_text(dj.estimate_diffusivity(p, s, n_excursions=200).to_json())
+        files.append(str(f))
+    kept = open(files[2]).read()
+    assert main(["combine", *files[:2], "--out", files[2]]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("dryfric: error: --out must be a new file, an empty one or one that holds an earlier pooled "
+                          "result") and "(seed 2) not among the files combined" in err and err.count("\n") == 1
+    assert open(files[2]).read() == kept
+    pool = str(tmp_path / "pool.json")
+    assert main(["combine", *files[:2], "--json", "--out", pool]) == 0
+    assert main(["combine", *files, "--json", "--out", pool]) == 0
+    assert json.loads(open(pool).read())["combined_from"] == [0, 1, 2]
+    bare = tmp_path / "b.json"
+    bare.write_text(json.dumps({"D_t_ci": [1.0, 2.0]}))  # a bruteforce result: a run too, and not poolable
+    assert main(["combine", *files, "--out", str(bare)]) == 2
+    assert "which holds a run's result not among" in capsys.readouterr().err
+
+
 def test_a_sweep_file_given_to_estimate_stays_a_sweep_file(tmp_path, monkeypatch):
     """A real sweep file: refused by estimate, then resumed by the sweep with nothing lost."""
     out = tmp_path / "s.jsonl"
