@@ -263,7 +263,8 @@ def read_records(path: str, keys: tuple, refusal: str, check=None, cache: ReadCa
 
     An unterminated last line after a record that is not JSON but begins as a record does is a write cut short
     (:func:`_cut_short`): it is skipped, with a ``FileWarning`` (its record was never written; the next
-    :func:`put_record` removes it). A file's first record cut short is refused with the rest: delete the file.
+    :func:`put_record` removes it). A file's first record cut short is refused with the rest (the refusal says so):
+    delete the file.
     Appends are made under :func:`locked`: a reader that holds it never sees one half written. With ``cache``
     (:class:`ReadCache`, kept by the caller between reads of one file) only what was appended since the last read
     is parsed; the list is new, its records are the cache's (not to be changed)."""
@@ -290,6 +291,9 @@ def read_records(path: str, keys: tuple, refusal: str, check=None, cache: ReadCa
         warnings.warn(f"{path} line {lines + 1} is a record whose write was cut short (a kill or a full disk): "
                       "skipped; its run or point is not recorded", FileWarning, stacklevel=2)
     elif frag.strip():  # a last line without its newline (written by hand)
+        if not out and _cut_short(frag, keys):  # refused (it may be a file written by hand), but not left a riddle
+            refusal += ("; it begins as a record does: if a kill cut short the file's first record, the file holds "
+                        "nothing else, delete it")
         out += _records(_text_lines(frag + b"\n", lines + 1, refusal, path), keys, refusal, check, path)
     return out
 

@@ -2,6 +2,7 @@
 import json
 import math
 import os
+import re
 import time
 
 import numpy as np
@@ -185,7 +186,10 @@ def test_only_the_start_of_a_record_is_taken_for_a_write_cut_short(tmp_path, tex
     path = tmp_path / "r.jsonl"
     path.write_text(text)
     if line:
-        with pytest.raises(ValueError, match=f" line {line}$"):
+        # a lone line that begins as a record may be a first record cut short: the refusal says what to do
+        hint = "; it begins as a record does: if a kill cut short the file's first record, the file holds nothing else"
+        lone = text in ("{", '{"k": 1, "x": 2,}', '{"k": {\'a\': 1}}', '{"k": 1}{"k": 2}')
+        with pytest.raises(ValueError, match=f" line {line}" + (re.escape(hint) + ", delete it$" if lone else "$")):
             _read(path)
     else:
         with pytest.warns(UserWarning, match="cut short"):
