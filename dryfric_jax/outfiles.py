@@ -102,15 +102,17 @@ def _can_create(p: str) -> str | None:
             return e.strerror
         try:  # removed only while it is still the empty probe: another process (a sweep on the same new file) may
             # have renamed its first record over it since (an audit's harness saw it deleted), or appended it (a review:
-            # where there is no lock)
-            mine = os.fstat(fd).st_ino
+            # where there is no lock); closed first (Windows refuses to remove an open file: the probe was left, an
+            # empty private file that combine then refused)
+            try:
+                mine = os.fstat(fd).st_ino
+            finally:
+                os.close(fd)
             st = os.stat(p)
             if st.st_ino == mine and st.st_size == 0:
                 os.unlink(p)
         except OSError:
             pass
-        finally:
-            os.close(fd)
     return None
 
 
@@ -156,10 +158,20 @@ def check_writable_dir(path: str, name: str = "out") -> None:
         raise ValueError(f"{name} must be a writable directory, or a new one in an existing directory (got {path!r})")
 
 
+#: bytes of a file's name that its temporary files' names keep (:func:`_tmp_prefix`)
+TMP_NAME_KEEP = 200
+
+
 def _tmp_prefix(path: str) -> str:
     """The name :func:`write_atomic`'s temporary files for ``path`` begin with: ``.<name>.dryfric-``, so that those
-    a kill left behind can be told apart by the file they were for (:func:`_drop_stale_tmp`)."""
-    return f".{os.path.basename(path)}.dryfric-"
+    a kill left behind can be told apart by the file they were for (:func:`_drop_stale_tmp`).  The name is cut to
+    :data:`TMP_NAME_KEEP` bytes, so that the 22 bytes the temporary name adds keep it under the file system's 255:
+    a results file named with 234-255 bytes passed the check and failed at its first rewrite (after the run, or
+    at every start of a sweep: an audit)."""
+    name = os.path.basename(path)
+    while len(os.fsencode(name)) > TMP_NAME_KEEP:
+        name = name[:-1]
+    return f".{name}.dryfric-"
 
 
 #: a temporary file of :func:`write_atomic` this old (s) is a killed write's: a live write takes seconds
@@ -319,14 +331,49 @@ def _records(numbered: list, keys: tuple, refusal: str, check, path: str) -> lis
 _HELD = threading.local()  # the directories this thread holds locked (a count each)
 
 
+#: the lock file :func:`locked` makes in a results file's directory where the directory itself cannot be locked
+LOCK_NAME = ".dryfric.lock"
+_THREAD_LOCKS: dict = {}  # one threading.Lock per directory: POSIX record locks do not exclude a process's threads
+_UNLOCKED_SAID: set = set()  # the directories whose missing lock was said (once a process)
+
+
+def _os_lock(d: str):
+    """An open descriptor holding an exclusive lock on the directory ``d`` (or None, with why not): ``flock`` on the
+    directory; where that fails (NFS: its ``flock`` is a record lock, which a directory, never open for writing,
+    cannot take: an audit found two sweeps there silently losing records), a POSIX record lock (``lockf``, which
+    NFS passes to the server) on the file :data:`LOCK_NAME` in it.  A Ctrl-C in the wait leaves no descriptor."""
+    if fcntl is None:
+        return None, "no fcntl on this platform"
+    why = "the directory cannot be opened"
+    for name, flags, lock in ((d, os.O_RDONLY, fcntl.flock), (os.path.join(d, LOCK_NAME), os.O_RDWR | os.O_CREAT,
+                                                                 fcntl.lockf)):
+        try:
+            fd = os.open(name, flags, 0o666)
+        except OSError as e:
+            why = e.strerror
+            continue
+        try:
+            lock(fd, fcntl.LOCK_EX)
+            return fd, None
+        except OSError as e:
+            why = e.strerror
+            os.close(fd)
+        except BaseException:
+            os.close(fd)
+            raise
+    return None, why
+
+
 @contextlib.contextmanager
 def locked(path: str):
     """Hold an exclusive lock on ``path``'s directory (``flock``) while a results file is read and
     rewritten, so two processes updating one file take turns instead of writing over each
-    other's records, and a reader never sees a record half appended.  No lock where ``fcntl`` is missing (Windows)
-    or the directory cannot be opened or locked (some network file systems).  Re-entrant within a thread: a reader
-    that locks (:func:`~dryfric_jax.sweep.read_results`) may be called under a held lock (a second ``flock`` of the
-    directory in one process waits for the first for ever)."""
+    other's records, and a reader never sees a record half appended.  Where the directory cannot be locked
+    (NFS) a record lock on a lock file in it serves (:func:`_os_lock`); where neither can be had (Windows: no
+    ``fcntl``), a ``FileWarning`` says once that two processes writing one results file there may lose each
+    other's records.  Re-entrant within a thread: a reader that locks (:func:`~dryfric_jax.sweep.read_results`)
+    may be called under a held lock (a second ``flock`` of the directory in one process waits for the first for
+    ever); other threads of the process wait."""
     d = os.path.dirname(os.path.realpath(path))
     held = _HELD.__dict__
     if held.get(d):
@@ -336,26 +383,25 @@ def locked(path: str):
         finally:
             held[d] -= 1
         return
-    fd = None
-    if fcntl is not None:
-        with contextlib.suppress(OSError):
-            fd = os.open(d, os.O_RDONLY)
+    fd, mine = None, _THREAD_LOCKS.setdefault(d, threading.Lock())
+    mine.acquire()
     try:  # from the lock on, one try: a Ctrl-C after the flock left it held by a leaked descriptor, and every
         # reader and writer of the directory then waited for the process to end (a review)
-        if fd is not None:
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX)
-            except OSError:
-                os.close(fd)
-                fd = None
+        fd, why = _os_lock(d)
         if fd is not None:  # held: no other writer of this file is at work
             _drop_stale_tmp(path)
+        elif d not in _UNLOCKED_SAID:
+            _UNLOCKED_SAID.add(d)
+            from .api import FileWarning  # (api imports this module)
+            warnings.warn(f"cannot lock the directory {d!r} ({why}): two processes writing one results file there "
+                          "at once may lose each other's records; run them one at a time", FileWarning, stacklevel=3)
         held[d] = 1
         yield
     finally:
         held[d] = 0
         if fd is not None:
             os.close(fd)  # releases the lock
+        mine.release()
 
 
 def claims_dir(path: str) -> str:

@@ -49,8 +49,9 @@ the other's points.  A point is claimed while it is computed (:func:`~dryfric_ja
 ``flock`` the kernel releases when the process ends, even killed), and the file is read again once the
 claim is held: a point of both grids is computed by one sweep only.  The other leaves it for after
 its remaining points, then waits for the claim and takes the record (counted as ``skipped``), or
-computes the point if its holder stopped without one.  On Windows (no ``flock``) both may compute it;
-the file then keeps one record (the same result unless ``max_time`` stopped one).
+computes the point if its holder stopped without one.  On Windows (no ``fcntl``) there is no lock: both may
+compute a point, and two sweeps writing one file at once may lose each other's records (a ``FileWarning`` says
+so).
 """
 from __future__ import annotations
 

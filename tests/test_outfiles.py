@@ -66,11 +66,50 @@ def test_a_failed_write_keeps_the_old_file_and_leaves_no_temporary_file(tmp_path
     assert path.read_text() == "old\n" and os.listdir(tmp_path) == ["r.jsonl"]
 
 
+@pytest.mark.parametrize("name", ["r" * 250 + ".json", "é" * 125 + ".json"])  # 255 and 255 bytes
+def test_a_name_at_the_file_systems_limit_is_written_atomically(tmp_path, name):
+    """A name of 234-255 bytes passed check_writable and failed at write_atomic, whose temporary name adds 22 bytes
+    (ENAMETOOLONG: after an estimate's run, and at every start of a sweep on such a file: an audit)."""
+    path = tmp_path / name
+    outfiles.check_writable(str(path))
+    write_atomic(str(path), "one\n")
+    write_atomic(str(path), "two\n")
+    assert path.read_text() == "two\n" and os.listdir(tmp_path) == [name]
+
+
+def test_the_probe_is_closed_before_it_is_removed(tmp_path, monkeypatch):
+    """Windows refuses to remove a file that is open: the writability probe, removed while its descriptor was open,
+    was left behind as an empty private file (an audit).  Here unlink refuses, as there, a file still open."""
+    opened, real_open, real_close, real_unlink = {}, os.open, os.close, os.unlink
+
+    def open_(path, *a, **kw):
+        fd = real_open(path, *a, **kw)
+        opened[fd] = os.path.abspath(path)
+        return fd
+
+    def close(fd):
+        opened.pop(fd, None)
+        real_close(fd)
+
+    def unlink(path, *a, **kw):
+        if os.path.abspath(path) in opened.values():
+            raise PermissionError(13, "The process cannot access the file because it is being used")
+        real_unlink(path, *a, **kw)
+
+    monkeypatch.setattr(outfiles.os, "open", open_)
+    monkeypatch.setattr(outfiles.os, "close", close)
+    monkeypatch.setattr(outfiles.os, "unlink", unlink)
+    outfiles.check_writable(str(tmp_path / "new.json"))
+    assert not (tmp_path / "new.json").exists()
+
+
 def test_a_killed_writes_temporary_file_is_removed_by_the_next_locked_write(tmp_path, monkeypatch):
     """A SIGKILL between write_atomic's creating and renaming its temporary file left it beside the results, a
     whole copy of them, one more per kill (an audit: 10 MB each).  The next write under the file's lock removes
     those of that file, and those of the older unnamed kind, older than STALE_TMP_S (a live write takes seconds;
     the age spares another host's writer where the lock is per host: a review); another file's are left alone."""
+    if outfiles.fcntl is None:
+        pytest.skip("no lock without fcntl (Windows): nothing is removed")
     path = tmp_path / "r.jsonl"
     names = {"stale": ".r.jsonl.dryfric-abc123.tmp", "unnamed": ".dryfric-old456.tmp",
              "fresh": ".r.jsonl.dryfric-new000.tmp", "other": ".fig3.json.dryfric-xyz789.tmp"}
