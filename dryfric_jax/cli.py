@@ -981,6 +981,9 @@ def _sweep(a) -> int:
 def main(argv=None) -> int:
     use_all_cpu_cores(vector_width=True)  # one device per core (also at import) and 512-bit vectors
     compile_cache.enable()  # before anything compiles: compiled code kept between commands (DRYFRIC_CACHE_DIR)
+    with contextlib.suppress(AttributeError, ValueError):  # a path that is not UTF-8 ('d\xe9.jsonl') printed with
+        # an escape: with a strict encoding it made a finished sweep's summary an error, exit 2 (an audit)
+        sys.stdout.reconfigure(errors="backslashreplace")
     try:
         interrupts.started()  # from here a Ctrl-C is the KeyboardInterrupt below, not "while starting"
         parser = build_parser()

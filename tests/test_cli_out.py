@@ -99,3 +99,14 @@ def test_a_sweep_file_given_to_estimate_stays_a_sweep_file(tmp_path, monkeypatch
     text = out.read_text()
     assert main(["estimate", "--n-excursions", "200", "--out", str(out)]) == 2
     assert out.read_text() == text and len(dj.sweep.rows(str(out))) == 2
+
+
+def test_a_path_that_is_not_utf8_is_printed_escaped(tmp_path, capsys):
+    """A results path that is not UTF-8 (a byte 0xe9 from a Latin-1 system: a surrogate escape in Python) is printed
+    with a backslash escape; with a strict stdout its summary was an encoding error, exit 2, after the sweep had
+    finished (an audit)."""
+    out = str(tmp_path / "d\udce9.jsonl")
+    assert main(["sweep", "--Gamma", "5", "--n-excursions", "200", "--out", out]) == 0
+    said = capsys.readouterr().out
+    assert said.endswith("1 point computed, 0 already in " + str(tmp_path) + "/d\\udce9.jsonl, 1 in the grid\n")
+    assert len(dj.sweep.rows(out)) == 1
