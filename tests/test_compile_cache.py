@@ -94,6 +94,19 @@ def _python(code, env):
     return p.stdout.strip()
 
 
+def test_enable_removes_the_entries_a_full_disk_left_empty(tmp_path):
+    """JAX never rewrites an entry that exists: one a full disk left empty made every later run compile anew,
+    silently (an audit).  enable() removes the empty ones and keeps the others."""
+    env = {**ENV, "DRYFRIC_CACHE_DIR": str(tmp_path / "c")}
+    d = tmp_path / "c" / _python("import dryfric_jax.compile_cache as c; print(c.host_tag())", env)
+    d.mkdir(parents=True)
+    (d / "jit__round_impl-0a1b-cache").write_bytes(b"")
+    (d / "jit__lane_start-2c3d-cache").write_bytes(b"compiled")
+    (d / "notes").write_bytes(b"")  # not an entry
+    assert _python("import dryfric_jax.compile_cache as c; print(c.enable())", env) == str(d)
+    assert sorted(os.listdir(d)) == ["jit__lane_start-2c3d-cache", "notes"]
+
+
 def test_enable_leaves_the_users_own_jax_cache_alone(tmp_path):
     # JAX reads JAX_COMPILATION_CACHE_DIR when it starts: a new process
     env = {**ENV, "JAX_COMPILATION_CACHE_DIR": str(tmp_path / "theirs"), "DRYFRIC_CACHE_DIR": str(tmp_path / "ours")}
