@@ -408,9 +408,10 @@ def _round_impl(chain, lane: _Lane, keys, b0, budget, max_steps, finish, min_act
     device) are not (the final round's compaction,
     :meth:`~dryfric_jax.rounds.Lanes._compact_tail`).  Lane i runs blocks ``b0[i], b0[i] + 1, ...``
     of the round; a ``fresh`` round resets the flags and round work.
-    At most ``cap`` blocks run per call: a final round is a sequence of calls, each continuing
+    At most ``cap`` blocks run per call: a round is a sequence of calls, each continuing
     the last (``fresh`` False, ``b0`` advanced), with the same result as one call
-    (:meth:`~dryfric_jax.rounds.Lanes._call`)."""
+    (:meth:`~dryfric_jax.rounds.Lanes._call`).  No lane of a paused round is done before its end, so a
+    paused round's flags start cleared in every call (the last call raised them)."""
     # a final round: every lane stops within budget + max_steps + 1 steps of its round, and takes
     # a whole block of them per block ("branch") or at least one ("wait"): this bound never
     # binds.  The lane with the fewest blocks behind it sets it (a compacted batch mixes lanes of
@@ -419,9 +420,9 @@ def _round_impl(chain, lane: _Lane, keys, b0, budget, max_steps, finish, min_act
     # at events ("wait") has taken fewer steps, but no lane idles at the end of the round
     # waiting for the lane that waited most (7% of the slots at the Fig. 3 point, K = 128)
     per_block = block if events == "branch" else 1
-    max_blocks = jnp.where(finish, (budget + max_steps) // per_block + 2 - jnp.min(b0), -(-budget // block))
+    max_blocks = jnp.where(finish, (budget + max_steps) // per_block + 2, -(-budget // block)) - jnp.min(b0)
     lane = eqx.tree_at(lambda l: (l.done, l.work), lane,
-                       (lane.done & ~fresh, jnp.where(fresh, 0, lane.work)))
+                       (lane.done & ~fresh & finish, jnp.where(fresh, 0, lane.work)))
 
     def cond(c):
         b, ln = c

@@ -37,9 +37,11 @@ COMPACT = 8
 COMPACT_MIN_PER_DEVICE = 64
 # lane-steps (idle lanes included) of one call of a final round (Lanes._call): ~4 s on 2 CPU cores
 FINAL_CALL_LANE_STEPS = 2**27
-#: once the wall time of a block is known (the last call's), a final round's call is also cut to about this many
-#: seconds, but to no fewer than FINAL_CALL_MIN_BLOCKS blocks: the lane-steps alone made calls of 15-100 s with few
-#: lanes (the PDMP at tau' = 1e-3, 8 lanes or 1), past the grace a Ctrl-C is promised (a hard-cases audit)
+#: once the wall time of a block is known (the last call's), a round's call (paused or final) is also cut to about
+#: this many seconds, but to no fewer than FINAL_CALL_MIN_BLOCKS blocks: the lane-steps alone made calls of 15-100 s
+#: with few lanes (the PDMP at tau' = 1e-3, 8 lanes or 1), past the grace a Ctrl-C is promised (a hard-cases audit),
+#: and a paused round of up to 2^26 lane-steps on one such lane made a first Ctrl-C or SIGTERM wait for its end
+#: (SIGTERM 45 s into a run on one PDMP lane, tau' = 1e-3: 74 s to exit, now 22 s, the 20 s grace included)
 FINAL_CALL_S = 2.0
 FINAL_CALL_MIN_BLOCKS = 64
 # lane-steps of a paused round at most (simulate_long_excursions; a few seconds on a CPU, never below 4
@@ -151,12 +153,13 @@ class Lanes:
         """The jitted round on ``lane`` (any multiple of the device count); returns the lanes and
         the blocks each device ran.
 
-        A paused round is one call (its budget bounds it).  A final round runs in calls of at most
-        ``FINAL_CALL_LANE_STEPS`` lane-steps each, and of about ``FINAL_CALL_S`` seconds once the last call has
-        timed a block (but at least ``FINAL_CALL_MIN_BLOCKS`` blocks), each continuing the
-        last, so that a Ctrl-C acts between calls: the in-flight excursions of a heavy-tailed
-        case can take minutes to finish, and one call would not return before they have (seen:
-        > 6 min at Fig. 3's tau = 1 s, Gamma = 1).  The result is the same as one call (tested).
+        A round runs in calls of about ``FINAL_CALL_S`` seconds once the last call has timed a block (but at least
+        ``FINAL_CALL_MIN_BLOCKS`` blocks), and a final round also in calls of at most ``FINAL_CALL_LANE_STEPS``
+        lane-steps each (a paused round's budget bounds it), each continuing the last, so that a Ctrl-C acts
+        between calls: the in-flight excursions of a heavy-tailed case can take minutes to finish, and one call
+        would not return before they have (seen: > 6 min at Fig. 3's tau = 1 s, Gamma = 1); a paused round's
+        ~50 s on one PDMP lane.  The result is the same as one call (tested): a paused round's length, which
+        fixes the random streams, is its budget's blocks however they are split.
         Past ``deadline`` (:func:`_now`) no further call starts: the lanes still running
         stay unfinished (``n_unfinished``, reported as truncated)."""
         nd = len(self.devices)
@@ -167,7 +170,7 @@ class Lanes:
         keys = jax.device_put(keys, self._sharding)  # once per round (the lanes are already on their devices)
         while True:
             cap = most  # by time too where a block's time is known (a call that compiled overstates it: shorter calls)
-            if finish and self._block_s is not None:
+            if self._block_s is not None:
                 cap = min(most, max(FINAL_CALL_MIN_BLOCKS, int(FINAL_CALL_S / max(self._block_s, 1e-12))))
             t = time.perf_counter()
             lane, nb = self._call_once(lane, keys, b0, args + (np.bool_(fresh), np.int64(cap)))
@@ -175,8 +178,9 @@ class Lanes:
                 self._block_s = (time.perf_counter() - t) / int(nb.max())
             self.slot_steps += int(nb.sum()) * self.block * per_dev
             total, b0, fresh = total + nb, b0 + np.repeat(nb, per_dev), False
-            # every device stopped on its own condition, or the deadline has passed
-            if not (nb >= cap).any() or (deadline is not None and _now() >= deadline):
+            # every device stopped on its own condition (a paused round: its blocks all run), or the deadline passed
+            if (not (nb >= cap).any() or (not finish and b0.min() >= -(-budget // self.block))
+                    or (deadline is not None and _now() >= deadline)):
                 return lane, total
 
     def _call_once(self, lane, keys, b0, args):

@@ -253,6 +253,64 @@ def test_final_round_in_many_calls_equals_one_call(method, events, monkeypatch):
                                                                   many.n_unfinished)
 
 
+@pytest.mark.parametrize("events", ["branch", "wait"])
+@pytest.mark.parametrize("method", ["di", "pdmp"])
+def test_paused_rounds_in_many_calls_equal_one_call(method, events, monkeypatch):
+    """A paused round's calls are cut by time (once a block is timed) so that a Ctrl-C acts between them: with one
+    block per call, two paused rounds and the final one give the lanes and sums of the default calls."""
+    from dryfric_jax import rounds
+
+    p = dj.Params.from_nondim(0.5, 1.0, 0.2)
+    chain = make_di_model(p, 0.02) if method == "di" else make_pdmp_model(p, 0.3)
+
+    calls, real = [], Lanes._call_once
+    monkeypatch.setattr(Lanes, "_call_once", lambda *a: calls.append(1) or real(*a))
+
+    def run():
+        calls.clear()
+        ln = Lanes(chain, 64, block=8, events=events, max_steps=5000)
+        ln._block_s = 1.0  # as if timed
+        out = [ln.advance(jax.random.key(1), 200), ln.advance(jax.random.key(2), 300)]
+        paused = len(calls)
+        return out + [ln.finish(jax.random.key(3))], ln, paused
+
+    default, ln_default, paused = run()
+    assert paused == 2
+    monkeypatch.setattr(rounds, "FINAL_CALL_S", 0.0)
+    monkeypatch.setattr(rounds, "FINAL_CALL_MIN_BLOCKS", 1)
+    split, ln_split, paused = run()
+    assert paused == 25 + 38  # the paused rounds' ceil(200 / 8) and ceil(300 / 8) blocks, one call each
+    for a, b in zip(default, split):
+        assert np.array_equal(a.stats, b.stats) and np.array_equal(a.lane_steps, b.lane_steps)
+        assert (a.slot_steps, a.n_truncated, a.n_unfinished) == (b.slot_steps, b.n_truncated, b.n_unfinished)
+    assert ln_default.paid == ln_split.paid
+
+
+def test_ctrl_c_acts_between_the_calls_of_a_paused_round(monkeypatch):
+    """A KeyboardInterrupt arriving during a paused round's calls leaves it at the next call's return (it waited
+    for the whole round: ~50 s on one PDMP lane); the lanes keep the state of the last completed round."""
+    from dryfric_jax import rounds
+
+    chain = make_di_model(dj.Params.from_nondim(0.5, 1.0, 0.2), 0.02)
+    ln = Lanes(chain, 64, block=8)
+    ln.advance(jax.random.key(0), 400)
+    before = ln.lane
+    calls, real = [], Lanes._call_once
+
+    def interrupted(*a):
+        calls.append(1)
+        if len(calls) == 3:
+            raise KeyboardInterrupt  # as Python raises it once the call returns
+        return real(*a)
+
+    monkeypatch.setattr(Lanes, "_call_once", interrupted)
+    monkeypatch.setattr(rounds, "FINAL_CALL_S", 0.0)
+    monkeypatch.setattr(rounds, "FINAL_CALL_MIN_BLOCKS", 1)
+    with pytest.raises(KeyboardInterrupt):
+        ln.advance(jax.random.key(1), 400)
+    assert len(calls) == 3 and ln.lane is before
+
+
 def test_ctrl_c_acts_between_the_calls_of_a_final_round(monkeypatch):
     """A KeyboardInterrupt arriving during a final round's calls leaves it at the next call's
     return, instead of after every in-flight excursion has finished; the lanes keep the state of
@@ -343,6 +401,7 @@ def test_max_time_cuts_the_final_round_and_counts_what_it_cut(monkeypatch):
     clock = iter(range(10**6))
     monkeypatch.setattr(rounds, "_now", lambda: float(next(clock)))
     monkeypatch.setattr(rounds, "FINAL_CALL_LANE_STEPS", 1)  # one block per call of the final round
+    monkeypatch.setattr(rounds, "FINAL_CALL_S", 1e9)  # no call cut by (real) time: a paused round is one call
     calls, real = [], Lanes._call_once
     monkeypatch.setattr(Lanes, "_call_once", lambda *a: calls.append(1) or real(*a))
     st, stopped = simulate_long_excursions(chain, jax.random.key(3), 10**6, lanes=64, block=8, pilot_budget=64,

@@ -173,17 +173,26 @@ def test_a_paused_round_is_one_call_whatever_the_final_call_cap(monkeypatch):
     assert ln.paid == 24 * 128 and st.slot_steps == 24 * 128
 
 
-def test_a_paused_round_is_not_cut_by_time(monkeypatch):
-    """The time cap is a final round's only: a paused round's length fixes the random streams, so a timed block and
-    a time cap of 0 leave it one call of ceil(budget / block) blocks (cut by time, it ran 1 call of 1 block, marked
-    its lanes done and paid 192 slots instead of 640: a review)."""
+def test_a_paused_round_cut_by_time_runs_its_blocks_in_several_calls(monkeypatch):
+    """A paused round's calls are cut by time too (a first Ctrl-C waited for a paused round's end, ~50 s on one PDMP
+    lane), but its length fixes the random streams: a timed block and a time cap of one block run its
+    ceil(80 / 8) = 10 blocks in 10 calls (no empty eleventh), every lane 80 steps, and the lanes and sums of one
+    call.  (A first cut by time ran 1 call of 1 block, marked its lanes done and paid 192 slots, not 640: a review.)
+    Then a final round continues from either alike."""
+    one = Lanes(_clock(), 8, block=8, events="branch")
+    first = one.advance(jax.random.key(0), 80)
     calls = _counting_calls(monkeypatch)
     monkeypatch.setattr(rd, "FINAL_CALL_S", 0.0)
     monkeypatch.setattr(rd, "FINAL_CALL_MIN_BLOCKS", 1)
     ln = Lanes(_clock(), 8, block=8, events="branch")
     ln._block_s = 1.0
     st = ln.advance(jax.random.key(0), 80)
-    assert calls == [8] and np.all(np.asarray(ln.lane.work) == 80) and st.slot_steps == 80 * 8
+    assert calls == [8] * 10 and np.all(np.asarray(ln.lane.work) == 80) and st.slot_steps == 80 * 8 == ln.paid
+    np.testing.assert_array_equal(st.stats, first.stats)
+    np.testing.assert_array_equal(st.lane_steps, first.lane_steps)
+    for a, b in zip(jax.tree_util.tree_leaves(ln.lane), jax.tree_util.tree_leaves(one.lane)):
+        np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(ln.finish(jax.random.key(1), 40).stats, one.finish(jax.random.key(1), 40).stats)
 
 
 def test_a_final_round_call_at_the_deadline_is_the_last(monkeypatch):
