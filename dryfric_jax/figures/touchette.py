@@ -128,7 +128,8 @@ def fig6(out_dir, quick, seed):
         nums["max_ft_dev"][f"{tau:g}"] = ft
         ax.set_title(f"tau' = {tau:g}")
         ax.set_xlabel("v'")
-    axs[0].set_ylabel("density (bands: MC ± 2 SE, pointwise; lines: Touchette)")
+    axs[0].set_ylabel("density")  # the key in the title: on the axis it was longer than the figure and cut
+    fig.suptitle("bands: MC ± 2 SE, pointwise; lines: Touchette's propagator", fontsize=9)
     axs[0].legend(fontsize=7, loc="upper left")
     return save(fig, out_dir, "fig6", nums, t0, quick=quick, seed=seed)
 
