@@ -99,6 +99,13 @@ def plain_number(x):
     return x if f is None else f
 
 
+def _field_number(x):
+    """:func:`plain_number` for a Params field, which also takes the texts ``"inf"`` and ``"-inf"``: the results'
+    strict JSON (:func:`~dryfric_jax.outfiles.dumps`) writes an infinite tau_L so, and a result's params read
+    with ``json.loads`` were refused (an audit)."""
+    return float(x) if isinstance(x, str) and x in ("inf", "-inf") else plain_number(x)
+
+
 def refuse_traced(name: str, value, what: str) -> None:
     """``ValueError`` naming ``name`` if ``value`` is a JAX tracer (under ``jax.jit``, ``vmap`` or ``grad``):
     ``what`` computes on the host, from numbers; a tracer failed deep inside with JAX's ConcretizationTypeError,
@@ -225,17 +232,18 @@ class Params(eqx.Module):
         Gamma: noise strength :math:`\Gamma` (m^2 s^-3), finite and > 0.
         Delta: dry-friction level :math:`\Delta` (m s^-2), finite and > 0.
         tau: noise correlation time :math:`\tau` (s), finite and > 0.
-        tau_L: viscous relaxation time :math:`\tau_L` (s), > 0 or ``inf`` (no viscous term).
+        tau_L: viscous relaxation time :math:`\tau_L` (s), > 0 or ``inf`` (no viscous term; also the text
+            ``"inf"``, as a result's JSON holds it).
         gamma_bar: constant bias force :math:`\bar\gamma` (m s^-2), finite.
 
     The drift is :math:`b(v) = -v/\tau_L + \bar\gamma`; ``tau_L = inf`` is a proper case.
     """
 
-    Gamma: float = eqx.field(converter=plain_number)
-    Delta: float = eqx.field(converter=plain_number)
-    tau: float = eqx.field(converter=plain_number)
-    tau_L: float = eqx.field(default=math.inf, converter=plain_number)
-    gamma_bar: float = eqx.field(default=0.0, converter=plain_number)
+    Gamma: float = eqx.field(converter=_field_number)
+    Delta: float = eqx.field(converter=_field_number)
+    tau: float = eqx.field(converter=_field_number)
+    tau_L: float = eqx.field(default=math.inf, converter=_field_number)
+    gamma_bar: float = eqx.field(default=0.0, converter=_field_number)
 
     def __check_init__(self):
         check_positive("Gamma", self.Gamma)

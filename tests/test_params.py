@@ -159,3 +159,19 @@ def test_a_unit_just_past_its_bound_is_shown_in_full():
         Params(1e300, 1e150, 1.0, 1.0, 0.0)
     with pytest.raises(ValueError, match=r"tau0 = Gamma/Delta\^2 in \[1e-300, 1e\+300\] \(got 1e-310 from"):
         Params(1e-300, 1e5, 1.0, 1.0, 0.0)
+
+
+def test_params_read_back_from_a_results_json_with_an_infinite_tau_L():
+    """The results' strict JSON writes an infinite tau_L as "inf" (outfiles.dumps): json.loads of a result's
+    params then gave Params a string, which it refused (an audit).  Only the infinities are taken so."""
+    import json
+    import re
+
+    from dryfric_jax.outfiles import dumps
+
+    text = dumps({"params": {**FIG3, "tau_L": math.inf}})
+    assert '"tau_L": "inf"' in text
+    assert Params(**json.loads(text)["params"]) == Params(**{**FIG3, "tau_L": math.inf})
+    for bad in ("1.0", "nan", "Infinity", "+inf"):
+        with pytest.raises(ValueError, match=f"^tau_L must be a real number \\(got '{re.escape(bad)}'\\)$"):
+            Params(**{**FIG3, "tau_L": bad})
