@@ -316,7 +316,7 @@ def _time_limited(record: dict) -> bool:
 
 def _count_failed(record: dict) -> bool:
     """Whether an ``"ok"`` point's long-excursion count (``durations``) ended without a mean, not stopped by
-    ``max_time``: fewer than 2 long excursions within the loop's bound (its ``reason``)."""
+    ``max_time``: fewer than 2 long excursions within the loop's bound, or refused by its planner (its ``reason``)."""
     d = record.get(DURATIONS)
     return status(record) == "ok" and isinstance(d, dict) and "reason" in d and d.get("stopped_by") != "max_time"
 
@@ -385,8 +385,9 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
             ``reason`` where fewer than 2 ended within the bound), and :func:`rows` flattens them (``le_duration``,
             ...).  It is part of a point's identity but not of its D seed: the D is the sweep's without it, and a
             resumed sweep that adds it takes the D of a finished point's record of this version and runs only the
-            count.  The count's predicted work is checked against ``max_work`` with the grid (a point over it is
-            refused, with the reason ``"durations: ..."``).  ``max_time`` bounds the D estimate and the count, each
+            count.  The count's predicted work is checked against ``max_work`` with the grid: a point over it
+            refuses the grid, or, with ``skip_refused``, still gets its D, and its count the reason
+            ``"durations: ..."`` (counted in ``no_count``; the point was refused whole, its D lost: an audit).  ``max_time`` bounds the D estimate and the count, each
             (:func:`~dryfric_jax.di_long_excursion_duration`'s ``max_time``); a count it stopped makes the point
             one that a resumed sweep with more time reruns.
 
@@ -403,7 +404,8 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
         refused, failed, ``"ok"`` with truncated excursions (a result biased low), or stopped by
         ``max_time`` (``"ok"`` short of N or rtol, or ``"failed"``); ``truncated`` also counts a point whose
         long-excursion count left some out; c counts the ``"ok"`` points whose count (``durations``) ended
-        without a mean within its loop's bound (not stopped by ``max_time``: those are in m).  A point another sweep
+        without a mean within its loop's bound, or was refused by its planner (not stopped by ``max_time``: those
+        are in m).  A point another sweep
         finished while this one ran is counted in s.  A Ctrl-C stops after the points already
         written; the point in progress is not written, except a D it finished before its count (``durations``),
         written as its record without the count, which a resumed sweep takes up (e = 1 then, else 0; not in k).
@@ -425,6 +427,7 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
         settings[DURATIONS] = check_count("durations", durations, 2, 2**40, " (long excursions per point)")
     full = [{**{k: FIG3[k] for k in PARAM_KEYS}, **pt} for pt in points]
     refused = {}  # ident -> (point, reason); every point is planned before any work
+    count_refused = {}  # ident -> reason: with skip_refused, a point whose count alone is refused still gets its D
     for pt in full:
         try:
             p = Params(**pt)
@@ -441,7 +444,10 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
                 check_duration_run(p, None if h is None else duration_h(p, h), settings[DURATIONS], dtype, max_work,
                                    name="durations")
             except ValueError as e:
-                refused.setdefault(_ident(seed, pt, settings), (pt, f"durations: {e}"))
+                if skip_refused:
+                    count_refused.setdefault(_ident(seed, pt, settings), f"durations: {e}")
+                else:
+                    refused.setdefault(_ident(seed, pt, settings), (pt, f"durations: {e}"))
     if refused and not skip_refused:
         raise ValueError(_refusal_text(list(refused.values()), len(full)))
     grid_idents = [_ident(seed, pt, settings) for pt in full]
@@ -493,7 +499,8 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
                     else:
                         within = None if point_progress is None else functools.partial(
                             _within, point_progress, dict(params=pt, done=done, total=total))
-                        rec = _compute(out, pt, seed, settings, max_time, within, kept_d, read)
+                        rec = _compute(out, pt, seed, settings, max_time, within, kept_d, read,
+                                       count_refused.get(ident))
                         if rec is None:  # Ctrl-C: the point in progress is not written
                             interrupted = True
                             break
@@ -542,11 +549,13 @@ def _within(point_progress, where: dict, stage: str, d: dict) -> None:
 
 
 def _compute(out: str, pt: dict, seed: int, settings: dict, max_time, within=None, kept_d=None,
-             read=read_results) -> dict | None:
+             read=read_results, count_refused: str | None = None) -> dict | None:
     """Run one point and return its record (``"ok"`` or ``"failed"``), for the caller to write; None if Ctrl-C
     stopped it (its finished D, if the count stopped, written here as its record without durations, and the point
     appended to the list ``kept_d``); the file is read by ``read``.  ``within(stage,
-    dict)``, if given, is called with the D estimate's (``"D"``) and the count's (``"durations"``) progress."""
+    dict)``, if given, is called with the D estimate's (``"D"``) and the count's (``"durations"``) progress.
+    ``count_refused``: the planner's refusal of the point's count (``durations``), recorded as the count's
+    ``reason`` instead of running it."""
     method, h, delta, dtype, n_excursions, rtol, max_work = (settings[k] for k in SETTING_KEYS)
     s = point_seed(seed, pt, settings)
     # with durations: the D of this point's record without them, if this version finished it (the same seed)
@@ -574,8 +583,9 @@ def _compute(out: str, pt: dict, seed: int, settings: dict, max_time, within=Non
                         d.pop(k)
                     res = d  # only once complete: a Ctrl-C keeps it (below)
                 extra = {} if settings.get(DURATIONS) is None else {
-                    DURATIONS: _durations(pt, seed, settings, res.get("mean_duration"), max_time,
-                                          within and functools.partial(within, DURATIONS))}
+                    DURATIONS: dict(reason=count_refused) if count_refused else
+                    _durations(pt, seed, settings, res.get("mean_duration"), max_time,
+                               within and functools.partial(within, DURATIONS))}
     except KeyboardInterrupt:
         if res is not None and base is None and settings.get(DURATIONS) is not None:
             if _keep_d(out, pt, seed, settings, max_time, res, read) and kept_d is not None:
@@ -690,8 +700,10 @@ def rows(path: str, seed: int | None = None, **settings) -> list[dict]:
     """The records of a sweep file as flat dicts for tables and plots, sorted by the parameters:
     the parameters, ``status``, the result's :data:`ROW_KEYS` (NaN for a point without a result),
     the long-excursion count's :data:`LE_ROW_KEYS` (``le_duration``, its CI, ...; NaN without one),
-    ``reason`` and ``stopped_by`` (``"max_time"`` for a point its time limit stopped; "" if
-    unknown).  ``seed`` (the sweep seed) and keyword settings keep only the matching records (e.g.
+    ``reason`` (why a point has no result, or, for an ``"ok"`` one, no count), ``stopped_by``
+    (``"max_time"`` for a point its time limit stopped; "" if unknown) and ``warnings`` (the notes of the
+    point's D and count: a small N, truncated excursions, weak damping, ...; a table of D and its CI alone hid
+    them: an audit).  ``seed`` (the sweep seed) and keyword settings keep only the matching records (e.g.
     ``n_excursions=500``, ``durations=2048``; ``durations=None`` keeps the records without a count: a point given
     ``durations`` after its D was recorded, or whose count a Ctrl-C stopped, holds two records, its D's and its
     count's, and ``rows`` lists both)."""
@@ -710,7 +722,8 @@ def rows(path: str, seed: int | None = None, **settings) -> list[dict]:
         res, le = r.get("result") or {}, r.get(DURATIONS) or {}
         out.append({**r["params"], "status": status(r), **{k: res.get(k, math.nan) for k in ROW_KEYS},
                     **{k: le.get(f, math.nan) for k, f in LE_ROW_KEYS.items()},
-                    "reason": r.get("reason", ""), "stopped_by": stopped_by(r) or ""})
+                    "reason": r.get("reason") or le.get("reason", ""), "stopped_by": stopped_by(r) or "",
+                    "warnings": [*(res.get("warnings") or ()), *(le.get("warnings") or ())]})
     return sorted(out, key=lambda r: tuple(r[k] for k in PARAM_KEYS))
 
 

@@ -96,7 +96,8 @@ def test_durations_enter_a_points_identity_but_not_its_d_seed():
 def test_a_point_whose_count_is_over_max_work_is_refused_with_the_grid(tmp_path):
     """Gamma = 1, tau = 1 s: its D (50 excursions) fits max_work = 1e9, 2048 long excursions do not (the count's
     own planner, durations.check_duration_run, asks for more).  Refused before anything runs, with that planner's
-    reason, or recorded with it under skip_refused."""
+    reason; under skip_refused the point still gets its D, and its count that reason (the point was refused whole,
+    its D lost: an audit), counted as a point without a count."""
     out = str(tmp_path / "s.jsonl")
     pts = [dict(Gamma=1.0, tau=1.0), dict(Gamma=10.0, tau=0.125)]
     kw = dict(n_excursions=50, max_work=1e9, durations=2048)
@@ -111,13 +112,19 @@ def test_a_point_whose_count_is_over_max_work_is_refused_with_the_grid(tmp_path)
         sweep.run_sweep(pts, out, **kw)
     assert not os.path.exists(out)
     r = sweep.run_sweep(pts, out, skip_refused=True, **kw)
-    assert (r["computed"], r["refused"]) == (1, 1)
-    refused, ok = _lines(out)
-    assert refused["status"] == "refused" and refused["reason"] == "durations: " + why
+    assert (r["computed"], r["refused"], r["no_count"]) == (2, 0, 1)
+    no_count, ok = _lines(out)
+    assert no_count["status"] == "ok" and no_count["durations"] == {"reason": "durations: " + why}
+    # its D is the sweep's without durations, bit for bit
+    alone = sweep.run_sweep(pts[:1], str(tmp_path / "d.jsonl"), n_excursions=50, max_work=1e9)
+    timing = ("wall_s", "lane_steps_per_s")
+    same = [{k: v for k, v in rec["result"].items() if k not in timing} for rec in (_lines(str(tmp_path / "d.jsonl"))
+                                                                                   + [no_count])]
+    assert alone["computed"] == 1 and same[0] == same[1] and same[0]["D"] > 0
     assert ok["status"] == "ok" and ok["durations"]["n_excursions"] >= 2048
-    assert sweep.rows(out)[0]["status"] == "refused" and math.isnan(sweep.rows(out)[0]["le_duration"])
-    # the refusal is the count's alone: the point's D fits
-    sweep.plan_estimate(dj.Params(**{**dj.FIG3, **pts[0]}), n_excursions=50, max_work=1e9)
+    row = sweep.rows(out)[0]
+    assert row["status"] == "ok" and math.isnan(row["le_duration"]) and row["reason"] == "durations: " + why
+    assert sweep.run_sweep(pts, out, skip_refused=True, **kw)["computed"] == 0  # a rerun skips it
 
 
 def test_an_error_of_the_point_progress_callback_in_the_count_goes_up_and_records_nothing(tmp_path):
@@ -153,7 +160,9 @@ def test_a_count_cut_short_is_recorded_and_a_truncated_one_exits_3(tmp_path, mon
     assert "LE: none (max_steps = 128 is too small here" in cap.err
     assert "1 point computed, 0 already in" in cap.out and ", 1 without a duration count" in cap.out
     assert "error: 1 point got D but no mean long-excursion duration" in cap.err and "--max-steps" in cap.err
-    assert math.isnan(sweep.rows(out)[0]["le_duration"])
+    (row,) = sweep.rows(out)
+    assert math.isnan(row["le_duration"]) and row["reason"] == rec["durations"]["reason"]  # why it has no count
+    assert row["warnings"] == rec["result"]["warnings"] and any("< 10000" in w for w in row["warnings"])  # N = 100
     assert main(argv + ["--json"]) == 1 and _lines(out) == [rec]  # resumed: not rerun (it would end the same way)
     assert json.loads(capsys.readouterr().out)["no_count"] == 1
     # 5 120 steps: ~2 mean excursions per lane, its seek included, so some are in flight at the bound
