@@ -20,7 +20,8 @@ on a cluster whose nodes share a home directory.  ``DRYFRIC_CACHE_DIR=off`` (or 
 ``false``, ``none``, empty) turns it off; a cache directory the user gave JAX
 (``JAX_COMPILATION_CACHE_DIR``) is used as it is.  If the directory cannot be made or takes no
 file, or no home directory can be found, the command runs without a cache; entries a full disk left
-empty are removed when it is turned on (JAX never rewrites an entry).  Python code (a notebook) keeps its compiled code for the life of the
+empty are removed when it is turned on (JAX never rewrites an entry).  Python code (a notebook) keeps its
+compiled code for the life of the
 process anyway; :func:`enable` (``dryfric_jax.enable_compilation_cache()``), called before the
 first computation, gives it the disk cache too.
 """

@@ -387,7 +387,8 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
             resumed sweep that adds it takes the D of a finished point's record of this version and runs only the
             count.  The count's predicted work is checked against ``max_work`` with the grid: a point over it
             refuses the grid, or, with ``skip_refused``, still gets its D, and its count the reason
-            ``"durations: ..."`` (counted in ``no_count``; the point was refused whole, its D lost: an audit).  ``max_time`` bounds the D estimate and the count, each
+            ``"durations: ..."`` (counted in ``no_count``; the point was refused whole, its D lost: an audit).
+            ``max_time`` bounds the D estimate and the count, each
             (:func:`~dryfric_jax.di_long_excursion_duration`'s ``max_time``); a count it stopped makes the point
             one that a resumed sweep with more time reruns.
 
