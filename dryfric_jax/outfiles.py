@@ -5,6 +5,7 @@ JSON (:func:`dumps`, :func:`loads`).  A results file (JSON Lines) grows by one a
 from __future__ import annotations
 
 import contextlib
+import errno
 import hashlib
 import json
 import math
@@ -199,9 +200,21 @@ def _drop_stale_tmp(path: str) -> None:
                     os.unlink(f)
 
 
+def _write_in_place(path: str, data: bytes) -> None:
+    """Overwrite the file ``path`` with ``data`` where it lies (fsync'd): for a file no other can be renamed over."""
+    with open(path, "r+b") as f:
+        f.write(data)
+        f.truncate()
+        f.flush()
+        os.fsync(f.fileno())
+
+
 def write_atomic(path: str, text: str | bytes) -> None:
     """Write ``text`` (or bytes: a figure's PNG or PDF) to a temporary file in the same directory, fsync,
-    then rename over ``path``: a reader (or a kill at any moment) sees the old file or the new one, never a part."""
+    then rename over ``path``: a reader (or a kill at any moment) sees the old file or the new one, never a part.
+    A file that is a mount point (Docker's ``-v results.jsonl:/work/results.jsonl``) cannot be renamed over
+    (EBUSY; a sweep on one failed at every start, an estimate after its run: an audit): it is overwritten in
+    place instead, which a kill during the write can leave torn."""
     path = os.path.realpath(path)  # a symlinked file is replaced where it lies; the link stays
     d = os.path.dirname(path)
     fd, tmp = tempfile.mkstemp(dir=d, prefix=_tmp_prefix(path), suffix=".tmp")
@@ -217,7 +230,14 @@ def write_atomic(path: str, text: str | bytes) -> None:
             os.umask(umask)
             mode = 0o666 & ~umask  # mkstemp makes it private; a new output file is not
         os.chmod(tmp, mode)
-        os.replace(tmp, path)
+        try:
+            os.replace(tmp, path)
+        except OSError as e:
+            if e.errno != errno.EBUSY or not os.path.isfile(path):
+                raise
+            with open(tmp, "rb") as f:  # the bytes the temporary file got (its encoding)
+                _write_in_place(path, f.read())
+            os.unlink(tmp)
     except BaseException:
         if os.path.exists(tmp):
             os.unlink(tmp)
