@@ -169,10 +169,15 @@ def _tmp_prefix(path: str) -> str:
     :data:`TMP_NAME_KEEP` bytes, so that the 22 bytes the temporary name adds keep it under the file system's 255:
     a results file named with 234-255 bytes passed the check and failed at its first rewrite (after the run, or
     at every start of a sweep: an audit)."""
+    return f".{_kept_name(path)}.dryfric-"
+
+
+def _kept_name(path: str) -> str:
+    """``path``'s file name cut to :data:`TMP_NAME_KEEP` bytes (the names made from it stay under 255)."""
     name = os.path.basename(path)
     while len(os.fsencode(name)) > TMP_NAME_KEEP:
         name = name[:-1]
-    return f".{name}.dryfric-"
+    return name
 
 
 #: a temporary file of :func:`write_atomic` this old (s) is a killed write's: a live write takes seconds
@@ -351,36 +356,84 @@ def _records(numbered: list, keys: tuple, refusal: str, check, path: str) -> lis
 _HELD = threading.local()  # the directories this thread holds locked (a count each)
 
 
-#: the lock file :func:`locked` makes in a results file's directory where the directory itself cannot be locked
+#: the lock file :func:`locked` makes in a results file's directory on a network file system
 LOCK_NAME = ".dryfric.lock"
+#: file systems (``/proc/self/mountinfo``'s types) shared between hosts: there ``flock`` on a directory holds on
+#: one host only (Linux's NFS client has no directory ``flock``: the kernel takes a local lock), so a record lock
+#: (``lockf``, which these pass to the server) on :data:`LOCK_NAME` is taken
+NETWORK_FS = ("nfs", "nfs4", "cifs", "smb3", "smbfs", "ceph", "glusterfs", "lustre", "gpfs", "beegfs", "9p", "afs",
+              "fuse.sshfs", "fuse.glusterfs", "fuse.ceph", "fuse.beegfs")
 _THREAD_LOCKS: dict = {}  # one threading.Lock per directory: POSIX record locks do not exclude a process's threads
 _UNLOCKED_SAID: set = set()  # the directories whose missing lock was said (once a process)
 
 
+def _unescape_mount(field: str) -> str:
+    """A mount point as ``/proc/self/mountinfo`` writes it (space, tab, newline and backslash as octal escapes)."""
+    for code, ch in (("\\040", " "), ("\\011", "\t"), ("\\012", "\n"), ("\\134", "\\")):
+        field = field.replace(code, ch)
+    return field
+
+
+def mount_type(d: str, mountinfo: str | None = None) -> str:
+    """The type of the file system the directory ``d`` (a real path) lies on, from ``mountinfo`` (default
+    ``/proc/self/mountinfo``; "" where it cannot be read, as off Linux): the longest mount point above ``d``."""
+    if mountinfo is None:
+        try:
+            with open("/proc/self/mountinfo", encoding="utf-8", errors="replace") as f:
+                mountinfo = f.read()
+        except OSError:
+            return ""
+    best, kind = -1, ""
+    for line in mountinfo.splitlines():
+        left, sep, right = line.partition(" - ")
+        fields = left.split()
+        if not sep or len(fields) < 5 or not right.split():
+            continue
+        mp = _unescape_mount(fields[4])
+        if (d == mp or d.startswith(mp.rstrip("/") + "/")) and len(mp) >= best:
+            best, kind = len(mp), right.split()[0]
+    return kind
+
+
+_MOUNT_TYPES: dict = {}  # directory -> its file system's type, read once a process
+
+
+def _on_network_fs(d: str) -> bool:
+    if d not in _MOUNT_TYPES:
+        _MOUNT_TYPES[d] = mount_type(d)
+    return _MOUNT_TYPES[d] in NETWORK_FS
+
+
 def _os_lock(d: str):
-    """An open descriptor holding an exclusive lock on the directory ``d`` (or None, with why not): ``flock`` on the
-    directory; where that fails (NFS: its ``flock`` is a record lock, which a directory, never open for writing,
-    cannot take: an audit found two sweeps there silently losing records), a POSIX record lock (``lockf``, which
-    NFS passes to the server) on the file :data:`LOCK_NAME` in it.  A Ctrl-C in the wait leaves no descriptor."""
+    """An open descriptor holding an exclusive lock on the directory ``d``, or ``(None, why not)``: ``flock`` on
+    the directory; on a network file system (:data:`NETWORK_FS`) a POSIX record lock (``lockf``) on the file
+    :data:`LOCK_NAME` in it, which the server holds for every host (an audit found two writers losing records
+    there), or where it cannot be had, the directory's ``flock`` (this host's writers only).  A Ctrl-C in the wait
+    leaves no descriptor."""
     if fcntl is None:
         return None, "no fcntl on this platform"
-    why = "the directory cannot be opened"
-    for name, flags, lock in ((d, os.O_RDONLY, fcntl.flock), (os.path.join(d, LOCK_NAME), os.O_RDWR | os.O_CREAT,
-                                                                 fcntl.lockf)):
+    ways = [(d, os.O_RDONLY, fcntl.flock)]
+    if _on_network_fs(d):
+        ways.insert(0, (os.path.join(d, LOCK_NAME), os.O_RDWR | os.O_CREAT, fcntl.lockf))
+    why = None
+    for name, flags, lock in ways:
         try:
             fd = os.open(name, flags, 0o666)
         except OSError as e:
-            why = e.strerror
+            why = why or e.strerror
             continue
         try:
             lock(fd, fcntl.LOCK_EX)
-            return fd, None
         except OSError as e:
-            why = e.strerror
+            why = why or e.strerror
             os.close(fd)
+            continue
         except BaseException:
             os.close(fd)
             raise
+        if why is not None:  # a network file system's record lock failed: this host's writers take turns only
+            return fd, why + "; only this host's writers are excluded"
+        return fd, None
     return None, why
 
 
@@ -388,12 +441,13 @@ def _os_lock(d: str):
 def locked(path: str):
     """Hold an exclusive lock on ``path``'s directory (``flock``) while a results file is read and
     rewritten, so two processes updating one file take turns instead of writing over each
-    other's records, and a reader never sees a record half appended.  Where the directory cannot be locked
-    (NFS) a record lock on a lock file in it serves (:func:`_os_lock`); where neither can be had (Windows: no
-    ``fcntl``), a ``FileWarning`` says once that two processes writing one results file there may lose each
-    other's records.  Re-entrant within a thread: a reader that locks (:func:`~dryfric_jax.sweep.read_results`)
-    may be called under a held lock (a second ``flock`` of the directory in one process waits for the first for
-    ever); other threads of the process wait."""
+    other's records, and a reader never sees a record half appended.  On a network file system a record lock on a
+    lock file in the directory serves (:func:`_os_lock`); where no lock holds for every writer (Windows: no
+    ``fcntl``; a network file system without record locks), a ``FileWarning`` says once that two processes
+    writing one results file there may lose each other's records (not for a directory that does not exist or
+    takes no file: no process writes there).  Re-entrant within a thread: a reader that locks
+    (:func:`~dryfric_jax.sweep.read_results`) may be called under a held lock (a second ``flock`` of the
+    directory in one process waits for the first for ever); other threads of the process wait."""
     d = os.path.dirname(os.path.realpath(path))
     held = _HELD.__dict__
     if held.get(d):
@@ -403,31 +457,32 @@ def locked(path: str):
         finally:
             held[d] -= 1
         return
-    fd, mine = None, _THREAD_LOCKS.setdefault(d, threading.Lock())
-    mine.acquire()
-    try:  # from the lock on, one try: a Ctrl-C after the flock left it held by a leaked descriptor, and every
-        # reader and writer of the directory then waited for the process to end (a review)
-        fd, why = _os_lock(d)
-        if fd is not None:  # held: no other writer of this file is at work
-            _drop_stale_tmp(path)
-        elif d not in _UNLOCKED_SAID:
-            _UNLOCKED_SAID.add(d)
-            from .api import FileWarning  # (api imports this module)
-            warnings.warn(f"cannot lock the directory {d!r} ({why}): two processes writing one results file there "
-                          "at once may lose each other's records; run them one at a time", FileWarning, stacklevel=3)
-        held[d] = 1
-        yield
-    finally:
-        held[d] = 0
-        if fd is not None:
-            os.close(fd)  # releases the lock
-        mine.release()
+    with _THREAD_LOCKS.setdefault(d, threading.Lock()):  # released however the block is left
+        fd = None
+        try:  # from the lock on, one try: a Ctrl-C after the flock left it held by a leaked descriptor, and every
+            # reader and writer of the directory then waited for the process to end (a review)
+            fd, why = _os_lock(d)
+            if fd is not None:  # held: no other writer of this file is at work
+                _drop_stale_tmp(path)
+            if why is not None and d not in _UNLOCKED_SAID and os.access(d, os.W_OK):  # none writes elsewhere
+                _UNLOCKED_SAID.add(d)
+                from .api import FileWarning  # (api imports this module)
+                warnings.warn(f"cannot lock the directory {d!r} for every writer ({why}): two processes writing one "
+                              "results file there at once may lose each other's records; run them one at a time",
+                              FileWarning, stacklevel=3)
+            held[d] = 1
+            yield
+        finally:
+            held[d] = 0
+            if fd is not None:
+                os.close(fd)  # releases the lock
 
 
 def claims_dir(path: str) -> str:
-    """The hidden directory of :func:`claim`'s files beside the results file ``path``."""
-    d, base = os.path.split(os.path.realpath(path))
-    return os.path.join(d, f".{base}.claims")
+    """The hidden directory of :func:`claim`'s files beside the results file ``path`` (its name cut as a temporary
+    file's: with a name of 248-255 bytes no claim could be made, and two sweeps both computed a point: a review)."""
+    real = os.path.realpath(path)
+    return os.path.join(os.path.dirname(real), f".{_kept_name(real)}.claims")
 
 
 class Claim:

@@ -75,6 +75,10 @@ def test_a_name_at_the_file_systems_limit_is_written_atomically(tmp_path, name):
     write_atomic(str(path), "one\n")
     write_atomic(str(path), "two\n")
     assert path.read_text() == "two\n" and os.listdir(tmp_path) == [name]
+    with outfiles.claim(str(path), "point") as c:  # its claims too (none could be made: every point computed twice)
+        assert c.held and len(os.listdir(outfiles.claims_dir(str(path)))) == 1
+        with outfiles.claim(str(path), "point") as other:
+            assert not other.held
 
 
 def test_the_probe_is_closed_before_it_is_removed(tmp_path, monkeypatch):
