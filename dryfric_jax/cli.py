@@ -568,8 +568,8 @@ def _check_out(path, inputs=(), pooled_only=False):
                 run = "a run's result" + (f" (seed {seed})" if type(seed) is int else "")
                 raise _UserError(f"--out must be a new file, an empty one or one that holds an earlier pooled "
                                  f"result, which it replaces (got {path!r}, which holds {run} not among the files "
-                                 "combined: pooling would replace its excursion sums); give another path, or list "
-                                 "the file among those combined")
+                                 "combined, and would be lost); give another path (to pool that run too, list its "
+                                 "file among those combined and write the pool elsewhere)")
         except (OSError, ValueError, RecursionError):  # UnicodeDecodeError is a ValueError
             pass
     kinds = "pooled result" if pooled_only else "result of estimate, combine, bruteforce or duration"

@@ -80,8 +80,12 @@ def test_combine_replaces_an_earlier_pooled_result_but_not_a_run_left_out(tmp_pa
     assert main(["combine", *files[:2], "--out", files[2]]) == 2
     err = capsys.readouterr().err
     assert err.startswith("dryfric: error: --out must be a new file, an empty one or one that holds an earlier pooled "
-                          "result") and "(seed 2) not among the files combined" in err and err.count("\n") == 1
+                          "result") and "(seed 2) not among the files combined, and would be lost" in err
+    assert err.count("\n") == 1 and err.endswith("list its file among those combined and write the pool elsewhere)\n")
     assert open(files[2]).read() == kept
+    # as that says: listed, and the pool written elsewhere (listed and written over, it is refused as an input)
+    assert main(["combine", *files, "--out", files[2]]) == 2
+    assert "--out must not be one of the files combined" in capsys.readouterr().err
     pool = str(tmp_path / "pool.json")
     assert main(["combine", *files[:2], "--json", "--out", pool]) == 0
     assert main(["combine", *files, "--json", "--out", pool]) == 0
