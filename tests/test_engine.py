@@ -256,8 +256,9 @@ def test_final_round_in_many_calls_equals_one_call(method, events, monkeypatch):
 @pytest.mark.parametrize("events", ["branch", "wait"])
 @pytest.mark.parametrize("method", ["di", "pdmp"])
 def test_paused_rounds_in_many_calls_equal_one_call(method, events, monkeypatch):
-    """A paused round's calls are cut by time (once a block is timed) so that a Ctrl-C acts between them: with one
-    block per call, two paused rounds and the final one give the lanes and sums of the default calls."""
+    """A paused round's calls are cut by time (once a block is timed) so that a Ctrl-C acts between them: with three
+    blocks per call (which divides neither round: the last call of each is shorter), two paused rounds and the final
+    one give the lanes and sums of the default calls."""
     from dryfric_jax import rounds
 
     p = dj.Params.from_nondim(0.5, 1.0, 0.2)
@@ -277,9 +278,9 @@ def test_paused_rounds_in_many_calls_equal_one_call(method, events, monkeypatch)
     default, ln_default, paused = run()
     assert paused == 2
     monkeypatch.setattr(rounds, "FINAL_CALL_S", 0.0)
-    monkeypatch.setattr(rounds, "FINAL_CALL_MIN_BLOCKS", 1)
+    monkeypatch.setattr(rounds, "FINAL_CALL_MIN_BLOCKS", 3)
     split, ln_split, paused = run()
-    assert paused == 25 + 38  # the paused rounds' ceil(200 / 8) and ceil(300 / 8) blocks, one call each
+    assert paused == 9 + 13  # the paused rounds' ceil(200 / 8) = 25 and ceil(300 / 8) = 38 blocks, 3 a call
     for a, b in zip(default, split):
         assert np.array_equal(a.stats, b.stats) and np.array_equal(a.lane_steps, b.lane_steps)
         assert (a.slot_steps, a.n_truncated, a.n_unfinished) == (b.slot_steps, b.n_truncated, b.n_unfinished)
