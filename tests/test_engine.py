@@ -287,9 +287,11 @@ def test_paused_rounds_in_many_calls_equal_one_call(method, events, monkeypatch)
     assert ln_default.paid == ln_split.paid
 
 
-def test_ctrl_c_acts_between_the_calls_of_a_paused_round(monkeypatch):
-    """A KeyboardInterrupt arriving during a paused round's calls leaves it at the next call's return (it waited
-    for the whole round: ~50 s on one PDMP lane); the lanes keep the state of the last completed round."""
+@pytest.mark.parametrize("final", [False, True])
+def test_ctrl_c_acts_between_the_calls_of_a_round(monkeypatch, final):
+    """A KeyboardInterrupt arriving during a round's calls leaves it at the next call's return, instead of after
+    every in-flight excursion has finished (a final round) or after the whole round (a paused one: ~50 s on one
+    PDMP lane); the lanes keep the state of the last completed round."""
     from dryfric_jax import rounds
 
     chain = make_di_model(dj.Params.from_nondim(0.5, 1.0, 0.2), 0.02)
@@ -305,35 +307,13 @@ def test_ctrl_c_acts_between_the_calls_of_a_paused_round(monkeypatch):
         return real(*a)
 
     monkeypatch.setattr(Lanes, "_call_once", interrupted)
-    monkeypatch.setattr(rounds, "FINAL_CALL_S", 0.0)
-    monkeypatch.setattr(rounds, "FINAL_CALL_MIN_BLOCKS", 1)
+    if final:
+        monkeypatch.setattr(rounds, "FINAL_CALL_LANE_STEPS", 1)
+    else:  # cut by time (a paused round's budget bounds it, not the lane-steps)
+        monkeypatch.setattr(rounds, "FINAL_CALL_S", 0.0)
+        monkeypatch.setattr(rounds, "FINAL_CALL_MIN_BLOCKS", 1)
     with pytest.raises(KeyboardInterrupt):
-        ln.advance(jax.random.key(1), 400)
-    assert len(calls) == 3 and ln.lane is before
-
-
-def test_ctrl_c_acts_between_the_calls_of_a_final_round(monkeypatch):
-    """A KeyboardInterrupt arriving during a final round's calls leaves it at the next call's
-    return, instead of after every in-flight excursion has finished; the lanes keep the state of
-    the last completed round."""
-    from dryfric_jax import rounds
-
-    chain = make_di_model(dj.Params.from_nondim(0.5, 1.0, 0.2), 0.02)
-    ln = Lanes(chain, 64, block=8)
-    ln.advance(jax.random.key(0), 400)
-    before = ln.lane
-    calls, real = [], Lanes._call_once
-
-    def interrupted(*a):
-        calls.append(1)
-        if len(calls) == 3:
-            raise KeyboardInterrupt  # as Python raises it once the call returns
-        return real(*a)
-
-    monkeypatch.setattr(Lanes, "_call_once", interrupted)
-    monkeypatch.setattr(rounds, "FINAL_CALL_LANE_STEPS", 1)
-    with pytest.raises(KeyboardInterrupt):
-        ln.finish(jax.random.key(1))
+        ln.finish(jax.random.key(1)) if final else ln.advance(jax.random.key(1), 400)
     assert len(calls) == 3 and ln.lane is before
 
 
