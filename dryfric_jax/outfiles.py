@@ -135,8 +135,8 @@ def check_writable(path: str, name: str = "out") -> None:
     if ok:
         d = os.path.dirname(os.path.realpath(p))
         ok = (not os.path.lexists(p) or os.path.isfile(p)) and os.path.isdir(d) and _can_create_in(d)
-        if ok and os.path.isfile(p) and not _mode(p) & 0o222:
-            ok, why = False, "the file is read-only"
+        if ok and os.path.isfile(p) and (not _mode(p) & 0o222 or (os.path.lexists(p) and not os.access(p, os.W_OK))):
+            ok, why = False, "the file is read-only"  # its mode, or a read-only mount of it (a review)
         if ok and not os.path.lexists(p):
             why = _can_create(p)
             ok = why is None
@@ -205,13 +205,30 @@ def _drop_stale_tmp(path: str) -> None:
                     os.unlink(f)
 
 
-def _write_in_place(path: str, data: bytes) -> None:
-    """Overwrite the file ``path`` with ``data`` where it lies (fsync'd): for a file no other can be renamed over."""
-    with open(path, "r+b") as f:
-        f.write(data)
-        f.truncate()
-        f.flush()
-        os.fsync(f.fileno())
+def _write_in_place(path: str, tmp: str) -> None:
+    """Overwrite the file ``path`` where it lies (fsync'd) with the bytes of the temporary file ``tmp``, then remove
+    ``tmp``: for a file no other can be renamed over.  Nothing is written where they are the same (a sweep's start
+    rewrites its file unchanged).  A write that fails part way (a full disk: the temporary copy holds space too)
+    keeps ``tmp``, the whole new text, and says where it is (a review: it was removed, and the file left torn)."""
+    with open(tmp, "rb") as f:
+        data = f.read()
+    try:
+        f = open(path, "r+b")
+    except OSError:  # nothing written
+        os.unlink(tmp)
+        raise
+    with f:
+        if f.read() != data:
+            try:
+                f.seek(0)
+                f.write(data)
+                f.truncate()
+                f.flush()
+                os.fsync(f.fileno())
+            except OSError as e:
+                raise OSError(e.errno, f"{e.strerror}: {path!r} could not be overwritten in place, and may be torn; "
+                                       f"its whole new text is in {tmp!r}") from None
+    os.unlink(tmp)
 
 
 def write_atomic(path: str, text: str | bytes) -> None:
@@ -219,7 +236,7 @@ def write_atomic(path: str, text: str | bytes) -> None:
     then rename over ``path``: a reader (or a kill at any moment) sees the old file or the new one, never a part.
     A file that is a mount point (Docker's ``-v results.jsonl:/work/results.jsonl``) cannot be renamed over
     (EBUSY; a sweep on one failed at every start, an estimate after its run: an audit): it is overwritten in
-    place instead, which a kill during the write can leave torn."""
+    place instead (:func:`_write_in_place`), which a kill during the write can leave torn."""
     path = os.path.realpath(path)  # a symlinked file is replaced where it lies; the link stays
     d = os.path.dirname(path)
     fd, tmp = tempfile.mkstemp(dir=d, prefix=_tmp_prefix(path), suffix=".tmp")
@@ -240,11 +257,10 @@ def write_atomic(path: str, text: str | bytes) -> None:
         except OSError as e:
             if e.errno != errno.EBUSY or not os.path.isfile(path):
                 raise
-            with open(tmp, "rb") as f:  # the bytes the temporary file got (its encoding)
-                _write_in_place(path, f.read())
-            os.unlink(tmp)
+            tmp, whole = None, tmp  # from here the temporary file is kept unless written over the file
+            _write_in_place(path, whole)
     except BaseException:
-        if os.path.exists(tmp):
+        if tmp is not None and os.path.exists(tmp):
             os.unlink(tmp)
         raise
 
@@ -362,7 +378,10 @@ LOCK_NAME = ".dryfric.lock"
 #: one host only (Linux's NFS client has no directory ``flock``: the kernel takes a local lock), so a record lock
 #: (``lockf``, which these pass to the server) on :data:`LOCK_NAME` is taken
 NETWORK_FS = ("nfs", "nfs4", "cifs", "smb3", "smbfs", "ceph", "glusterfs", "lustre", "gpfs", "beegfs", "9p", "afs",
-              "fuse.sshfs", "fuse.glusterfs", "fuse.ceph", "fuse.beegfs")
+              "fuse.glusterfs", "fuse.ceph-fuse", "fuse.beegfs", "fuse.juicefs", "fuse.moosefs")
+#: shared file systems whose locks hold on one host only: sshfs (FUSE grants locks locally), NFS mounted
+#: ``nolock`` or ``local_lock=posix|all``, CIFS mounted ``nobrl`` (a review): a FileWarning says so
+HOST_LOCK_FS = ("fuse.sshfs",)
 _THREAD_LOCKS: dict = {}  # one threading.Lock per directory: POSIX record locks do not exclude a process's threads
 _UNLOCKED_SAID: set = set()  # the directories whose missing lock was said (once a process)
 
@@ -374,16 +393,17 @@ def _unescape_mount(field: str) -> str:
     return field
 
 
-def mount_type(d: str, mountinfo: str | None = None) -> str:
-    """The type of the file system the directory ``d`` (a real path) lies on, from ``mountinfo`` (default
-    ``/proc/self/mountinfo``; "" where it cannot be read, as off Linux): the longest mount point above ``d``."""
+def mount_type(d: str, mountinfo: str | None = None) -> tuple[str, str]:
+    """The type and options (the mount's and the super block's, comma-joined) of the file system the directory
+    ``d`` (a real path) lies on, from ``mountinfo`` (default ``/proc/self/mountinfo``; ``("", "")`` where it cannot
+    be read, as off Linux): the longest mount point above ``d``, the last mounted there."""
     if mountinfo is None:
         try:
             with open("/proc/self/mountinfo", encoding="utf-8", errors="replace") as f:
                 mountinfo = f.read()
         except OSError:
-            return ""
-    best, kind = -1, ""
+            return "", ""
+    best, kind = -1, ("", "")
     for line in mountinfo.splitlines():
         left, sep, right = line.partition(" - ")
         fields = left.split()
@@ -391,50 +411,71 @@ def mount_type(d: str, mountinfo: str | None = None) -> str:
             continue
         mp = _unescape_mount(fields[4])
         if (d == mp or d.startswith(mp.rstrip("/") + "/")) and len(mp) >= best:
-            best, kind = len(mp), right.split()[0]
+            tail = right.split()
+            best, kind = len(mp), (tail[0], fields[5] + "," + (tail[2] if len(tail) > 2 else ""))
     return kind
 
 
-_MOUNT_TYPES: dict = {}  # directory -> its file system's type, read once a process
+_LOCK_KINDS: dict = {}  # directory -> _lock_kind's answer, read once a process
 
 
-def _on_network_fs(d: str) -> bool:
-    if d not in _MOUNT_TYPES:
-        _MOUNT_TYPES[d] = mount_type(d)
-    return _MOUNT_TYPES[d] in NETWORK_FS
+def lock_kind(fs_type: str, options: str) -> str:
+    """How a directory on a file system of ``fs_type`` mounted with ``options`` is locked: ``"shared"`` (a record
+    lock the server holds for every host), ``"host"`` (shared, but its locks hold on this host only) or
+    ``"local"``."""
+    opts = set(options.split(","))
+    if fs_type in HOST_LOCK_FS or (fs_type.startswith("nfs") and opts & {"nolock", "local_lock=posix",
+                                                                       "local_lock=all"}) \
+            or (fs_type in ("cifs", "smb3") and "nobrl" in opts):
+        return "host"
+    return "shared" if fs_type in NETWORK_FS else "local"
+
+
+def _lock_kind(d: str) -> str:
+    if d not in _LOCK_KINDS:
+        _LOCK_KINDS[d] = lock_kind(*mount_type(d))
+    return _LOCK_KINDS[d]
 
 
 def _os_lock(d: str):
-    """An open descriptor holding an exclusive lock on the directory ``d``, or ``(None, why not)``: ``flock`` on
-    the directory; on a network file system (:data:`NETWORK_FS`) a POSIX record lock (``lockf``) on the file
-    :data:`LOCK_NAME` in it, which the server holds for every host (an audit found two writers losing records
-    there), or where it cannot be had, the directory's ``flock`` (this host's writers only).  A Ctrl-C in the wait
-    leaves no descriptor."""
+    """An open descriptor holding an exclusive lock on the directory ``d``, and why it does not hold for every
+    writer (None if it does); ``(None, why)`` where there is none.  ``flock`` on the directory; on a network file
+    system (:data:`NETWORK_FS`, :func:`lock_kind`) a POSIX record lock (``lockf``) on the file :data:`LOCK_NAME`
+    in it, which the server holds for every host (an audit found two writers losing records there), or where it
+    cannot be had, the directory's ``flock`` (this host's writers only).  A Ctrl-C in the wait leaves no
+    descriptor."""
     if fcntl is None:
         return None, "no fcntl on this platform"
-    ways = [(d, os.O_RDONLY, fcntl.flock)]
-    if _on_network_fs(d):
-        ways.insert(0, (os.path.join(d, LOCK_NAME), os.O_RDWR | os.O_CREAT, fcntl.lockf))
-    why = None
-    for name, flags, lock in ways:
+    kind = _lock_kind(d)
+    ways = [(d, os.O_RDONLY, False)]
+    if kind == "shared":
+        ways.insert(0, (os.path.join(d, LOCK_NAME), os.O_RDWR | os.O_CREAT, True))
+    why = "its file system's locks hold on this host only" if kind == "host" else None
+    failed = None  # why the first way failed
+    for name, flags, record in ways:
         try:
             fd = os.open(name, flags, 0o666)
         except OSError as e:
-            why = why or e.strerror
+            failed = failed or e.strerror
             continue
         try:
-            lock(fd, fcntl.LOCK_EX)
+            if record:  # every user's writers open it (a umask of 022 left the others this host's lock only)
+                with contextlib.suppress(OSError):
+                    os.fchmod(fd, 0o666)
+                fcntl.lockf(fd, fcntl.LOCK_EX)
+            else:
+                fcntl.flock(fd, fcntl.LOCK_EX)
         except OSError as e:
-            why = why or e.strerror
+            failed = failed or e.strerror
             os.close(fd)
             continue
         except BaseException:
             os.close(fd)
             raise
-        if why is not None:  # a network file system's record lock failed: this host's writers take turns only
-            return fd, why + "; only this host's writers are excluded"
-        return fd, None
-    return None, why
+        if failed is not None:  # the record lock could not be had: the directory's flock
+            why = failed + "; only this host's writers are excluded"
+        return fd, why
+    return None, failed
 
 
 @contextlib.contextmanager

@@ -124,10 +124,41 @@ def test_a_file_that_cannot_be_renamed_over_is_overwritten_in_place(tmp_path, mo
     write_atomic(str(path), "new é\n")
     assert path.read_text(encoding="utf-8") == "new é\n" and path.stat().st_ino == inode
     assert os.listdir(tmp_path) == ["r.jsonl"]
+    # a write that fails part way (a full disk) keeps the whole new text and says where (it was removed)
+    real_fsync, calls = os.fsync, []
+
+    def fsync_fails_in_place(fd):
+        calls.append(fd)
+        if len(calls) == 2:  # the first is the temporary file's
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        real_fsync(fd)
+
+    monkeypatch.setattr(outfiles.os, "fsync", fsync_fails_in_place)
+    with pytest.raises(OSError, match=r"could not be overwritten in place, and may be torn; its whole new text is in"):
+        write_atomic(str(path), "newer\n")
+    (kept,) = [n for n in os.listdir(tmp_path) if n != "r.jsonl"]
+    assert (tmp_path / kept).read_text() == "newer\n"
+    (tmp_path / kept).unlink()
+    monkeypatch.setattr(outfiles.os, "fsync", real_fsync)
+    write_atomic(str(path), "new é\n")
+    assert path.read_text(encoding="utf-8") == "new é\n" and os.listdir(tmp_path) == ["r.jsonl"]
     monkeypatch.setattr(outfiles.os, "replace", lambda s, d: (_ for _ in ()).throw(OSError(errno.EXDEV, "x")))
     with pytest.raises(OSError):
         write_atomic(str(path), "other\n")
-    assert path.read_text(encoding="utf-8") == "new é\n" and os.listdir(tmp_path) == ["r.jsonl"]
+    assert os.listdir(tmp_path) == ["r.jsonl"]
+
+
+def test_a_file_mounted_read_only_is_refused_before_the_run(tmp_path, monkeypatch):
+    """A file mounted read-only (Docker's -v out.json:/work/out.json:ro) has write bits in its mode: it passed the
+    check and failed after the run (a review).  os.access says no, as the mount does (simulated)."""
+    path = tmp_path / "out.json"
+    path.write_text("{}")
+    real = os.access
+    monkeypatch.setattr(outfiles.os, "access", lambda q, m, **kw: False if str(q) == str(path) else real(q, m, **kw))
+    with pytest.raises(ValueError, match=r"\(got '.*out\.json': the file is read-only\)$"):
+        outfiles.check_writable(str(path))
+    monkeypatch.undo()
+    outfiles.check_writable(str(path))
 
 
 def test_a_killed_writes_temporary_file_is_removed_by_the_next_locked_write(tmp_path, monkeypatch):

@@ -563,7 +563,7 @@ def host_flock(fd, op):  # as two hosts see NFS: a directory's flock is taken bu
 
 
 outfiles.fcntl.flock = host_flock
-outfiles._on_network_fs = lambda d: True
+outfiles._lock_kind = lambda d: "shared"
 path, who = sys.argv[1], sys.argv[2]
 read = lambda p: read_records(p, ("who", "i"), "bad {path} line {line}")
 for i in range(100):
@@ -589,17 +589,25 @@ def test_on_a_network_file_system_a_record_lock_on_a_lock_file_serves(tmp_path):
 
 
 def test_the_file_systems_type_is_read_from_mountinfo():
-    """The longest mount point above the directory names its type (escaped spaces read back; a later mount over
-    the same point wins); a local directory takes no lock file."""
-    from dryfric_jax.outfiles import mount_type
+    """The longest mount point above the directory names its type and options (escaped spaces read back; a later
+    mount over the same point wins), and they how it is locked: a record lock on a shared file system, the
+    directory's flock elsewhere, with a warning where the shared file system's locks hold on this host only (NFS
+    nolock or local_lock, CIFS nobrl, sshfs: a review)."""
+    from dryfric_jax.outfiles import lock_kind, mount_type
 
     mi = ("36 35 98:0 /mnt1 /mnt/parent rw,noatime master:1 - ext3 /dev/root rw\n"
-          "37 36 0:50 / /mnt/parent/my\\040data rw - nfs4 server:/export rw,vers=4.2\n"
+          "37 36 0:50 / /mnt/parent/my\\040data rw - nfs4 server:/export rw,vers=4.2,local_lock=none\n"
           "38 36 0:51 / /mnt/parent/my rw - tmpfs tmpfs rw\n"
-          "39 36 0:52 / /mnt/parent/my rw shared:2 - lustre 10.0.0.1@tcp:/fs rw\n")
-    assert mount_type("/mnt/parent/my data/run", mi) == "nfs4"
-    assert mount_type("/mnt/parent/my/run", mi) == "lustre" and mount_type("/mnt/parent/my", mi) == "lustre"
-    assert mount_type("/mnt/parent/myx", mi) == "ext3" and mount_type("/elsewhere", mi) == ""
+          "39 36 0:52 / /mnt/parent/my rw shared:2 - lustre 10.0.0.1@tcp:/fs rw,flock\n"
+          "40 36 0:53 / /mnt/parent/old rw - nfs srv:/x rw,vers=3,nolock\n")
+    assert mount_type("/mnt/parent/my data/run", mi) == ("nfs4", "rw,rw,vers=4.2,local_lock=none")
+    assert mount_type("/mnt/parent/my/run", mi)[0] == "lustre" == mount_type("/mnt/parent/my", mi)[0]
+    assert mount_type("/mnt/parent/myx", mi)[0] == "ext3" and mount_type("/elsewhere", mi) == ("", "")
+    kinds = [lock_kind(*mount_type(d, mi)) for d in ("/mnt/parent/my data", "/mnt/parent/my", "/mnt/parent/old",
+                                                     "/mnt/parent/x")]
+    assert kinds == ["shared", "shared", "host", "local"]
+    assert [lock_kind(t, o) for t, o in [("nfs4", "rw,local_lock=all"), ("cifs", "rw,nobrl"), ("fuse.sshfs", "rw"),
+                                         ("fuse.ceph-fuse", "rw"), ("cifs", "rw")]] == ["host"] * 3 + ["shared"] * 2
 
 
 def test_where_no_lock_holds_for_every_writer_a_warning_says_so_once(tmp_path, monkeypatch):
@@ -625,12 +633,15 @@ def test_where_no_lock_holds_for_every_writer_a_warning_says_so_once(tmp_path, m
         def no_lockf(fd, op):
             raise OSError(errno.ENOLCK, os.strerror(errno.ENOLCK))
 
-        monkeypatch.setattr(outfiles, "_on_network_fs", lambda d: True)
+        monkeypatch.setattr(outfiles, "_lock_kind", lambda d: "shared")
         monkeypatch.setattr(outfiles.fcntl, "lockf", no_lockf)
         with pytest.warns(dj.FileWarning, match=r"cannot lock the directory .* for every writer \(No locks "
                           r"available; only this host's writers are excluded\): two processes writing one") as seen:
             put_some(tmp_path / "nfs")
         assert len([w for w in seen if issubclass(w.category, dj.FileWarning)]) == 1
+    monkeypatch.setattr(outfiles, "_lock_kind", lambda d: "host")  # NFS nolock, sshfs: the directory's flock
+    with pytest.warns(dj.FileWarning, match=r"for every writer \(its file system's locks hold on this host only\)"):
+        put_some(tmp_path / "sshfs")
     monkeypatch.setattr(outfiles, "fcntl", None)
     with pytest.warns(dj.FileWarning, match=r"cannot lock the directory .* for every writer \(no fcntl on this "
                       r"platform\): two processes writing one results file there at once may lose") as seen:
