@@ -125,6 +125,16 @@ def _mode(p: str) -> int:
         return 0o222
 
 
+def _read_only_mount(p: str) -> bool:
+    """Whether ``p`` lies on a read-only mount (Docker's ``-v out.json:/work/out.json:ro``: its mode has write bits,
+    it passed the check and failed after the run: a review).  Not the file's own permission: a file is replaced by
+    renaming a new one over it, which the directory's permits."""
+    try:
+        return bool(os.statvfs(p).f_flag & os.ST_RDONLY)
+    except (OSError, AttributeError):  # gone since, or no statvfs (Windows)
+        return False
+
+
 def check_writable(path: str, name: str = "out") -> None:
     """Raise ``ValueError`` naming ``name`` unless ``path`` can be created or replaced as a regular
     file (a file is created and removed in its directory, and a new ``path`` itself, to be sure).
@@ -135,7 +145,7 @@ def check_writable(path: str, name: str = "out") -> None:
     if ok:
         d = os.path.dirname(os.path.realpath(p))
         ok = (not os.path.lexists(p) or os.path.isfile(p)) and os.path.isdir(d) and _can_create_in(d)
-        if ok and os.path.isfile(p) and (not _mode(p) & 0o222 or (os.path.lexists(p) and not os.access(p, os.W_OK))):
+        if ok and os.path.isfile(p) and (not _mode(p) & 0o222 or _read_only_mount(p)):
             ok, why = False, "the file is read-only"  # its mode, or a read-only mount of it (a review)
         if ok and not os.path.lexists(p):
             why = _can_create(p)
@@ -209,25 +219,37 @@ def _write_in_place(path: str, tmp: str) -> None:
     """Overwrite the file ``path`` where it lies (fsync'd) with the bytes of the temporary file ``tmp``, then remove
     ``tmp``: for a file no other can be renamed over.  Nothing is written where they are the same (a sweep's start
     rewrites its file unchanged).  A write that fails part way (a full disk: the temporary copy holds space too)
-    keeps ``tmp``, the whole new text, and says where it is (a review: it was removed, and the file left torn)."""
-    with open(tmp, "rb") as f:
-        data = f.read()
+    keeps the whole new text as ``tmp`` renamed to end in ``.new`` (which no stale-file cleanup removes) and says
+    where it is (a review: it was removed, and the file left torn); unbuffered, so that no close flushes again."""
     try:
-        f = open(path, "r+b")
-    except OSError:  # nothing written
+        with open(tmp, "rb") as f:
+            data = f.read()
+        f = open(path, "r+b", buffering=0)
+        try:
+            same = f.readall() == data
+        except BaseException:
+            f.close()
+            raise
+    except BaseException:  # nothing written
         os.unlink(tmp)
         raise
     with f:
-        if f.read() != data:
+        if not same:
             try:
                 f.seek(0)
-                f.write(data)
+                left = memoryview(data)
+                while left:
+                    left = left[f.write(left):]
                 f.truncate()
-                f.flush()
                 os.fsync(f.fileno())
-            except OSError as e:
-                raise OSError(e.errno, f"{e.strerror}: {path!r} could not be overwritten in place, and may be torn; "
-                                       f"its whole new text is in {tmp!r}") from None
+            except BaseException as e:
+                kept = tmp[: -len(".tmp")] + ".new"
+                with contextlib.suppress(OSError):
+                    os.replace(tmp, kept)
+                if isinstance(e, OSError):
+                    raise OSError(e.errno, f"{e.strerror}: {path!r} could not be overwritten in place, and may be "
+                                           f"torn; its whole new text is in {kept!r}") from None
+                raise
     os.unlink(tmp)
 
 
@@ -380,7 +402,8 @@ LOCK_NAME = ".dryfric.lock"
 NETWORK_FS = ("nfs", "nfs4", "cifs", "smb3", "smbfs", "ceph", "glusterfs", "lustre", "gpfs", "beegfs", "9p", "afs",
               "fuse.glusterfs", "fuse.ceph-fuse", "fuse.beegfs", "fuse.juicefs", "fuse.moosefs")
 #: shared file systems whose locks hold on one host only: sshfs (FUSE grants locks locally), NFS mounted
-#: ``nolock`` or ``local_lock=posix|all``, CIFS mounted ``nobrl`` (a review): a FileWarning says so
+#: ``nolock`` or ``local_lock=posix|all``, CIFS mounted ``nobrl``, Lustre ``localflock`` (a review): a FileWarning
+#: says so
 HOST_LOCK_FS = ("fuse.sshfs",)
 _THREAD_LOCKS: dict = {}  # one threading.Lock per directory: POSIX record locks do not exclude a process's threads
 _UNLOCKED_SAID: set = set()  # the directories whose missing lock was said (once a process)
@@ -407,7 +430,7 @@ def mount_type(d: str, mountinfo: str | None = None) -> tuple[str, str]:
     for line in mountinfo.splitlines():
         left, sep, right = line.partition(" - ")
         fields = left.split()
-        if not sep or len(fields) < 5 or not right.split():
+        if not sep or len(fields) < 6 or not right.split():
             continue
         mp = _unescape_mount(fields[4])
         if (d == mp or d.startswith(mp.rstrip("/") + "/")) and len(mp) >= best:
@@ -426,7 +449,7 @@ def lock_kind(fs_type: str, options: str) -> str:
     opts = set(options.split(","))
     if fs_type in HOST_LOCK_FS or (fs_type.startswith("nfs") and opts & {"nolock", "local_lock=posix",
                                                                        "local_lock=all"}) \
-            or (fs_type in ("cifs", "smb3") and "nobrl" in opts):
+            or (fs_type in ("cifs", "smb3") and "nobrl" in opts) or (fs_type == "lustre" and "localflock" in opts):
         return "host"
     return "shared" if fs_type in NETWORK_FS else "local"
 

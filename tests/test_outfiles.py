@@ -117,29 +117,57 @@ def test_a_file_that_cannot_be_renamed_over_is_overwritten_in_place(tmp_path, mo
     path.write_text("a much longer old text\n")
     inode = path.stat().st_ino
 
-    def busy(src, dst):
-        raise OSError(errno.EBUSY, os.strerror(errno.EBUSY))
+    real_replace = os.replace
+
+    def busy(src, dst):  # nothing can be renamed over the mount point
+        if str(dst) == str(path):
+            raise OSError(errno.EBUSY, os.strerror(errno.EBUSY))
+        real_replace(src, dst)
 
     monkeypatch.setattr(outfiles.os, "replace", busy)
     write_atomic(str(path), "new é\n")
     assert path.read_text(encoding="utf-8") == "new é\n" and path.stat().st_ino == inode
     assert os.listdir(tmp_path) == ["r.jsonl"]
-    # a write that fails part way (a full disk) keeps the whole new text and says where (it was removed)
-    real_fsync, calls = os.fsync, []
+    # a write that fails part way (a full disk) keeps the whole new text, named so that no cleanup of stale
+    # temporary files removes it, and says where (it was removed, and a buffered close hid the message: a review)
+    real_open = open
 
-    def fsync_fails_in_place(fd):
-        calls.append(fd)
-        if len(calls) == 2:  # the first is the temporary file's
-            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
-        real_fsync(fd)
+    class Full:  # the file as a full disk takes a write: 4 bytes, then ENOSPC
+        def __init__(self, f):
+            self.f, self.n = f, 0
 
-    monkeypatch.setattr(outfiles.os, "fsync", fsync_fails_in_place)
-    with pytest.raises(OSError, match=r"could not be overwritten in place, and may be torn; its whole new text is in"):
+        def write(self, b):
+            if self.n:
+                raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+            self.n = self.f.write(bytes(b[:4]))
+            return self.n
+
+        def __getattr__(self, k):
+            return getattr(self.f, k)
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *a):
+            self.f.close()
+
+    def full_open(name, mode="r", *a, **kw):
+        f = real_open(name, mode, *a, **kw)
+        return Full(f) if str(name) == str(path) and mode == "r+b" else f
+
+    monkeypatch.setattr(outfiles, "open", full_open, raising=False)
+    with pytest.raises(OSError, match=r"could not be overwritten in place, and may be torn; its whole new text is in "
+                                      r"'.*\.new'\)?$"):
         write_atomic(str(path), "newer\n")
     (kept,) = [n for n in os.listdir(tmp_path) if n != "r.jsonl"]
-    assert (tmp_path / kept).read_text() == "newer\n"
+    assert kept.endswith(".new") and (tmp_path / kept).read_text() == "newer\n"
+    monkeypatch.setattr(outfiles, "STALE_TMP_S", -1.0)
+    with outfiles.locked(str(path)):  # the cleanup of killed writes' temporary files leaves it
+        pass
+    assert (tmp_path / kept).exists()
     (tmp_path / kept).unlink()
-    monkeypatch.setattr(outfiles.os, "fsync", real_fsync)
+    monkeypatch.undo()
+    monkeypatch.setattr(outfiles.os, "replace", busy)
     write_atomic(str(path), "new é\n")
     assert path.read_text(encoding="utf-8") == "new é\n" and os.listdir(tmp_path) == ["r.jsonl"]
     monkeypatch.setattr(outfiles.os, "replace", lambda s, d: (_ for _ in ()).throw(OSError(errno.EXDEV, "x")))
@@ -150,14 +178,20 @@ def test_a_file_that_cannot_be_renamed_over_is_overwritten_in_place(tmp_path, mo
 
 def test_a_file_mounted_read_only_is_refused_before_the_run(tmp_path, monkeypatch):
     """A file mounted read-only (Docker's -v out.json:/work/out.json:ro) has write bits in its mode: it passed the
-    check and failed after the run (a review).  os.access says no, as the mount does (simulated)."""
+    check and failed after the run (a review).  statvfs says the mount is read-only (simulated); a file the user
+    cannot write but may replace (another's, mode 0644, in a writable directory) is still taken."""
     path = tmp_path / "out.json"
     path.write_text("{}")
-    real = os.access
-    monkeypatch.setattr(outfiles.os, "access", lambda q, m, **kw: False if str(q) == str(path) else real(q, m, **kw))
+    real = os.statvfs
+
+    class ReadOnly:
+        f_flag = os.ST_RDONLY
+
+    monkeypatch.setattr(outfiles.os, "statvfs", lambda q: ReadOnly() if str(q) == str(path) else real(q))
     with pytest.raises(ValueError, match=r"\(got '.*out\.json': the file is read-only\)$"):
         outfiles.check_writable(str(path))
     monkeypatch.undo()
+    monkeypatch.setattr(outfiles.os, "access", lambda *a, **kw: False)  # not this user's to write: renamed over
     outfiles.check_writable(str(path))
 
 

@@ -607,7 +607,8 @@ def test_the_file_systems_type_is_read_from_mountinfo():
                                                      "/mnt/parent/x")]
     assert kinds == ["shared", "shared", "host", "local"]
     assert [lock_kind(t, o) for t, o in [("nfs4", "rw,local_lock=all"), ("cifs", "rw,nobrl"), ("fuse.sshfs", "rw"),
-                                         ("fuse.ceph-fuse", "rw"), ("cifs", "rw")]] == ["host"] * 3 + ["shared"] * 2
+                                         ("lustre", "rw,localflock"), ("fuse.ceph-fuse", "rw"), ("cifs", "rw"),
+                                         ("nfs4", "rw,local_lock=flock")]] == ["host"] * 4 + ["shared"] * 3
 
 
 def test_where_no_lock_holds_for_every_writer_a_warning_says_so_once(tmp_path, monkeypatch):
