@@ -188,7 +188,7 @@ def test_a_file_mounted_read_only_is_refused_before_the_run(tmp_path, monkeypatc
         f_flag = os.ST_RDONLY
 
     monkeypatch.setattr(outfiles.os, "statvfs", lambda q: ReadOnly() if str(q) == str(path) else real(q))
-    with pytest.raises(ValueError, match=r"\(got '.*out\.json': the file is read-only\)$"):
+    with pytest.raises(ValueError, match=r"\(got '.*: the file is read-only\)$"):  # a long path is shortened
         outfiles.check_writable(str(path))
     monkeypatch.undo()
     monkeypatch.setattr(outfiles.os, "access", lambda *a, **kw: False)  # not this user's to write: renamed over
