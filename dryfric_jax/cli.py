@@ -594,24 +594,26 @@ def _read_results(paths):
     out, labels = [], []
     for path in paths:
         try:
-            with open(path, encoding="utf-8-sig") as f:  # -sig: a file saved with a byte-order mark
-                text = f.read()
-            try:
-                found = [(path, loads(text))]
-            except ValueError:  # JSON Lines?
-                numbers = [i for i, x in _text_lines(text.encode() + b"\n", 1, "", path) if x.strip()]
-                if len(numbers) < 2:
-                    raise
-                # as a sweep reads its file: a last line a kill cut short is skipped, with a warning (it was refused,
-                # so a file another host was writing could not be combined: an audit); it is the last line, so the
-                # records are the first lines'
+            # under the file's lock: a record being appended is not seen half written, and the lines numbered
+            # below are those read_records parses (two reads apart, an append between them shifted the labels)
+            with locked(path):
+                with open(path, encoding="utf-8-sig") as f:  # -sig: a file saved with a byte-order mark
+                    text = f.read()
                 try:
-                    with locked(path):  # a record being appended is not seen half written
+                    found = [(path, loads(text))]
+                except ValueError:  # JSON Lines?
+                    numbers = [i for i, x in _text_lines(text.encode() + b"\n", 1, "", path) if x.strip()]
+                    if len(numbers) < 2:
+                        raise
+                    # as a sweep reads its file: a last line a kill cut short is skipped, with a warning (it was
+                    # refused, so a file another host was writing could not be combined: an audit); it is the last
+                    # line, so the records are the first lines'
+                    try:
                         recs = read_records(path, (), "files: cannot read an estimate result from {path!r} line "
                                             "{line} (not a JSON object)")
-                except ValueError as e:
-                    raise _UserError(str(e)) from None
-                found = [(f"{path}:{i}", rec) for i, rec in zip(numbers, recs)]
+                    except ValueError as e:
+                        raise _UserError(str(e)) from None
+                    found = [(f"{path}:{i}", rec) for i, rec in zip(numbers, recs)]
         except (OSError, ValueError) as e:  # ValueError: not JSON, or not UTF-8
             raise _UserError(f"files: cannot read an estimate result from {path!r} ({e})") from None
         for label, r in found:

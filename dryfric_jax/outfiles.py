@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import functools
 import hashlib
 import json
 import math
@@ -429,17 +430,13 @@ def mount_type(d: str, mountinfo: str | None = None) -> tuple[str, str]:
     best, kind = -1, ("", "")
     for line in mountinfo.splitlines():
         left, sep, right = line.partition(" - ")
-        fields = left.split()
-        if not sep or len(fields) < 6 or not right.split():
+        fields, tail = left.split(), right.split()
+        if not sep or len(fields) < 6 or not tail:
             continue
         mp = _unescape_mount(fields[4])
         if (d == mp or d.startswith(mp.rstrip("/") + "/")) and len(mp) >= best:
-            tail = right.split()
             best, kind = len(mp), (tail[0], fields[5] + "," + (tail[2] if len(tail) > 2 else ""))
     return kind
-
-
-_LOCK_KINDS: dict = {}  # directory -> _lock_kind's answer, read once a process
 
 
 def lock_kind(fs_type: str, options: str) -> str:
@@ -454,10 +451,10 @@ def lock_kind(fs_type: str, options: str) -> str:
     return "shared" if fs_type in NETWORK_FS else "local"
 
 
+@functools.lru_cache(maxsize=None)
 def _lock_kind(d: str) -> str:
-    if d not in _LOCK_KINDS:
-        _LOCK_KINDS[d] = lock_kind(*mount_type(d))
-    return _LOCK_KINDS[d]
+    """:func:`lock_kind` of the directory ``d``, read once a process."""
+    return lock_kind(*mount_type(d))
 
 
 def _os_lock(d: str):
