@@ -7,8 +7,6 @@ from __future__ import annotations
 
 import math
 import numbers
-import os
-import sys
 import time
 import warnings
 from dataclasses import MISSING, asdict, dataclass, field, fields
@@ -26,6 +24,7 @@ from .estimators import (
 from .excursions import BLOCK, MAX_LAYOUT
 from .rounds import FINAL_DEADLINE, INTERRUPT_GRACE_S, simulate_long_excursions, work_per_excursion
 from .limits import MAX_WORK, refuse_known_work
+from .live import fit_text, live_progress, status_line, terminal_columns  # noqa: F401  (re-exported)
 from .outfiles import dumps
 from .params import Params, check_positive, real_or_none, require_x64, rounded_bound
 from .pdmp import make_pdmp_model, simulate_pdmp_bruteforce
@@ -310,11 +309,14 @@ def check_seed(seed, hi: int = MAX_SEED, hi_text: str = "2^62") -> int:
     return int(seed)
 
 
-def check_progress(progress, name: str = "progress") -> None:
-    """``ValueError`` unless ``progress`` (the argument ``name``) is a callable or None (checked before the first
-    round, not called there)."""
-    if progress is not None and not callable(progress):
-        raise ValueError(f"{name} must be a callable or None (got {shown(progress)})")
+def check_progress(progress, name: str = "progress", live: bool = True) -> None:
+    """``ValueError`` unless ``progress`` (the argument ``name``) is a callable or None, or where ``live``, True (a
+    live status line, :func:`~dryfric_jax.live.live_progress`) or False (checked before the first round, not called
+    there)."""
+    if progress is None or callable(progress) or (live and isinstance(progress, bool)):
+        return
+    raise ValueError(f"{name} must be a callable, True (a live status line), False or None (got {shown(progress)})"
+                     if live else f"{name} must be a callable or None (got {shown(progress)})")
 
 
 def _key(key):
@@ -393,10 +395,17 @@ def progress_text(d: dict) -> str:
         now += f" N={d['n_excursions']}{goal}"
     else:
         mean = f"{d['mean_s']:.4g}s" if d["mean_s"] == d["mean_s"] else "\u2013"
-        now = f"LE={mean} so far, {d['n_excursions']} of {d['target']}"
+        k, n = d["n_excursions"], d["target"]  # those in flight at the rule finish and count: not "117 of 100"
+        now = f"LE={mean} so far, {k} " + (f"of {n}" if k <= n else f"({n} asked)")
         if d["stopping"]:
             return now + in_flight_text(d)
     return now + left_text(d)
+
+
+def _live_text(d: dict) -> tuple:
+    """``progress=True``'s status line of an estimate's or a count's ``progress`` dict: (:func:`progress_text`, the
+    time taken)."""
+    return progress_text(d), f" [{duration_text(d['elapsed_s'])}]"
 
 
 def left_text(d: dict, options: bool = False) -> str:
@@ -413,42 +422,6 @@ def left_text(d: dict, options: bool = False) -> str:
 def in_flight_text(d: dict) -> str:
     """A long-excursion count's status once it starts no excursion (``stopping``): those still in flight, or done."""
     return f", finishing the {d['in_flight']} in flight" if d["in_flight"] else ", done"
-
-
-def terminal_columns() -> int | None:
-    """The width of the terminal stderr is on, read at each call (the window may be resized), or where stderr has
-    no terminal size (a stand-in in a test), ``COLUMNS``; None where neither gives a number > 0."""
-    try:
-        n = os.get_terminal_size(sys.stderr.fileno()).columns
-        if n > 0:  # a pty not yet sized says 0: then COLUMNS (a review)
-            return n
-    except (AttributeError, ValueError, OSError):  # no fileno (io.UnsupportedOperation is both), or not a terminal
-        pass
-    try:
-        n = int(os.environ.get("COLUMNS", ""))
-    except ValueError:
-        return None
-    return n if n > 0 else None
-
-
-def fit_text(text: str, columns: int | None, tail: str = "") -> str:
-    """``text + tail`` within ``columns - 1`` characters (None: as it is): a self-overwriting status line must stay
-    on one row, since a carriage return goes back to the start of the last row only, and a line that wrapped left a
-    stale row on the screen at each redraw (an audit: 15 rows by a sweep on 80 columns).  Where it is too long,
-    ``text`` is cut at its end for "…" and ``tail`` (the times) kept whole, as long as that leaves ``text`` its first
-    24 characters (half the room where that is less); otherwise the whole line is cut at its end."""
-    room = None if columns is None else max(columns - 1, 0)
-    if room is None or len(text) + len(tail) <= room:
-        return text + tail
-    if len(tail) > room - 1 - min(24, room // 2):
-        text, tail = text + tail, ""
-    return text[:max(room - len(tail) - 1, 0)] + "…"[:room] + tail
-
-
-def status_line(text: str, tail: str = "") -> str:
-    """A self-overwriting status line on stderr: a carriage return, ``text + tail`` fitted to the terminal's width
-    (:func:`fit_text`, :func:`terminal_columns`) and the rest of the row cleared."""
-    return "\r" + fit_text(text, terminal_columns(), tail) + "\x1b[K"
 
 
 def time_left(elapsed: float, work: float, closed: int, in_flight: int, target: int, *, rtol=None,
@@ -703,7 +676,11 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
             final round, which finishes the excursions in flight, is cut at twice ``max_time``,
             and the excursions it cut are counted as truncated (excluded, warned).  Both act
             between calls: add up to one round and one call (~4 s each on 2 CPU cores).
-        progress: optional callback ``progress(dict)`` after every round, with the keys
+        progress: ``True`` for a live status line (D so far, N, the time taken and the projected time left):
+            an updated display in a Jupyter notebook, a self-overwriting line on a terminal's stderr, nothing
+            elsewhere (:mod:`dryfric_jax.live`); or a callback ``progress(dict)`` after every round but the
+            final one, which finishes the excursions in flight, and once after it with the final sums
+            (``left_s`` None), with the keys
             ``n_excursions``, ``D`` and ``D_ci`` (so far, m^2/s), ``target`` (``n_excursions``
             asked for), ``rtol``, ``elapsed_s``, and the projection ``left_s`` (seconds, None
             until known) to the limit ``left_to`` that ends the run first (:func:`time_left`).  An exception
@@ -749,13 +726,15 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
     # (the estimator compiles at its first snapshot): the projection was ~2-8x too long on short runs
     first, here = [], [0.0]
 
-    def report(st):  # after every round: the projection, an early warning, the progress callback
+    def report(st, final=False):  # after every round: the projection, an early warning, the progress callback
         now = time.perf_counter()
         el, sim = now - t0, now - t0 - here[0]
         e = (snapshot(st) or {}) if progress is not None or rtol else {}
         closed = st.n_excursions + st.n_truncated
         rel = e["D_ci"] / abs(e["D"]) if e.get("D") else None
-        if not first:  # no projection yet: the first round's rate is mostly compile time
+        if final:  # the result's sums: nothing left to project
+            left, to = None, None
+        elif not first:  # no projection yet: the first round's rate is mostly compile time
             first.append((sim, st.slot_steps))
             left, to = None, None
         else:
@@ -778,9 +757,12 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
         here[0] += time.perf_counter() - now
 
     t0 = time.perf_counter()
-    sim, stopped = simulate_long_excursions(model, key, n_excursions, lanes=plan.lanes, block=plan.block,
-                                            max_steps=plan.max_steps, more=more if rtol else None,
-                                            max_time=max_time, max_work=max_work, progress=report)
+    with live_progress(progress, _live_text) as progress:  # report() calls the callback this gives
+        sim, stopped = simulate_long_excursions(model, key, n_excursions, lanes=plan.lanes, block=plan.block,
+                                                max_steps=plan.max_steps, more=more if rtol else None,
+                                                max_time=max_time, max_work=max_work, progress=report)
+        if progress is not None:  # once more after the final round: the last report is the result's N and D
+            report(sim, final=True)
     wall = time.perf_counter() - t0
     # a lane the final round's deadline (max_time) or its block bound (never expected) stopped lost
     # its in-flight excursion: count it too

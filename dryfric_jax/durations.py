@@ -97,11 +97,13 @@ import numpy as np
 
 from . import rng
 from ._version import __version__
-from .api import DryfricWarning, _key, _Record, _with_warnings, category, check_progress, key_id, time_left
+from .api import (DryfricWarning, _key, _live_text, _Record, _with_warnings, category, check_progress, key_id,
+                  time_left)
 from .di import make_di_model
 from .excursions import BLOCK, MAX_LAYOUT, block_keys
 from .estimators import t_quantile
 from .limits import MAX_WORK, check_work, le_floor, log_predicted_duration
+from .live import live_progress
 from .params import Params
 from .plan import check_count, check_layout_memory, check_max_time, check_max_work, choose, default_h
 from .rounds import _ABANDON, INTERRUPT_GRACE_S
@@ -536,13 +538,15 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
             ``stopped_by`` says ``"max_time"`` (also where the rule had stopped the starts and twice it cut those
             in flight: its note says so); a count that ends within twice it after the rule stopped the starts, or
             within it, has the bits it has without it.
-        progress: optional callback ``progress(dict)`` after every piece of the loop (~:data:`PIECE_S` s), with
-            the keys ``n_excursions`` (counted so far), ``target``, ``in_flight``, ``mean_s`` (of those counted so
-            far, s; the long ones finish last, so it is the result's mean only at the end), ``stopping``,
-            ``elapsed_s``, ``left_s`` and ``left_to`` (the projected time left and the limit that ends the run,
-            as the estimator's; None until the second piece and once stopping); what ``dryfric duration`` shows
-            on a terminal.  It never changes the numbers (tested).  An exception it raises ends the count and
-            goes on up (:class:`NoCountError` is the count's own).
+        progress: ``True`` for a live status line (counted so far, their mean, the time taken and the projected
+            time left: an updated display in a Jupyter notebook, a self-overwriting line on a terminal's stderr,
+            nothing elsewhere; :mod:`dryfric_jax.live`), or a callback ``progress(dict)`` after every piece of the
+            loop (~:data:`PIECE_S` s), with the keys ``n_excursions`` (counted so far), ``target``, ``in_flight``,
+            ``mean_s`` (of those counted so far, s; the long ones finish last, so it is the result's mean only at the
+            end), ``stopping``, ``elapsed_s``, ``left_s`` and ``left_to`` (the projected time left and the limit
+            that ends the run, as the estimator's; None until the second piece and once stopping); what ``dryfric
+            duration`` shows on a terminal.  It never changes the numbers (tested).  An exception it raises ends
+            the count and goes on up (:class:`NoCountError` is the count's own).
 
     A Ctrl-C (SIGTERM under ``dryfric``) acts as it does on the estimator: the first starts no long excursion and
     finishes those in flight within :data:`~dryfric_jax.rounds.INTERRUPT_GRACE_S`, a second drops them, and the
@@ -583,9 +587,10 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
         steps = d.pop("mean_steps")
         progress({**d, "mean_s": h * steps})
 
-    N, S, Q, off, started, steps, blocks, ended = _run(model, jax.random.split(key, n_lanes), n_excursions,
-                                                       max_blocks, block=BLOCK, bridge=bridge, max_time=max_time,
-                                                       t0=t0, progress=None if progress is None else report)
+    with live_progress(progress, _live_text) as progress:  # report() calls the callback this gives
+        N, S, Q, off, started, steps, blocks, ended = _run(model, jax.random.split(key, n_lanes), n_excursions,
+                                                           max_blocks, block=BLOCK, bridge=bridge, max_time=max_time,
+                                                           t0=t0, progress=None if progress is None else report)
     rule_first = ended == RULE_THEN_MAX_TIME  # the rule stopped the starts, twice max_time cut those in flight
     ended = "max_time" if rule_first else ended
     k, cut = int(N.sum()), int((started & ~off).sum())
@@ -608,8 +613,9 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
                      "is biased low")
     elif ended == "max_time" and (k < n_excursions or cut):  # (not "257 of the 200 asked": an audit)
         stop_note = (f"max_time = {max_time:g} s stopped the count at {k} of the {n_excursions} long excursions "
-                     "asked: none started after it" + (f"; {cut} still in flight at twice it are left out, so the "
-                                                       "mean is biased low" if cut else ", those in flight finished"))
+                     "asked: none started after it"
+                     + (f"; {cut} still in flight at twice it are left out, so the mean is biased low" if cut
+                        else ", those in flight finished"))
     elif cut or k < n_excursions:
         stop_note = (f"the loop's bound max_steps = {bound} stopped {k} of the {n_excursions} long excursions asked"
                      + (f", with {cut} in flight: left out, so the mean is biased low" if cut else "")
@@ -618,8 +624,8 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
         warnings.warn(stop_note, DryfricWarning, stacklevel=2)
         notes.append(stop_note)
     if k < MIN_RELIABLE_LE:
-        note = (f"n_excursions = {k} < {MIN_RELIABLE_LE}: the t CI under-covers at this size (right-skewed durations: "
-                "0.92-0.93 at ~60 counted, 0.94 from ~160; durations.py)")
+        note = (f"n_excursions = {k} < {MIN_RELIABLE_LE}: the t CI under-covers at this size (right-skewed "
+                "durations: 0.92-0.93 at ~60 counted, 0.94 from ~160; durations.py)")
         warnings.warn(note, category(note), stacklevel=2)  # a SmallSampleWarning, as the estimator's
         notes.append(note)
     s_sum = float(S.sum())  # exact: int64 sums of steps

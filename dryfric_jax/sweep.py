@@ -77,6 +77,7 @@ from .combine import bad_sums, has_sums
 from .durations import (TAU_STEPS, NoCountError, check_duration_run, default_duration_h, default_max_steps,
                         di_long_excursion_duration, max_steps_for)
 from .limits import MAX_WORK
+from .live import live_progress
 from .outfiles import (ReadCache, check_writable, claim, drop_claims_dir, dumps, locked, put_record, read_records,
                        write_records)
 from .params import FIG3, Params, _tau0, brief, check_flag, check_positive, plain_number, real_or_none, shown
@@ -367,8 +368,12 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
             rerun by a resumed sweep that gives more time).
         skip_refused: record the points the planner refuses (status ``"refused"``) and run the
             others, instead of refusing the grid (``ValueError`` counting the refused points, naming the first six).
-        progress: optional ``progress(done, total, record)`` after each point (and once at start).
-        point_progress: optional ``point_progress(dict)`` while a point runs: the dict its D estimate gives
+        progress: optional ``progress(done, total, record)`` after each point (and once at start); ``True``
+            for :func:`progress_bar_for` the grid (a bar on a terminal, a line per point elsewhere).
+        point_progress: ``True`` for a live status line of the point running (the bar, the point, its D or
+            count so far and the projected time left: an updated display in a Jupyter notebook, a self-overwriting
+            line on a terminal, nothing elsewhere; :mod:`dryfric_jax.live`), or a callback
+            ``point_progress(dict)`` while a point runs: the dict its D estimate gives
             after every round (:func:`~dryfric_jax.estimate_diffusivity`'s ``progress``) with ``stage = "D"``,
             or its long-excursion count after every piece (:func:`~dryfric_jax.di_long_excursion_duration`'s)
             with ``stage = "durations"``; both with the point's ``params`` and the sweep's ``done`` and
@@ -418,6 +423,7 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
     max_time = None if max_time == math.inf else max_time  # no limit, as recorded
     check_progress(progress)
     check_progress(point_progress, "point_progress")
+    progress = progress_bar_for(points) if progress is True else progress or None
     skip_refused = check_flag("skip_refused", skip_refused)
     # as JSON values (numpy numbers as Python ones, a numpy dtype as its name), checked once: a wrong
     # setting refuses the grid (dtype float16 was recorded as every point's refusal)
@@ -485,43 +491,44 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
     if progress:
         progress(done, total, None)
     interrupted, later, tally, kept_d = False, [], [], []  # tally: the points computed and written
-    # a point another sweep is computing (claimed) is left for later and waited for after the others:
-    # it is usually finished by then, and is not computed twice
-    for wait, queue in ((False, todo), (True, later)):
-        for ident, pt in list(queue):
-            try:
-                with claim(out, ident, wait=wait) as c:
-                    if not c.held:
-                        later.append((ident, pt))
-                        continue
-                    rec = _finished_elsewhere(out, ident, max_time, read)
-                    if rec is not None:
-                        skipped += 1
-                    else:
-                        within = None if point_progress is None else functools.partial(
-                            _within, point_progress, dict(params=pt, done=done, total=total))
-                        rec = _compute(out, pt, seed, settings, max_time, within, kept_d, read,
-                                       count_refused.get(ident))
-                        if rec is None:  # Ctrl-C: the point in progress is not written
-                            interrupted = True
-                            break
-                        # the file read again under its lock: another sweep's records are kept, a record of this
-                        # point (a rerun with more time, or the other sweep's) is replaced in place; a Ctrl-C or
-                        # SIGTERM during the write acts after it and its count (put_record)
-                        put_record(out, rec, _of_point(ident), read,
-                                   done=lambda: tally.append(ident))
-                    c.finish()
-            except KeyboardInterrupt:  # also while waiting for another sweep's point
-                interrupted = True
-                if ident in tally:  # written before the signal acted
-                    have[ident] = rec
+    with live_progress(point_progress, functools.partial(_point_text, axes=_axes(points))) as point_progress:
+        # a point another sweep is computing (claimed) is left for later and waited for after the others:
+        # it is usually finished by then, and is not computed twice
+        for wait, queue in ((False, todo), (True, later)):
+            for ident, pt in list(queue):
+                try:
+                    with claim(out, ident, wait=wait) as c:
+                        if not c.held:
+                            later.append((ident, pt))
+                            continue
+                        rec = _finished_elsewhere(out, ident, max_time, read)
+                        if rec is not None:
+                            skipped += 1
+                        else:
+                            within = None if point_progress is None else functools.partial(
+                                _within, point_progress, dict(params=pt, done=done, total=total))
+                            rec = _compute(out, pt, seed, settings, max_time, within, kept_d, read,
+                                           count_refused.get(ident))
+                            if rec is None:  # Ctrl-C: the point in progress is not written
+                                interrupted = True
+                                break
+                            # the file read again under its lock: another sweep's records are kept, a record of this
+                            # point (a rerun with more time, or the other sweep's) is replaced in place; a Ctrl-C or
+                            # SIGTERM during the write acts after it and its count (put_record)
+                            put_record(out, rec, _of_point(ident), read,
+                                       done=lambda: tally.append(ident))
+                        c.finish()
+                except KeyboardInterrupt:  # also while waiting for another sweep's point
+                    interrupted = True
+                    if ident in tally:  # written before the signal acted
+                        have[ident] = rec
+                    break
+                have[ident] = rec
+                done += 1
+                if progress:
+                    progress(done, total, rec)
+            if interrupted:
                 break
-            have[ident] = rec
-            done += 1
-            if progress:
-                progress(done, total, rec)
-        if interrupted:
-            break
     drop_claims_dir(out)
     mine = [have[i] for i in distinct if i in have]
     count = {k: sum(status(r) == k for r in mine) for k in ("refused", "failed")}
@@ -756,14 +763,18 @@ def _where(p: dict, axes) -> str:
 
 def point_line(d: dict, axes=("Gamma", "tau")) -> None:
     """:func:`progress_bar`'s line, rewritten while a point runs (``run_sweep``'s ``point_progress``; terminal
-    only, nothing otherwise): the point, and its D estimate so far (N of the target or the CI against ``rtol``) or
-    its long-excursion count so far, with the time it has taken and the projected time left (naming ``max_time``
-    or ``max_work`` when that limit is projected to stop the point)."""
+    only, nothing otherwise; ``point_progress=True`` shows it in a notebook too): :func:`_point_text`."""
     if not sys.stderr.isatty():
         return
+    print(status_line(*_point_text(d, axes)), end="", file=sys.stderr, flush=True)
+
+
+def _point_text(d: dict, axes=("Gamma", "tau")) -> tuple:
+    """:func:`point_line`'s text and its tail: the bar, the point, and its D estimate so far (N of the target or
+    the CI against ``rtol``) or its long-excursion count so far; then the time it has taken and the projected time
+    left (naming ``max_time`` or ``max_work`` when that limit is projected to stop the point)."""
     rest, el = _where(d["params"], axes) + progress_text(d), f" [{duration_text(d['elapsed_s'])}]"
-    bar = _bar(d["done"], d["total"], _bar_width(d["done"], d["total"], rest + el))
-    print(status_line(bar + rest, el), end="", file=sys.stderr, flush=True)
+    return _bar(d["done"], d["total"], _bar_width(d["done"], d["total"], rest + el)) + rest, el
 
 
 def _bar_width(done: int, total: int, rest: str) -> int:

@@ -244,10 +244,12 @@ def test_without_rtol_the_engine_gets_no_precision_rule(monkeypatch):
 
 def test_progress_projection_and_early_max_work_warning(monkeypatch):
     r"""The reports after each round, on the fake clock (1 s per reading; the time spent in the
-    report is not the engine's): round 1 has no projection; round 2 paid 1e9 more lane-steps in 1 s
-    of engine time; 100 closed + 0 running for 2e9 lane-steps = 2e7 per excursion; N = 400 wants 300
-    more, 6 s, but max_work = 2.5e9 leaves 0.5 s: a ProjectionWarning, said once.  With rtol = rel/2
-    the target wants N (rel/rtol)^2 = 4 x 100 = 400 (D's half-width from 40 excursions' sums, all rounds)."""
+    report is not the engine's), and once more after the final round with the final sums and no projection
+    (mutant: none, the last line a notebook shows short of the result): round 1 has no projection; round 2
+    paid 1e9 more lane-steps in 1 s of engine time; 100 closed + 0 running for 2e9 lane-steps = 2e7 per
+    excursion; N = 400 wants 300 more, 6 s, but max_work = 2.5e9 leaves 0.5 s: a ProjectionWarning, said
+    once.  With rtol = rel/2 the target wants N (rel/rtol)^2 = 4 x 100 = 400 (D's half-width from 40 excursions'
+    sums, all rounds)."""
     rounds = [_stats(U40, T40, slot=1e9), _stats(U40, T40, slot=2e9), _stats(U40, T40, slot=3e9)]
     for st, closed in zip(rounds, (50, 100, 200)):  # closed counts truncated too
         st.n_truncated = closed - 40
@@ -264,11 +266,13 @@ def test_progress_projection_and_early_max_work_warning(monkeypatch):
                                           "400 excursions: the rounds so far paid >= 2e+07 steps per excursion")]
     assert len(said) == 1, ws
     assert not any("projected" in w for w in r.warnings)  # said once, not kept in the result
-    assert [(d["left_s"], d["left_to"]) for d in seen] == [(None, None), (0.5, "max_work"), (0.0, "max_work")]
+    assert [(d["left_s"], d["left_to"]) for d in seen] == [(None, None), (0.5, "max_work"), (0.0, "max_work"),
+                                                           (None, None)]
+    assert seen[-1]["D"] == seen[-2]["D"] and seen[-1]["n_excursions"] == r.n_excursions == 40
     D, D_ci, _, _ = _by_hand(U40, T40)
     assert seen[0]["D"] == pytest.approx(D * P.D0, rel=1e-12) and seen[0]["D_ci"] == pytest.approx(D_ci * P.D0)
     assert all(type(d["D"]) is float and type(d["D_ci"]) is float for d in seen)  # D_ci was an np.float64
-    assert [d["elapsed_s"] for d in seen] == [1.0, 3.0, 5.0]
+    assert [d["elapsed_s"] for d in seen] == [1.0, 3.0, 5.0, 7.0]
     # a precision target: rel / rtol = 2 asks 4 x 100 = 400 excursions, 300 more at 2e7 lane-steps / 1e9 per s
     seen.clear()
     _fake_engine(monkeypatch, outcome)

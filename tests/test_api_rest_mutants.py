@@ -69,11 +69,17 @@ def test_a_huge_seed_or_progress_is_shown_short():
         assert "(401 characters)" in str(e.value) and len(str(e.value)) < 200
 
 
-def test_progress_may_be_none_or_any_callable():
-    """None and a callable pass; anything else is refused saying both (mutants: None refused, "or None" dropped)."""
+def test_progress_may_be_none_any_callable_or_a_bool():
+    """None, a callable, True and False pass; anything else is refused saying what passes; without ``live`` (the
+    figures') True and False are refused too (mutants: None refused, "or None" dropped, 1 taken for True)."""
     assert check_progress(None) is None and check_progress(print) is None
-    with pytest.raises(ValueError, match=r"^progress must be a callable or None \(got 5\)$"):
-        check_progress(5)
+    assert check_progress(True) is None and check_progress(False) is None
+    for bad in (5, 1, "yes"):
+        with pytest.raises(ValueError, match=r"^progress must be a callable, True \(a live status line\), False or "
+                                             r"None \(got "):
+            check_progress(bad)
+    with pytest.raises(ValueError, match=r"^progress must be a callable or None \(got True\)$"):
+        check_progress(True, live=False)
 
 
 def test_keys_seeds_and_their_recorded_seed():
@@ -287,14 +293,15 @@ def test_a_max_time_projection_is_reported_not_warned(monkeypatch):
     _fake(monkeypatch, _rounds(1e9, 2e9), "max_time")
     r, ws = _recorded(lambda: dj.estimate_diffusivity(P, 7, h=H, n_excursions=400, max_time=4.0,
                                                       progress=seen.append))
-    assert [(d["left_s"], d["left_to"]) for d in seen] == [(None, None), (1.0, "max_time")]
+    assert [(d["left_s"], d["left_to"]) for d in seen] == [(None, None), (1.0, "max_time"), (None, None)]
     assert not any(w.category is dj.ProjectionWarning for w in ws)
-    assert [(d["n_excursions"], d["target"], d["rtol"]) for d in seen] == [(40, 400, None)] * 2
+    assert [(d["n_excursions"], d["target"], d["rtol"]) for d in seen] == [(40, 400, None)] * 3
     seen.clear()
     _fake(monkeypatch, _rounds(1e9, 2e9), "max_time")
     r, ws = _recorded(lambda: dj.estimate_diffusivity(P, 7, h=H, n_excursions=400, rtol=0.05, max_time=4.0,
                                                       progress=seen.append))
-    assert [(d["rtol"], d["left_s"], d["left_to"]) for d in seen] == [(0.05, None, None), (0.05, 1.0, "max_time")]
+    assert [(d["rtol"], d["left_s"], d["left_to"]) for d in seen] == [(0.05, None, None), (0.05, 1.0, "max_time"),
+                                                                     (0.05, None, None)]
     assert r.rtol == 0.05 and r.stopped_by == "max_time"
 
 
@@ -328,13 +335,14 @@ def test_the_bruteforce_notes_are_warned_at_the_callers_line(monkeypatch):
 
 
 def test_a_clock_that_stands_still_gives_the_overall_rate(monkeypatch):
-    """The clock reads 1 (start), 2, 2 (round 1), 2, 2 (round 2), 5 (end): no engine time between the rounds, so
+    """The clock reads 1 (start), 2, 2 (round 1), 2, 2 (round 2), 5, 5 (the final report), 5 (end): no engine time
+    between the rounds, so
     the projection falls back to work / elapsed = 2e9 per s: 300 more excursions x 2e7 / 2e9 = 3 s (mutant:
     ``sim >= first``, a ZeroDivisionError)."""
     seen = []
-    _fake(monkeypatch, _rounds(1e9, 2e9), "n_excursions", clock=[1.0, 2.0, 2.0, 2.0, 2.0, 5.0])
+    _fake(monkeypatch, _rounds(1e9, 2e9), "n_excursions", clock=[1.0, 2.0, 2.0, 2.0, 2.0, 5.0, 5.0, 5.0])
     _recorded(lambda: dj.estimate_diffusivity(P, 7, h=H, n_excursions=400, progress=seen.append))
-    assert [(d["left_s"], d["left_to"]) for d in seen] == [(None, None), (3.0, "n_excursions")]
+    assert [(d["left_s"], d["left_to"]) for d in seen] == [(None, None), (3.0, "n_excursions"), (None, None)]
 
 
 def test_the_projection_leaves_out_the_compiling_round_and_the_reports(monkeypatch):
@@ -342,14 +350,15 @@ def test_the_projection_leaves_out_the_compiling_round_and_the_reports(monkeypat
     which compiled it"), less the time spent in the reports.  Clock: start 0; round 1 ends at 10 (compiling), its
     report takes 1 s; round 2 ends at 12, its callback 100 s; round 3 ends at 113.  Engine time after round 1:
     1 s, then 2 s, for 1e9 and 2e9 more lane-steps: 1e9 per s.  Round 2: 300 more x 2e7 / 1e9 = 6 s; round 3
-    (200 closed, 1.5e7 each): 200 x 1.5e7 / 1e9 = 3 s (mutants: the first round's time and work kept in the
-    rate, 33 s; only the last report's time taken out, 4.5 s)."""
+    (200 closed, 1.5e7 each): 200 x 1.5e7 / 1e9 = 3 s; the final report at 114 (mutants: the first round's time
+    and work kept in the rate, 33 s; only the last report's time taken out, 4.5 s)."""
     rounds = [_stats(U40, T40, slot=s, truncated=c - 40) for s, c in ((1e9, 50), (2e9, 100), (3e9, 200))]
     seen = []
-    _fake(monkeypatch, rounds, "n_excursions", clock=[0.0, 10.0, 11.0, 12.0, 112.0, 113.0, 113.0, 114.0])
+    _fake(monkeypatch, rounds, "n_excursions", clock=[0.0, 10.0, 11.0, 12.0, 112.0, 113.0, 113.0, 114.0, 114.0,
+                                                                     115.0])
     _recorded(lambda: dj.estimate_diffusivity(P, 7, h=H, n_excursions=400, progress=seen.append))
     assert [(d["elapsed_s"], d["left_s"], d["left_to"]) for d in seen] == [
-        (10.0, None, None), (12.0, 6.0, "n_excursions"), (113.0, 3.0, "n_excursions")]
+        (10.0, None, None), (12.0, 6.0, "n_excursions"), (113.0, 3.0, "n_excursions"), (114.0, None, None)]
 
 
 def test_the_result_records_the_plan_and_the_version(monkeypatch):

@@ -197,11 +197,12 @@ def test_progress_that_is_not_callable_is_refused_before_any_work(tmp_path):
     """It raised a TypeError after the first round (estimate) or after writing refusals (sweep)."""
     from dryfric_jax import sweep
 
-    with pytest.raises(ValueError, match="^progress must be a callable or None"):
+    live = r"must be a callable, True \(a live status line\), False or None"
+    with pytest.raises(ValueError, match="^progress " + live):
         dj.estimate_diffusivity(P, 0, n_excursions=50, progress=5)
-    with pytest.raises(ValueError, match="^progress must be a callable or None"):
+    with pytest.raises(ValueError, match="^progress " + live):
         sweep.run_sweep([{}], str(tmp_path / "s.jsonl"), n_excursions=50, progress=5)
-    with pytest.raises(ValueError, match=r"^point_progress must be a callable or None \(got 'bar'\)$"):
+    with pytest.raises(ValueError, match="^point_progress " + live + r" \(got 'bar'\)$"):
         sweep.run_sweep([{}], str(tmp_path / "s.jsonl"), n_excursions=50, point_progress="bar")
     assert not (tmp_path / "s.jsonl").exists()
 

@@ -499,7 +499,7 @@ def test_progress_reports_every_piece_and_leaves_the_count_alone(monkeypatch):
     assert going and all(d["left_s"] >= 0 and d["left_to"] == "n_excursions" for d in going)
     assert all(d["left_s"] is None for d in got if d["stopping"]) and any(d["stopping"] for d in got[:-1])
     assert all(0 <= d["in_flight"] <= 37 and d["elapsed_s"] > 0 for d in got)
-    with pytest.raises(ValueError, match="progress must be a callable or None"):
+    with pytest.raises(ValueError, match=r"progress must be a callable, True \(a live status line\), False or None"):
         di_long_excursion_duration(FAST, 11, progress=1, **kw)
 
     clock = [0.0]

@@ -49,7 +49,7 @@ def run_figures(which: str, out_dir: str, quick: bool = False, seed: int = 0, re
     names = list(SCENES) if which == "all" else [which]
     for n in names:  # a points file that is not one is refused before any scene runs, not after the others
         check_points_file(out_dir, SCENES[n].__name__)
-    check_progress(progress)
+    check_progress(progress, live=False)  # its lines are the CLI's (dryfric figures)
     out = {}
     for i, n in enumerate(names, 1):
         scene = SCENES[n].__name__
