@@ -683,16 +683,19 @@ def _report(a, r, text=lambda r: r.summary(), warn: bool = True):
     has been printed; a stdout or stderr that cannot be written (its reader gone, ``| true``, or a full disk) leaves
     the file written (it was printed first, and a pipe closed by the reader lost the file: an audit).  stdout gets
     one write, also unbuffered (``PYTHONUNBUFFERED``): ``print`` wrote the text and its newline apart, and ``| head
-    -1``, leaving between them, made the second fail (exit 141 in 1-3 of 6 runs: a docs audit)."""
-    try:
-        _write_out(a.out, r.to_dict())
-        failed = None
-    except RuntimeError as e:
-        failed = e
-    for w in r.warnings if warn else ():
-        print(f"dryfric: warning: {w}", file=sys.stderr)
-    sys.stdout.write((dumps(r.to_dict()) if a.json else text(r)) + "\n")
-    sys.stdout.flush()
+    -1``, leaving between them, made the second fail (exit 141 in 1-3 of 6 runs: a docs audit).  A first Ctrl-C or
+    SIGTERM acts after the result is written and printed (a second at once): one in the write lost the finished
+    run, exit 143 with nothing written or printed (an interrupt audit)."""
+    with interrupts.held_interrupts(second_acts=True):
+        try:
+            _write_out(a.out, r.to_dict())
+            failed = None
+        except RuntimeError as e:
+            failed = e
+        for w in r.warnings if warn else ():
+            print(f"dryfric: warning: {w}", file=sys.stderr)
+        sys.stdout.write((dumps(r.to_dict()) if a.json else text(r)) + "\n")
+        sys.stdout.flush()
     if failed is not None:
         raise failed
 

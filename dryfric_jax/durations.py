@@ -85,6 +85,8 @@ those in flight finish, or are dropped at a second Ctrl-C or at twice ``max_time
 """
 from __future__ import annotations
 
+import contextlib
+import dataclasses
 import math
 import sys
 import time
@@ -102,6 +104,7 @@ from .api import (DryfricWarning, _key, _live_text, _Record, _with_warnings, cat
 from .di import make_di_model
 from .excursions import BLOCK, MAX_LAYOUT, block_keys
 from .estimators import t_quantile
+from .interrupts import interrupt_noted
 from .limits import MAX_WORK, check_work, le_floor, log_predicted_duration
 from .live import live_progress
 from .params import Params
@@ -591,49 +594,57 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
         N, S, Q, off, started, steps, blocks, ended = _run(model, jax.random.split(key, n_lanes), n_excursions,
                                                            max_blocks, block=BLOCK, bridge=bridge, max_time=max_time,
                                                            t0=t0, progress=None if progress is None else report)
-    rule_first = ended == RULE_THEN_MAX_TIME  # the rule stopped the starts, twice max_time cut those in flight
-    ended = "max_time" if rule_first else ended
-    k, cut = int(N.sum()), int((started & ~off).sum())
-    if k < 2:  # no mean or no spread: say why rather than return a NaN
-        if ended == "interrupted":  # nothing to keep: a plain Ctrl-C
-            raise KeyboardInterrupt
-        if ended == "max_time":
-            raise NoCountError(f"max_time = {max_time:g} s is too short here: the {n_lanes} lanes counted {k} long "
-                               "excursions within twice it (at least 2 must); raise max_time")
-        raise NoCountError(f"max_steps = {bound} is too small here: the {n_lanes} lanes counted {k} long excursions "
-                           f"within it (at least 2 must); raise max_steps")
-    stop_note = None  # what stopped the count short of the rule, if anything
-    if ended == "interrupted":
-        stop_note = (f"interrupted: {k} of the {n_excursions} long excursions asked counted, none started after it"
-                     + (f"; {cut} still in flight are left out, so the mean is biased low" if cut
-                        else ", those in flight finished"))
-    elif rule_first:  # the rule had stopped the starts (not max_time: an audit), twice max_time cut the rest
-        stop_note = (f"max_time = {max_time:g} s: at twice it {cut} long excursions still in flight, after the rule "
-                     f"had stopped the starts ({k} counted of the {n_excursions} asked), are left out, so the mean "
-                     "is biased low")
-    elif ended == "max_time" and (k < n_excursions or cut):  # (not "257 of the 200 asked": an audit)
-        stop_note = (f"max_time = {max_time:g} s stopped the count at {k} of the {n_excursions} long excursions "
-                     "asked: none started after it"
-                     + (f"; {cut} still in flight at twice it are left out, so the mean is biased low" if cut
-                        else ", those in flight finished"))
-    elif cut or k < n_excursions:
-        stop_note = (f"the loop's bound max_steps = {bound} stopped {k} of the {n_excursions} long excursions asked"
-                     + (f", with {cut} in flight: left out, so the mean is biased low" if cut else "")
-                     + "; raise max_steps")
-    if stop_note is not None:
-        warnings.warn(stop_note, DryfricWarning, stacklevel=2)
-        notes.append(stop_note)
-    if k < MIN_RELIABLE_LE:
-        note = (f"n_excursions = {k} < {MIN_RELIABLE_LE}: the t CI under-covers at this size (right-skewed "
-                "durations: 0.92-0.93 at ~60 counted, 0.94 from ~160; durations.py)")
-        warnings.warn(note, category(note), stacklevel=2)  # a SmallSampleWarning, as the estimator's
-        notes.append(note)
-    s_sum = float(S.sum())  # exact: int64 sums of steps
-    m = s_sum / k
-    var = max(float(Q.sum()) - s_sum * m, 0.0) / (k - 1)
-    return LEDuration(mean=h * m, ci=float(t_quantile(0.95, k - 1) * h * math.sqrt(var / k)), n_excursions=k,
-                      n_requested=n_excursions, n_lanes=n_lanes, n_truncated=cut, h=float(h), dtype=dtype,
-                      lane_steps=int(steps.sum()), loop_steps=n_lanes * int(blocks) * BLOCK, max_steps=bound,
-                      bridge=bridge, stopped_by=ended, max_time=max_time, seed=seed,
-                      key=None if seed is not None else key_id(key), params=params.as_dict(), warnings=tuple(notes),
-                      wall_s=time.perf_counter() - t0)
+    # from here the count is over: a Ctrl-C or SIGTERM is held until its result is formed, then noted in it, as the
+    # estimator's (api.estimate_diffusivity), except where a caller keeps finished runs only (abandon_on_interrupt)
+    with (interrupt_noted() if not _ABANDON[0] else contextlib.nullcontext([])) as late:
+        rule_first = ended == RULE_THEN_MAX_TIME  # the rule stopped the starts, twice max_time cut those in flight
+        ended = "max_time" if rule_first else ended
+        k, cut = int(N.sum()), int((started & ~off).sum())
+        if k < 2:  # no mean or no spread: say why rather than return a NaN
+            if ended == "interrupted":  # nothing to keep: the Ctrl-C goes on up, saying why (it said nothing)
+                raise KeyboardInterrupt(f"fewer than 2 long excursions counted before the interrupt ({k})")
+            if ended == "max_time":
+                raise NoCountError(f"max_time = {max_time:g} s is too short here: the {n_lanes} lanes counted {k} long "
+                                   "excursions within twice it (at least 2 must); raise max_time")
+            raise NoCountError(f"max_steps = {bound} is too small here: the {n_lanes} lanes counted {k} long excursions "
+                               f"within it (at least 2 must); raise max_steps")
+        stop_note = None  # what stopped the count short of the rule, if anything
+        if ended == "interrupted":
+            stop_note = (f"interrupted: {k} of the {n_excursions} long excursions asked counted, none started after it"
+                         + (f"; {cut} still in flight are left out, so the mean is biased low" if cut
+                            else ", those in flight finished"))
+        elif rule_first:  # the rule had stopped the starts (not max_time: an audit), twice max_time cut the rest
+            stop_note = (f"max_time = {max_time:g} s: at twice it {cut} long excursions still in flight, after the rule "
+                         f"had stopped the starts ({k} counted of the {n_excursions} asked), are left out, so the mean "
+                         "is biased low")
+        elif ended == "max_time" and (k < n_excursions or cut):  # (not "257 of the 200 asked": an audit)
+            stop_note = (f"max_time = {max_time:g} s stopped the count at {k} of the {n_excursions} long excursions "
+                         "asked: none started after it"
+                         + (f"; {cut} still in flight at twice it are left out, so the mean is biased low" if cut
+                            else ", those in flight finished"))
+        elif cut or k < n_excursions:
+            stop_note = (f"the loop's bound max_steps = {bound} stopped {k} of the {n_excursions} long excursions asked"
+                         + (f", with {cut} in flight: left out, so the mean is biased low" if cut else "")
+                         + "; raise max_steps")
+        if stop_note is not None:
+            warnings.warn(stop_note, DryfricWarning, stacklevel=2)
+            notes.append(stop_note)
+        if k < MIN_RELIABLE_LE:
+            note = (f"n_excursions = {k} < {MIN_RELIABLE_LE}: the t CI under-covers at this size (right-skewed "
+                    "durations: 0.92-0.93 at ~60 counted, 0.94 from ~160; durations.py)")
+            warnings.warn(note, category(note), stacklevel=2)  # a SmallSampleWarning, as the estimator's
+            notes.append(note)
+        s_sum = float(S.sum())  # exact: int64 sums of steps
+        m = s_sum / k
+        var = max(float(Q.sum()) - s_sum * m, 0.0) / (k - 1)
+        r = LEDuration(mean=h * m, ci=float(t_quantile(0.95, k - 1) * h * math.sqrt(var / k)), n_excursions=k,
+                       n_requested=n_excursions, n_lanes=n_lanes, n_truncated=cut, h=float(h), dtype=dtype,
+                       lane_steps=int(steps.sum()), loop_steps=n_lanes * int(blocks) * BLOCK, max_steps=bound,
+                       bridge=bridge, stopped_by=ended, max_time=max_time, seed=seed,
+                       key=None if seed is not None else key_id(key), params=params.as_dict(), warnings=tuple(notes),
+                       wall_s=time.perf_counter() - t0)
+    if late and r.stopped_by != "interrupted":
+        late_note = f"interrupted as the count ended (stopped by {r.stopped_by}): the result is the whole count's"
+        warnings.warn(late_note, DryfricWarning, stacklevel=2)
+        r = dataclasses.replace(r, stopped_by="interrupted", warnings=(*r.warnings, late_note))
+    return r

@@ -162,25 +162,41 @@ def terminated() -> bool:
 
 
 @contextlib.contextmanager
-def held_interrupts():
+def held_interrupts(second_acts: bool = False, said: str | None = None):
     """Within: SIGINT and SIGTERM are held, not acted on, so that a finished result's write completes; on exit the
     previous handlers are restored and a signal held is delivered to them (``signal.raise_signal``: a
     ``KeyboardInterrupt`` as the block ends, or the default action).  A sweep's point finished but caught by a
     signal while its record was written (then the file read, checked and rewritten under its lock, ~1 s with 6000
     records) was lost: the write's temporary file deleted, the point not counted (an audit).  Only in the main
     thread (elsewhere it holds nothing), and only signals whose handler Python can restore (not one installed
-    outside Python, nor an ignored one)."""
+    outside Python, nor an ignored one).
+
+    ``second_acts``: only the first signal is held (``said``, if given, is printed on stderr as it comes); a second
+    one restores the handlers and acts at once, for both (SIGTERM's action where either was SIGTERM): for a wait
+    that may not end (a results file's lock that another process holds), so that a process stuck there still
+    stops on a second Ctrl-C, as a run's second Ctrl-C drops what the first would have finished."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
     held, old, active = [], {}, [True]
 
+    def restore():
+        active[0] = False
+        for s, h in old.items():
+            signal.signal(s, h)
+
     def hold(signum, frame):
-        if active[0]:
+        if active[0] and not (second_acts and held):
             held.append(signum)
-        else:  # left in place by a restore that a signal cut short: act as the handler it replaced
-            signal.signal(signum, old[signum])
-            signal.raise_signal(signum)
+            if said is not None and len(held) == 1:
+                print(said, file=sys.stderr, flush=True)
+            return
+        # a second signal (second_acts), or a hold left in place by a restore that a signal cut short: act as the
+        # handler it replaced, at once
+        first = signal.SIGTERM if signal.SIGTERM in (*held, signum) and signal.SIGTERM in old else signum
+        held.clear()
+        restore()
+        signal.raise_signal(first)
     # The handlers are swapped one at a time inside the try, so that a signal between two swaps (taken by the
     # handler not yet swapped: SIGTERM as a KeyboardInterrupt) still restores those swapped; a hold left in place
     # by a restore cut short acts as the handler it replaced.  Swapped before the try, such a SIGTERM left Ctrl-C
@@ -193,11 +209,28 @@ def held_interrupts():
                 signal.signal(s, hold)
         yield
     finally:
-        active[0] = False
-        for s, h in old.items():
-            signal.signal(s, h)
+        restore()
         if held:  # SIGTERM first where both came: the command's exit status is then 143, as a scheduler expects
             signal.raise_signal(signal.SIGTERM if signal.SIGTERM in held else held[0])
+
+
+@contextlib.contextmanager
+def interrupt_noted():
+    """Within: SIGINT and SIGTERM held (:func:`held_interrupts`); where one came, it is delivered as the block ends
+    and the ``KeyboardInterrupt`` its handler raises is caught and noted instead of going on up: the list this
+    yields then holds True.  For the last steps of a run that has finished (its estimate formed from the sums):
+    a Ctrl-C or SIGTERM there threw the whole run away (an interrupt audit: ~0.17 s after a 2-9 s estimate, exit 143,
+    nothing printed or written); the caller returns the result marked as interrupted instead.  A
+    ``KeyboardInterrupt`` the block raises itself goes on up."""
+    noted, body_done = [], [False]
+    try:
+        with held_interrupts():
+            yield noted
+            body_done[0] = True
+    except KeyboardInterrupt:
+        if not body_done[0]:
+            raise
+        noted.append(True)
 
 
 def exit_status(rc: int) -> int:

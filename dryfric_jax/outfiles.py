@@ -613,17 +613,23 @@ def drop_claims_dir(path: str) -> None:
         os.rmdir(claims_dir(path))
 
 
+#: what :func:`put_record` says where a first Ctrl-C or SIGTERM comes while it waits for the lock or writes
+WRITING_FIRST = ("dryfric: interrupted: writing the finished result to its results file first (waiting for the "
+                 "file's lock where another process holds it); interrupt again to drop it")
+
+
 def put_record(path: str, rec: dict, same, read, done=None) -> None:
     """Write one finished record to a JSON Lines results file that other processes may update too:
     under :func:`locked`, the file is read again (``read(path)``), so the records they wrote
     meanwhile are kept; ``rec`` replaces the first record ``same(old)`` holds for (the file rewritten
     atomically, :func:`write_records`), or is appended (:func:`append_line`: rewriting the whole file after each of
-    10^4 points cost ~1 s a point).  A Ctrl-C or SIGTERM breaks the wait for the lock
-    as usual, but once the lock is held it acts only after the write and ``done()`` (the caller's bookkeeping
-    of it, if given; :func:`~dryfric_jax.interrupts.held_interrupts`): a sweep's finished point caught by one
-    during its write was lost (an audit), and a hold over the wait made a process waiting on a stuck lock
-    deaf to Ctrl-C (the review after it)."""
-    with locked(path), held_interrupts():
+    10^4 points cost ~1 s a point).  A first Ctrl-C or SIGTERM acts only after the write and ``done()`` (the
+    caller's bookkeeping of it, if given; :func:`~dryfric_jax.interrupts.held_interrupts`), saying so; a second
+    one acts at once while the lock is still awaited (it is held by another process: a process waiting on a stuck
+    lock is not deaf to Ctrl-C, a review), and after the write where it comes during it.  A sweep's finished point
+    caught by one during its write was lost (an audit), and so was one caught while it waited for the lock that
+    another sweep held (an interrupt audit: the lock's wait was broken by the first signal)."""
+    with held_interrupts(second_acts=True, said=WRITING_FIRST), locked(path), held_interrupts():
         records = read(path)
         at = next((k for k, old in enumerate(records) if same(old)), None)
         if at is None:

@@ -218,29 +218,69 @@ def test_a_killed_writes_temporary_file_is_removed_by_the_next_locked_write(tmp_
     assert seen[0].startswith(".r.jsonl.dryfric-") and seen[0].endswith(".tmp")
 
 
-def test_a_ctrl_c_breaks_the_wait_for_the_lock(tmp_path):
-    """put_record holds a Ctrl-C during its write, but not while it waits for the lock: held over the wait, a
-    process waiting on a stuck lock (another sweep stopped with Ctrl-Z) could not be interrupted (a review)."""
-    import signal
+def _lock_holder(tmp_path):
+    """Another process holding the directory's lock (another sweep writing, or one stopped with Ctrl-Z)."""
     import subprocess
     import sys
-    import threading
-    import time
 
     if outfiles.fcntl is None:
         pytest.skip("no flock here")
     holder = subprocess.Popen([sys.executable, "-c", "import fcntl, os, sys, time; fd = os.open(sys.argv[1], "
                                "os.O_RDONLY); fcntl.flock(fd, fcntl.LOCK_EX); print('held', flush=True); "
                                "time.sleep(20)", str(tmp_path)], stdout=subprocess.PIPE, text=True)
+    assert holder.stdout.readline().strip() == "held"
+    return holder
+
+
+def _ctrl_c_at(*times):
+    """SIGINT to the main thread (waiting in flock, as a terminal's Ctrl-C reaches it) at each of ``times`` s."""
+    import signal
+    import threading
+
+    main = threading.main_thread().ident
+    timers = [threading.Timer(t, lambda: signal.pthread_kill(main, signal.SIGINT)) for t in times]
+    for t in timers:
+        t.start()
+    return timers
+
+
+def test_a_second_ctrl_c_breaks_the_wait_for_the_lock(tmp_path, capsys):
+    """put_record holds a first Ctrl-C, saying so, but a second one acts while it waits for the lock: held over the
+    wait, a process waiting on a stuck lock (another sweep stopped with Ctrl-Z) could not be interrupted (a
+    review)."""
+    import time
+
+    holder = _lock_holder(tmp_path)
     try:
-        assert holder.stdout.readline().strip() == "held"
-        main = threading.main_thread().ident  # to the thread waiting in flock, as a terminal's Ctrl-C reaches it
-        timer = threading.Timer(0.3, lambda: signal.pthread_kill(main, signal.SIGINT))
         t0 = time.monotonic()
-        timer.start()
+        _ctrl_c_at(0.3, 0.6)
         with pytest.raises(KeyboardInterrupt):
             outfiles.put_record(str(tmp_path / "r.jsonl"), {"a": 1}, lambda old: False, lambda p: [])
         assert time.monotonic() - t0 < 10 and not (tmp_path / "r.jsonl").exists()
+        assert holder.poll() is None  # the lock was still held: the second Ctrl-C broke the wait
+        assert capsys.readouterr().err == outfiles.WRITING_FIRST + "\n"
+    finally:
+        holder.kill()
+        holder.wait()
+
+
+def test_a_first_ctrl_c_while_waiting_for_the_lock_writes_the_record_first(tmp_path, capsys):
+    """A first Ctrl-C while another process holds the lock waits for it, writes the finished record, then acts (a
+    KeyboardInterrupt after the write): a sweep's finished point caught so was lost, the lock's wait broken by
+    the first signal (an interrupt audit; mutant: the first Ctrl-C breaks the wait)."""
+    import threading
+    import time
+
+    holder = _lock_holder(tmp_path)
+    try:
+        t0 = time.monotonic()
+        _ctrl_c_at(0.3)
+        threading.Timer(1.0, holder.kill).start()  # the other process lets go of the lock
+        with pytest.raises(KeyboardInterrupt):
+            outfiles.put_record(str(tmp_path / "r.jsonl"), {"a": 1}, lambda old: False, lambda p: [])
+        assert time.monotonic() - t0 >= 1.0
+        assert (tmp_path / "r.jsonl").read_text() == '{"a": 1}\n'
+        assert capsys.readouterr().err == outfiles.WRITING_FIRST + "\n"
     finally:
         holder.kill()
         holder.wait()
