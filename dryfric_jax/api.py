@@ -763,83 +763,86 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
         sim, stopped = simulate_long_excursions(model, key, n_excursions, lanes=plan.lanes, block=plan.block,
                                                 max_steps=plan.max_steps, more=more if rtol else None,
                                                 max_time=max_time, max_work=max_work, progress=report)
-        if progress is not None:  # once more after the final round: the last report is the result's N and D
-            report(sim, final=True)
-    # from here the run is over: a Ctrl-C or SIGTERM is held until its result is formed, then noted in it (it threw
-    # the whole run away: an interrupt audit), except where a caller keeps finished runs only (abandon_on_interrupt)
-    with (interrupt_noted() if not _ABANDON[0] else contextlib.nullcontext([])) as late:
-        wall = time.perf_counter() - t0
-        # a lane the final round's deadline (max_time) or its block bound (never expected) stopped lost
-        # its in-flight excursion: count it too
-        # the final round's deadline: max_time's, or the grace after a Ctrl-C (the block bound never binds)
-        cut = sim.n_unfinished > 0 and (max_time is not None or stopped == "interrupted")
-        # a second Ctrl-C left the paused round's in-flight excursions unfinished: dropped, and counted as
-        # truncated too (they were not, so 'dryfric combine' pooled such a run as unbiased, exit 0: a sweep audit)
-        dropped = max(sim.n_in_flight - sim.n_unfinished, 0)
-        n_truncated = sim.n_truncated + sim.n_unfinished + dropped
-        if stopped == "interrupted":
-            notes.append(f"interrupted: result of the {sim.n_excursions} excursions completed by then")
-        if dropped:
-            notes.append(f"{dropped} in-flight excursions dropped (a second interrupt) and counted as truncated: D is "
-                         f"biased low by O(lanes/N) = O({dropped / max(sim.n_excursions, 1):.2g})")
-        elif stopped in ("max_time", "work_bound") and (rtol or sim.n_excursions < n_excursions):
-            # (not where the final round's in-flight excursions brought N to the count asked: "before the 300
-            # excursions: result of 428" contradicted itself, a hard-cases audit)
-            what = f"max_time reached ({max_time} s)" if stopped == "max_time" else \
-                f"work bound reached (max_work = {max_work:.3g} {unit}, predicted >= {plan.predicted_work:.3g})"
-            notes.append(f"{what} before the " + (f"target rtol = {rtol}" if rtol else f"{n_excursions} excursions")
-                         + f": result of {sim.n_excursions} excursions")
-        if cut and stopped == "interrupted":
-            notes.append(f"{FINAL_CUT} {INTERRUPT_GRACE_S:g} s after the interrupt"
-                         + (f" (or at {FINAL_DEADLINE:g} x max_time)" if max_time is not None else "")
-                         + f": {sim.n_unfinished} excursions still running are excluded and counted as truncated: the "
-                         "estimate is biased low")
-        elif cut:
-            notes.append(f"{CUT_NOTE} {FINAL_DEADLINE:g} x "
-                         f"max_time: {sim.n_unfinished} excursions still running are excluded and counted as truncated: "
-                         "the estimate is biased low (the excursions are far longer than planned; raise max_time)")
-        hit_bound = n_truncated - (sim.n_unfinished if cut else 0) - dropped
-        if hit_bound:
-            notes.append(f"{hit_bound} of {n_truncated + sim.n_excursions} "
-                         f"excursions {BOUND_NOTE} (max_steps = {plan.max_steps} {unit} per excursion) and are "
-                         "excluded: the estimate is biased low")
-        if sim.n_excursions < 2 and stopped == "interrupted":  # nothing to return: the Ctrl-C goes on up
-            raise KeyboardInterrupt("fewer than 2 complete excursions before the interrupt")
-        if sim.n_excursions < 2:
-            cause = "within max_time (raise it)" if stopped == "max_time" else \
-                "within the work bounds (raise max_work / max_steps)"
-            raise NoEstimateError(f"fewer than 2 complete excursions {cause}: " + "; ".join(notes), stopped_by=stopped)
-        if sim.n_excursions < MIN_RELIABLE_N:
-            notes.append(small_n_note(sim.n_excursions))
-        if params.tau_L_nd > WEAK_DAMPING_TAU_L:
-            notes.append(f"tau_L/tau0 = {params.tau_L_nd:.3g} > {WEAK_DAMPING_TAU_L:g} (weak or no viscous damping): "
-                         "the 95% CI for D covers only ~90% (measured at tau_L = inf, gamma_bar = 0 and 0.5 Delta; "
-                         "~83% at |gamma_bar| = 0.9 Delta), misses are on the low side")
-            if stopped == "target":
-                notes.append(TARGET_STOP_NOTE)
-        if runaway := near_runaway_note(params.tau_L_nd, params.gamma_bar_nd):
-            notes.append(runaway)
-        total = sim.total()
-        if rounding := rounding_note(total):
-            notes.append(rounding)
-        for n in notes:
-            warnings.warn(n, category(n), stacklevel=2)
-        e = long_excursion_estimates(total)
-        r = EstimateResult(
-            D=float(e["D"] * params.D0), D_ci=float(e["D_ci"] * params.D0), M0=float(e["M0"] * params.v0),
-            M0_ci=float(e["M0_ci"] * params.v0),
-            mean_duration=float(e["mean_duration"]) * params.tau0, n_excursions=sim.n_excursions,
-            n_truncated=n_truncated, method=plan.method, h=h, dtype=plan.dtype, seed=seed, wall_s=wall,
-            lane_steps_per_s=sim.useful_steps / wall, params=params.as_dict(),
-            mean_duration_ci=float(e["mean_duration_ci"]) * params.tau0,
-            lane_utilization=sim.useful_steps / max(sim.slot_steps, 1), rtol=rtol, stopped_by=stopped,
-            warnings=notes, delta=grid and grid["delta"], L_X=grid and grid["L_X"],
-            events_per_s=None if grid is None else sim.useful_steps / wall, method_reason=plan.reason,
-            max_steps=plan.max_steps, max_work=plan.max_work, predicted_work=plan.predicted_work,
-            work=int(sim.slot_steps), sums={k: float(v) for k, v in sim.total().items()}, lanes=plan.lanes,
-            block=plan.block, n_requested=n_excursions,
-            max_time=None if max_time == math.inf else max_time, version=__version__,
-            key=None if seed is not None else key_id(key))
+        # from here the run is over: a Ctrl-C or SIGTERM is held until its result is formed, then noted in it (it
+        # threw the whole run away: an interrupt audit), except where a caller keeps finished runs only
+        # (abandon_on_interrupt)
+        with (interrupt_noted() if not _ABANDON[0] else contextlib.nullcontext([])) as late:
+            if progress is not None:  # once more after the final round: the last report is the result's N and D
+                report(sim, final=True)
+            wall = time.perf_counter() - t0
+            # a lane the final round's deadline (max_time) or its block bound (never expected) stopped lost
+            # its in-flight excursion: count it too
+            # the final round's deadline: max_time's, or the grace after a Ctrl-C (the block bound never binds)
+            cut = sim.n_unfinished > 0 and (max_time is not None or stopped == "interrupted")
+            # a second Ctrl-C left the paused round's in-flight excursions unfinished: dropped, and counted as
+            # truncated too (they were not, so 'dryfric combine' pooled such a run as unbiased, exit 0: a sweep audit)
+            dropped = max(sim.n_in_flight - sim.n_unfinished, 0)
+            n_truncated = sim.n_truncated + sim.n_unfinished + dropped
+            if stopped == "interrupted":
+                notes.append(f"interrupted: result of the {sim.n_excursions} excursions completed by then")
+            if dropped:
+                notes.append(f"{dropped} in-flight excursions dropped (a second interrupt) and counted as truncated: "
+                             f"D is biased low by O(lanes/N) = O({dropped / max(sim.n_excursions, 1):.2g})")
+            elif stopped in ("max_time", "work_bound") and (rtol or sim.n_excursions < n_excursions):
+                # (not where the final round's in-flight excursions brought N to the count asked: "before the 300
+                # excursions: result of 428" contradicted itself, a hard-cases audit)
+                what = f"max_time reached ({max_time} s)" if stopped == "max_time" else \
+                    f"work bound reached (max_work = {max_work:.3g} {unit}, predicted >= {plan.predicted_work:.3g})"
+                notes.append(f"{what} before the " + (f"target rtol = {rtol}" if rtol else f"{n_excursions} excursions")
+                             + f": result of {sim.n_excursions} excursions")
+            if cut and stopped == "interrupted":
+                notes.append(f"{FINAL_CUT} {INTERRUPT_GRACE_S:g} s after the interrupt"
+                             + (f" (or at {FINAL_DEADLINE:g} x max_time)" if max_time is not None else "")
+                             + f": {sim.n_unfinished} excursions still running are excluded and counted as "
+                             "truncated: the estimate is biased low")
+            elif cut:
+                notes.append(f"{CUT_NOTE} {FINAL_DEADLINE:g} x "
+                             f"max_time: {sim.n_unfinished} excursions still running are excluded and counted as "
+                             "truncated: the estimate is biased low (the excursions are far longer than planned; raise "
+                             "max_time)")
+            hit_bound = n_truncated - (sim.n_unfinished if cut else 0) - dropped
+            if hit_bound:
+                notes.append(f"{hit_bound} of {n_truncated + sim.n_excursions} "
+                             f"excursions {BOUND_NOTE} (max_steps = {plan.max_steps} {unit} per excursion) and are "
+                             "excluded: the estimate is biased low")
+            if sim.n_excursions < 2 and stopped == "interrupted":  # nothing to return: the Ctrl-C goes on up
+                raise KeyboardInterrupt("fewer than 2 complete excursions before the interrupt")
+            if sim.n_excursions < 2:
+                cause = "within max_time (raise it)" if stopped == "max_time" else \
+                    "within the work bounds (raise max_work / max_steps)"
+                raise NoEstimateError(f"fewer than 2 complete excursions {cause}: " + "; ".join(notes),
+                                      stopped_by=stopped)
+            if sim.n_excursions < MIN_RELIABLE_N:
+                notes.append(small_n_note(sim.n_excursions))
+            if params.tau_L_nd > WEAK_DAMPING_TAU_L:
+                notes.append(f"tau_L/tau0 = {params.tau_L_nd:.3g} > {WEAK_DAMPING_TAU_L:g} (weak or no viscous "
+                             "damping): the 95% CI for D covers only ~90% (measured at tau_L = inf, gamma_bar = 0 and "
+                             "0.5 Delta; ~83% at |gamma_bar| = 0.9 Delta), misses are on the low side")
+                if stopped == "target":
+                    notes.append(TARGET_STOP_NOTE)
+            if runaway := near_runaway_note(params.tau_L_nd, params.gamma_bar_nd):
+                notes.append(runaway)
+            total = sim.total()
+            if rounding := rounding_note(total):
+                notes.append(rounding)
+            e = long_excursion_estimates(total)
+            r = EstimateResult(
+                D=float(e["D"] * params.D0), D_ci=float(e["D_ci"] * params.D0), M0=float(e["M0"] * params.v0),
+                M0_ci=float(e["M0_ci"] * params.v0),
+                mean_duration=float(e["mean_duration"]) * params.tau0, n_excursions=sim.n_excursions,
+                n_truncated=n_truncated, method=plan.method, h=h, dtype=plan.dtype, seed=seed, wall_s=wall,
+                lane_steps_per_s=sim.useful_steps / wall, params=params.as_dict(),
+                mean_duration_ci=float(e["mean_duration_ci"]) * params.tau0,
+                lane_utilization=sim.useful_steps / max(sim.slot_steps, 1), rtol=rtol, stopped_by=stopped,
+                warnings=notes, delta=grid and grid["delta"], L_X=grid and grid["L_X"],
+                events_per_s=None if grid is None else sim.useful_steps / wall, method_reason=plan.reason,
+                max_steps=plan.max_steps, max_work=plan.max_work, predicted_work=plan.predicted_work,
+                work=int(sim.slot_steps), sums={k: float(v) for k, v in sim.total().items()}, lanes=plan.lanes,
+                block=plan.block, n_requested=n_excursions,
+                max_time=None if max_time == math.inf else max_time, version=__version__,
+                key=None if seed is not None else key_id(key))
+    for n in notes:  # once the status line is cleared (on a terminal they were written onto it)
+        warnings.warn(n, category(n), stacklevel=2)
     if late and r.stopped_by != "interrupted":
         late_note = f"interrupted as the run ended (stopped by {r.stopped_by}): the result is the whole run's"
         warnings.warn(late_note, DryfricWarning, stacklevel=2)
