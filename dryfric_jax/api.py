@@ -401,6 +401,8 @@ def progress_text(d: dict) -> str:
         now = f"LE={mean} so far, {k} " + (f"of {n}" if k <= n else f"({n} asked)")
         if d["stopping"]:
             return now + in_flight_text(d)
+        if d["left_s"] is None and d["in_flight"]:  # no projection (yet, or the long ones left to finish)
+            return now + f", {d['in_flight']} in flight"
     return now + left_text(d)
 
 
@@ -677,7 +679,9 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
         max_time: stop after the round that passes this many seconds (``stopped_by`` says so); the
             final round, which finishes the excursions in flight, is cut at twice ``max_time``,
             and the excursions it cut are counted as truncated (excluded, warned).  Both act
-            between calls: add up to one round and one call (~4 s each on 2 CPU cores).
+            between calls: add up to one round and one call (~4 s each on 2 CPU cores).  The time includes
+            compiling, seconds in a new process or at a new lane count (a sweep audit: a first point at
+            max_time = 2 s stopped at 378 of 3000 excursions, the next ran all in 0.2 s).
         progress: ``True`` for a live status line (D so far, N, the time taken and the projected time left):
             an updated display in a Jupyter notebook, a self-overwriting line on a terminal's stderr, nothing
             elsewhere (:mod:`dryfric_jax.live`); or a callback ``progress(dict)`` after every round but the

@@ -371,16 +371,19 @@ def _progress(carry, n_excursions, stopping, t0, first, max_time) -> dict:
     those ``in_flight``, the ``mean_steps`` of those counted (nan before the first; it is the final mean only at
     the end, as the long ones finish last), ``stopping`` (no LE starts any more: the rule, ``max_time`` or a
     Ctrl-C), ``elapsed_s``, and the projected ``left_s`` with the limit that ends the run first, ``left_to``
-    (:func:`~dryfric_jax.api.time_left`: ``"n_excursions"`` or ``"max_time"``; both None before a projection, and
-    once stopping: the LEs in flight then end when they end).  The rate is that of the pieces after the first,
-    whose time holds the compilation; ``first`` holds its (time, lane-steps) between calls."""
+    (:func:`~dryfric_jax.api.time_left`: ``"n_excursions"`` or ``"max_time"``; both None before a projection, once
+    those counted and in flight make up the target, and once stopping: the LEs in flight then end when they end).
+    The rate is that of the pieces after the first, whose time holds the compilation; ``first`` holds its (time,
+    lane-steps) between calls."""
     now = time.perf_counter()
     N, S, ph, off, n = (np.asarray(a) for a in (carry[8], carry[9], carry[4], carry[7], carry[5]))
     k, work, in_flight = int(N.sum()), float(n.sum()), int(((ph != 0) & ~off).sum())
     left = to = None
     if not first:
         first.append((now, work))
-    elif not stopping and now > first[0][0] and work > first[0][1]:
+    elif not stopping and now > first[0][0] and work > first[0][1] and k + in_flight < n_excursions:
+        # (once those in flight would make up the count, time_left counts them as done and said "~0 s left" for
+        # most of the count, which then finished the long ones: 62 s at tau = 1e-3 s, a sweep audit; no projection)
         rate = (work - first[0][1]) / (now - first[0][0])
         left, to = time_left(now - t0, work, k, in_flight, n_excursions, max_time=max_time, rate=rate)
     return dict(n_excursions=k, target=int(n_excursions), in_flight=in_flight,
@@ -532,7 +535,9 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
             float64 with a :class:`~dryfric_jax.DryfricWarning`, as :func:`~dryfric_jax.estimate_diffusivity` does.
         max_work: a run whose predicted lane-steps (:func:`~dryfric_jax.limits.check_work`, for the LEs the lanes
             run: :func:`check_duration_run`) exceed it is refused before it starts, as the estimator's
-            (h = 1e-10 s at Fig. 3's point would run ~15 min to its bound, then fail: an audit).
+            (h = 1e-10 s at Fig. 3's point would run ~15 min to its bound, then fail: an audit).  It bounds the
+            prediction only, which can be several times short (at tau = 1e-3 s and a large Gamma: a sweep audit);
+            a count that ran past it says so in a warning, and ``max_time`` bounds its time.
         bridge: count the crossings of the opposite threshold between two steps of a stuck particle too (module
             docstring; default); ``False`` gives the raw count, whose bias falls only like :math:`\sqrt h`.
         max_time: a time limit in seconds (> 0; None or inf: none), as the estimator's: past it no lane starts a
@@ -618,10 +623,13 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
                          f"had stopped the starts ({k} counted of the {n_excursions} asked), are left out, so the mean "
                          "is biased low")
         elif ended == "max_time" and (k < n_excursions or cut):  # (not "257 of the 200 asked": an audit)
+            # those in flight may take it past the count asked: not "at 47 of the 32 asked" (a sweep audit)
             stop_note = (f"max_time = {max_time:g} s stopped the count at {k} of the {n_excursions} long excursions "
-                         "asked: none started after it"
-                         + (f"; {cut} still in flight at twice it are left out, so the mean is biased low" if cut
-                            else ", those in flight finished"))
+                         "asked: none started after it" if k < n_excursions else
+                         f"max_time = {max_time:g} s stopped the count: none started after it, and those then in "
+                         f"flight took it to {k} ({n_excursions} asked)")
+            stop_note += (f"; {cut} still in flight at twice it are left out, so the mean is biased low" if cut
+                          else ", those in flight finished")
         elif cut or k < n_excursions:
             stop_note = (f"the loop's bound max_steps = {bound} stopped {k} of the {n_excursions} long excursions asked"
                          + (f", with {cut} in flight: left out, so the mean is biased low" if cut else "")
@@ -629,6 +637,14 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
         if stop_note is not None:
             warnings.warn(stop_note, DryfricWarning, stacklevel=2)
             notes.append(stop_note)
+        ran, predicted = n_lanes * int(blocks) * BLOCK, (max(n_excursions, n_lanes) + n_lanes) * predicted_le_steps(
+            params, h)
+        # max_work bounds the prediction only (a sweep audit: 5.4x a max_work of 5e7, without a word)
+        if ran > check_max_work(max_work):
+            note = (f"the count ran {ran:.3g} lane-steps, past max_work = {max_work:.3g}, which bounds its predicted "
+                    f"work only ({predicted:.3g}, {ran / predicted:.2g}x short here): max_time bounds a count's time")
+            warnings.warn(note, DryfricWarning, stacklevel=2)
+            notes.append(note)
         if k < MIN_RELIABLE_LE:
             note = (f"n_excursions = {k} < {MIN_RELIABLE_LE}: the t CI under-covers at this size (right-skewed "
                     "durations: 0.92-0.93 at ~60 counted, 0.94 from ~160; durations.py)")
@@ -637,6 +653,11 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
         s_sum = float(S.sum())  # exact: int64 sums of steps
         m = s_sum / k
         var = max(float(Q.sum()) - s_sum * m, 0.0) / (k - 1)
+        if var == 0:  # all of the same length: a CI of 0 is no interval (a sweep audit: 2 of 2 steps each, +- 0 s)
+            note = (f"the {k} long excursions counted all lasted {s_sum / k:.0f} steps: the CI of 0 is no interval; "
+                    "count more (or a finer h)")
+            warnings.warn(note, DryfricWarning, stacklevel=2)
+            notes.append(note)
         r = LEDuration(mean=h * m, ci=float(t_quantile(0.95, k - 1) * h * math.sqrt(var / k)), n_excursions=k,
                        n_requested=n_excursions, n_lanes=n_lanes, n_truncated=cut, h=float(h), dtype=dtype,
                        lane_steps=int(steps.sum()), loop_steps=n_lanes * int(blocks) * BLOCK, max_steps=bound,

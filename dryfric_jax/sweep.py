@@ -709,8 +709,10 @@ def rows(path: str, seed: int | None = None, **settings) -> list[dict]:
     the parameters, ``status``, the result's :data:`ROW_KEYS` (NaN for a point without a result),
     the long-excursion count's :data:`LE_ROW_KEYS` (``le_duration``, its CI, ...; NaN without one),
     ``reason`` (why a point has no result, or, for an ``"ok"`` one, no count), ``stopped_by``
-    (``"max_time"`` for a point its time limit stopped; "" if unknown) and ``warnings`` (the notes of the
-    point's D and count: a small N, truncated excursions, weak damping, ...; a table of D and its CI alone hid
+    (``"max_time"`` for a point its time limit stopped; "" if unknown), ``le_stopped_by`` (the count's:
+    ``"max_time"`` where the limit stopped it, its mean then over fewer excursions, or biased low where
+    ``le_n_truncated`` > 0; "" without a count; the row showed the D's alone: an audit) and ``warnings`` (the notes
+    of the point's D and count: a small N, truncated excursions, weak damping, ...; a table of D and its CI alone hid
     them: an audit).  ``seed`` (the sweep seed) and keyword settings keep only the matching records (e.g.
     ``n_excursions=500``, ``durations=2048``; ``durations=None`` keeps the records without a count: a point given
     ``durations`` after its D was recorded, or whose count a Ctrl-C stopped, holds two records, its D's and its
@@ -730,6 +732,7 @@ def rows(path: str, seed: int | None = None, **settings) -> list[dict]:
         res, le = r.get("result") or {}, r.get(DURATIONS) or {}
         out.append({**r["params"], "status": status(r), **{k: res.get(k, math.nan) for k in ROW_KEYS},
                     **{k: le.get(f, math.nan) for k, f in LE_ROW_KEYS.items()},
+                    "le_stopped_by": le.get("stopped_by") or "",
                     "reason": r.get("reason") or le.get("reason", ""), "stopped_by": stopped_by(r) or "",
                     "warnings": [*(res.get("warnings") or ()), *(le.get("warnings") or ())]})
     return sorted(out, key=lambda r: tuple(r[k] for k in PARAM_KEYS))

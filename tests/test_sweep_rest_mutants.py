@@ -184,6 +184,18 @@ def test_rows_fill_reason_and_stopped_by_with_empty_text(tmp_path):
     assert [x["Gamma"] for x in sweep.rows(out, method="di")] == [5.0, 6.0, 7.0]
 
 
+def test_rows_say_what_stopped_the_count(tmp_path):
+    """``le_stopped_by``: the count's own (``max_time`` stopped it at 15 of 32 while the D ran to its N: the row
+    said ``stopped_by`` "n_excursions" with a finite ``le_duration``, and nothing flagged it: a sweep audit); ""
+    without a count (a refused point here)."""
+    le = dict(mean=0.5, ci=0.1, n_excursions=15, n_truncated=0, h=1e-4, stopped_by="max_time")
+    timed = sweep._record(0, {**FIG3, "Gamma": 5.0}, {**SETTINGS, "durations": 32}, "ok", None, result=dict(RESULT),
+                          durations=le)
+    out = _file(tmp_path, timed, _rec("refused", 6.0, reason="stand-in"))
+    got = [(x["Gamma"], x["stopped_by"], x["le_stopped_by"], x["le_n_excursions"]) for x in sweep.rows(out)]
+    assert got[0] == (5.0, "", "max_time", 15) and got[1][2] == ""
+
+
 def _bar(n):
     return "[" + "#" * n + "." * (30 - n) + "]"
 
@@ -239,11 +251,12 @@ def test_the_line_within_a_point(capsys, monkeypatch):
     assert line(d, rtol=0.01, left_to="max_time").endswith(" N=1200 (target 1%), ~30 s left (stops at max_time) [12 s]")
     assert line(d, D=math.nan, D_ci=math.nan).endswith(": D=\u2013 N=1200 of 20000, ~30 s left [12 s]")
     assert " tau_L=0.067: D=" in line(d, axes=("Gamma", "tau", "tau_L"))
-    assert line(le).endswith(": LE=4.25s so far, 40 of 2048 [3 s]")
+    assert line(le).endswith(": LE=4.25s so far, 40 of 2048, 12 in flight [3 s]")  # no projection: those in flight
+    assert line(le, in_flight=0).endswith(": LE=4.25s so far, 40 of 2048 [3 s]")
     assert line(le, left_s=95.0, left_to="max_work").endswith(" 40 of 2048, ~1.6 min left (stops at max_work) [3 s]")
     assert line(le, stopping=True, left_s=9.0).endswith(" 40 of 2048, finishing the 12 in flight [3 s]")
     assert line(le, stopping=True, in_flight=0).endswith(" 40 of 2048, done [3 s]")
-    assert line(le, n_excursions=0, mean_s=math.nan).endswith(": LE=\u2013 so far, 0 of 2048 [3 s]")
+    assert line(le, n_excursions=0, mean_s=math.nan).endswith(": LE=\u2013 so far, 0 of 2048, 12 in flight [3 s]")
 
 
 def test_the_progress_bar_names_every_axis_that_varies(capsys, monkeypatch):
