@@ -26,7 +26,9 @@ grid too, and the message counts them and names the first ``1 + MAX_NAMED``; wit
 estimate (:class:`~dryfric_jax.api.NoEstimateError`: fewer than 2 complete excursions within the
 work bounds) is recorded as ``"failed"`` and the sweep goes on; with the same seed and settings it
 would fail again, so a resumed sweep does not rerun it (raise ``max_work``, which changes the
-settings, or delete its line).  Each record's ``status`` is ``"ok"`` (with ``result``),
+settings, or delete its line).  ``max_work`` is a setting, not a limit as ``max_time`` is: a grid run again with
+a larger one is a new grid (new seeds, every point computed again), and :func:`rows` lists both unless given
+``max_work`` too.  Each record's ``status`` is ``"ok"`` (with ``result``),
 ``"refused"`` or ``"failed"`` (with ``reason``); records written before statuses existed are
 ``"ok"``.
 
