@@ -5,7 +5,6 @@ PDMP (``method``) and return physical numbers (D in m^2/s, M0 in m/s, durations 
 """
 from __future__ import annotations
 
-import contextlib
 import math
 import numbers
 import time
@@ -23,8 +22,8 @@ from .estimators import (
     long_excursion_estimates, near_runaway_note, rounding_note,
 )
 from .excursions import BLOCK, MAX_LAYOUT
-from .interrupts import interrupt_noted
-from .rounds import _ABANDON, FINAL_DEADLINE, INTERRUPT_GRACE_S, simulate_long_excursions, work_per_excursion
+from .rounds import (_ABANDON, FINAL_DEADLINE, INTERRUPT_GRACE_S, after_run, noted_late, simulate_long_excursions,
+                     work_per_excursion)
 from .limits import MAX_WORK, refuse_known_work
 from .live import fit_text, live_progress, status_line, terminal_columns  # noqa: F401  (re-exported)
 from .outfiles import dumps
@@ -393,7 +392,8 @@ def progress_text(d: dict) -> str:
         pct = 100 * rel  # 2.8%, 17%, 120% (not 1.2e+02%)
         now = f"D={d['D']:.4g}\u00b1{pct:.2g}%" if pct < 10 else f"D={d['D']:.4g}\u00b1{pct:.0f}%" if rel == rel \
             else "D=\u2013"
-        goal = f" (target {100 * d['rtol']:.2g}%)" if d["rtol"] else f" of {d['target']}"
+        goal = (f" (target {100 * d['rtol']:.2g}%)" if d["rtol"] else f" of {d['target']}"
+                if d["n_excursions"] <= d["target"] else f" ({d['target']} asked)")  # the final report: 2094 of 2000
         now += f" N={d['n_excursions']}{goal}"
     else:
         mean = f"{d['mean_s']:.4g}s" if d["mean_s"] == d["mean_s"] else "\u2013"
@@ -770,9 +770,7 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
         # from here the run is over: a Ctrl-C or SIGTERM is held until its result is formed, then noted in it (it
         # threw the whole run away: an interrupt audit), except where a caller keeps finished runs only
         # (abandon_on_interrupt)
-        with (interrupt_noted() if not _ABANDON[0] else contextlib.nullcontext([])) as late:
-            if progress is not None:  # once more after the final round: the last report is the result's N and D
-                report(sim, final=True)
+        with after_run() as late:
             wall = time.perf_counter() - t0
             # a lane the final round's deadline (max_time) or its block bound (never expected) stopped lost
             # its in-flight excursion: count it too
@@ -845,14 +843,16 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
                 block=plan.block, n_requested=n_excursions,
                 max_time=None if max_time == math.inf else max_time, version=__version__,
                 key=None if seed is not None else key_id(key))
+        if progress is not None:  # once more, with the final sums: the last report is the result's N and D.  Not
+            try:  # in the hold, which no Ctrl-C breaks (a slow callback), but a Ctrl-C in it keeps the result
+                report(sim, final=True)
+            except KeyboardInterrupt:
+                if _ABANDON[0]:
+                    raise
+                late.append(True)
     for n in notes:  # once the status line is cleared (on a terminal they were written onto it)
         warnings.warn(n, category(n), stacklevel=2)
-    if late and r.stopped_by != "interrupted":
-        late_note = f"interrupted as the run ended (stopped by {r.stopped_by}): the result is the whole run's"
-        warnings.warn(late_note, DryfricWarning, stacklevel=2)
-        r.warnings.append(late_note)
-        r.stopped_by = "interrupted"
-    return r
+    return noted_late(r, "run") if late and r.stopped_by != "interrupted" else r
 
 
 def bruteforce_diffusivity(params: Params, key=0, *, t: float, n_paths: int, method: str = "di",

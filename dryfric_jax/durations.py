@@ -85,8 +85,6 @@ those in flight finish, or are dropped at a second Ctrl-C or at twice ``max_time
 """
 from __future__ import annotations
 
-import contextlib
-import dataclasses
 import math
 import sys
 import time
@@ -104,12 +102,11 @@ from .api import (DryfricWarning, _key, _live_text, _Record, _with_warnings, cat
 from .di import make_di_model
 from .excursions import BLOCK, MAX_LAYOUT, block_keys
 from .estimators import t_quantile
-from .interrupts import interrupt_noted
 from .limits import MAX_WORK, check_work, le_floor, log_predicted_duration
 from .live import live_progress
 from .params import Params
 from .plan import check_count, check_layout_memory, check_max_time, check_max_work, choose, default_h
-from .rounds import _ABANDON, INTERRUPT_GRACE_S
+from .rounds import _ABANDON, INTERRUPT_GRACE_S, after_run, noted_late
 from .sharding import over_lanes
 
 
@@ -601,7 +598,7 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
                                                            t0=t0, progress=None if progress is None else report)
     # from here the count is over: a Ctrl-C or SIGTERM is held until its result is formed, then noted in it, as the
     # estimator's (api.estimate_diffusivity), except where a caller keeps finished runs only (abandon_on_interrupt)
-    with (interrupt_noted() if not _ABANDON[0] else contextlib.nullcontext([])) as late:
+    with after_run() as late:
         rule_first = ended == RULE_THEN_MAX_TIME  # the rule stopped the starts, twice max_time cut those in flight
         ended = "max_time" if rule_first else ended
         k, cut = int(N.sum()), int((started & ~off).sum())
@@ -664,8 +661,4 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
                        bridge=bridge, stopped_by=ended, max_time=max_time, seed=seed,
                        key=None if seed is not None else key_id(key), params=params.as_dict(), warnings=tuple(notes),
                        wall_s=time.perf_counter() - t0)
-    if late and r.stopped_by != "interrupted":
-        late_note = f"interrupted as the count ended (stopped by {r.stopped_by}): the result is the whole count's"
-        warnings.warn(late_note, DryfricWarning, stacklevel=2)
-        r = dataclasses.replace(r, stopped_by="interrupted", warnings=(*r.warnings, late_note))
-    return r
+    return noted_late(r, "count") if late and r.stopped_by != "interrupted" else r

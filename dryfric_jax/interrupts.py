@@ -171,7 +171,8 @@ def held_interrupts(second_acts: bool = False, said: str | None = None):
     thread (elsewhere it holds nothing), and only signals whose handler Python can restore (not one installed
     outside Python, nor an ignored one).
 
-    ``second_acts``: only the first signal is held (``said``, if given, is printed on stderr as it comes); a second
+    ``second_acts``: only the first signal is held (``said()``, if given and not None, is printed on stderr as it
+    comes, on a line of its own where stderr is a terminal, and not at all where that print fails); a second
     one restores the handlers and acts at once, for both (SIGTERM's action where either was SIGTERM): for a wait
     that may not end (a results file's lock that another process holds), so that a process stuck there still
     stops on a second Ctrl-C, as a run's second Ctrl-C drops what the first would have finished."""
@@ -188,8 +189,10 @@ def held_interrupts(second_acts: bool = False, said: str | None = None):
     def hold(signum, frame):
         if active[0] and not (second_acts and held):
             held.append(signum)
-            if said is not None and len(held) == 1:
-                print(said, file=sys.stderr, flush=True)
+            text = said() if said is not None and len(held) == 1 else None
+            if text is not None:
+                with contextlib.suppress(Exception):  # (a print the signal cut into: "reentrant call")
+                    print(("\r\x1b[K" if sys.stderr.isatty() else "") + text, file=sys.stderr, flush=True)
             return
         # a second signal (second_acts), or a hold left in place by a restore that a signal cut short: act as the
         # handler it replaced, at once

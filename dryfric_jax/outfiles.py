@@ -624,12 +624,16 @@ def put_record(path: str, rec: dict, same, read, done=None) -> None:
     meanwhile are kept; ``rec`` replaces the first record ``same(old)`` holds for (the file rewritten
     atomically, :func:`write_records`), or is appended (:func:`append_line`: rewriting the whole file after each of
     10^4 points cost ~1 s a point).  A first Ctrl-C or SIGTERM acts only after the write and ``done()`` (the
-    caller's bookkeeping of it, if given; :func:`~dryfric_jax.interrupts.held_interrupts`), saying so; a second
-    one acts at once while the lock is still awaited (it is held by another process: a process waiting on a stuck
-    lock is not deaf to Ctrl-C, a review), and after the write where it comes during it.  A sweep's finished point
-    caught by one during its write was lost (an audit), and so was one caught while it waited for the lock that
-    another sweep held (an interrupt audit: the lock's wait was broken by the first signal)."""
-    with held_interrupts(second_acts=True, said=WRITING_FIRST), locked(path), held_interrupts():
+    caller's bookkeeping of it, if given; :func:`~dryfric_jax.interrupts.held_interrupts`), saying so while the
+    lock is awaited; a second one acts at once while the lock is still awaited (it is held by another process: a
+    process waiting on a stuck lock is not deaf to Ctrl-C, a review), and after the write where it comes during
+    it.  A sweep's finished point caught by one during its write was lost (an audit), and so was one caught while
+    it waited for the lock that another sweep held (an interrupt audit: the lock's wait was broken by the first
+    signal)."""
+    locking = [True]  # said only while the lock is awaited (after the write it was said with nothing left to drop)
+    with held_interrupts(second_acts=True, said=lambda: WRITING_FIRST if locking[0] else None), locked(path), \
+            held_interrupts():
+        locking[0] = False
         records = read(path)
         at = next((k for k, old in enumerate(records) if same(old)), None)
         if at is None:

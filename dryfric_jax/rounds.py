@@ -15,8 +15,11 @@ and the results of completed rounds are never lost.
 """
 from __future__ import annotations
 
+import contextlib
+import dataclasses
 import sys
 import time
+import warnings
 from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import partial
@@ -26,7 +29,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax.sharding import NamedSharding, PartitionSpec, SingleDeviceSharding
 
-from .interrupts import held_interrupts
+from .interrupts import held_interrupts, interrupt_noted
 from .excursions import (
     BLOCK, SEEK, STAT_NAMES, _events_layout, _Lane, _run_round, _sharded_round, init_lanes, lanes_for,
 )
@@ -56,6 +59,24 @@ FINAL_DEADLINE = 2.0
 INTERRUPT_GRACE_S = 20.0
 # > 0 inside abandon_on_interrupt(): a Ctrl-C then ends the run at once (KeyboardInterrupt), no final round
 _ABANDON = [0]
+
+
+def after_run():
+    """The hold for the last steps of a run that has finished (its result formed from the sums):
+    :func:`~dryfric_jax.interrupts.interrupt_noted`, whose list says whether a Ctrl-C or SIGTERM came; within
+    :func:`abandon_on_interrupt` none (a caller that keeps finished runs only takes the Ctrl-C at once)."""
+    return interrupt_noted() if not _ABANDON[0] else contextlib.nullcontext([])
+
+
+def noted_late(result, what: str):
+    """``result`` (an estimate's or a count's) marked as interrupted, with a note said as a warning, where a Ctrl-C
+    or SIGTERM came as the ``what`` ("run", "count") ended (:func:`after_run`): the numbers are the whole run's."""
+    from .api import DryfricWarning  # (api imports this module)
+
+    note = f"interrupted as the {what} ended (stopped by {result.stopped_by}): the result is the whole {what}'s"
+    warnings.warn(note, DryfricWarning, stacklevel=3)
+    return dataclasses.replace(result, stopped_by="interrupted", warnings=type(result.warnings)((*result.warnings,
+                                                                                                 note)))
 
 
 @contextmanager

@@ -598,8 +598,7 @@ def _compute(out: str, pt: dict, seed: int, settings: dict, max_time, within=Non
                                within and functools.partial(within, DURATIONS))}
     except KeyboardInterrupt:
         if res is not None and base is None and settings.get(DURATIONS) is not None:
-            if _keep_d(out, pt, seed, settings, max_time, res, read) and kept_d is not None:
-                kept_d.append(pt)
+            _keep_d(out, pt, seed, settings, max_time, res, read, kept_d)
         return None
     except NoEstimateError as e:  # deterministic (unless max_time stopped it): recorded, not rerun on resume
         rec = _record(seed, pt, settings, "failed", max_time, reason=str(e), stopped_by=e.stopped_by)
@@ -608,7 +607,8 @@ def _compute(out: str, pt: dict, seed: int, settings: dict, max_time, within=Non
     return rec
 
 
-def _keep_d(out: str, pt: dict, seed: int, settings: dict, max_time, res: dict, read=read_results) -> bool:
+def _keep_d(out: str, pt: dict, seed: int, settings: dict, max_time, res: dict, read=read_results,
+            kept: list | None = None) -> bool:
     """A point stopped by a Ctrl-C in its count (``durations``): its finished D is written as its record without
     durations, which the resumed sweep takes up (:func:`_compute`'s ``base``) instead of estimating it again (it was
     lost: an audit) -- unless the file holds one that this sweep would keep (another sweep's, finished meanwhile).
@@ -618,8 +618,9 @@ def _keep_d(out: str, pt: dict, seed: int, settings: dict, max_time, res: dict, 
     ident = _ident(seed, pt, d_only)
     try:
         if _finished_elsewhere(out, ident, max_time, read) is None:
-            put_record(out, _record(seed, pt, d_only, "ok", max_time, result=res),
-                       _of_point(ident), read)
+            # counted in ``kept`` once written, also where a further Ctrl-C then acts (it was left out: a review)
+            put_record(out, _record(seed, pt, d_only, "ok", max_time, result=res), _of_point(ident), read,
+                       done=None if kept is None else (lambda: kept.append(pt)))
             return True
     except (OSError, ValueError) as e:
         warnings.warn(f"the point's finished D could not be kept ({e}): a resumed sweep estimates it again",

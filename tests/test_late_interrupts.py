@@ -52,7 +52,7 @@ def test_held_interrupts_with_second_acts(capsys):
     before = signal.signal(signal.SIGINT, on_int), signal.signal(signal.SIGTERM, on_term)
     try:
         with pytest.raises(KeyboardInterrupt, match="^int$"):
-            with interrupts.held_interrupts(second_acts=True, said="held one"):
+            with interrupts.held_interrupts(second_acts=True, said=lambda: "held one"):
                 signal.raise_signal(signal.SIGINT)
                 seen.append("went on")
         assert seen == ["went on", "int"] and capsys.readouterr().err == "held one\n"
@@ -148,3 +148,20 @@ def test_a_ctrl_c_in_the_write_of_out_comes_after_the_result(monkeypatch, tmp_pa
     captured = capsys.readouterr()
     assert rc == 130 and "dryfric: interrupted" in captured.err
     assert json.loads(out.read_text())["D"] == json.loads(captured.out)["D"] > 0
+
+
+def test_a_ctrl_c_in_the_final_progress_report_keeps_the_run():
+    """The report after the final round calls the caller's callback outside the hold (no Ctrl-C broke a slow one: a
+    review); a Ctrl-C in it keeps the whole run's result, marked interrupted."""
+    kw = dict(n_excursions=300, lanes=16)
+
+    def slow_at_the_end(d):
+        if d["left_s"] is None and d["n_excursions"] >= 300:  # the final report
+            signal.raise_signal(signal.SIGINT)
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", dj.SmallSampleWarning)
+        whole = dj.estimate_diffusivity(dj.Params(**dj.FIG3), 3, **kw)
+        with pytest.warns(dj.DryfricWarning, match=r"^interrupted as the run ended"):
+            r = _kept(lambda: dj.estimate_diffusivity(dj.Params(**dj.FIG3), 3, progress=slow_at_the_end, **kw))
+    assert r.stopped_by == "interrupted" and (r.D, r.n_excursions) == (whole.D, whole.n_excursions)

@@ -483,3 +483,20 @@ def test_a_ctrl_c_inside_the_lock_releases_it(tmp_path, monkeypatch):
     assert got.stdout.strip() == "free", got.stderr
     _put(path, _rec(1))  # and this thread locks it again
     assert _read(path) == [_rec(1)]
+
+
+def test_a_ctrl_c_during_the_write_acts_after_it_without_a_word(tmp_path, capsys):
+    """A Ctrl-C once the lock is held (here in ``done()``, the caller's bookkeeping of the write): the record is
+    written and counted, the KeyboardInterrupt comes after, and nothing is said (it said "writing ... first;
+    interrupt again to drop it" with nothing left to drop: a review)."""
+    import signal
+
+    done = []
+
+    def count():
+        signal.raise_signal(signal.SIGINT)
+        done.append(1)
+
+    with pytest.raises(KeyboardInterrupt):
+        outfiles.put_record(str(tmp_path / "r.jsonl"), {"a": 1}, lambda old: False, lambda p: [], done=count)
+    assert done == [1] and (tmp_path / "r.jsonl").read_text() == '{"a": 1}\n' and capsys.readouterr().err == ""
