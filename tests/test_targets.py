@@ -35,8 +35,9 @@ def test_ctrl_c_keeps_completed_rounds():
 
     r = _quiet(n_excursions=500, rtol=1e-4, progress=progress)
     assert r.stopped_by == "interrupted"
-    # the three completed rounds, none lost, and the in-flight excursions finished (unbiased)
-    assert r.n_excursions > calls[-1] > 0
+    # the three completed rounds, none lost, and the in-flight excursions finished (unbiased); the report after the
+    # final round has the result's N
+    assert r.n_excursions > calls[2] > 0 and len(calls) == 4 and calls[-1] == r.n_excursions
     assert r.D > 0 and r.D_ci > 0 and not any("dropped" in w for w in r.warnings)
 
 
@@ -81,7 +82,8 @@ def test_the_projection_is_the_engines_rate_after_the_first_round(monkeypatch):
     compiled it), not counting the time spent between rounds (the estimator compiles at its first
     snapshot; a progress callback may be slow): both had made a short run's projection ~8x too
     long.  A fake clock in the API, one second per reading: a callback that takes 100 s more at
-    every round leaves every projection exactly as it was; none is made after the first round."""
+    every round leaves every projection exactly as it was; none is made after the first round, nor in the report
+    after the final one."""
     import types
 
     from dryfric_jax import api
@@ -104,7 +106,8 @@ def test_the_projection_is_the_engines_rate_after_the_first_round(monkeypatch):
         return seen
 
     fast, slow = run(0.0), run(100.0)
-    assert len(fast) >= 4 and fast[0] is None and all(x is not None and x > 0 for x in fast[1:-1])
+    assert len(fast) >= 5 and fast[0] is None and fast[-1] is None
+    assert all(x is not None and x > 0 for x in fast[1:-2])
     assert slow == fast
 
 
