@@ -32,6 +32,7 @@ import os
 import signal
 import sys
 import threading
+from collections.abc import Callable
 
 #: the delay after which a swallowed Ctrl-C is delivered again (the callback has returned by then)
 DELAY_S = 0.05
@@ -162,7 +163,7 @@ def terminated() -> bool:
 
 
 @contextlib.contextmanager
-def held_interrupts(second_acts: bool = False, said: str | None = None):
+def held_interrupts(second_acts: bool = False, said: Callable[[], str | None] | None = None):
     """Within: SIGINT and SIGTERM are held, not acted on, so that a finished result's write completes; on exit the
     previous handlers are restored and a signal held is delivered to them (``signal.raise_signal``: a
     ``KeyboardInterrupt`` as the block ends, or the default action).  A sweep's point finished but caught by a

@@ -613,7 +613,7 @@ def drop_claims_dir(path: str) -> None:
         os.rmdir(claims_dir(path))
 
 
-#: what :func:`put_record` says where a first Ctrl-C or SIGTERM comes while it waits for the lock or writes
+#: what :func:`put_record` says where a first Ctrl-C or SIGTERM comes while it waits for the file's lock
 WRITING_FIRST = ("dryfric: interrupted: writing the finished result to its results file first (waiting for the "
                  "file's lock where another process holds it); interrupt again to drop it")
 
