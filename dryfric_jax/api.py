@@ -732,13 +732,14 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
     # (the estimator compiles at its first snapshot): the projection was ~2-8x too long on short runs
     first, here = [], [0.0]
 
-    def report(st, final=False):  # after every round: the projection, an early warning, the progress callback
+    def report(st, final=None):  # after every round: the projection, an early warning, the progress callback
         now = time.perf_counter()
         el, sim = now - t0, now - t0 - here[0]
-        e = (snapshot(st) or {}) if progress is not None or rtol else {}
+        # final: the result's estimates, once it is formed (not computed again)
+        e = final if final is not None else (snapshot(st) or {}) if progress is not None or rtol else {}
         closed = st.n_excursions + st.n_truncated
         rel = e["D_ci"] / abs(e["D"]) if e.get("D") else None
-        if final:  # the result's sums: nothing left to project
+        if final is not None:  # the result's sums: nothing left to project
             left, to = None, None
         elif not first:  # no projection yet: the first round's rate is mostly compile time
             first.append((sim, st.slot_steps))
@@ -839,13 +840,13 @@ def estimate_diffusivity(params: Params, key=0, *, method: str = "di", h: float 
                 warnings=notes, delta=grid and grid["delta"], L_X=grid and grid["L_X"],
                 events_per_s=None if grid is None else sim.useful_steps / wall, method_reason=plan.reason,
                 max_steps=plan.max_steps, max_work=plan.max_work, predicted_work=plan.predicted_work,
-                work=int(sim.slot_steps), sums={k: float(v) for k, v in sim.total().items()}, lanes=plan.lanes,
+                work=int(sim.slot_steps), sums={k: float(v) for k, v in total.items()}, lanes=plan.lanes,
                 block=plan.block, n_requested=n_excursions,
                 max_time=None if max_time == math.inf else max_time, version=__version__,
                 key=None if seed is not None else key_id(key))
         if progress is not None:  # once more, with the final sums: the last report is the result's N and D.  Not
             try:  # in the hold, which no Ctrl-C breaks (a slow callback), but a Ctrl-C in it keeps the result
-                report(sim, final=True)
+                report(sim, final=e)
             except KeyboardInterrupt:
                 if _ABANDON[0]:
                     raise

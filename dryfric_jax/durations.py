@@ -634,10 +634,10 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
         if stop_note is not None:
             warnings.warn(stop_note, DryfricWarning, stacklevel=2)
             notes.append(stop_note)
-        ran, predicted = n_lanes * int(blocks) * BLOCK, (max(n_excursions, n_lanes) + n_lanes) * predicted_le_steps(
-            params, h)
+        ran = n_lanes * int(blocks) * BLOCK  # lane-steps computed, the idle lanes' included
         # max_work bounds the prediction only (a sweep audit: 5.4x a max_work of 5e7, without a word)
         if ran > check_max_work(max_work):
+            predicted = (max(n_excursions, n_lanes) + n_lanes) * predicted_le_steps(params, h)
             note = (f"the count ran {ran:.3g} lane-steps, past max_work = {max_work:.3g}, which bounds its predicted "
                     f"work only ({predicted:.3g}, {ran / predicted:.2g}x short here): max_time bounds a count's time")
             warnings.warn(note, DryfricWarning, stacklevel=2)
@@ -651,13 +651,13 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
         m = s_sum / k
         var = max(float(Q.sum()) - s_sum * m, 0.0) / (k - 1)
         if var == 0:  # all of the same length: a CI of 0 is no interval (a sweep audit: 2 of 2 steps each, +- 0 s)
-            note = (f"the {k} long excursions counted all lasted {s_sum / k:.0f} steps: the CI of 0 is no interval; "
+            note = (f"the {k} long excursions counted all lasted {m:.0f} steps: the CI of 0 is no interval; "
                     "count more (or a finer h)")
             warnings.warn(note, DryfricWarning, stacklevel=2)
             notes.append(note)
         r = LEDuration(mean=h * m, ci=float(t_quantile(0.95, k - 1) * h * math.sqrt(var / k)), n_excursions=k,
                        n_requested=n_excursions, n_lanes=n_lanes, n_truncated=cut, h=float(h), dtype=dtype,
-                       lane_steps=int(steps.sum()), loop_steps=n_lanes * int(blocks) * BLOCK, max_steps=bound,
+                       lane_steps=int(steps.sum()), loop_steps=ran, max_steps=bound,
                        bridge=bridge, stopped_by=ended, max_time=max_time, seed=seed,
                        key=None if seed is not None else key_id(key), params=params.as_dict(), warnings=tuple(notes),
                        wall_s=time.perf_counter() - t0)
