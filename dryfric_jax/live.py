@@ -12,6 +12,7 @@ from __future__ import annotations
 import contextlib
 import os
 import sys
+import warnings
 
 
 def where() -> str | None:
@@ -106,13 +107,25 @@ def live_progress(progress, draw):
     """The callback a ``progress`` argument asks for, while the block runs: ``True``, a :class:`StatusLine`
     showing ``draw(d) -> (text, tail)`` of each report ``d``, closed when the block ends however it ends (None
     where :func:`where` finds no terminal or notebook, so that nothing is computed for it); ``False`` or None,
-    None; a callable, itself."""
+    None; a callable, itself.  On a terminal a warning said meanwhile (a ProjectionWarning) clears the line
+    first, so it starts on a clean row and the next report draws the line below it; it was written onto the
+    line's row, after the line's text."""
     if progress is not True:
         yield progress or None
         return
     kind = where()
     line = StatusLine(kind)
+    shown = warnings.showwarning
+
+    def show_warning(*args, **kw):
+        line.close()
+        shown(*args, **kw)
+
+    if kind == "terminal":
+        warnings.showwarning = show_warning
     try:
         yield (lambda d: line.show(*draw(d))) if kind else None
     finally:
+        if warnings.showwarning is show_warning:  # not where the block set its own (it restores it itself)
+            warnings.showwarning = shown
         line.close()

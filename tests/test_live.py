@@ -134,6 +134,25 @@ def test_on_a_terminal_the_line_is_redrawn_then_cleared(monkeypatch, capsys):
     assert capsys.readouterr().err == ""
 
 
+def test_on_a_terminal_a_warning_starts_on_a_clean_row(monkeypatch, capsys):
+    """A warning said while the line is drawn (a ProjectionWarning) clears the line first, and the next report
+    draws the line after it; it was written onto the line's row.  Where no line is drawn nothing is cleared, and
+    the warnings' own showwarning is back after the block."""
+    monkeypatch.delitem(sys.modules, "IPython", raising=False)
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")
+        own = warnings.showwarning = lambda m, c, *a, **k: print(f"{c.__name__}: {m}", file=sys.stderr)
+        with live.live_progress(True, lambda d: (d, "")) as show:
+            warnings.warn("early", dj.ProjectionWarning)
+            show("half")
+            warnings.warn("careful", dj.ProjectionWarning)
+            show("again")
+        assert warnings.showwarning is own
+    assert capsys.readouterr().err == ("ProjectionWarning: early\n\rhalf\x1b[K\r\x1b[KProjectionWarning: careful\n"
+                                       "\ragain\x1b[K\r\x1b[K")
+
+
 def test_elsewhere_nothing_is_shown_or_computed(monkeypatch, capsys):
     """stderr a file or a pipe and no kernel: no callback at all (the estimator then computes no snapshot for it),
     and False is None; a callable is passed as it is."""
