@@ -73,6 +73,23 @@ at h/3.7), where its CIs are 1.2-2.1%.  The bridge's arithmetic makes a step ~1.
 (51 against 73 M lane-steps/s at Fig. 3's point, 256 lanes, 2 CPU cores, medians of 5), which ran at h/8 for a
 bias of a few % (0.2.8).  (All +- here are 95% CIs; tau, h nondimensional in the variance.)
 
+**Fast noise: the step against the stuck band (version 0.3.1).**  The bias is a function of :math:`q =
+\operatorname{Var}(X_{n+1}\mid X_n) = (1 - e^{-2h/\tau})/\tau'` (:func:`step_band_variance`), X's variance over one
+step against the stuck band's half-width squared (nondimensional X: the band is :math:`[-1 - \bar\gamma', 1 -
+\bar\gamma']`), not of tau/h: the mean is about :math:`\mu_0 (1 + c\,q)`, fitted over q <= 0.38
+(``scripts/duration_step_bias.py``; Gamma = Delta = 1, tau_L = inf, gamma_bar = 0, 8 000-21 000 LEs a point, seeds
+1-3) with c = 0.34 +- 0.09, 0.25 +- 0.09 and 0.31 +- 0.17 at tau' = 0.1, 0.03 and 0.01 (tau/h 53 to 4300), and ~0.35
+at Fig. 3's worst point (+2.0% at q = 0.058).  Were it a function of tau/h, c would fall tenfold from tau' = 0.1 to
+0.01.  At tau' = 0.184 (Gamma = 10, tau = 0.125 s) tau/ :data:`TAU_STEPS` gives q = 0.0155, but q grows like 1/tau'
+at a fixed tau/h: tau/700 made the count +3% long at tau' = 0.03 (3.42 +- 0.07 against 3.32 +- 0.05 extrapolated),
++5% +- 6% at 0.01 (5.38 +- 0.24 against 5.11 +- 0.21, q = 0.29; +9% by the fit), and 10.1 +- 1.1 tau0 at 0.003 (q =
+0.95) is unconverged.  So the default step also keeps q <= :data:`MAX_BAND_VARIANCE` = 0.0155, the value at that
+point: at tau' = 0.1 and 0.03 it gives 2.41 +- 0.06 and 3.32 +- 0.11 against 2.40 +- 0.04 and 3.32 +- 0.05
+extrapolated.  Its cost grows like :math:`1/\tau'^2` steps per tau0 (tau/h = 12 900 at tau' = 0.01), and with the
+LEs' growth like :math:`1/\sqrt{\tau'}` the predicted work at the default ``max_work`` refuses the default 2048 LEs
+below tau' ~ 0.004 and 64 below ~1e-3 (naming the step); an h given with q > :data:`WARN_BAND_VARIANCE` is warned
+about.
+
 A V that lands on 0 for one step while passing through it (the force beyond the threshold) is not a release:
 counting those (a first version) ended half excursions early, 15 SE below the PDMP at Gamma = 10, tau = 0.125 s,
 h/16.  Where :math:`\tau \ll h` releases happen at any X and the count is not the paper's quantity: below
@@ -396,6 +413,15 @@ PIECE_S = 0.25
 #: its bias falls like h, +2.0%, +1.2% and +0.4% (+- 0.5%) at tau/h = 187, 373 and 746 (Gamma = 10, tau = 0.125 s,
 #: against tau/h = 2992), none seen (+- 0.3%) at 746 to 2984 (Fig. 3's point); module docstring
 TAU_STEPS = 700
+#: the count's default step keeps the step's X variance against the stuck band's half-width squared
+#: (:func:`step_band_variance`) at most this: its value at Fig. 3's worst point (Gamma = 10, tau = 0.125 s,
+#: tau' = 0.184, tau/h = 700: 0.01548), where the bias was measured +0.4% +- 0.5% (TAU_STEPS).  The bias is ~0.3 q
+#: at any tau' (+2.0% at q = 0.058 there; c = 0.25-0.34 +- 0.1 at tau' = 0.1, 0.03, 0.01): with tau/h = 700 alone it
+#: was +5% +- 6% at tau' = 0.01, q = 0.29, +9% by the fit (module docstring)
+MAX_BAND_VARIANCE = 0.0155
+#: the step's X variance against the band (:func:`step_band_variance`) above which a warning says the count is
+#: biased long (~0.3 q: +2% here)
+WARN_BAND_VARIANCE = 0.06
 #: steps per tau below which a warning says the count is not the paper's long excursion (its bias is +2% already
 #: at tau/h = 187, Gamma = 10, tau = 0.125 s)
 MIN_TAU_STEPS = 10
@@ -409,11 +435,28 @@ MAX_STEPS = (2**31 - 2) * BLOCK
 MIN_DEFAULT_MAX_STEPS = 10**8
 
 
+def step_band_variance(params: Params, h: float) -> float:
+    r"""The variance of X over one step against the stuck band's half-width squared,
+    :math:`q = \operatorname{Var}(X_{n+1}\mid X_n) = (1 - e^{-2h/\tau})/\tau'` (nondimensional X, whose band is
+    :math:`[-1 - \bar\gamma', 1 - \bar\gamma']` whatever :math:`\tau_L`).  The count's step bias is a function
+    of q, not of tau/h (module docstring): at q = 0.38 the count is 13%, 9% and 13% long at tau' = 0.1, 0.03 and
+    0.01 (tau/h = 53, 175 and 526; ``scripts/duration_step_bias.py``)."""
+    return -math.expm1(-2.0 * h / params.tau) / params.tau_nd
+
+
+def band_h(params: Params, q: float) -> float:
+    """The largest step (s) whose :func:`step_band_variance` is at most ``q`` (inf where every step's is)."""
+    x = q * params.tau_nd
+    return math.inf if x >= 1.0 else -0.5 * params.tau * math.log1p(-x)
+
+
 def default_duration_h(params: Params) -> float:
-    """The count's default step in seconds: the D estimator's :func:`~dryfric_jax.plan.default_h`, or
-    :math:`\\tau/` :data:`TAU_STEPS` where that is smaller (the bridged count's bias falls like h and shrinks as
-    tau/h grows: module docstring)."""
-    return min(default_h(params), params.tau / TAU_STEPS)
+    """The count's default step in seconds: the D estimator's :func:`~dryfric_jax.plan.default_h`,
+    :math:`\\tau/` :data:`TAU_STEPS`, or the step whose :func:`step_band_variance` is
+    :data:`MAX_BAND_VARIANCE`, whichever is smallest (the bridged count's bias falls like h, and is a function of
+    that variance: module docstring).  The last binds at tau' < 0.184 (tau' = tau Delta^2 / Gamma), where the
+    step's cost grows like 1/tau'^2 in tau0."""
+    return min(default_h(params), params.tau / TAU_STEPS, band_h(params, MAX_BAND_VARIANCE))
 
 
 def default_lanes(n_excursions: int) -> int:
@@ -441,7 +484,10 @@ def le_duration_floor(params: Params) -> float:
     :math:`\tau' = 10^{-3}`, :math:`\tau/h = 10, 100` (1.5, 1.2); damped, at :math:`\tau' = 0.01`, 4.0, 2.5 and
     1.7 with :math:`\tau_L' = 1, 0.3, 0.1` (C = 0.40, 0.83, 1.7), at :math:`\tau' = 10^{-3}` 1.6 and 0.46 with
     :math:`\tau_L' = 10^{-2}, 10^{-3}` (5.1, 15); 7.0 with :math:`\bar\gamma' = 0.5` at :math:`\tau' = 0.01` (0.70).
-    The CIs are +-25-30%.  Without the floor the work predicted at :math:`\tau' = 10^{-3}` was 1/30 of what the lanes
+    The CIs are +-25-30%.  These steps were coarse for the count below tau' ~ 0.1 (:func:`step_band_variance` q =
+    0.29 at tau' = 0.01 and 2.9 at 1e-3, tau/h = 700; the default step now keeps q <= :data:`MAX_BAND_VARIANCE`), so
+    those LEs are long: at tau' = 0.01 5.0-5.1 at q <= 0.07 (``scripts/duration_step_bias.py``), still C = 0.5.
+    Without the floor the work predicted at :math:`\tau' = 10^{-3}` was 1/30 of what the lanes
     ran (2.1e9 lane-steps, 4.4e9 computed), and the fixed loop bound of 10^8 steps before 2026-12-06 truncated a
     count of 64 there."""
     return le_floor(params.tau_nd, params.tau_L_nd)
@@ -468,7 +514,8 @@ def check_duration_run(params, h=None, n_excursions: int = 2048, dtype: str = "f
         if not (default and str(e).startswith("h must")):
             raise
         raise ValueError(f"tau = {params.tau:.3g} s is too short for the long-excursion count: its default step "
-                         f"tau/{TAU_STEPS} = {h:.3g} s is refused ({e}); it needs a longer tau, or an h given to it "
+                         f"tau/{params.tau / h:.3g} = {h:.3g} s (durations.default_duration_h) is refused ({e}); it "
+                         "needs a longer tau, or an h given to it "
                          "('dryfric duration --h'), which it then warns is coarse against tau") from None
     n_excursions = check_count(name, n_excursions, 2, 2**40, " (long excursions)")
     lanes = default_lanes(n_excursions) if n_lanes is None else check_lanes(n_lanes)
@@ -479,8 +526,11 @@ def check_duration_run(params, h=None, n_excursions: int = 2048, dtype: str = "f
         check_work(params.tau_nd, params.tau_L_nd, params.gamma_bar_nd, params.tau0 / plan.h,
                    max(n_excursions, lanes) + lanes, max_work, min_duration=le_duration_floor(params))
     except ValueError as e:
+        step = (f"; its default step tau/{params.tau / plan.h:.3g} keeps X's step variance against the stuck band at "
+                f"q = {MAX_BAND_VARIANCE}, and a coarser h biases the count long, ~30q%"
+                if default and plan.h == band_h(params, MAX_BAND_VARIANCE) else "")
         raise ValueError(f"{e} (here for the {name} long excursions counted in {lanes} lanes, each of which also "
-                         "seeks its first one and finishes the one in flight at the end: lower them)") from None
+                         f"seeks its first one and finishes the one in flight at the end: lower them{step})") from None
     return plan
 
 
@@ -520,7 +570,8 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
         key: a ``jax.random`` key or an integer seed in [0, 2^62]; lane l uses ``split(key, n_lanes)[l]``,
             its block b ``fold_in(lane_key, b)``.
         h: DI step in seconds (default :func:`default_duration_h`: the D estimator's
-            :func:`~dryfric_jax.plan.default_h`, finer where tau/h would fall below :data:`TAU_STEPS`).
+            :func:`~dryfric_jax.plan.default_h`, finer where tau/h would fall below :data:`TAU_STEPS` or X's step
+            variance against the stuck band exceed :data:`MAX_BAND_VARIANCE`: :func:`step_band_variance`).
         n_excursions: long excursions to count, an integer in [2, 2^40]: once the lanes' total reaches it no lane
             starts another, and those in flight are finished (so a run counts a few more).
         n_lanes: lanes, an integer in [1, 2^21] (default :func:`default_lanes`; 2^21 x 128 steps is the
@@ -578,10 +629,19 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
     if not isinstance(bridge, (bool, np.bool_)):
         raise ValueError(f"bridge must be True or False, got {bridge!r}")
     bridge = bool(bridge)
-    notes = plan.notes + ([f"tau/h = {params.tau / h:.3g} < {MIN_TAU_STEPS}: the noise decorrelates within a few "
-                           "steps, so releases happen at any X and the count of their changes of direction is not "
-                           "the paper's long excursion (threshold to threshold); lower h"]
-                          if params.tau / h < MIN_TAU_STEPS else [])
+    q = step_band_variance(params, h)
+    if params.tau / h < MIN_TAU_STEPS:
+        notes = [f"tau/h = {params.tau / h:.3g} < {MIN_TAU_STEPS}: the noise decorrelates within a few steps, so "
+                 "releases happen at any X and the count of their changes of direction is not the paper's long "
+                 "excursion (threshold to threshold); lower h"]
+    elif q > WARN_BAND_VARIANCE:
+        notes = [f"h = {h:.3g} s is coarse for the count: X moves {math.sqrt(q):.2g} of the stuck band's half-width "
+                 f"per step (step variance q = {q:.3g} > {WARN_BAND_VARIANCE}), so releases are found late and the "
+                 f"mean is biased long, by ~{30 * q:.2g}% where q <= 0.4 (measured +9-13% at q = 0.38) and more "
+                 f"beyond; the default step keeps q <= {MAX_BAND_VARIANCE} (durations.step_band_variance)"]
+    else:
+        notes = []
+    notes = plan.notes + notes
     for note in notes:
         warnings.warn(note, DryfricWarning, stacklevel=2)
     model = make_di_model(params, h, jnp.dtype(dtype))

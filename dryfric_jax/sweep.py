@@ -76,8 +76,8 @@ from ._version import __version__
 from .api import (DryfricWarning, NoEstimateError, ProjectionWarning, check_progress, check_seed, duration_text,
                   estimate_diffusivity, progress_text, status_line, terminal_columns)
 from .combine import bad_sums, has_sums
-from .durations import (TAU_STEPS, NoCountError, check_duration_run, default_duration_h, default_max_steps,
-                        di_long_excursion_duration, max_steps_for)
+from .durations import (MAX_BAND_VARIANCE, TAU_STEPS, NoCountError, band_h, check_duration_run, default_duration_h,
+                        default_max_steps, di_long_excursion_duration, max_steps_for)
 from .limits import MAX_WORK
 from .live import live_progress
 from .outfiles import (ReadCache, check_writable, claim, drop_claims_dir, dumps, locked, put_record, read_records,
@@ -160,16 +160,17 @@ def duration_seed(seed: int, params: dict, settings: dict) -> int:
 
 
 def duration_h(params: Params, h) -> float:
-    """The step of a point's long-excursion count: the sweep's ``h`` (None: the D estimator's default) or
-    tau / :data:`~dryfric_jax.durations.TAU_STEPS` where that is smaller (the count's bias falls like h and
-    shrinks as tau/h grows: :mod:`dryfric_jax.durations`); without ``h``, i.e.,
+    """The step of a point's long-excursion count: the sweep's ``h`` (None: the D estimator's default),
+    tau / :data:`~dryfric_jax.durations.TAU_STEPS` or the step whose X variance against the stuck band is
+    :data:`~dryfric_jax.durations.MAX_BAND_VARIANCE`, whichever is smallest (the count's bias falls like h and is a
+    function of that variance: :mod:`dryfric_jax.durations`); without ``h``, i.e.,
     :func:`~dryfric_jax.durations.default_duration_h`.  A sweep's ``h`` coarser than the D estimator's default
     makes the count coarser too (and its bias larger), as it does the D (the docs said the count kept its default
     step then: an audit).  ``h`` other than None or a finite number > 0: ``ValueError`` (NaN gave NaN)."""
     if h is None:
         return default_duration_h(params)
     check_positive("h", h)
-    return min(float(h), params.tau / TAU_STEPS)
+    return min(float(h), params.tau / TAU_STEPS, band_h(params, MAX_BAND_VARIANCE))
 
 
 def _is_real(x) -> bool:

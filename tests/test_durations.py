@@ -263,20 +263,22 @@ def test_float32_where_unsafe_runs_float64_and_says_so(monkeypatch):
 def test_tau_below_a_few_steps_is_flagged(monkeypatch):
     """At tau / h < MIN_TAU_STEPS the noise decorrelates within a few steps: releases happen at any X and the
     count is not the paper's long excursion (white noise at tau = 1e-5 s, h = 1.6e-3 s gave 14 s); warned.  The
-    default step keeps tau/h >= 700, so only an h asked for can warn."""
-    import warnings
-
+    default step keeps tau/h >= 700, so only an h asked for can warn.  Here (tau' = 6e-5) tau/20 is far too coarse
+    for the band (q = 1500: the band's warning instead), and the default step, the band rule's, makes the count
+    too dear: refused, naming that step."""
     from dryfric_jax.durations import MIN_TAU_STEPS
 
     _fake_loop(monkeypatch, [])
     p = Params(0.16, 1.0, 1e-5, math.inf, 0.0)
     with pytest.warns(dj.DryfricWarning, match=f"tau/h = .* < {MIN_TAU_STEPS}: the noise decorrelates"):
         di_long_excursion_duration(p, 0, h=default_h(p), n_lanes=4, n_excursions=2)
-    for h in (p.tau / (2 * MIN_TAU_STEPS), None):
-        with warnings.catch_warnings():
-            warnings.simplefilter("error")
-            warnings.simplefilter("ignore", dj.SmallSampleWarning)  # 4 excursions counted
-            di_long_excursion_duration(p, 0, h=h, n_lanes=4, n_excursions=2)
+    with pytest.warns(dj.DryfricWarning) as seen:
+        di_long_excursion_duration(p, 0, h=p.tau / (2 * MIN_TAU_STEPS), n_lanes=4, n_excursions=2)
+    assert not any("decorrelates" in str(w.message) for w in seen)
+    assert any("coarse for the count: X moves 39 of the stuck band's half-width" in str(w.message) for w in seen)
+    with pytest.raises(ValueError, match=r"max_work must be .*lower them; its default step tau/2\.06e\+06 keeps "
+                                         r"X's step variance against the stuck band at q = 0\.0155"):
+        di_long_excursion_duration(p, 0, n_lanes=4, n_excursions=2)
 
 
 def test_a_run_predicted_beyond_max_work_is_refused_before_it_starts(monkeypatch):
@@ -319,9 +321,11 @@ def test_fast_noise_floors_the_predicted_excursion_and_the_loop_bound_is_planned
     """For fast noise the LEs grow like 1/sqrt(tau') while the estimator's predicted duration stays at
     min(1, tau_L') tau0: at tau' = 1e-3, tau_L = inf, the work predicted was 1/30 of what the lanes ran and the
     fixed loop bound of 1e8 steps truncated a count of 64 (0.2.11).  By hand there: the floor 0.25/sqrt(1e-3) tau0
-    at tau0/h = 700/tau' steps, for the 64 + 32 LEs of 32 lanes, is the limit (refused just below, accepted at it),
-    and the loop's default bound is 50 x (64/32 + 2) such LEs (max_steps_for), 1.1e9 steps.  At Fig. 3's point the
-    floor is below the estimator's prediction, so nothing changes there, and the bound stays 1e8."""
+    at tau0/h steps, for the 64 + 32 LEs of 32 lanes, is the limit (refused just below, accepted at it), and the
+    loop's default bound is 50 x (64/32 + 2) such LEs (max_steps_for): 1.1e9 steps at tau/h = 700, 2e11 at the
+    default step, whose X variance against the band is 0.0155 (1 - e^{-2h/tau} = 0.0155 tau', tau/h = 1.29e5).  At
+    Fig. 3's point the floor is below the estimator's prediction, so nothing changes there, and the bound stays
+    1e8."""
     from dryfric_jax import durations
     from dryfric_jax.limits import check_work, log_duration_scale
 
@@ -335,15 +339,17 @@ def test_fast_noise_floors_the_predicted_excursion_and_the_loop_bound_is_planned
     p = Params.from_nondim(1e-3)
     le = 0.25 / math.sqrt(1e-3)
     assert durations.le_duration_floor(p) == pytest.approx(le, rel=1e-12)
-    need = 96 * le * 700 / 1e-3
+    ratio = -2 / math.log(1 - 0.0155e-3)  # tau/h of the default step
+    assert ratio == pytest.approx(1.29e5, rel=1e-3)
+    need = 96 * le * ratio / 1e-3
     with pytest.raises(ValueError, match=r"^max_work must be >= .* predicted mean duration >= 7\.91 tau0"):
         durations.check_duration_run(p, None, 64, max_work=need * (1 - 1e-9))
     durations.check_duration_run(p, None, 64, max_work=need * (1 + 1e-9))
-    bound = 50 * (64 / 32 + 2) * le * 700 / 1e-3
-    assert durations.default_max_steps(p, p.tau / 700, 64) == int(bound)
+    assert durations.default_max_steps(p, p.tau / 700, 64) == int(50 * (64 / 32 + 2) * le * 700 / 1e-3)
+    bound = 50 * (64 / 32 + 2) * le * ratio / 1e-3
     with pytest.raises(RuntimeError, match="planned"):
         di_long_excursion_duration(p, 0, n_excursions=64)
-    assert got["max_blocks"] == -(-int(bound) // 128)
+    assert got["max_blocks"] == pytest.approx(bound / 128, rel=1e-9)
     with pytest.raises(RuntimeError, match="planned"):  # a bound given is kept
         di_long_excursion_duration(p, 0, n_excursions=64, max_steps=1000)
     assert got["max_blocks"] == 8
@@ -373,14 +379,16 @@ def test_the_fast_noise_floor_lies_below_the_excursions_measured_where_it_is_tig
 
 
 def test_a_tau_too_short_for_the_default_step_is_named_not_an_h_never_given(monkeypatch):
-    """tau = 1e-11 s: the default step tau/700 falls below the smallest admissible h, and the refusal named h, which
-    the user never gave (an audit; ``estimate`` runs there).  It names tau now; an h given is refused as before."""
+    """tau = 1e-11 s: the default step (tau/700 then; now far finer, the band rule's) falls below the smallest
+    admissible h, and the refusal named h, which the user never gave (an audit; ``estimate`` runs there).  It names
+    tau now; an h given is refused as before."""
     from dryfric_jax import durations
 
     monkeypatch.setattr(durations, "_run", lambda *a, **k: pytest.fail("ran"))
     p = Params(**dict(FIG3, tau=1e-11))
     with pytest.raises(ValueError, match=r"^tau = 1e-11 s is too short for the long-excursion count: its default "
-                                         r"step tau/700 = 1\.43e-14 s is refused \(h must be in "):
+                                         r"step tau/[0-9.e+]+ = [0-9.e-]+ s \(durations\.default_duration_h\) "
+                                         r"is refused \(h must be in "):
         di_long_excursion_duration(p, 0)
     with pytest.raises(ValueError, match=r"^h must be in "):
         di_long_excursion_duration(p, 0, h=1e-15)
@@ -696,3 +704,61 @@ def test_a_count_that_ran_past_max_work_says_so(monkeypatch):
     (said,) = run(10**7)  # 2.56e9
     assert said.startswith("the count ran 2.56e+09 lane-steps, past max_work = 1e+09, which bounds its predicted "
                            "work only (") and said.endswith("short here): max_time bounds a count's time")
+
+
+def test_the_step_band_variance_is_the_chains_and_band_h_inverts_it():
+    """``step_band_variance`` is the chain's own Var(X_{n+1} | X_n) (its OU step's Cholesky factor, nondimensional
+    X, whose stuck band has half-width 1), with or without a viscous term and a bias; ``band_h`` gives the step
+    whose variance is q, and inf where no step's reaches it (q tau' >= 1, the stationary variance)."""
+    import jax.numpy as jnp
+
+    from dryfric_jax.di import make_di_model
+    from dryfric_jax.durations import band_h, step_band_variance
+
+    for p, h in ((FAST, 1e-4), (Params(1.0, 1.0, 0.01), 1e-6), (Params(**FIG3), 2e-3), (Params(2.0, 3.0, 5.0), 0.02)):
+        ou = make_di_model(p, h, jnp.float64).ou
+        assert step_band_variance(p, h) == pytest.approx(float(ou.L21 ** 2 + ou.L22 ** 2), rel=1e-12)
+        for q in (1e-3, 0.0155, 0.38):
+            if q * p.tau_nd < 1:
+                assert step_band_variance(p, band_h(p, q)) == pytest.approx(q, rel=1e-12)
+    assert band_h(Params(1.0, 1.0, 100.0), 0.0155) == math.inf
+
+
+def test_the_default_step_keeps_the_band_variance_and_fig3s_steps():
+    """The default step's X variance against the band is at most MAX_BAND_VARIANCE: below tau' = 0.184 the band
+    rule binds (tau/h = 1290 at tau' = 0.1, 12 900 at 0.01, where tau/700 had made the count 5-9% long); over
+    Fig. 3's grid (tau' >= 0.184) the step is the D estimator's or tau/700, as before; a sweep's coarse h is held to
+    it as to tau/700."""
+    from dryfric_jax import sweep
+    from dryfric_jax.durations import (MAX_BAND_VARIANCE, TAU_STEPS, band_h, default_duration_h,
+                                       step_band_variance)
+
+    for tau in (0.125, 0.25, 0.5, 1.0):
+        for g in np.geomspace(1, 10, 10):
+            p = Params(**dict(FIG3, Gamma=float(g), tau=tau))
+            assert default_duration_h(p) == min(default_h(p), tau / TAU_STEPS)
+            assert step_band_variance(p, default_duration_h(p)) <= MAX_BAND_VARIANCE
+    for tau, ratio in ((0.1, 1290), (0.01, 12900)):
+        p = Params(1.0, 1.0, tau)
+        h = default_duration_h(p)
+        assert h == band_h(p, MAX_BAND_VARIANCE) and tau / h == pytest.approx(ratio, rel=0.01)
+        assert step_band_variance(p, tau / TAU_STEPS) > 1.8 * MAX_BAND_VARIANCE  # 0.029 and 0.29
+        assert sweep.duration_h(p, 1.0) == h and sweep.duration_h(p, h / 2) == h / 2
+
+
+def test_a_step_that_moves_x_across_the_band_makes_the_count_long_and_is_said(recwarn):
+    """At tau' = 0.1 a step whose X variance against the band is q = 0.38 (tau/h = 53) finds releases late: the
+    count is longer than at the default step (q = 0.0155, tau/h = 1290) by more than their joint CI (measured
+    +12% +- 3.5%: ``scripts/duration_step_bias.py``; +13%, +9%, +13% at that q at tau' = 0.1, 0.03, 0.01, against
+    each one's fit to q -> 0), and a DryfricWarning says so where q > WARN_BAND_VARIANCE; none at the default step."""
+    from dryfric_jax.durations import WARN_BAND_VARIANCE, band_h
+
+    p = Params(1.0, 1.0, 0.1)
+    with pytest.warns(dj.DryfricWarning, match=r"coarse for the count: X moves 0\.62 of the stuck band's half-width"
+                                               r" per step \(step variance q = 0\.38 > 0\.06\).* ~11% where q <= 0\.4"):
+        coarse = di_long_excursion_duration(p, 1, h=band_h(p, 0.38), n_excursions=16384)
+    recwarn.clear()
+    fine = di_long_excursion_duration(p, 2, n_excursions=8192)
+    assert not [w for w in recwarn if "coarse for the count" in str(w.message)]
+    assert coarse.mean - fine.mean > coarse.ci + fine.ci, (coarse.mean, coarse.ci, fine.mean, fine.ci)
+    assert not any("coarse for the count" in w for w in fine.warnings) and WARN_BAND_VARIANCE == 0.06
