@@ -320,8 +320,9 @@ def build_parser() -> argparse.ArgumentParser:
                     help="bound on the loop's steps (default: planned from the predicted excursion, at least 1e8); "
                          "an excursion in flight there is left out and counted (the mean is then biased low: exit 3)")
     du.add_argument("--max-work", type=_number("max-work"), default=None,
-                    help="cap on the predicted lane-steps of the run; a run predicted to need more is refused before "
-                         "it starts (default 1e11)")
+                    help="cap on the lane-steps of the run (default 1e11): a run predicted to need more is refused "
+                         "before it starts, and once the lanes have computed it no excursion starts (those in flight "
+                         "finish)")
     du.add_argument("--out", default=None, help="also write the JSON result to this file (atomically)")
     du.add_argument("--allow-truncated", action="store_true",
                     help="exit 0 even when lanes hit --max-steps (the mean is biased low; exit 3 otherwise)")
@@ -825,7 +826,8 @@ def _run(a) -> int:
         if r.stopped_by == "interrupted":  # a Ctrl-C (SIGTERM): what was counted is above, and in --out
             return 130
         if r.n_truncated and not a.allow_truncated:
-            spare = "--max-time" if r.stopped_by == "max_time" else "--max-steps"
+            # (stopped by the work bound, those in flight are cut only at twice --max-time)
+            spare = "--max-time" if r.stopped_by in ("max_time", "work_bound") else "--max-steps"
             print(f"dryfric: warning: {r.n_truncated} long excursions truncated: the mean above is biased low; exit 3 "
                   f"(--allow-truncated accepts it, a larger {spare} spares it)", file=sys.stderr)
             return 3

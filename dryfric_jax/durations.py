@@ -128,7 +128,8 @@ from .sharding import over_lanes
 
 
 class NoCountError(ValueError):
-    """A count ended with fewer than 2 long excursions within ``max_steps`` or ``max_time``: no mean, no spread.
+    """A count ended with fewer than 2 long excursions within ``max_steps``, ``max_time`` or ``max_work``: no mean,
+    no spread.
     A ``ValueError`` (as the other refusals), of its own class so that a caller recording it as a point's outcome
     (a sweep's, Fig. 3's) catches only it and not an error raised by its own ``progress`` callback."""
 
@@ -141,7 +142,7 @@ class LEDuration(_Record):
 
     mean: float
     ci: float
-    n_excursions: int  # long excursions counted (>= n_requested unless the bound stopped the loop)
+    n_excursions: int  # long excursions counted (>= n_requested unless a bound or limit stopped the loop)
     n_requested: int  # the run's n_excursions: from the block where the lanes' total reached it, none started
     n_lanes: int
     n_truncated: int  # in flight at the bound max_steps (or at twice max_time): dropped (the mean is then biased low)
@@ -151,7 +152,8 @@ class LEDuration(_Record):
     loop_steps: int  # steps computed: lanes x the loop's steps, as a lane that stopped idles in the loop
     max_steps: int = 0  # the loop's bound (whole blocks of 128)
     bridge: bool = True  # the crossings of X between steps counted too (module docstring); False: the raw count
-    stopped_by: str = "n_excursions"  # what ended it: the rule ("n_excursions"), "max_steps", "max_time", "interrupted"
+    stopped_by: str = "n_excursions"  # what ended it: the rule ("n_excursions"), "max_steps", "max_time",
+    # "work_bound", "interrupted"
     max_time: float | None = None  # the time limit given (s), None for none
     seed: int | None = None  # None for a jax.random key
     key: str | None = None  # a key-made run's key (api.key_id); None for a seed
@@ -298,14 +300,18 @@ def _lane_blocks(model, keys, b, stop, carry, n_excursions, b_end, block: int, b
 
 
 def _run(model, keys, n_excursions: int, max_blocks: int, block: int = BLOCK, bridge: bool = True,
-         max_time: float | None = None, t0: float | None = None, progress=None):
+         max_time: float | None = None, t0: float | None = None, progress=None, max_work: float | None = None):
     """:func:`_lane_blocks` over the lanes ``keys`` in pieces of ~:data:`PIECE_S` seconds, split over the local
     devices (:func:`~dryfric_jax.sharding.over_lanes`; on a CPU one device per core, so the count uses every
     core).  Returns numpy arrays per lane (those of ``keys`` only): the LEs counted, the sums of their durations
     and of their squares (steps), whether the lane stopped (not in flight at the end), whether it started an LE,
     its steps; then the blocks run and what ended the loop (``"n_excursions"``: every lane stopped by the rule;
     ``"max_steps"``: the bound; ``"max_time"``: the limit stopped the starts; :data:`RULE_THEN_MAX_TIME`: the rule
-    did, and twice the limit cut those in flight; ``"interrupted"``: a Ctrl-C, SIGTERM under ``dryfric``).
+    did, and twice the limit cut those in flight; ``"work_bound"``: the lanes' lane-steps computed reached
+    ``max_work`` and stopped the starts, as the estimator's work bound does (those in flight finish, within the
+    loop's bound; from the first block whose end has the ``keys``' lanes past ``max_work`` lane-steps, a piece ending
+    there, so that the bits do not depend on the pieces' timing); ``"interrupted"``: a Ctrl-C, SIGTERM under
+    ``dryfric``).
 
     The lanes are padded to a multiple of the devices with lanes that count nothing.  The numbers are those of one
     device, and of one piece, to the bit (tested).  Between pieces a Ctrl-C takes effect (a compiled loop of
@@ -333,16 +339,21 @@ def _run(model, keys, n_excursions: int, max_blocks: int, block: int = BLOCK, br
     # count, and --max-time 2 at 2^21 lanes ended the count after 70 s (an audit)
     first_chunk = int(min(4, max(1, (1 << 22) // ((n + pad) * block))))
     done, chunk, ended, deadline, first = 0, first_chunk, "n_excursions", None, []
+    # the block from which no LE starts for max_work: the first whose end has the lanes past it
+    b_work = max_blocks if max_work is None or not math.isfinite(max_work) else \
+        int(min(max(math.ceil(max_work / (n * block)), 1), max_blocks))
     while True:
         try:
             t = time.perf_counter()
+            end = min(done + chunk, max_blocks, b_work if done < b_work else max_blocks)  # a piece ends there
             b, stop, carry = over_lanes(_lane_blocks, (model, keys, b, stop, carry, jnp.int64(n_excursions),
-                                                       jnp.int32(min(done + chunk, max_blocks))),
+                                                       jnp.int32(end)),
                                         (False, True, True, True, True, False, False), block=block, bridge=bridge,
                                         n_dev=n_dev)
             done = int(b[0])
             if progress is not None:
-                progress(_progress(carry, n_excursions, bool(stop[0]), t0, first, max_time))
+                progress(_progress(carry, n_excursions, bool(stop[0]), t0, first, max_time, n * done * block,
+                                   max_work))
             if bool(np.all(np.asarray(carry[7]))):
                 break
             if done >= max_blocks:
@@ -351,9 +362,12 @@ def _run(model, keys, n_excursions: int, max_blocks: int, block: int = BLOCK, br
             now = time.perf_counter()
             if deadline is not None and now > deadline:  # the grace after a Ctrl-C is over
                 break
+            if done >= b_work and not bool(stop[0]):  # at that block whatever the pieces: the same bits
+                # (it bounded the prediction only: a count ran 5.4x a max_work of 5e7, a sweep audit)
+                ended, stop = "work_bound", jnp.ones_like(stop)
             if max_time is not None and now - t0 > max_time and ended != "interrupted":
                 if now - t0 > 2 * max_time:  # those still in flight are cut by the limit, whatever stopped the starts
-                    ended = "max_time" if ended == "max_time" else RULE_THEN_MAX_TIME
+                    ended = ended if ended in ("max_time", "work_bound") else RULE_THEN_MAX_TIME
                     break
                 if not bool(stop[0]):  # the limit stops the starts; where the rule already had, the count ends as
                     ended = "max_time"  # the rule's (it said "max_time stopped the count at 119 of the 64 asked")
@@ -379,19 +393,20 @@ def _run(model, keys, n_excursions: int, max_blocks: int, block: int = BLOCK, br
     return N, S, Q, off, started, steps, done, ended
 
 
-def _progress(carry, n_excursions, stopping, t0, first, max_time) -> dict:
+def _progress(carry, n_excursions, stopping, t0, first, max_time, computed, max_work=None) -> dict:
     """What a ``progress`` callback of :func:`di_long_excursion_duration` gets after a piece of the loop (there
     with ``mean_s``, in seconds, for ``mean_steps``): the LEs counted so far (``n_excursions``) of the ``target``,
     those ``in_flight``, the ``mean_steps`` of those counted (nan before the first; it is the final mean only at
     the end, as the long ones finish last), ``stopping`` (no LE starts any more: the rule, ``max_time`` or a
     Ctrl-C), ``elapsed_s``, and the projected ``left_s`` with the limit that ends the run first, ``left_to``
-    (:func:`~dryfric_jax.api.time_left`: ``"n_excursions"`` or ``"max_time"``; both None before a projection, once
-    those counted and in flight make up the target, and once stopping: the LEs in flight then end when they end).
-    The rate is that of the pieces after the first, whose time holds the compilation; ``first`` holds its (time,
-    lane-steps) between calls."""
+    (:func:`~dryfric_jax.api.time_left`: ``"n_excursions"``, ``"max_time"`` or ``"max_work"``; both None before a
+    projection, once those counted and in flight make up the target, and once stopping: the LEs in flight then end
+    when they end).  The work is the lanes' ``computed`` lane-steps, as ``max_work`` counts them (before the stop
+    every lane runs).  The rate is that of the pieces after the first, whose time holds the compilation; ``first``
+    holds its (time, lane-steps) between calls."""
     now = time.perf_counter()
-    N, S, ph, off, n = (np.asarray(a) for a in (carry[8], carry[9], carry[4], carry[7], carry[5]))
-    k, work, in_flight = int(N.sum()), float(n.sum()), int(((ph != 0) & ~off).sum())
+    N, S, ph, off = (np.asarray(a) for a in (carry[8], carry[9], carry[4], carry[7]))
+    k, work, in_flight = int(N.sum()), float(computed), int(((ph != 0) & ~off).sum())
     left = to = None
     if not first:
         first.append((now, work))
@@ -399,7 +414,8 @@ def _progress(carry, n_excursions, stopping, t0, first, max_time) -> dict:
         # (once those in flight would make up the count, time_left counts them as done and said "~0 s left" for
         # most of the count, which then finished the long ones: 62 s at tau = 1e-3 s, a sweep audit; no projection)
         rate = (work - first[0][1]) / (now - first[0][0])
-        left, to = time_left(now - t0, work, k, in_flight, n_excursions, max_time=max_time, rate=rate)
+        left, to = time_left(now - t0, work, k, in_flight, n_excursions, max_time=max_time, max_work=max_work,
+                             rate=rate)
     return dict(n_excursions=k, target=int(n_excursions), in_flight=in_flight,
                 mean_steps=float(S.sum()) / k if k else math.nan, stopping=stopping,
                 elapsed_s=now - t0, left_s=left, left_to=to)
@@ -583,9 +599,12 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
             float64 with a :class:`~dryfric_jax.DryfricWarning`, as :func:`~dryfric_jax.estimate_diffusivity` does.
         max_work: a run whose predicted lane-steps (:func:`~dryfric_jax.limits.check_work`, for the LEs the lanes
             run: :func:`check_duration_run`) exceed it is refused before it starts, as the estimator's
-            (h = 1e-10 s at Fig. 3's point would run ~15 min to its bound, then fail: an audit).  It bounds the
-            prediction only, which can be several times short (at tau = 1e-3 s and a large Gamma: a sweep audit);
-            a count that ran past it says so in a warning, and ``max_time`` bounds its time.
+            (h = 1e-10 s at Fig. 3's point would run ~15 min to its bound, then fail: an audit).  The prediction
+            can be several times short (at tau = 1e-3 s and a large Gamma: a sweep audit), so it also bounds the
+            run, as the estimator's: once the lanes have computed ``max_work`` lane-steps no LE starts, those in
+            flight finish (within ``max_steps``; ``max_time`` bounds the time), and ``stopped_by`` is
+            ``"work_bound"`` (a note says so where the count is short of ``n_excursions``; fewer than 2:
+            :class:`NoCountError`).  Until 0.3.1 it bounded the prediction only.
         bridge: count the crossings of the opposite threshold between two steps of a stuck particle too (module
             docstring; default); ``False`` gives the raw count, whose bias falls only like :math:`\sqrt h`.
         max_time: a time limit in seconds (> 0; None or inf: none), as the estimator's: past it no lane starts a
@@ -655,7 +674,8 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
     with live_progress(progress, _live_text) as progress:  # report() calls the callback this gives
         N, S, Q, off, started, steps, blocks, ended = _run(model, jax.random.split(key, n_lanes), n_excursions,
                                                            max_blocks, block=BLOCK, bridge=bridge, max_time=max_time,
-                                                           t0=t0, progress=None if progress is None else report)
+                                                           t0=t0, progress=None if progress is None else report,
+                                                           max_work=max_work)
     # from here the count is over: a Ctrl-C or SIGTERM is held until its result is formed, then noted in it, as the
     # estimator's (api.estimate_diffusivity), except where a caller keeps finished runs only (abandon_on_interrupt)
     with after_run() as late:
@@ -668,6 +688,10 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
             if ended == "max_time":
                 raise NoCountError(f"max_time = {max_time:g} s is too short here: the {n_lanes} lanes counted {k} long "
                                    "excursions within twice it (at least 2 must); raise max_time")
+            if ended == "work_bound":
+                raise NoCountError(f"max_work = {max_work:.3g} lane-steps is too small here: the {n_lanes} lanes "
+                                   f"counted {k} long excursions by the time they had computed it (at least 2 must); "
+                                   "raise max_work")
             raise NoCountError(f"max_steps = {bound} is too small here: the {n_lanes} lanes counted {k} long excursions "
                                f"within it (at least 2 must); raise max_steps")
         stop_note = None  # what stopped the count short of the rule, if anything
@@ -687,6 +711,11 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
                          f"flight took it to {k} ({n_excursions} asked)")
             stop_note += (f"; {cut} still in flight at twice it are left out, so the mean is biased low" if cut
                           else ", those in flight finished")
+        elif ended == "work_bound" and (k < n_excursions or cut):
+            stop_note = (f"max_work = {max_work:.3g} lane-steps stopped the count at {k} of the {n_excursions} long "
+                         "excursions asked: none started after the lanes had computed it"
+                         + (f"; {cut} still in flight at twice max_time are left out, so the mean is biased low" if cut
+                            else ", those in flight finished"))
         elif cut or k < n_excursions:
             stop_note = (f"the loop's bound max_steps = {bound} stopped {k} of the {n_excursions} long excursions asked"
                          + (f", with {cut} in flight: left out, so the mean is biased low" if cut else "")
@@ -695,13 +724,6 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
             warnings.warn(stop_note, DryfricWarning, stacklevel=2)
             notes.append(stop_note)
         ran = n_lanes * int(blocks) * BLOCK  # lane-steps computed, the idle lanes' included
-        # max_work bounds the prediction only (a sweep audit: 5.4x a max_work of 5e7, without a word)
-        if ran > check_max_work(max_work):
-            predicted = (max(n_excursions, n_lanes) + n_lanes) * predicted_le_steps(params, h)
-            note = (f"the count ran {ran:.3g} lane-steps, past max_work = {max_work:.3g}, which bounds its predicted "
-                    f"work only ({predicted:.3g}, {ran / predicted:.2g}x short here): max_time bounds a count's time")
-            warnings.warn(note, DryfricWarning, stacklevel=2)
-            notes.append(note)
         if k < MIN_RELIABLE_LE:
             note = (f"n_excursions = {k} < {MIN_RELIABLE_LE}: the t CI under-covers at this size (right-skewed "
                     "durations: 0.92-0.93 at ~60 counted, 0.94 from ~160; durations.py)")

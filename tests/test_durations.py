@@ -686,24 +686,46 @@ def test_a_count_whose_excursions_all_last_the_same_says_its_ci_is_none(monkeypa
     assert r.ci > 0 and not any("no interval" in w for w in said)
 
 
-def test_a_count_that_ran_past_max_work_says_so(monkeypatch):
-    """max_work bounds the count's predicted work only; a count that ran past it (the prediction 2-13x short at
-    tau = 1e-3 s, a sweep audit: 5.4x a max_work of 5e7 without a word) says so; one within it says nothing."""
+def test_max_work_stops_the_starts_at_one_block_whatever_the_pieces(monkeypatch):
+    """max_work bounded the count's predicted work only; a count ran past it (the prediction 2-13x short at tau =
+    1e-3 s, a sweep audit: 5.4x a max_work of 5e7 without a word).  Now, as the estimator's work bound, once the
+    lanes have computed it no LE starts and those in flight finish: here (Fig. 3's fastest point, whose LEs are ~1.6x
+    the predicted) a max_work just above the prediction for 4096 stops the count short, said in a note, and none is
+    truncated; its mean agrees with an unbounded count's (another seed) within their CIs; the stop falls at one
+    block whatever the pieces (one block per piece: the same bits); well within the bound, the bits of no bound."""
+    import dataclasses
+
     from dryfric_jax import durations
 
-    def run(blocks):
-        one = np.ones(2, np.int64)
-        monkeypatch.setattr(durations, "_run", lambda *a, **kw: (one * 3, one * np.array([7, 9]), one * 90,
-                                                                 one == 1, one == 1, one * 9, blocks, "n_excursions"))
-        with warnings.catch_warnings(record=True) as said:
-            warnings.simplefilter("always")
-            di_long_excursion_duration(FAST, 5, n_excursions=6, n_lanes=2, max_work=1e9)
-        return [str(w.message) for w in said if "max_work" in str(w.message)]
+    n, lanes = 4096, 256
+    work = 1.01 * (n + lanes) * durations.predicted_le_steps(FAST, durations.default_duration_h(FAST))
+    said = re.escape(f"{work:.3g}")
+    with pytest.warns(dj.DryfricWarning, match=rf"^max_work = {said} lane-steps stopped the count at \d+ of the {n} "
+                                               "long excursions asked: none started after the lanes had computed it, "
+                                               "those in flight finished$"):
+        r = di_long_excursion_duration(FAST, 5, n_excursions=n, max_work=work)
+    assert r.stopped_by == "work_bound" and 1000 < r.n_excursions < n and r.n_truncated == 0 and r.n_lanes == lanes
+    assert r.loop_steps >= work
+    free = di_long_excursion_duration(FAST, 6, n_excursions=n)
+    assert free.stopped_by == "n_excursions" and abs(r.mean - free.mean) < r.ci + free.ci, (r.mean, free.mean)
+    monkeypatch.setattr(durations, "PIECE_S", 1e-9)
+    fields = lambda x: {k: v for k, v in dataclasses.asdict(x).items() if k != "wall_s"}  # noqa: E731
+    assert fields(di_long_excursion_duration(FAST, 5, n_excursions=n, max_work=work)) == fields(r)
+    monkeypatch.undo()
+    small = [di_long_excursion_duration(FAST, 5, n_excursions=64, max_work=w) for w in (1e9, 1e18)]
+    assert small[0].stopped_by == "n_excursions" and fields(small[0]) == fields(small[1])
 
-    assert run(10**6) == []  # 2 lanes x 1e6 blocks x 128 = 2.56e8 lane-steps
-    (said,) = run(10**7)  # 2.56e9
-    assert said.startswith("the count ran 2.56e+09 lane-steps, past max_work = 1e+09, which bounds its predicted "
-                           "work only (") and said.endswith("short here): max_time bounds a count's time")
+
+def test_fewer_than_two_by_max_work_say_so(monkeypatch):
+    """A count that the work bound left with fewer than 2 LEs: a NoCountError naming max_work, not max_steps."""
+    from dryfric_jax import durations
+
+    one = np.ones(2, np.int64)
+    monkeypatch.setattr(durations, "_run", lambda *a, **kw: (one * 0, one * 0, one * 0.0, one == 1, one == 0,
+                                                             one * 9, 4, "work_bound"))
+    with pytest.raises(durations.NoCountError, match=r"^max_work = 1e\+09 lane-steps is too small here: the 2 lanes "
+                                                     r"counted 0 long excursions by the time they had computed it"):
+        di_long_excursion_duration(FAST, 5, n_excursions=6, n_lanes=2, max_work=1e9)
 
 
 def test_the_step_band_variance_is_the_chains_and_band_h_inverts_it():
