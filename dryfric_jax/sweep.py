@@ -393,7 +393,7 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
             ``reason`` where fewer than 2 ended within the bound), and :func:`rows` flattens them (``le_duration``,
             ...).  It is part of a point's identity but not of its D seed: the D is the sweep's without it, and a
             resumed sweep that adds it takes the D of a finished point's record of this version and runs only the
-            count.  The count's predicted work is checked against ``max_work`` with the grid: a point over it
+            count, and a sweep run again without it takes the D of a record with it (any N).  The count's predicted work is checked against ``max_work`` with the grid: a point over it
             refuses the grid, or, with ``skip_refused``, still gets its D, and its count the reason
             ``"durations: ..."`` (counted in ``no_count``; the point was refused whole, its D lost: an audit).
             ``max_time`` bounds the D estimate and the count, each
@@ -554,6 +554,28 @@ def _finished_elsewhere(out: str, ident: str, max_time, read=read_results) -> di
     return rec
 
 
+def _counted_elsewhere(out: str, ident: str, max_time, read=read_results) -> dict | None:
+    """A record of the point ``ident`` (a sweep without durations) made with durations, by any sweep of this version,
+    whose D this sweep would not rerun (not refused, not stopped by a shorter ``max_time``): its D is this point's,
+    whose seed does not depend on them (a sweep run again without ``durations`` estimated every D again)."""
+    seed, canon, _ = json.loads(ident)
+
+    def same_d(rec):
+        if not (rec["sweep_seed"] == seed and all(_canon(rec["params"][k]) == canon[k] for k in PARAM_KEYS)
+                and rec["settings"].get(DURATIONS) is not None):
+            return False
+        return _rec_ident({**rec, "settings": _without_durations(rec["settings"])}) == ident
+
+    with locked(out):
+        recs = read(out)
+    for rec in filter(same_d, recs):
+        old = rec.get("max_time")
+        more = stopped_by(rec) == "max_time" and (max_time is None or (_is_real(old) and max_time > old))
+        if status(rec) != "refused" and not more and not _outdated(rec):
+            return rec
+    return None
+
+
 def _within(point_progress, where: dict, stage: str, d: dict) -> None:
     """``run_sweep``'s ``point_progress`` of a point's D estimate or count (``stage``) at the point ``where``."""
     point_progress({**d, "stage": stage, **where})
@@ -569,9 +591,11 @@ def _compute(out: str, pt: dict, seed: int, settings: dict, max_time, within=Non
     ``reason`` instead of running it."""
     method, h, delta, dtype, n_excursions, rtol, max_work = (settings[k] for k in SETTING_KEYS)
     s = point_seed(seed, pt, settings)
-    # with durations: the D of this point's record without them, if this version finished it (the same seed)
-    base = (_finished_elsewhere(out, _ident(seed, pt, _without_durations(settings)), max_time, read)
-            if settings.get(DURATIONS) is not None else None)
+    # with durations: the D of this point's record without them, if this version finished it (the same seed); without
+    # them, the D of a record with them
+    plain = _ident(seed, pt, _without_durations(settings))
+    base = (_finished_elsewhere(out, plain, max_time, read) if settings.get(DURATIONS) is not None
+            else _counted_elsewhere(out, plain, max_time, read))
     res = None
     try:
         with warnings.catch_warnings():  # the warnings are kept in the record ...

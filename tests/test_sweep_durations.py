@@ -79,6 +79,34 @@ def test_durations_are_the_direct_count_and_leave_the_d_as_it_was(tmp_path, monk
     assert _lines(out)[2]["durations"]["seed"] != recs[0]["durations"]["seed"]
 
 
+def test_a_sweep_run_again_without_durations_takes_the_d_of_a_record_with_them(tmp_path, monkeypatch):
+    """The reverse of adding durations to a finished sweep: run again without them, a sweep takes each point's D from
+    a record with them (this version's; any N), the bits a fresh sweep without them gives; it estimated every D again
+    (stop 94's note).  Not from a record of another version, nor for other settings."""
+    pts = sweep.grid(Gamma=[10.0], tau=[0.125])
+    kw = dict(n_excursions=200, seed=3)
+    out, fresh = str(tmp_path / "s.jsonl"), str(tmp_path / "fresh.jsonl")
+    sweep.run_sweep(pts, out, durations=32, **kw)
+    (counted,) = _lines(out)
+    calls = []
+    real = sweep.estimate_diffusivity
+    monkeypatch.setattr(sweep, "estimate_diffusivity", lambda *a, **k: calls.append(k) or real(*a, **k))
+    assert sweep.run_sweep(pts, out, **kw)["computed"] == 1 and calls == []
+    plain = _lines(out)[1]
+    assert plain["result"] == counted["result"] and "durations" not in plain
+    assert plain["settings"] == {k: v for k, v in counted["settings"].items() if k != "durations"}
+    sweep.run_sweep(pts, fresh, **kw)
+    assert len(calls) == 1 and _lines(fresh)[0]["result"]["sums"] == plain["result"]["sums"]
+    assert plain["seed"] == _lines(fresh)[0]["seed"]
+    sweep.run_sweep(pts, out, **{**kw, "n_excursions": 150})  # other settings: estimated
+    assert len(calls) == 2
+    other = str(tmp_path / "old.jsonl")
+    with open(other, "w") as f:
+        f.write(json.dumps({**counted, "version": "0.0.1"}) + "\n")
+    sweep.run_sweep(pts, other, **kw)  # another version's record: estimated
+    assert len(calls) == 3
+
+
 def test_durations_enter_a_points_identity_but_not_its_d_seed():
     """Without durations a point's identity (and so its seed) is the one sweeps had before the setting existed:
     their files resume as they were."""
