@@ -77,7 +77,7 @@ bias of a few % (0.2.8).  (All +- here are 95% CIs; tau, h nondimensional in the
 \operatorname{Var}(X_{n+1}\mid X_n) = (1 - e^{-2h/\tau})/\tau'` (:func:`step_band_variance`), X's variance over one
 step against the stuck band's half-width squared (nondimensional X: the band is :math:`[-1 - \bar\gamma', 1 -
 \bar\gamma']`), not of tau/h: the mean is about :math:`\mu_0 (1 + c\,q)`, fitted over q <= 0.38
-(``scripts/duration_step_bias.py``; Gamma = Delta = 1, tau_L = inf, gamma_bar = 0, 8 000-21 000 LEs a point, seeds
+(``scripts/duration_step_bias.py``; Gamma = Delta = 1, tau_L = inf, gamma_bar = 0, 4 000-21 000 LEs a point, seeds
 1-3) with c = 0.34 +- 0.09, 0.25 +- 0.09 and 0.31 +- 0.17 at tau' = 0.1, 0.03 and 0.01 (tau/h 53 to 4300), and ~0.35
 at Fig. 3's worst point (+2.0% at q = 0.058).  Were it a function of tau/h, c would fall tenfold from tau' = 0.1 to
 0.01.  At tau' = 0.184 (Gamma = 10, tau = 0.125 s) tau/ :data:`TAU_STEPS` gives q = 0.0155, but q grows like 1/tau'
@@ -88,7 +88,9 @@ point: at tau' = 0.1 and 0.03 it gives 2.41 +- 0.06 and 3.32 +- 0.11 against 2.4
 extrapolated.  Its cost grows like :math:`1/\tau'^2` steps per tau0 (tau/h = 12 900 at tau' = 0.01), and with the
 LEs' growth like :math:`1/\sqrt{\tau'}` the predicted work at the default ``max_work`` refuses the default 2048 LEs
 below tau' ~ 0.004 and 64 below ~1e-3 (naming the step); an h given with q > :data:`WARN_BAND_VARIANCE` is warned
-about.
+about.  An audit (seed 11) agreed: c = 0.35 +- 0.07 at tau' = 0.3, 0.26 +- 0.11 at 0.1 and 0.27 +- 0.10 damped
+(tau' = 0.1, tau_L' = 0.3); beyond q ~ 0.4 the bias grows more slowly than 0.3 q: +22-26% at q = 1 and ~+36% at 1.8
+(tau' = 0.1), +60% at 5 and +115% at 15 (tau' = 0.01).
 
 A V that lands on 0 for one step while passing through it (the force beyond the threshold) is not a release:
 counting those (a first version) ended half excursions early, 15 SE below the PDMP at Gamma = 10, tau = 0.125 s,
@@ -470,8 +472,8 @@ def default_duration_h(params: Params) -> float:
     """The count's default step in seconds: the D estimator's :func:`~dryfric_jax.plan.default_h`,
     :math:`\\tau/` :data:`TAU_STEPS`, or the step whose :func:`step_band_variance` is
     :data:`MAX_BAND_VARIANCE`, whichever is smallest (the bridged count's bias falls like h, and is a function of
-    that variance: module docstring).  The last binds at tau' < 0.184 (tau' = tau Delta^2 / Gamma), where the
-    step's cost grows like 1/tau'^2 in tau0."""
+    that variance: module docstring).  The last binds at tau' < 0.184 (tau' = tau Delta^2 / Gamma) unless the D
+    estimator's step is finer (stiff damping: 0.01 tau_L), and the step's cost then grows like 1/tau'^2 in tau0."""
     return min(default_h(params), params.tau / TAU_STEPS, band_h(params, MAX_BAND_VARIANCE))
 
 
@@ -502,7 +504,8 @@ def le_duration_floor(params: Params) -> float:
     :math:`\tau_L' = 10^{-2}, 10^{-3}` (5.1, 15); 7.0 with :math:`\bar\gamma' = 0.5` at :math:`\tau' = 0.01` (0.70).
     The CIs are +-25-30%.  These steps were coarse for the count below tau' ~ 0.1 (:func:`step_band_variance` q =
     0.29 at tau' = 0.01 and 2.9 at 1e-3, tau/h = 700; the default step now keeps q <= :data:`MAX_BAND_VARIANCE`), so
-    those LEs are long: at tau' = 0.01 5.0-5.1 at q <= 0.07 (``scripts/duration_step_bias.py``), still C = 0.5.
+    those LEs are long: at tau' = 0.01 5.25 +- 0.17 at q = 0.07, 5.11 +- 0.21 extrapolated to q = 0
+    (``scripts/duration_step_bias.py``), still C = 0.5.
     Without the floor the work predicted at :math:`\tau' = 10^{-3}` was 1/30 of what the lanes
     ran (2.1e9 lane-steps, 4.4e9 computed), and the fixed loop bound of 10^8 steps before 2026-12-06 truncated a
     count of 64 there."""
@@ -524,15 +527,18 @@ def check_duration_run(params, h=None, n_excursions: int = 2048, dtype: str = "f
     default = h is None and isinstance(params, Params)  # a non-Params is refused by choose, by name
     if default:
         h = default_duration_h(params)
+    # the step is one of the count's rules (its default, or a sweep's h held to them, sweep.duration_h): named as such
+    ruled = isinstance(params, Params) and isinstance(h, float) and \
+        h in (band_h(params, MAX_BAND_VARIANCE), params.tau / TAU_STEPS)
     try:
         plan = choose(params, "di", h, None, dtype, excursions=True)
-    except ValueError as e:  # the default step refused: say it is tau that is too short, not an h never given
-        if not (default and str(e).startswith("h must")):
+    except ValueError as e:  # the rules' step refused: say it is tau that is too short, not an h never given
+        if not ((default or ruled) and str(e).startswith("h must")):
             raise
-        raise ValueError(f"tau = {params.tau:.3g} s is too short for the long-excursion count: its default step "
-                         f"tau/{params.tau / h:.3g} = {h:.3g} s (durations.default_duration_h) is refused ({e}); it "
-                         "needs a longer tau, or an h given to it "
-                         "('dryfric duration --h'), which it then warns is coarse against tau") from None
+        raise ValueError(f"tau = {params.tau:.3g} s is too short for the long-excursion count: its step "
+                         f"tau/{params.tau / h:.3g} = {h:.3g} s (the rules of durations.default_duration_h) is refused "
+                         f"({e}); it needs a longer tau, or an h given to it ('dryfric duration --h'), which it then "
+                         "warns is coarse") from None
     n_excursions = check_count(name, n_excursions, 2, 2**40, " (long excursions)")
     lanes = default_lanes(n_excursions) if n_lanes is None else check_lanes(n_lanes)
     # as the estimator's layout (2^20 lanes peaked at 4.8 GB here, above that fit's 3.8 GB: stop 91)
@@ -542,11 +548,16 @@ def check_duration_run(params, h=None, n_excursions: int = 2048, dtype: str = "f
         check_work(params.tau_nd, params.tau_L_nd, params.gamma_bar_nd, params.tau0 / plan.h,
                    max(n_excursions, lanes) + lanes, max_work, min_duration=le_duration_floor(params))
     except ValueError as e:
-        step = (f"; its default step tau/{params.tau / plan.h:.3g} keeps X's step variance against the stuck band at "
+        step = (f"; its step tau/{params.tau / plan.h:.3g} keeps X's step variance against the stuck band at "
                 f"q = {MAX_BAND_VARIANCE}, and a coarser h biases the count long, ~30q%"
-                if default and plan.h == band_h(params, MAX_BAND_VARIANCE) else "")
+                if plan.h == band_h(params, MAX_BAND_VARIANCE) else "")
         raise ValueError(f"{e} (here for the {name} long excursions counted in {lanes} lanes, each of which also "
                          f"seeks its first one and finishes the one in flight at the end: lower them{step})") from None
+    le = predicted_le_steps(params, plan.h)
+    if le > MAX_STEPS:  # (a max_work of 1e17 passed one at tau' = 1e-4 whose every LE the loop's bound would cut)
+        raise ValueError(f"the predicted long excursion, {le:.3g} steps of h = {plan.h:.3g} s (a lower estimate), "
+                         f"exceeds the loop's bound of {MAX_STEPS:.3g} steps: no count could end; it needs a "
+                         "longer tau (or a coarser h, which biases it long)")
     return plan
 
 
@@ -654,10 +665,12 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
                  "releases happen at any X and the count of their changes of direction is not the paper's long "
                  "excursion (threshold to threshold); lower h"]
     elif q > WARN_BAND_VARIANCE:
+        bias = (f"~{30 * q:.2g}% (~30q% where q <= 0.4: +9-13% measured at q = 0.38)" if q <= 0.4 else
+                "more than 10% (measured +20-26% at q = 1, ~+36% at 1.8, +60% at 5 and +115% at 15)")
         notes = [f"h = {h:.3g} s is coarse for the count: X moves {math.sqrt(q):.2g} of the stuck band's half-width "
                  f"per step (step variance q = {q:.3g} > {WARN_BAND_VARIANCE}), so releases are found late and the "
-                 f"mean is biased long, by ~{30 * q:.2g}% where q <= 0.4 (measured +9-13% at q = 0.38) and more "
-                 f"beyond; the default step keeps q <= {MAX_BAND_VARIANCE} (durations.step_band_variance)"]
+                 f"mean is biased long, by {bias}; the default step keeps q <= {MAX_BAND_VARIANCE} "
+                 "(durations.step_band_variance)"]
     else:
         notes = []
     notes = plan.notes + notes

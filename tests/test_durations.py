@@ -275,10 +275,29 @@ def test_tau_below_a_few_steps_is_flagged(monkeypatch):
     with pytest.warns(dj.DryfricWarning) as seen:
         di_long_excursion_duration(p, 0, h=p.tau / (2 * MIN_TAU_STEPS), n_lanes=4, n_excursions=2)
     assert not any("decorrelates" in str(w.message) for w in seen)
-    assert any("coarse for the count: X moves 39 of the stuck band's half-width" in str(w.message) for w in seen)
-    with pytest.raises(ValueError, match=r"max_work must be .*lower them; its default step tau/2\.06e\+06 keeps "
+    (said,) = [str(w.message) for w in seen if "coarse for the count" in str(w.message)]
+    # beyond q = 0.4 the measured values, not 30q% (a "~4.6e+04%" overstated it: an audit measured +115% at q = 15)
+    assert "X moves 39 of the stuck band's half-width" in said and "by more than 10% (measured +20-26% at q" in said
+    with pytest.raises(ValueError, match=r"max_work must be .*lower them; its step tau/2\.06e\+06 keeps "
                                          r"X's step variance against the stuck band at q = 0\.0155"):
         di_long_excursion_duration(p, 0, n_lanes=4, n_excursions=2)
+
+
+def test_a_step_held_to_the_counts_rules_is_named_and_an_unending_count_refused(tmp_path):
+    """A sweep's h is held to the count's rules (sweep.duration_h): where that step is refused, the refusal names
+    tau and the count's step, not an h of 2.3e-15 s the user never gave (an audit: 'dryfric sweep --tau 1e-6
+    --durations 64 --h 1e-4').  A count whose predicted LE alone exceeds the loop's bound MAX_STEPS is refused
+    whatever max_work: a max_work of 1e17 passed one at tau' = 1e-4 that no LE could end (an audit)."""
+    from dryfric_jax import durations, sweep
+
+    with pytest.raises(ValueError, match=r"^durations: tau = 1e-06 s is too short for the long-excursion count: its "
+                                         r"step tau/4\.38e\+08 = 2\.29e-15 s \(the rules of "):
+        sweep.run_sweep(sweep.grid(Gamma=[50.0], tau=[1e-6]), str(tmp_path / "s.jsonl"), durations=64, h=1e-4)
+    q = Params.from_nondim(1e-4)
+    assert durations.predicted_le_steps(q, durations.default_duration_h(q)) > durations.MAX_STEPS
+    with pytest.raises(ValueError, match=r"^the predicted long excursion, 3\.23e\+11 steps of h = .* exceeds the "
+                                         r"loop's bound of 2\.75e\+11 steps: no count could end"):
+        durations.check_duration_run(q, None, 64, max_work=1e17)
 
 
 def test_a_run_predicted_beyond_max_work_is_refused_before_it_starts(monkeypatch):
@@ -386,8 +405,8 @@ def test_a_tau_too_short_for_the_default_step_is_named_not_an_h_never_given(monk
 
     monkeypatch.setattr(durations, "_run", lambda *a, **k: pytest.fail("ran"))
     p = Params(**dict(FIG3, tau=1e-11))
-    with pytest.raises(ValueError, match=r"^tau = 1e-11 s is too short for the long-excursion count: its default "
-                                         r"step tau/[0-9.e+]+ = [0-9.e-]+ s \(durations\.default_duration_h\) "
+    with pytest.raises(ValueError, match=r"^tau = 1e-11 s is too short for the long-excursion count: its "
+                                         r"step tau/[0-9.e+]+ = [0-9.e-]+ s \(the rules of durations\.default_duration_h\) "
                                          r"is refused \(h must be in "):
         di_long_excursion_duration(p, 0)
     with pytest.raises(ValueError, match=r"^h must be in "):
@@ -777,7 +796,7 @@ def test_a_step_that_moves_x_across_the_band_makes_the_count_long_and_is_said(re
 
     p = Params(1.0, 1.0, 0.1)
     with pytest.warns(dj.DryfricWarning, match=r"coarse for the count: X moves 0\.62 of the stuck band's half-width"
-                                               r" per step \(step variance q = 0\.38 > 0\.06\).* ~11% where q <= 0\.4"):
+                                               r" per step \(step variance q = 0\.38 > 0\.06\).* by ~11% \(~30q% where q <= 0\.4"):
         coarse = di_long_excursion_duration(p, 1, h=band_h(p, 0.38), n_excursions=16384)
     recwarn.clear()
     fine = di_long_excursion_duration(p, 2, n_excursions=8192)
