@@ -115,17 +115,40 @@ def live_progress(progress, draw):
         return
     kind = where()
     line = StatusLine(kind)
-    shown = warnings.showwarning
-
-    def show_warning(*args, **kw):
-        line.close()
-        shown(*args, **kw)
-
     if kind == "terminal":
-        warnings.showwarning = show_warning
+        _clearing_warnings(line, True)
     try:
         yield (lambda d: line.show(*draw(d))) if kind else None
     finally:
-        if warnings.showwarning is show_warning:  # not where the block set its own (it restores it itself)
-            warnings.showwarning = shown
+        if kind == "terminal":
+            _clearing_warnings(line, False)
         line.close()
+
+
+#: the terminal lines drawn now, and the ``warnings.showwarning`` found when the first of them began
+_LINES: list = []
+_SHOWN: list = [None]
+
+
+def _show_warning(*args, **kw):
+    """``warnings.showwarning`` while terminal lines are drawn: clear them, then show the warning as before."""
+    for line in list(_LINES):
+        line.close()
+    _SHOWN[0](*args, **kw)
+
+
+def _clearing_warnings(line: StatusLine, on: bool) -> None:
+    """Register (``on``) or drop a terminal line that a warning clears first: the first sets
+    ``warnings.showwarning`` (:func:`_show_warning`), the last puts back the one it found, unless another was set
+    meanwhile (``logging.captureWarnings``).  Lines that nest or overlap in any order (threads) leave it as found; a
+    patch per block left its own behind where blocks ended out of order (an audit)."""
+    if on:
+        if not _LINES:
+            _SHOWN[0] = warnings.showwarning
+            warnings.showwarning = _show_warning
+        _LINES.append(line)
+        return
+    if line in _LINES:
+        _LINES.remove(line)
+    if not _LINES and warnings.showwarning is _show_warning:
+        warnings.showwarning = _SHOWN[0]

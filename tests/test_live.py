@@ -151,6 +151,15 @@ def test_on_a_terminal_a_warning_starts_on_a_clean_row(monkeypatch, capsys):
         assert warnings.showwarning is own
     assert capsys.readouterr().err == ("ProjectionWarning: early\n\rhalf\x1b[K\r\x1b[KProjectionWarning: careful\n"
                                        "\ragain\x1b[K\r\x1b[K")
+    with warnings.catch_warnings():  # blocks that end out of order (threads) leave showwarning as found (an audit)
+        own = warnings.showwarning = lambda *a, **k: None
+        one, two = live.live_progress(True, lambda d: (d, "")), live.live_progress(True, lambda d: (d, ""))
+        one.__enter__()
+        two.__enter__()
+        one.__exit__(None, None, None)
+        assert warnings.showwarning is not own  # a line is still drawn
+        two.__exit__(None, None, None)
+        assert warnings.showwarning is own
 
 
 def test_elsewhere_nothing_is_shown_or_computed(monkeypatch, capsys):
