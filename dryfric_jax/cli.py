@@ -975,9 +975,10 @@ def _sweep(a) -> int:
         return 1
     if out["no_count"]:
         print(f"dryfric: error: {_points(out['no_count'])} got D but no mean long-excursion duration (fewer than 2 "
-              "long excursions ended within the count's loop bound, or its planner refused the count); their "
-              f"reasons are in {a.out} (durations, reason), and a rerun skips them: 'dryfric duration' at such a "
-              "point with a larger --max-steps counts those the bound ended", file=sys.stderr)
+              "long excursions ended within the count's loop bound or --max-work, or its planner refused the count: "
+              f"predicted work over --max-work); their reasons are in {a.out} (durations, reason), and a rerun skips "
+              "them: 'dryfric duration' at such a point with a larger --max-steps or --max-work counts them (or a "
+              "smaller --durations, where the planner refused)", file=sys.stderr)
         return 1
     if out["truncated"] and not a.allow_truncated:
         print(f"dryfric: warning: {_points(out['truncated'])} with truncated excursions: their results are biased "
