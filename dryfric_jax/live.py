@@ -12,6 +12,7 @@ from __future__ import annotations
 import contextlib
 import os
 import sys
+import threading
 import warnings
 
 
@@ -125,9 +126,10 @@ def live_progress(progress, draw):
         line.close()
 
 
-#: the terminal lines drawn now, and the ``warnings.showwarning`` found when the first of them began
+#: the terminal lines drawn now, the ``warnings.showwarning`` found when the first of them began, and a lock for both
 _LINES: list = []
 _SHOWN: list = [None]
+_LOCK = threading.Lock()
 
 
 def _show_warning(*args, **kw):
@@ -141,14 +143,17 @@ def _clearing_warnings(line: StatusLine, on: bool) -> None:
     """Register (``on``) or drop a terminal line that a warning clears first: the first sets
     ``warnings.showwarning`` (:func:`_show_warning`), the last puts back the one it found, unless another was set
     meanwhile (``logging.captureWarnings``).  Lines that nest or overlap in any order (threads) leave it as found; a
-    patch per block left its own behind where blocks ended out of order (an audit)."""
-    if on:
-        if not _LINES:
-            _SHOWN[0] = warnings.showwarning
-            warnings.showwarning = _show_warning
-        _LINES.append(line)
-        return
-    if line in _LINES:
-        _LINES.remove(line)
-    if not _LINES and warnings.showwarning is _show_warning:
-        warnings.showwarning = _SHOWN[0]
+    patch per block left its own behind where blocks ended out of order (an audit).  It never saves itself as the
+    one found (a ``catch_warnings`` that put it back after its lines ended: each warning then recursed)."""
+    with _LOCK:
+        if on:
+            if not _LINES:
+                if warnings.showwarning is not _show_warning:
+                    _SHOWN[0] = warnings.showwarning
+                warnings.showwarning = _show_warning
+            _LINES.append(line)
+            return
+        if line in _LINES:
+            _LINES.remove(line)
+        if not _LINES and warnings.showwarning is _show_warning:
+            warnings.showwarning = _SHOWN[0]

@@ -160,6 +160,14 @@ def test_on_a_terminal_a_warning_starts_on_a_clean_row(monkeypatch, capsys):
         assert warnings.showwarning is not own  # a line is still drawn
         two.__exit__(None, None, None)
         assert warnings.showwarning is own
+        with live.live_progress(True, lambda d: (d, "")) as show:  # a catch_warnings that outlives the line puts
+            inner = warnings.catch_warnings()  # the line's showwarning back: a later line must not recurse
+            inner.__enter__()
+        inner.__exit__(None, None, None)
+        with live.live_progress(True, lambda d: (d, "")) as show:
+            show("x")
+            warnings.warn("after", dj.ProjectionWarning)  # was a RecursionError (an audit)
+        assert warnings.showwarning is own
 
 
 def test_elsewhere_nothing_is_shown_or_computed(monkeypatch, capsys):
