@@ -320,9 +320,9 @@ def build_parser() -> argparse.ArgumentParser:
                     help="bound on the loop's steps (default: planned from the predicted excursion, at least 1e8); "
                          "an excursion in flight there is left out and counted (the mean is then biased low: exit 3)")
     du.add_argument("--max-work", type=_number("max-work"), default=None,
-                    help="cap on the lane-steps of the run (default 1e11): a run predicted to need more is refused "
-                         "before it starts, and once the lanes have computed it no excursion starts (those in flight "
-                         "finish)")
+                    help="bound on the lane-steps (default 1e11): a run predicted to need more is refused before it "
+                         "starts, and once the lanes have computed it no excursion starts (those in flight finish, "
+                         "which can take the run several times past it: a note says so)")
     du.add_argument("--out", default=None, help="also write the JSON result to this file (atomically)")
     du.add_argument("--allow-truncated", action="store_true",
                     help="exit 0 even when lanes hit --max-steps (the mean is biased low; exit 3 otherwise)")
@@ -975,10 +975,10 @@ def _sweep(a) -> int:
         return 1
     if out["no_count"]:
         print(f"dryfric: error: {_points(out['no_count'])} got D but no mean long-excursion duration (fewer than 2 "
-              "long excursions ended within the count's loop bound or --max-work, or its planner refused the count: "
-              f"predicted work over --max-work); their reasons are in {a.out} (durations, reason), and a rerun skips "
-              "them: 'dryfric duration' at such a point with a larger --max-steps or --max-work counts them (or a "
-              "smaller --durations, where the planner refused)", file=sys.stderr)
+              "long excursions ended within the count's loop bound or --max-work, or its planner refused the count); "
+              f"their reasons are in {a.out} (durations, reason), and a rerun skips them: 'dryfric duration' at such "
+              "a point counts them where the reason allows (a larger --max-steps or --max-work, fewer excursions)",
+              file=sys.stderr)
         return 1
     if out["truncated"] and not a.allow_truncated:
         print(f"dryfric: warning: {_points(out['truncated'])} with truncated excursions: their results are biased "

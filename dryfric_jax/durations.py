@@ -237,14 +237,14 @@ def _lane_blocks(model, keys, b, stop, carry, n_excursions, b_end, block: int, b
     """The lanes' loop (module docstring) from block ``b`` up to ``b_end`` or until every lane has stopped: returns
     the block reached, the rule's flag and the state (:func:`_lane_start`).  ``b`` and ``stop`` are given and
     returned per lane (the same in every lane), so that every argument and output is split over the lanes.
-    ``stop`` (no lane starts an LE) is raised by the rule, once the lanes' total reaches ``n_excursions``, or by
-    the host (``max_time``); a lane with none started then stops at once.  The loop run in pieces gives the bits
-    of one run (tested).  ``bridge``: also count the crossings of the opposite threshold that X makes between two
-    steps of a stuck particle (module docstring), with a uniform per step independent of the step's normals
-    (:func:`~dryfric_jax.rng.normals_and_spare`: their spare bits in float32, one more hash in float64).  With
-    ``n_dev`` > 1 this runs as one shard of the lanes (:func:`_run`): the rule's total and the loop's condition
-    are summed over the devices (``psum`` over the mesh axis ``"lanes"``), so every device runs the same blocks
-    and the rule is the one-device rule."""
+    ``stop`` (no lane starts an LE) is raised by the rule, once the lanes' total reaches ``n_excursions``, or by the
+    host (``max_time``, ``max_work``, a Ctrl-C); a lane with none started then stops at once.  The loop run in
+    pieces gives the bits of one run (tested).  ``bridge``: also count the crossings of the opposite threshold that
+    X makes between two steps of a stuck particle (module docstring), with a uniform per step independent of the
+    step's normals (:func:`~dryfric_jax.rng.normals_and_spare`: their spare bits in float32, one more hash in
+    float64).  With ``n_dev`` > 1 this runs as one shard of the lanes (:func:`_run`): the rule's total and the
+    loop's condition are summed over the devices (``psum`` over the mesh axis ``"lanes"``), so every device runs the
+    same blocks and the rule is the one-device rule."""
     dt = model.h.dtype
     lanes = keys.shape[0]
 
@@ -310,9 +310,9 @@ def _run(model, keys, n_excursions: int, max_blocks: int, block: int = BLOCK, br
     its steps; then the blocks run and what ended the loop (``"n_excursions"``: every lane stopped by the rule;
     ``"max_steps"``: the bound; ``"max_time"``: the limit stopped the starts; :data:`RULE_THEN_MAX_TIME`: the rule
     did, and twice the limit cut those in flight; ``"work_bound"``: the lanes' lane-steps computed reached
-    ``max_work`` and stopped the starts, as the estimator's work bound does (those in flight finish, within the
-    loop's bound; from the first block whose end has the ``keys``' lanes past ``max_work`` lane-steps, a piece ending
-    there, so that the bits do not depend on the pieces' timing); ``"interrupted"``: a Ctrl-C, SIGTERM under
+    ``max_work`` and stopped the starts (those in flight finish, within the loop's bound; from the first block whose
+    end has the ``keys``' lanes past ``max_work`` lane-steps, a piece ending there, so that the bits do not depend
+    on the pieces' timing); ``"interrupted"``: a Ctrl-C, SIGTERM under
     ``dryfric``).
 
     The lanes are padded to a multiple of the devices with lanes that count nothing.  The numbers are those of one
@@ -346,7 +346,7 @@ def _run(model, keys, n_excursions: int, max_blocks: int, block: int = BLOCK, br
         int(min(max(math.ceil(max_work / (n * block)), 1), max_blocks))
     while True:
         try:
-            t = time.perf_counter()
+            t, before = time.perf_counter(), done
             end = min(done + chunk, max_blocks, b_work if done < b_work else max_blocks)  # a piece ends there
             b, stop, carry = over_lanes(_lane_blocks, (model, keys, b, stop, carry, jnp.int64(n_excursions),
                                                        jnp.int32(end)),
@@ -374,8 +374,10 @@ def _run(model, keys, n_excursions: int, max_blocks: int, block: int = BLOCK, br
                 if not bool(stop[0]):  # the limit stops the starts; where the rule already had, the count ends as
                     ended = "max_time"  # the rule's (it said "max_time stopped the count at 119 of the 64 asked")
                 stop = jnp.ones_like(stop)
-            # the next piece ~PIECE_S long (at most 64x the last: a first piece of compile time says nothing)
-            chunk = int(min(max(chunk * PIECE_S / max(now - t, 1e-6), 1), 64 * chunk, 1 << 24))
+            # the next piece ~PIECE_S long (at most 64x the last: a first piece of compile time says nothing), from
+            # the blocks the last ran (one cut short at max_work's block made the next 1.2 s long: an audit)
+            ran = max(done - before, 1)
+            chunk = int(min(max(ran * PIECE_S / max(now - t, 1e-6), 1), 64 * ran, 1 << 24))
         except KeyboardInterrupt:
             # the piece it stopped is lost, the state before it is whole (the arrays are not changed in place)
             if _ABANDON[0]:  # a caller that keeps finished runs only (a sweep's point, a figure's run)
@@ -396,15 +398,15 @@ def _run(model, keys, n_excursions: int, max_blocks: int, block: int = BLOCK, br
 
 
 def _progress(carry, n_excursions, stopping, t0, first, max_time, computed, max_work=None) -> dict:
-    """What a ``progress`` callback of :func:`di_long_excursion_duration` gets after a piece of the loop (there
-    with ``mean_s``, in seconds, for ``mean_steps``): the LEs counted so far (``n_excursions``) of the ``target``,
-    those ``in_flight``, the ``mean_steps`` of those counted (nan before the first; it is the final mean only at
-    the end, as the long ones finish last), ``stopping`` (no LE starts any more: the rule, ``max_time`` or a
+    """What a ``progress`` callback of :func:`di_long_excursion_duration` gets after a piece of the loop (there with
+    ``mean_s``, in seconds, for ``mean_steps``): the LEs counted so far (``n_excursions``) of the ``target``, those
+    ``in_flight``, the ``mean_steps`` of those counted (nan before the first; it is the final mean only at the end,
+    as the long ones finish last), ``stopping`` (no LE starts any more: the rule, ``max_time``, ``max_work`` or a
     Ctrl-C), ``elapsed_s``, and the projected ``left_s`` with the limit that ends the run first, ``left_to``
     (:func:`~dryfric_jax.api.time_left`: ``"n_excursions"``, ``"max_time"`` or ``"max_work"``; both None before a
     projection, once those counted and in flight make up the target, and once stopping: the LEs in flight then end
-    when they end).  The work is the lanes' ``computed`` lane-steps, as ``max_work`` counts them (before the stop
-    every lane runs).  The rate is that of the pieces after the first, whose time holds the compilation; ``first``
+    when they end). The work is the lanes' ``computed`` lane-steps, as ``max_work`` counts them (before the stop
+    every lane runs). The rate is that of the pieces after the first, whose time holds the compilation; ``first``
     holds its (time, lane-steps) between calls."""
     now = time.perf_counter()
     N, S, ph, off = (np.asarray(a) for a in (carry[8], carry[9], carry[4], carry[7]))
@@ -513,7 +515,8 @@ def le_duration_floor(params: Params) -> float:
 
 
 def check_duration_run(params, h=None, n_excursions: int = 2048, dtype: str = "float64",
-                       max_work: float = MAX_WORK, name: str = "n_excursions", n_lanes: int | None = None):
+                       max_work: float = MAX_WORK, name: str = "n_excursions", n_lanes: int | None = None,
+                       ruled: bool = False):
     """The checks :func:`di_long_excursion_duration` makes before it runs anything, for a sweep to refuse a point
     before its grid runs: the estimator's (:func:`~dryfric_jax.plan.choose`: a stationary state, a simulable tau_L,
     h, the dtype), ``n_excursions`` in [2, 2^40] and the predicted work within ``max_work``
@@ -523,13 +526,11 @@ def check_duration_run(params, h=None, n_excursions: int = 2048, dtype: str = "f
     of the estimator's predicted duration or :func:`le_duration_floor`, whichever is longer.
     Returns the plan (its ``h``, default :func:`default_duration_h`, and ``dtype``, float32 only where safe);
     ``ValueError`` naming the argument otherwise (``n_excursions`` as ``name``: a sweep's setting is
-    ``durations``)."""
+    ``durations``).  ``ruled``: ``h`` is a sweep's held to the count's rules (:func:`~dryfric_jax.sweep.duration_h`),
+    named as the count's step where it is refused, as the default is."""
     default = h is None and isinstance(params, Params)  # a non-Params is refused by choose, by name
     if default:
         h = default_duration_h(params)
-    # the step is one of the count's rules (its default, or a sweep's h held to them, sweep.duration_h): named as such
-    ruled = isinstance(params, Params) and isinstance(h, float) and \
-        h in (band_h(params, MAX_BAND_VARIANCE), params.tau / TAU_STEPS)
     try:
         plan = choose(params, "di", h, None, dtype, excursions=True)
     except ValueError as e:  # the rules' step refused: say it is tau that is too short, not an h never given
@@ -551,8 +552,9 @@ def check_duration_run(params, h=None, n_excursions: int = 2048, dtype: str = "f
         step = (f"; its step tau/{params.tau / plan.h:.3g} keeps X's step variance against the stuck band at "
                 f"q = {MAX_BAND_VARIANCE}, and a coarser h biases the count long, ~30q%"
                 if plan.h == band_h(params, MAX_BAND_VARIANCE) else "")
-        raise ValueError(f"{e} (here for the {name} long excursions counted in {lanes} lanes, each of which also "
-                         f"seeks its first one and finishes the one in flight at the end: lower them{step})") from None
+        raise ValueError(f"{e} (here for the {n_excursions} long excursions ({name}) counted in {lanes} lanes, each "
+                         "of which also seeks its first one and finishes the one in flight at the end: lower them"
+                         f"{step})") from None
     le = predicted_le_steps(params, plan.h)
     if le > MAX_STEPS:  # (a max_work of 1e17 passed one at tau' = 1e-4 whose every LE the loop's bound would cut)
         raise ValueError(f"the predicted long excursion, {le:.3g} steps of h = {plan.h:.3g} s (a lower estimate), "
@@ -612,10 +614,12 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
             run: :func:`check_duration_run`) exceed it is refused before it starts, as the estimator's
             (h = 1e-10 s at Fig. 3's point would run ~15 min to its bound, then fail: an audit).  The prediction
             can be several times short (at tau = 1e-3 s and a large Gamma: a sweep audit), so it also bounds the
-            run, as the estimator's: once the lanes have computed ``max_work`` lane-steps no LE starts, those in
-            flight finish (within ``max_steps``; ``max_time`` bounds the time), and ``stopped_by`` is
-            ``"work_bound"`` (a note says so where the count is short of ``n_excursions``; fewer than 2:
-            :class:`NoCountError`).  Until 0.3.1 it bounded the prediction only.
+            starts: once the lanes have computed ``max_work`` lane-steps no LE starts, and ``stopped_by`` is
+            ``"work_bound"`` (a note says so; fewer than 2: :class:`NoCountError`).  Those in flight then finish,
+            bounded by ``max_steps`` only (``max_time`` bounds the time), which can take the run several times past
+            it (3-10x in an audit): a note says so.  (The estimator also caps each excursion at ~max_work / lanes
+            steps; dropping an LE in flight would bias the mean low.)  Until 0.3.1 it bounded the prediction
+            only.
         bridge: count the crossings of the opposite threshold between two steps of a stuck particle too (module
             docstring; default); ``False`` gives the raw count, whose bias falls only like :math:`\sqrt h`.
         max_time: a time limit in seconds (> 0; None or inf: none), as the estimator's: past it no lane starts a
@@ -641,7 +645,8 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
 
     ``ValueError`` naming the argument, also where the estimator refuses the parameters (tau_L = inf with
     :math:`|\bar\gamma| \ge \Delta`: the particle runs away; it gave a number here, 9 of 32 lanes truncated);
-    :class:`NoCountError` (a ``ValueError``) where fewer than 2 were counted within ``max_steps`` or ``max_time``;
+    :class:`NoCountError` (a ``ValueError``) where fewer than 2 were counted within ``max_steps``, ``max_time`` or
+    ``max_work``;
     the result's ``n_truncated`` counts the LEs in flight at ``max_steps`` (dropped, with a warning).
     """
     t0 = time.perf_counter()
@@ -724,11 +729,13 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
                          f"flight took it to {k} ({n_excursions} asked)")
             stop_note += (f"; {cut} still in flight at twice it are left out, so the mean is biased low" if cut
                           else ", those in flight finished")
-        elif ended == "work_bound" and (k < n_excursions or cut):
+        elif ended == "work_bound":  # as max_time's: also where those in flight took the count past N
             stop_note = (f"max_work = {max_work:.3g} lane-steps stopped the count at {k} of the {n_excursions} long "
-                         "excursions asked: none started after the lanes had computed it"
-                         + (f"; {cut} still in flight at twice max_time are left out, so the mean is biased low" if cut
-                            else ", those in flight finished"))
+                         "excursions asked: none started after the lanes had computed it" if k < n_excursions else
+                         f"max_work = {max_work:.3g} lane-steps stopped the count: none started after the lanes had "
+                         f"computed it, and those then in flight took it to {k} ({n_excursions} asked)")
+            stop_note += (f"; {cut} still in flight at twice max_time are left out, so the mean is biased low" if cut
+                          else ", those in flight finished")
         elif cut or k < n_excursions:
             stop_note = (f"the loop's bound max_steps = {bound} stopped {k} of the {n_excursions} long excursions asked"
                          + (f", with {cut} in flight: left out, so the mean is biased low" if cut else "")
@@ -737,6 +744,12 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
             warnings.warn(stop_note, DryfricWarning, stacklevel=2)
             notes.append(stop_note)
         ran = n_lanes * int(blocks) * BLOCK  # lane-steps computed, the idle lanes' included
+        if ran > max_work:  # those in flight finish past it, unbounded but by max_steps (an audit: 3-10x): said
+            note = (f"the count ran {ran:.3g} lane-steps, {ran / max_work:.2g}x max_work = {max_work:.3g}: no long "
+                    "excursion started after the lanes had computed it, and those then in flight finished; max_time "
+                    "bounds a count's time")
+            warnings.warn(note, DryfricWarning, stacklevel=2)
+            notes.append(note)
         if k < MIN_RELIABLE_LE:
             note = (f"n_excursions = {k} < {MIN_RELIABLE_LE}: the t CI under-covers at this size (right-skewed "
                     "durations: 0.92-0.93 at ~60 counted, 0.94 from ~160; durations.py)")

@@ -393,9 +393,10 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
             ``reason`` where fewer than 2 ended within the bound), and :func:`rows` flattens them (``le_duration``,
             ...).  It is part of a point's identity but not of its D seed: the D is the sweep's without it, and a
             resumed sweep that adds it takes the D of a finished point's record of this version and runs only the
-            count, and a sweep run again without it takes the D of a record with it (any N).  The count's predicted work is checked against ``max_work`` with the grid: a point over it
-            refuses the grid, or, with ``skip_refused``, still gets its D, and its count the reason
-            ``"durations: ..."`` (counted in ``no_count``; the point was refused whole, its D lost: an audit).
+            count, and a sweep run again without it takes the D of a record with it (any N).  The count's predicted
+            work is checked against ``max_work`` with the grid: a point over it refuses the grid, or, with
+            ``skip_refused``, still gets its D, and its count the reason ``"durations: ..."`` (counted in
+            ``no_count``; the point was refused whole, its D lost: an audit).
             ``max_time`` bounds the D estimate and the count, each
             (:func:`~dryfric_jax.di_long_excursion_duration`'s ``max_time``); a count it stopped makes the point
             one that a resumed sweep with more time reruns.
@@ -408,8 +409,9 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
     Returns:
         ``dict(computed=k, skipped=s, total=n, duplicates=d, interrupted=bool, refused=r, failed=f,
         truncated=t, time_limited=m, no_count=c, kept_d=e)``: n distinct points (d more entries repeat one of them:
-        a point listed twice runs once; -0.0 is 0.0), k run now (``"ok"`` or ``"failed"``), s found in the
-        file (``"ok"`` or ``"failed"``, not rerun); r, f, t and m count the grid's points now recorded as
+        a point listed twice runs once; -0.0 is 0.0), k run now (``"ok"`` or ``"failed"``; also a point written now
+        whose D was taken from its record with or without durations, not estimated again), s found in the file
+        (``"ok"`` or ``"failed"``, not rerun); r, f, t and m count the grid's points now recorded as
         refused, failed, ``"ok"`` with truncated excursions (a result biased low), or stopped by
         ``max_time`` (``"ok"`` short of N or rtol, or ``"failed"``); ``truncated`` also counts a point whose
         long-excursion count left some out; c counts the ``"ok"`` points whose count (``durations``) ended
@@ -451,8 +453,9 @@ def run_sweep(points: list[dict], out: str, *, seed: int = 0, method: str = "di"
             continue
         if durations is not None:
             try:
-                check_duration_run(p, None if h is None else duration_h(p, h), settings[DURATIONS], dtype, max_work,
-                                   name="durations")
+                dh = None if h is None else duration_h(p, h)
+                check_duration_run(p, dh, settings[DURATIONS], dtype, max_work, name="durations",
+                                   ruled=dh is not None and dh < h)
             except ValueError as e:
                 if skip_refused:
                     count_refused.setdefault(_ident(seed, pt, settings), f"durations: {e}")
@@ -558,20 +561,15 @@ def _counted_elsewhere(out: str, ident: str, max_time, read=read_results) -> dic
     """A record of the point ``ident`` (a sweep without durations) made with durations, by any sweep of this version,
     whose D this sweep would not rerun (not refused, not stopped by a shorter ``max_time``): its D is this point's,
     whose seed does not depend on them (a sweep run again without ``durations`` estimated every D again)."""
-    seed, canon, _ = json.loads(ident)
-
-    def same_d(rec):
-        if not (rec["sweep_seed"] == seed and all(_canon(rec["params"][k]) == canon[k] for k in PARAM_KEYS)
-                and rec["settings"].get(DURATIONS) is not None):
-            return False
-        return _rec_ident({**rec, "settings": _without_durations(rec["settings"])}) == ident
-
+    of_point = _of_point(ident)
     with locked(out):
         recs = read(out)
-    for rec in filter(same_d, recs):
-        old = rec.get("max_time")
-        more = stopped_by(rec) == "max_time" and (max_time is None or (_is_real(old) and max_time > old))
-        if status(rec) != "refused" and not more and not _outdated(rec):
+    for rec in recs:
+        settings = rec["settings"]
+        if settings.get(DURATIONS) is None or not of_point({**rec, "settings": _without_durations(settings)}):
+            continue
+        # (its count's max_time does not matter here: the D's only)
+        if status(rec) != "refused" and not _more_time({**rec, DURATIONS: None}, max_time) and not _outdated(rec):
             return rec
     return None
 
@@ -657,8 +655,8 @@ def _durations(pt: dict, seed: int, settings: dict, cycle_s, max_time=None, prog
     """A point's long-excursion count (``run_sweep(durations=N)``) as its record keeps it: the
     :class:`~dryfric_jax.LEDuration`'s fields but ``params``, or ``{"reason": ...}`` where fewer than 2 ended within
     the loop's bound, planned from the D estimate's mean cycle ``cycle_s`` (s; where it is not a number > 0, from the
-    predicted LE: :func:`~dryfric_jax.durations.default_max_steps`), or within ``max_time`` (then with
-    ``stopped_by = "max_time"``).  ``progress``: the count's."""
+    predicted LE: :func:`~dryfric_jax.durations.default_max_steps`), by ``max_work`` (the sweep's), or within
+    ``max_time`` (then with ``stopped_by = "max_time"``).  ``progress``: the count's."""
     p = Params(**pt)
     h = duration_h(p, settings["h"])
     n = settings[DURATIONS]
@@ -669,7 +667,7 @@ def _durations(pt: dict, seed: int, settings: dict, cycle_s, max_time=None, prog
         d = di_long_excursion_duration(p, duration_seed(seed, pt, settings), h=h, n_excursions=n,
                                        max_steps=max_steps, dtype=settings["dtype"], max_work=settings["max_work"],
                                        max_time=max_time, progress=progress)
-    except NoCountError as e:  # fewer than 2 within the bound or max_time (an error of point_progress goes on up)
+    except NoCountError as e:  # fewer than 2 within the bound, max_work or max_time (point_progress's error goes up)
         return dict(reason=str(e), max_steps=max_steps,
                     **({"stopped_by": "max_time"} if str(e).startswith("max_time") else {}))
     out = d.to_dict()

@@ -307,8 +307,8 @@ def test_a_run_predicted_beyond_max_work_is_refused_before_it_starts(monkeypatch
 
     monkeypatch.setattr(durations, "_run", lambda *a, **k: pytest.fail("ran"))
     p = Params(**FIG3)
-    with pytest.raises(ValueError, match=r"max_work must be >= .* \(here for the n_excursions long excursions "
-                                         r"counted in 256 lanes, each of which also seeks"):
+    with pytest.raises(ValueError, match=r"max_work must be >= .* \(here for the 2048 long excursions "
+                                         r"\(n_excursions\) counted in 256 lanes, each of which also seeks"):
         di_long_excursion_duration(p, 0, h=1e-10)
     with pytest.raises(ValueError, match="max_work must be a finite number"):
         di_long_excursion_duration(p, 0, max_work=float("nan"))
@@ -405,9 +405,9 @@ def test_a_tau_too_short_for_the_default_step_is_named_not_an_h_never_given(monk
 
     monkeypatch.setattr(durations, "_run", lambda *a, **k: pytest.fail("ran"))
     p = Params(**dict(FIG3, tau=1e-11))
-    with pytest.raises(ValueError, match=r"^tau = 1e-11 s is too short for the long-excursion count: its "
-                                         r"step tau/[0-9.e+]+ = [0-9.e-]+ s \(the rules of durations\.default_duration_h\) "
-                                         r"is refused \(h must be in "):
+    with pytest.raises(ValueError, match=r"^tau = 1e-11 s is too short for the long-excursion count: its step "
+                                         r"tau/[0-9.e+]+ = [0-9.e-]+ s \(the rules of "
+                                         r"durations\.default_duration_h\) is refused \(h must be in "):
         di_long_excursion_duration(p, 0)
     with pytest.raises(ValueError, match=r"^h must be in "):
         di_long_excursion_duration(p, 0, h=1e-15)
@@ -796,7 +796,8 @@ def test_a_step_that_moves_x_across_the_band_makes_the_count_long_and_is_said(re
 
     p = Params(1.0, 1.0, 0.1)
     with pytest.warns(dj.DryfricWarning, match=r"coarse for the count: X moves 0\.62 of the stuck band's half-width"
-                                               r" per step \(step variance q = 0\.38 > 0\.06\).* by ~11% \(~30q% where q <= 0\.4"):
+                                               r" per step \(step variance q = 0\.38 > 0\.06\).* by ~11% "
+                                               r"\(~30q% where q <= 0\.4"):
         coarse = di_long_excursion_duration(p, 1, h=band_h(p, 0.38), n_excursions=16384)
     recwarn.clear()
     fine = di_long_excursion_duration(p, 2, n_excursions=8192)

@@ -133,8 +133,8 @@ def test_a_point_whose_count_is_over_max_work_is_refused_with_the_grid(tmp_path)
     with pytest.raises(ValueError) as direct:
         dj.durations.check_duration_run(p, sweep.duration_h(p, None), 2048, "float64", 1e9, name="durations")
     why = str(direct.value)
-    assert why.endswith("(here for the durations long excursions counted in 256 lanes, each of which also seeks its "
-                        "first one and finishes the one in flight at the end: lower them)")
+    assert why.endswith("(here for the 2048 long excursions (durations) counted in 256 lanes, each of which also "
+                        "seeks its first one and finishes the one in flight at the end: lower them)")
     assert float(re.match(r"^max_work must be >= ([0-9.e+]+) steps ", why).group(1)) > 1e9
     with pytest.raises(ValueError, match=r"^durations: " + re.escape(why) + r" \[at sweep point .*Nothing was run"):
         sweep.run_sweep(pts, out, **kw)
