@@ -721,19 +721,15 @@ def di_long_excursion_duration(params, key, h: float | None = None, n_excursions
             stop_note = (f"max_time = {max_time:g} s: at twice it {cut} long excursions still in flight, after the rule "
                          f"had stopped the starts ({k} counted of the {n_excursions} asked), are left out, so the mean "
                          "is biased low")
-        elif ended == "max_time" and (k < n_excursions or cut):  # (not "257 of the 200 asked": an audit)
-            # those in flight may take it past the count asked: not "at 47 of the 32 asked" (a sweep audit)
-            stop_note = (f"max_time = {max_time:g} s stopped the count at {k} of the {n_excursions} long excursions "
-                         "asked: none started after it" if k < n_excursions else
-                         f"max_time = {max_time:g} s stopped the count: none started after it, and those then in "
-                         f"flight took it to {k} ({n_excursions} asked)")
-            stop_note += (f"; {cut} still in flight at twice it are left out, so the mean is biased low" if cut
-                          else ", those in flight finished")
-        elif ended == "work_bound":  # as max_time's: also where those in flight took the count past N
-            stop_note = (f"max_work = {max_work:.3g} lane-steps stopped the count at {k} of the {n_excursions} long "
-                         "excursions asked: none started after the lanes had computed it" if k < n_excursions else
-                         f"max_work = {max_work:.3g} lane-steps stopped the count: none started after the lanes had "
-                         f"computed it, and those then in flight took it to {k} ({n_excursions} asked)")
+        elif (ended == "max_time" and (k < n_excursions or cut)) or ended == "work_bound":
+            # (not "257 of the 200 asked": an audit); those in flight may take it past the count asked: not "at 47 of
+            # the 32 asked" (a sweep audit); max_work's said also there (a review: a whole count read as cut short)
+            limit, after = ((f"max_time = {max_time:g} s", "it") if ended == "max_time" else
+                            (f"max_work = {max_work:.3g} lane-steps", "the lanes had computed it"))
+            stop_note = (f"{limit} stopped the count at {k} of the {n_excursions} long excursions asked: none started "
+                         f"after {after}" if k < n_excursions else
+                         f"{limit} stopped the count: none started after {after}, and those then in flight took it to "
+                         f"{k} ({n_excursions} asked)")
             stop_note += (f"; {cut} still in flight at twice max_time are left out, so the mean is biased low" if cut
                           else ", those in flight finished")
         elif cut or k < n_excursions:

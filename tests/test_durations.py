@@ -574,7 +574,7 @@ def test_max_time_stops_new_excursions_then_cuts_at_twice_it(monkeypatch):
     # a count of another seed stopped by its number (dropping those in flight at the limit instead: -32%)
     ref = di_long_excursion_duration(FAST, 6, n_excursions=2048)
     assert abs(a.mean - ref.mean) < 3 / 1.96 * math.hypot(a.ci, ref.ci), (a.mean, a.ci, a.n_excursions, ref.mean)
-    with pytest.warns(dj.DryfricWarning, match=r"still in flight at twice it are left out, so the mean is biased"):
+    with pytest.warns(dj.DryfricWarning, match=r"still in flight at twice max_time are left out, so the mean is biased"):
         b = di_long_excursion_duration(FAST, 5, max_time=0.04, **kw)
     assert b.stopped_by == "max_time" and b.n_truncated > 0 and b.n_excursions < a.n_excursions
     with pytest.raises(ValueError, match=r"^max_time = 0\.0002 s is too short here: the 8 lanes counted [01] long "):
