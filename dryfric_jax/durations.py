@@ -476,7 +476,14 @@ def default_duration_h(params: Params) -> float:
     :data:`MAX_BAND_VARIANCE`, whichever is smallest (the bridged count's bias falls like h, and is a function of
     that variance: module docstring).  The last binds at tau' < 0.184 (tau' = tau Delta^2 / Gamma) unless the D
     estimator's step is finer (stiff damping: 0.01 tau_L), and the step's cost then grows like 1/tau'^2 in tau0."""
-    return min(default_h(params), params.tau / TAU_STEPS, band_h(params, MAX_BAND_VARIANCE))
+    return min(default_h(params), finest_rules_h(params))
+
+
+def finest_rules_h(params: Params) -> float:
+    """The count's own bound on its step (s), whatever step is asked of it by default or by a sweep
+    (:func:`~dryfric_jax.sweep.duration_h`): :math:`\\tau/` :data:`TAU_STEPS` or the step whose
+    :func:`step_band_variance` is :data:`MAX_BAND_VARIANCE`, whichever is smaller."""
+    return min(params.tau / TAU_STEPS, band_h(params, MAX_BAND_VARIANCE))
 
 
 def default_lanes(n_excursions: int) -> int:

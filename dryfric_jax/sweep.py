@@ -76,8 +76,8 @@ from ._version import __version__
 from .api import (DryfricWarning, NoEstimateError, ProjectionWarning, check_progress, check_seed, duration_text,
                   estimate_diffusivity, progress_text, status_line, terminal_columns)
 from .combine import bad_sums, has_sums
-from .durations import (MAX_BAND_VARIANCE, TAU_STEPS, NoCountError, band_h, check_duration_run, default_duration_h,
-                        default_max_steps, di_long_excursion_duration, max_steps_for)
+from .durations import (NoCountError, check_duration_run, default_duration_h, default_max_steps,
+                        di_long_excursion_duration, finest_rules_h, max_steps_for)
 from .limits import MAX_WORK
 from .live import live_progress
 from .outfiles import (ReadCache, check_writable, claim, drop_claims_dir, dumps, locked, put_record, read_records,
@@ -170,7 +170,7 @@ def duration_h(params: Params, h) -> float:
     if h is None:
         return default_duration_h(params)
     check_positive("h", h)
-    return min(float(h), params.tau / TAU_STEPS, band_h(params, MAX_BAND_VARIANCE))
+    return min(float(h), finest_rules_h(params))
 
 
 def _is_real(x) -> bool:
